@@ -1,0 +1,158 @@
+//! Diagnostics: what went wrong in a source, where, and how to fix it.
+//!
+//! The library builds plain [`Diagnostic`] values (a code, a message, labelled spans,
+//! a hint); [`render`] draws them rustc-style through miette with no colour at a
+//! fixed width, so the output is the same on every terminal and in snapshots.
+
+use super::ast::Span;
+use miette::{GraphicalReportHandler, GraphicalTheme, LabeledSpan, NamedSource, SourceCode};
+use std::fmt;
+
+/// One labelled place in the source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Label {
+    pub span: Span,
+    pub text: String,
+}
+
+/// An error found in a source text.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Diagnostic {
+    /// A stable code, e.g. `cso::unknown-name`.
+    pub code: &'static str,
+    /// One line: what is wrong.
+    pub message: String,
+    /// The first label is the primary one (where the error is).
+    pub labels: Vec<Label>,
+    /// How to fix it, when we know.
+    pub help: Option<String>,
+    /// The text the spans point into when it is not the file itself (a `--set` value).
+    pub origin: Option<(String, String)>,
+}
+
+impl Diagnostic {
+    pub fn new(code: &'static str, message: impl Into<String>) -> Self {
+        Diagnostic {
+            code,
+            message: message.into(),
+            labels: Vec::new(),
+            help: None,
+            origin: None,
+        }
+    }
+
+    /// Adds a labelled span (the first one added is the primary one).
+    pub fn label(mut self, span: Span, text: impl Into<String>) -> Self {
+        self.labels.push(Label {
+            span,
+            text: text.into(),
+        });
+        self
+    }
+
+    pub fn help(mut self, help: impl Into<String>) -> Self {
+        self.help = Some(help.into());
+        self
+    }
+
+    /// The diagnostic's spans point into `text`, shown under `name`.
+    pub fn in_origin(mut self, name: impl Into<String>, text: impl Into<String>) -> Self {
+        self.origin = Some((name.into(), text.into()));
+        self
+    }
+
+    /// Where the diagnostic is (for sorting), or 0.
+    pub fn offset(&self) -> usize {
+        if self.origin.is_some() {
+            return 0;
+        }
+        self.labels.first().map_or(0, |l| l.span.start)
+    }
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.message)
+    }
+}
+
+impl std::error::Error for Diagnostic {}
+
+/// A diagnostic tied to the source it points into, as miette wants it.
+struct WithSource<'a> {
+    diag: &'a Diagnostic,
+    source: NamedSource<String>,
+}
+
+impl fmt::Debug for WithSource<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        fmt::Debug::fmt(self.diag, f)
+    }
+}
+
+impl fmt::Display for WithSource<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.diag.message)
+    }
+}
+
+impl std::error::Error for WithSource<'_> {}
+
+impl miette::Diagnostic for WithSource<'_> {
+    fn code<'b>(&'b self) -> Option<Box<dyn fmt::Display + 'b>> {
+        Some(Box::new(self.diag.code))
+    }
+
+    fn help<'b>(&'b self) -> Option<Box<dyn fmt::Display + 'b>> {
+        self.diag
+            .help
+            .as_ref()
+            .map(|h| Box::new(h) as Box<dyn fmt::Display>)
+    }
+
+    fn source_code(&self) -> Option<&dyn SourceCode> {
+        Some(&self.source)
+    }
+
+    fn labels(&self) -> Option<Box<dyn Iterator<Item = LabeledSpan> + '_>> {
+        let len = self.source.inner().len();
+        let labels = self.diag.labels.iter().enumerate().map(move |(i, l)| {
+            let start = l.span.start.min(len);
+            let end = l.span.end.clamp(start, len);
+            let text = (!l.text.is_empty()).then(|| l.text.clone());
+            if i == 0 {
+                LabeledSpan::new_primary_with_span(text, (start, end - start))
+            } else {
+                LabeledSpan::new_with_span(text, (start, end - start))
+            }
+        });
+        Some(Box::new(labels))
+    }
+}
+
+/// Width of rendered diagnostics, fixed so that output is the same everywhere.
+pub const RENDER_WIDTH: usize = 100;
+
+/// Renders diagnostics of the source `text` named `name`, rustc-style, no colour.
+pub fn render(diags: &[Diagnostic], name: &str, text: &str) -> String {
+    let handler = GraphicalReportHandler::new_themed(GraphicalTheme::unicode_nocolor())
+        .with_width(RENDER_WIDTH)
+        .with_links(false);
+    let mut out = String::new();
+    for diag in diags {
+        let source = match &diag.origin {
+            Some((n, t)) => NamedSource::new(n.clone(), t.clone()),
+            None => NamedSource::new(name.to_string(), text.to_string()),
+        };
+        let wrapped = WithSource { diag, source };
+        // Writing to a String cannot fail; a formatter error would only drop this one.
+        let _ = handler.render_report(&mut out, &wrapped);
+    }
+    out
+}
+
+/// Sorts diagnostics by position (overrides first) and drops exact repeats.
+pub fn sort(diags: &mut Vec<Diagnostic>) {
+    diags.sort_by_key(|d| d.offset());
+    diags.dedup();
+}

@@ -1,0 +1,649 @@
+//! Text to syntax tree: the pest grammar in `grammar/cso.pest`, then a walk over
+//! its pairs into [`ast`](super::ast) nodes with spans.
+//!
+//! Items are parsed one at a time so that one syntax error does not hide the next:
+//! after an error the parser skips to the next line that starts an item outside any
+//! braces and goes on.
+
+use super::ast::*;
+use super::diag::Diagnostic;
+use pest::error::{ErrorVariant, InputLocation};
+use pest::iterators::Pair;
+use pest::Parser;
+
+#[derive(pest_derive::Parser)]
+#[grammar = "../grammar/cso.pest"]
+struct CsoParser;
+
+/// The words that start a top-level item.
+pub const ITEM_KEYWORDS: &[&str] = &[
+    "scene",
+    "let",
+    "material",
+    "body",
+    "obstacle",
+    "design",
+    "fix",
+    "displace",
+    "symmetry",
+    "traction",
+    "pressure",
+    "gravity",
+    "glue",
+    "contact",
+    "probe",
+    "minimize",
+    "subject",
+    "solver",
+    "sensitivity",
+    "optimize",
+];
+
+/// Parses a whole file. Returns the items that parsed and a diagnostic for each
+/// syntax error.
+pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
+    let mut file = File::default();
+    let mut diags = Vec::new();
+    let mut pos = skip_blank(src, 0);
+    while pos < src.len() {
+        match CsoParser::parse(Rule::item, &src[pos..]) {
+            Ok(mut pairs) => match pairs.next() {
+                Some(pair) => {
+                    let end = pos + pair.as_span().end();
+                    file.items.push(item(pair, pos));
+                    pos = skip_blank(src, end.max(pos + 1));
+                }
+                None => break,
+            },
+            Err(err) => {
+                diags.push(syntax_error(src, pos, &err));
+                pos = resync(src, pos);
+            }
+        }
+    }
+    (file, diags)
+}
+
+/// Parses a lone expression (the value of `--set NAME=VALUE`).
+pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
+    let start = skip_blank(src, 0);
+    let parsed = CsoParser::parse(Rule::expr, &src[start..]);
+    match parsed {
+        Ok(mut pairs) => match pairs.next() {
+            Some(pair) => {
+                let end = start + pair.as_span().end();
+                let rest = skip_blank(src, end);
+                if rest < src.len() {
+                    let (found, span) = found_at(src, rest);
+                    return Err(Diagnostic::new(
+                        "cso::syntax",
+                        format!("unexpected {found} after the value"),
+                    )
+                    .label(span, "the value should end here"));
+                }
+                Ok(expr(pair, start))
+            }
+            None => Err(Diagnostic::new("cso::syntax", "expected a value")
+                .label(Span::new(0, src.len()), "")),
+        },
+        Err(err) => Err(syntax_error(src, start, &err)),
+    }
+}
+
+/// Skips blanks and comments.
+fn skip_blank(src: &str, mut pos: usize) -> usize {
+    let bytes = src.as_bytes();
+    while pos < bytes.len() {
+        match bytes[pos] {
+            b' ' | b'\t' | b'\r' | b'\n' => pos += 1,
+            b'#' => {
+                while pos < bytes.len() && bytes[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            _ => break,
+        }
+    }
+    pos
+}
+
+/// After a syntax error in the item starting at `start`: the next line that begins
+/// with an item keyword while no brace opened since `start` is still open.
+fn resync(src: &str, start: usize) -> usize {
+    let bytes = src.as_bytes();
+    let mut depth: i64 = 0;
+    let mut pos = start;
+    let mut line_start = false;
+    while pos < bytes.len() {
+        let b = bytes[pos];
+        if line_start && depth <= 0 {
+            let word_end = src[pos..]
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .map_or(src.len(), |n| pos + n);
+            if ITEM_KEYWORDS.contains(&&src[pos..word_end]) {
+                return pos;
+            }
+        }
+        match b {
+            b'#' => {
+                while pos < bytes.len() && bytes[pos] != b'\n' {
+                    pos += 1;
+                }
+                continue;
+            }
+            b'{' => depth += 1,
+            b'}' => depth -= 1,
+            b'"' => {
+                pos += 1;
+                while pos < bytes.len() && bytes[pos] != b'"' && bytes[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            _ => {}
+        }
+        if b == b'\n' {
+            line_start = true;
+        } else if !(b == b' ' || b == b'\t' || b == b'\r') {
+            line_start = false;
+        }
+        pos += 1;
+        if line_start {
+            pos = skip_spaces(src, pos);
+        }
+    }
+    src.len()
+}
+
+fn skip_spaces(src: &str, mut pos: usize) -> usize {
+    let bytes = src.as_bytes();
+    while pos < bytes.len() && (bytes[pos] == b' ' || bytes[pos] == b'\t' || bytes[pos] == b'\r')
+    {
+        pos += 1;
+    }
+    pos
+}
+
+/// What stands at `pos`, for "found ..." in a message, and its span.
+fn found_at(src: &str, pos: usize) -> (String, Span) {
+    let rest = &src[pos.min(src.len())..];
+    let Some(c) = rest.chars().next() else {
+        return ("end of file".to_string(), Span::new(src.len(), src.len()));
+    };
+    if c.is_ascii_alphanumeric() || c == '_' {
+        let n = rest
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '.'))
+            .unwrap_or(rest.len());
+        let word = rest[..n].trim_end_matches('.');
+        let kind = if c.is_ascii_digit() {
+            "number"
+        } else {
+            "name"
+        };
+        (format!("{kind} `{word}`"), Span::new(pos, pos + word.len()))
+    } else if c == '\n' || c == '\r' {
+        ("end of line".to_string(), Span::new(pos, pos))
+    } else {
+        let two: String = rest.chars().take(2).collect();
+        let tok = if ["..", "<=", ">=", "==", "!=", "&&", "||"].contains(&two.as_str()) {
+            two
+        } else {
+            c.to_string()
+        };
+        (format!("`{tok}`"), Span::new(pos, pos + tok.len()))
+    }
+}
+
+/// How a rule reads in "expected ..." (None: not worth mentioning).
+fn rule_name(rule: Rule) -> Option<&'static str> {
+    Some(match rule {
+        Rule::item
+        | Rule::let_item
+        | Rule::gravity_item
+        | Rule::subject_item
+        | Rule::minimize_item
+        | Rule::condition_item
+        | Rule::block_item
+        | Rule::block_kw
+        | Rule::condition_kw
+        | Rule::kw_let
+        | Rule::kw_gravity
+        | Rule::kw_subject
+        | Rule::kw_minimize => "an item (`scene`, `let`, `material`, `body`, `fix`, `contact`, ...)",
+        Rule::kw_to => "`to`",
+        Rule::ident => "a name",
+        Rule::assign => "`=`",
+        Rule::block_body | Rule::lbrace => "`{`",
+        Rule::rbrace => "`}`",
+        Rule::field => "a field `NAME = VALUE`",
+        Rule::value | Rule::range | Rule::grid => "a value",
+        Rule::expr
+        | Rule::or_expr
+        | Rule::and_expr
+        | Rule::cmp_expr
+        | Rule::add_expr
+        | Rule::mul_expr
+        | Rule::unary_expr
+        | Rule::pow_expr
+        | Rule::postfix_expr
+        | Rule::paren_or_vector
+        | Rule::list
+        | Rule::quantity
+        | Rule::number
+        | Rule::string => "an expression",
+        Rule::op_or
+        | Rule::op_and
+        | Rule::op_cmp
+        | Rule::op_add
+        | Rule::op_sub
+        | Rule::op_mul
+        | Rule::op_div
+        | Rule::op_pow
+        | Rule::op_neg
+        | Rule::op_not => "an operator",
+        Rule::member | Rule::dot => "`.`",
+        Rule::index | Rule::lbracket => "`[`",
+        Rule::call_args | Rule::lparen => "`(`",
+        Rule::rparen => "`)`",
+        Rule::rbracket => "`]`",
+        Rule::comma => "`,`",
+        Rule::dotdot => "`..`",
+        Rule::grid_x => "`x`",
+        Rule::unit | Rule::unit_term | Rule::unit_name => "a unit",
+        Rule::unit_power => "an integer power",
+        Rule::unit_op => "`*` or `/`",
+        Rule::string_inner => "the rest of the string",
+        _ => return None,
+    })
+}
+
+fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Diagnostic {
+    let at = offset
+        + match err.location {
+            InputLocation::Pos(p) => p,
+            InputLocation::Span((s, _)) => s,
+        };
+    let (found, span) = found_at(src, at);
+    let mut expected: Vec<&str> = match &err.variant {
+        ErrorVariant::ParsingError { positives, .. } => {
+            positives.iter().filter_map(|r| rule_name(*r)).collect()
+        }
+        ErrorVariant::CustomError { .. } => Vec::new(),
+    };
+    // Operators are always possible after an expression; list them last, once.
+    expected.sort_by_key(|e| (e.starts_with("an operator"), *e));
+    expected.dedup();
+    let what = match expected.len() {
+        0 => "unexpected input".to_string(),
+        1 => format!("expected {}", expected[0]),
+        n => format!(
+            "expected {} or {}",
+            expected[..n - 1].join(", "),
+            expected[n - 1]
+        ),
+    };
+    let mut diag = Diagnostic::new("cso::syntax", format!("{what}, found {found}"))
+        .label(span, format!("expected {}", short_expected(&expected)));
+    if let Some(hint) = syntax_hint(src, at, &expected) {
+        diag = diag.help(hint);
+    }
+    diag
+}
+
+fn short_expected(expected: &[&str]) -> String {
+    match expected.first() {
+        Some(first) if expected.len() == 1 => first.to_string(),
+        Some(first) => format!("{first} or ..."),
+        None => "something else".to_string(),
+    }
+}
+
+/// A hint for the syntax errors people make most.
+fn syntax_hint(src: &str, at: usize, expected: &[&str]) -> Option<String> {
+    let rest = &src[at.min(src.len())..];
+    if rest.starts_with(':') {
+        return Some("fields are written `NAME = VALUE`, not `NAME: VALUE`".into());
+    }
+    if rest.starts_with(';') {
+        return Some("separate fields with `,` or a newline; `;` is not used".into());
+    }
+    if rest.starts_with("**") {
+        return Some("powers are written `a^b`".into());
+    }
+    if rest.is_empty() && expected.contains(&"`}`") {
+        return Some("a block opened with `{` was not closed".into());
+    }
+    if rest.starts_with('"') {
+        return Some("a string must end with `\"` on the same line".into());
+    }
+    None
+}
+
+// ---------------------------------------------------------------- pairs to AST
+
+fn span_of(pair: &Pair<Rule>, offset: usize) -> Span {
+    let s = pair.as_span();
+    Span::new(offset + s.start(), offset + s.end())
+}
+
+fn ident(pair: Pair<Rule>, offset: usize) -> Ident {
+    Ident {
+        span: span_of(&pair, offset),
+        name: pair.as_str().to_string(),
+    }
+}
+
+/// Is this pair punctuation that carries no meaning once parsed?
+fn is_punct(rule: Rule) -> bool {
+    matches!(
+        rule,
+        Rule::lbrace
+            | Rule::rbrace
+            | Rule::lparen
+            | Rule::rparen
+            | Rule::lbracket
+            | Rule::rbracket
+            | Rule::comma
+            | Rule::dotdot
+            | Rule::dot
+            | Rule::assign
+            | Rule::grid_x
+            | Rule::kw_to
+    )
+}
+
+fn inner(pair: Pair<Rule>) -> impl Iterator<Item = Pair<Rule>> {
+    pair.into_inner().filter(|p| !is_punct(p.as_rule()))
+}
+
+fn item(pair: Pair<Rule>, offset: usize) -> Item {
+    // `item` wraps exactly one alternative.
+    let span = span_of(&pair, offset);
+    let alt = match pair.into_inner().next() {
+        Some(p) => p,
+        None => unreachable_item(),
+    };
+    let rule = alt.as_rule();
+    let mut parts = inner(alt);
+    let kind = match rule {
+        Rule::let_item => {
+            let _kw = parts.next();
+            let name = ident(next(&mut parts), offset);
+            let value = expr(next(&mut parts), offset);
+            ItemKind::Let { name, value }
+        }
+        Rule::gravity_item => {
+            let _kw = parts.next();
+            ItemKind::Gravity {
+                value: expr(next(&mut parts), offset),
+            }
+        }
+        Rule::minimize_item => {
+            let _kw = parts.next();
+            ItemKind::Minimize {
+                expr: expr(next(&mut parts), offset),
+            }
+        }
+        Rule::subject_item => {
+            let _kw = parts.next();
+            ItemKind::SubjectTo {
+                expr: expr(next(&mut parts), offset),
+            }
+        }
+        Rule::condition_item => {
+            let keyword = ident(next(&mut parts), offset);
+            let selection = expr(next(&mut parts), offset);
+            let mut fields = None;
+            let mut value = None;
+            for p in parts {
+                match p.as_rule() {
+                    Rule::block_body => fields = Some(block(p, offset)),
+                    _ => value = Some(expr(p, offset)),
+                }
+            }
+            ItemKind::Condition {
+                keyword,
+                selection,
+                fields,
+                value,
+            }
+        }
+        _ => {
+            let keyword = ident(next(&mut parts), offset);
+            let mut name = None;
+            let mut size = None;
+            let mut body = Block {
+                fields: Vec::new(),
+                span,
+            };
+            for p in parts {
+                match p.as_rule() {
+                    Rule::ident => name = Some(ident(p, offset)),
+                    Rule::expr => size = Some(expr(p, offset)),
+                    _ => body = block(p, offset),
+                }
+            }
+            ItemKind::Block {
+                keyword,
+                name,
+                size,
+                body,
+            }
+        }
+    };
+    Item { kind, span }
+}
+
+/// The grammar guarantees the shape of every pair we walk; this is only reached if
+/// the grammar and this walk disagree, which the tests would show.
+#[cold]
+fn unreachable_item() -> ! {
+    unreachable!("grammar and syntax-tree walk disagree")
+}
+
+fn next<'a>(parts: &mut impl Iterator<Item = Pair<'a, Rule>>) -> Pair<'a, Rule> {
+    match parts.next() {
+        Some(p) => p,
+        None => unreachable_item(),
+    }
+}
+
+fn block(pair: Pair<Rule>, offset: usize) -> Block {
+    let span = span_of(&pair, offset);
+    let fields = inner(pair)
+        .map(|f| {
+            let span = span_of(&f, offset);
+            let mut parts = inner(f);
+            let name = ident(next(&mut parts), offset);
+            let value = parts.next().map(|v| value(v, offset));
+            Field { name, value, span }
+        })
+        .collect();
+    Block { fields, span }
+}
+
+fn value(pair: Pair<Rule>, offset: usize) -> Value {
+    let v = next(&mut pair.into_inner());
+    match v.as_rule() {
+        Rule::range => {
+            let mut parts = inner(v);
+            let a = expr(next(&mut parts), offset);
+            let b = expr(next(&mut parts), offset);
+            Value::Range(a, b)
+        }
+        Rule::grid => Value::Grid(inner(v).map(|p| atom(p, offset)).collect()),
+        _ => Value::Expr(expr(v, offset)),
+    }
+}
+
+fn expr(pair: Pair<Rule>, offset: usize) -> Expr {
+    let span = span_of(&pair, offset);
+    match pair.as_rule() {
+        Rule::expr => expr(next(&mut pair.into_inner()), offset),
+        Rule::or_expr | Rule::and_expr | Rule::cmp_expr | Rule::add_expr | Rule::mul_expr => {
+            let mut parts = pair.into_inner();
+            let mut lhs = expr(next(&mut parts), offset);
+            while let Some(op) = parts.next() {
+                let rhs = expr(next(&mut parts), offset);
+                let op = binop(op.as_str());
+                let span = lhs.span.to(rhs.span);
+                lhs = Expr {
+                    kind: ExprKind::Binary(op, Box::new(lhs), Box::new(rhs)),
+                    span,
+                };
+            }
+            lhs
+        }
+        Rule::unary_expr => {
+            let parts: Vec<_> = pair.into_inner().collect();
+            let (last, ops) = match parts.split_last() {
+                Some(x) => x,
+                None => unreachable_item(),
+            };
+            let mut e = expr(last.clone(), offset);
+            for op in ops.iter().rev() {
+                let op_span = span_of(op, offset);
+                let un = if op.as_rule() == Rule::op_not {
+                    UnOp::Not
+                } else {
+                    UnOp::Neg
+                };
+                let span = op_span.to(e.span);
+                e = Expr {
+                    kind: ExprKind::Unary(un, Box::new(e)),
+                    span,
+                };
+            }
+            e
+        }
+        Rule::pow_expr => {
+            let mut parts = pair.into_inner();
+            let base = expr(next(&mut parts), offset);
+            match parts.next() {
+                Some(_op) => {
+                    let exp = expr(next(&mut parts), offset);
+                    Expr {
+                        kind: ExprKind::Binary(BinOp::Pow, Box::new(base), Box::new(exp)),
+                        span,
+                    }
+                }
+                None => base,
+            }
+        }
+        Rule::postfix_expr => {
+            let mut parts = pair.into_inner();
+            let mut e = atom(next(&mut parts), offset);
+            for post in parts {
+                let end = span_of(&post, offset);
+                let span = e.span.to(end);
+                let kind = match post.as_rule() {
+                    Rule::member => ExprKind::Member {
+                        base: Box::new(e),
+                        name: ident(next(&mut inner(post)), offset),
+                    },
+                    Rule::index => ExprKind::Index {
+                        base: Box::new(e),
+                        index: Box::new(expr(next(&mut inner(post)), offset)),
+                    },
+                    _ => ExprKind::Call {
+                        func: Box::new(e),
+                        args: inner(post).map(|a| expr(a, offset)).collect(),
+                    },
+                };
+                e = Expr { kind, span };
+            }
+            e
+        }
+        _ => atom(pair, offset),
+    }
+}
+
+fn atom(pair: Pair<Rule>, offset: usize) -> Expr {
+    let span = span_of(&pair, offset);
+    let kind = match pair.as_rule() {
+        Rule::quantity => {
+            let mut parts = pair.into_inner();
+            let num = next(&mut parts);
+            let value = num.as_str().parse::<f64>().unwrap_or(f64::NAN);
+            let unit = parts.next().map(|u| unit(u, offset));
+            ExprKind::Number { value, unit }
+        }
+        Rule::number => ExprKind::Number {
+            value: pair.as_str().parse::<f64>().unwrap_or(f64::NAN),
+            unit: None,
+        },
+        Rule::ident => ExprKind::Name(pair.as_str().to_string()),
+        Rule::string => ExprKind::Str(
+            pair.into_inner()
+                .next()
+                .map_or(String::new(), |p| p.as_str().to_string()),
+        ),
+        Rule::paren_or_vector => {
+            let mut items: Vec<Expr> = inner(pair).map(|p| expr(p, offset)).collect();
+            // `(e)` is a parenthesised expression; two or more entries make a vector.
+            if items.len() == 1 {
+                let mut e = items.remove(0);
+                e.span = span;
+                return e;
+            }
+            ExprKind::Vector(items)
+        }
+        Rule::list => ExprKind::List(inner(pair).map(|p| expr(p, offset)).collect()),
+        _ => return expr(pair, offset),
+    };
+    Expr { kind, span }
+}
+
+fn unit(pair: Pair<Rule>, offset: usize) -> UnitExpr {
+    let span = span_of(&pair, offset);
+    let mut factors = Vec::new();
+    let mut sign = 1;
+    for p in pair.into_inner() {
+        match p.as_rule() {
+            Rule::unit_op => sign = if p.as_str() == "/" { -1 } else { 1 },
+            Rule::unit_term => {
+                let mut parts = p.into_inner();
+                let name = next(&mut parts).as_str().to_string();
+                let power = parts
+                    .next()
+                    .map_or(1, |q| q.as_str().parse::<i32>().unwrap_or(i32::MAX));
+                factors.push((name, sign * power));
+            }
+            _ => {}
+        }
+    }
+    UnitExpr { factors, span }
+}
+
+fn binop(s: &str) -> BinOp {
+    match s {
+        "+" => BinOp::Add,
+        "-" => BinOp::Sub,
+        "*" => BinOp::Mul,
+        "/" => BinOp::Div,
+        "^" => BinOp::Pow,
+        "<" => BinOp::Lt,
+        "<=" => BinOp::Le,
+        ">" => BinOp::Gt,
+        ">=" => BinOp::Ge,
+        "==" => BinOp::Eq,
+        "!=" => BinOp::Ne,
+        "&&" => BinOp::And,
+        _ => BinOp::Or,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn examples_parse() {
+        for entry in std::fs::read_dir("examples").unwrap() {
+            let path = entry.unwrap().path();
+            let src = std::fs::read_to_string(&path).unwrap();
+            let (file, diags) = parse_file(&src);
+            assert!(diags.is_empty(), "{}: {:?}", path.display(), diags);
+            assert!(!file.items.is_empty());
+        }
+    }
+}
