@@ -1,1 +1,135 @@
-fn main() {}
+//! The `cso` command: a thin shell over the library.
+
+use clap::{Parser, Subcommand};
+use cso::io::summary::{plural, summarize};
+use cso::lang::{compile, diag, CheckOptions};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+const EXAMPLES: &str = "\
+Examples:
+  cso check examples/*.cso                 check scenes, report every error
+  cso compile examples/hertz2d.cso         print the checked scene
+  cso compile examples/hertz2d.cso --json  the same as JSON
+  cso --set P=3MN/m compile examples/hertz2d.cso
+                                           override `let P` (checked like the source)";
+
+/// cso: compiler and solver for contact shape optimization (Total FETI).
+#[derive(Parser, Debug)]
+#[command(name = "cso", version, about, after_help = EXAMPLES)]
+struct Cli {
+    /// Override a `let` constant of the scene: NAME=VALUE (units allowed, e.g. P=3MN/m).
+    #[arg(long = "set", value_name = "NAME=VALUE", global = true, value_parser = parse_set)]
+    set: Vec<(String, String)>,
+
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Parse and check scenes; report every error with its place and a fix.
+    Check {
+        /// `.cso` files to check.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+    },
+    /// Check a scene and print what the compiler understood.
+    Compile {
+        /// The `.cso` file.
+        file: PathBuf,
+        /// Print JSON instead of text.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+fn parse_set(s: &str) -> Result<(String, String), String> {
+    match s.split_once('=') {
+        Some((n, v)) if !n.trim().is_empty() && !v.trim().is_empty() => {
+            Ok((n.trim().to_string(), v.trim().to_string()))
+        }
+        _ => Err(format!("expected NAME=VALUE, found `{s}`")),
+    }
+}
+
+/// Exit codes: 0 success, 1 errors in a scene, 2 I/O or usage errors.
+const EXIT_SCENE: u8 = 1;
+const EXIT_IO: u8 = 2;
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let opts = CheckOptions {
+        overrides: cli.set.clone(),
+        memory_limit: Some(cso::machine_memory_limit()),
+    };
+    match &cli.command {
+        Command::Check { files } => {
+            let mut worst = 0;
+            for file in files {
+                let code = match load(file, &opts) {
+                    Ok(scene) => {
+                        let s = summarize(&scene);
+                        println!(
+                            "ok {}: scene `{}` ({}), {}, {}, {} primal unknowns",
+                            file.display(),
+                            scene.name,
+                            if s.dim == cso::lang::scene::Dimension::Two {
+                                "2D"
+                            } else {
+                                "3D"
+                            },
+                            plural(s.totals.bodies, "body", "bodies"),
+                            plural(s.totals.subdomains, "subdomain", "subdomains"),
+                            s.totals.primal_dofs
+                        );
+                        0
+                    }
+                    Err(code) => code,
+                };
+                worst = worst.max(code);
+            }
+            ExitCode::from(worst)
+        }
+        Command::Compile { file, json } => match load(file, &opts) {
+            Ok(scene) => {
+                let summary = summarize(&scene);
+                if *json {
+                    match serde_json::to_string_pretty(&summary) {
+                        Ok(s) => println!("{s}"),
+                        Err(e) => {
+                            eprintln!("error: cannot write JSON: {e}");
+                            return ExitCode::from(EXIT_IO);
+                        }
+                    }
+                } else {
+                    print!("{summary}");
+                }
+                ExitCode::SUCCESS
+            }
+            Err(code) => ExitCode::from(code),
+        },
+    }
+}
+
+/// Reads and checks one file; prints diagnostics and returns the exit code on failure.
+fn load(path: &Path, opts: &CheckOptions) -> Result<cso::lang::Scene, u8> {
+    let src = match std::fs::read_to_string(path) {
+        Ok(s) => s,
+        Err(e) => {
+            eprintln!("error: cannot read {}: {e}", path.display());
+            return Err(EXIT_IO);
+        }
+    };
+    compile(&src, opts).map_err(|diags| {
+        let name = path.display().to_string();
+        eprint!("{}", diag::render(&diags, &name, &src));
+        let n = diags.len();
+        eprintln!(
+            "error: {} has {n} error{}",
+            name,
+            if n == 1 { "" } else { "s" }
+        );
+        EXIT_SCENE
+    })
+}

@@ -42,6 +42,9 @@ pub struct Ident {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct File {
     pub items: Vec<Item>,
+    /// Names given by items that failed to parse (`body punch {` with a syntax error
+    /// inside): the checker does not call them unknown where they are used.
+    pub broken_names: Vec<String>,
 }
 
 /// One top-level item.
@@ -125,17 +128,29 @@ pub struct Expr {
 #[derive(Debug, Clone, PartialEq)]
 pub enum ExprKind {
     /// A number, with the unit written after it if any.
-    Number { value: f64, unit: Option<UnitExpr> },
+    Number {
+        value: f64,
+        unit: Option<UnitExpr>,
+    },
     Str(String),
     Name(String),
     Unary(UnOp, Box<Expr>),
     Binary(BinOp, Box<Expr>, Box<Expr>),
     /// `f(args)`
-    Call { func: Box<Expr>, args: Vec<Expr> },
+    Call {
+        func: Box<Expr>,
+        args: Vec<Expr>,
+    },
     /// `base.name`
-    Member { base: Box<Expr>, name: Ident },
+    Member {
+        base: Box<Expr>,
+        name: Ident,
+    },
     /// `base[index]`
-    Index { base: Box<Expr>, index: Box<Expr> },
+    Index {
+        base: Box<Expr>,
+        index: Box<Expr>,
+    },
     /// `(a, b)` / `(a, b, c)`
     Vector(Vec<Expr>),
     /// `[a, b, c]`

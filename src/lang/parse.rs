@@ -57,6 +57,9 @@ pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
             },
             Err(err) => {
                 diags.push(syntax_error(src, pos, &err));
+                if let Some(name) = item_name(src, pos) {
+                    file.broken_names.push(name);
+                }
                 pos = resync(src, pos);
             }
         }
@@ -88,6 +91,18 @@ pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
         },
         Err(err) => Err(syntax_error(src, start, &err)),
     }
+}
+
+/// The name an item starting at `pos` gives (`body punch {` gives `punch`), if any.
+fn item_name(src: &str, pos: usize) -> Option<String> {
+    let mut words = src[pos..]
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .filter(|w| !w.is_empty());
+    let keyword = words.next()?;
+    if !ITEM_KEYWORDS.contains(&keyword) {
+        return None;
+    }
+    words.next().map(str::to_string)
 }
 
 /// Skips blanks and comments.
@@ -156,8 +171,7 @@ fn resync(src: &str, start: usize) -> usize {
 
 fn skip_spaces(src: &str, mut pos: usize) -> usize {
     let bytes = src.as_bytes();
-    while pos < bytes.len() && (bytes[pos] == b' ' || bytes[pos] == b'\t' || bytes[pos] == b'\r')
-    {
+    while pos < bytes.len() && (bytes[pos] == b' ' || bytes[pos] == b'\t' || bytes[pos] == b'\r') {
         pos += 1;
     }
     pos
@@ -174,11 +188,7 @@ fn found_at(src: &str, pos: usize) -> (String, Span) {
             .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_' || c == '.'))
             .unwrap_or(rest.len());
         let word = rest[..n].trim_end_matches('.');
-        let kind = if c.is_ascii_digit() {
-            "number"
-        } else {
-            "name"
-        };
+        let kind = if c.is_ascii_digit() { "number" } else { "name" };
         (format!("{kind} `{word}`"), Span::new(pos, pos + word.len()))
     } else if c == '\n' || c == '\r' {
         ("end of line".to_string(), Span::new(pos, pos))
@@ -208,7 +218,9 @@ fn rule_name(rule: Rule) -> Option<&'static str> {
         | Rule::kw_let
         | Rule::kw_gravity
         | Rule::kw_subject
-        | Rule::kw_minimize => "an item (`scene`, `let`, `material`, `body`, `fix`, `contact`, ...)",
+        | Rule::kw_minimize => {
+            "an item (`scene`, `let`, `material`, `body`, `fix`, `contact`, ...)"
+        }
         Rule::kw_to => "`to`",
         Rule::ident => "a name",
         Rule::assign => "`=`",

@@ -1,0 +1,3 @@
+//! What cso shows a person: summaries and (later) reports, VTU and SVG.
+
+pub mod summary;

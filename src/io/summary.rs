@@ -1,0 +1,522 @@
+//! The checked-scene summary that `cso compile` prints: what the compiler
+//! understood, in numbers a person can check against the source.
+//!
+//! [`Summary`] is plain data (its JSON form is the `--json` output); its
+//! `Display` is the text form. Numbers are rounded to 6 significant digits so the
+//! output is the same on every machine.
+
+use crate::lang::check::{estimate, MemoryEstimate};
+use crate::lang::expr::Formula;
+use crate::lang::scene::*;
+use serde::Serialize;
+use std::fmt::{self, Write};
+
+/// Wire format of `cso compile --json` (all values SI).
+#[derive(Debug, Clone, Serialize)]
+pub struct Summary {
+    pub scene: String,
+    pub dim: Dimension,
+    pub thickness: f64,
+    pub totals: Totals,
+    pub memory: MemoryEstimate,
+    pub constants: Vec<Param>,
+    pub materials: Vec<Material>,
+    pub bodies: Vec<BodySummary>,
+    pub obstacles: Vec<ObstacleSummary>,
+    pub conditions: Vec<ConditionSummary>,
+    pub gravity: Option<Vec<f64>>,
+    pub glues: Vec<PairSummary>,
+    pub contacts: Vec<PairSummary>,
+    pub probes: Vec<ProbeSummary>,
+    pub design: Vec<DesignVar>,
+    pub objective: Option<String>,
+    pub constraints: Vec<String>,
+    pub solver: SolverSettings,
+    pub sensitivity: SensitivitySettings,
+    pub optimize: OptimizeSettings,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Totals {
+    pub bodies: usize,
+    pub subdomains: usize,
+    pub elements: usize,
+    pub nodes: usize,
+    /// Primal unknowns: each subdomain's own copy of its nodes, times the dimension.
+    pub primal_dofs: usize,
+    pub design_variables: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BodySummary {
+    pub name: String,
+    pub material: String,
+    /// Extent along each axis at the initial design.
+    pub extent: Vec<[f64; 2]>,
+    pub bottom: Option<String>,
+    pub top: Option<String>,
+    pub mesh: Vec<usize>,
+    pub subdomains: Vec<usize>,
+    pub elements: usize,
+    pub nodes: usize,
+    pub primal_dofs: usize,
+    /// Moves with the design variables.
+    pub designed: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ObstacleSummary {
+    pub name: String,
+    pub kind: &'static str,
+    /// Plane: a point; sphere: the center (initial design).
+    pub point: Vec<f64>,
+    /// Plane: the unit outward normal.
+    pub normal: Option<Vec<f64>>,
+    pub radius: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ConditionSummary {
+    pub kind: &'static str,
+    pub selection: String,
+    /// What is prescribed, in words (`ux, uy`; `uy = -0.01 m`; `(0, -5) Pa`).
+    pub detail: String,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PairSummary {
+    pub name: String,
+    pub primary: String,
+    pub secondary: String,
+    pub search: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProbeSummary {
+    pub name: String,
+    pub body: String,
+    pub at: Vec<f64>,
+}
+
+/// Rounds to 6 significant digits (stable across machines).
+pub fn round6(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    format!("{v:.5e}").parse().unwrap_or(v)
+}
+
+/// A number as a person reads it: `0.04`, `1000`, `2.1e11`, `1e-8`.
+pub fn num(v: f64) -> String {
+    let r = round6(v);
+    let a = r.abs();
+    if r == 0.0 {
+        "0".into()
+    } else if (1e-3..1e6).contains(&a) {
+        format!("{r}")
+    } else {
+        let s = format!("{r:e}");
+        s.replace("e-0", "e-")
+    }
+}
+
+fn vec_str(v: &[f64]) -> String {
+    format!(
+        "({})",
+        v.iter().map(|x| num(*x)).collect::<Vec<_>>().join(", ")
+    )
+}
+
+fn grid_str(v: &[usize]) -> String {
+    v.iter()
+        .map(|x| x.to_string())
+        .collect::<Vec<_>>()
+        .join(" x ")
+}
+
+/// Builds the summary of a checked scene.
+pub fn summarize(scene: &Scene) -> Summary {
+    let design = scene.design_init();
+    let at = |f: &Formula| round6(f.eval_f64([0.0; 3], &design));
+    let bodies: Vec<BodySummary> = scene
+        .bodies
+        .iter()
+        .map(|b| BodySummary {
+            name: b.name.clone(),
+            material: scene
+                .materials
+                .get(b.material)
+                .map_or(String::new(), |m| m.name.clone()),
+            extent: b.extent.iter().map(|(lo, hi)| [at(lo), at(hi)]).collect(),
+            bottom: b.face_text[0].clone(),
+            top: b.face_text[1].clone(),
+            mesh: b.mesh.clone(),
+            subdomains: b.subdomains.clone(),
+            elements: b.elements(),
+            nodes: b.nodes(),
+            primal_dofs: b.primal_dofs(),
+            designed: b
+                .extent
+                .iter()
+                .any(|(l, h)| l.uses_design() || h.uses_design())
+                || b.bottom.as_ref().is_some_and(Formula::uses_design)
+                || b.top.as_ref().is_some_and(Formula::uses_design),
+        })
+        .collect();
+    let obstacles = scene
+        .obstacles
+        .iter()
+        .map(|o| match o {
+            Obstacle::Plane {
+                name,
+                point,
+                normal,
+            } => {
+                let n: Vec<f64> = normal
+                    .iter()
+                    .map(|f| f.eval_f64([0.0; 3], &design))
+                    .collect();
+                let len = n.iter().map(|x| x * x).sum::<f64>().sqrt();
+                ObstacleSummary {
+                    name: name.clone(),
+                    kind: "plane",
+                    point: point.iter().map(at).collect(),
+                    normal: Some(n.iter().map(|x| round6(x / len)).collect()),
+                    radius: None,
+                }
+            }
+            Obstacle::Sphere {
+                name,
+                center,
+                radius,
+            } => ObstacleSummary {
+                name: name.clone(),
+                kind: if scene.dim == Dimension::Two {
+                    "circle"
+                } else {
+                    "sphere"
+                },
+                point: center.iter().map(at).collect(),
+                normal: None,
+                radius: Some(at(radius)),
+            },
+        })
+        .collect();
+    let comps = ["ux", "uy", "uz"];
+    let conditions = scene
+        .conditions
+        .iter()
+        .map(|c| {
+            let detail = match c {
+                Condition::Fix { components, .. } => components
+                    .iter()
+                    .map(|i| comps[*i])
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                Condition::Displace { values, .. } => values
+                    .iter()
+                    .map(|(i, v)| format!("{} = {} m", comps[*i], num(*v)))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                Condition::Symmetry { .. } => "zero normal displacement".into(),
+                Condition::Traction { value, .. } => format!("{} Pa", vec_str(value)),
+                Condition::Pressure { value, .. } => format!("{} Pa", num(*value)),
+            };
+            ConditionSummary {
+                kind: c.keyword(),
+                selection: c.selection().text.clone(),
+                detail,
+            }
+        })
+        .collect();
+    let glues = scene
+        .glues
+        .iter()
+        .map(|g| PairSummary {
+            name: g.name.clone(),
+            primary: g.primary.text.clone(),
+            secondary: g.secondary.text.clone(),
+            search: None,
+        })
+        .collect();
+    let contacts = scene
+        .contacts
+        .iter()
+        .map(|c| PairSummary {
+            name: c.name.clone(),
+            primary: match &c.primary {
+                Primary::Face(s) => s.text.clone(),
+                Primary::Obstacle(i) => scene
+                    .obstacles
+                    .get(*i)
+                    .map_or(String::new(), |o| o.name().to_string()),
+            },
+            secondary: c.secondary.text.clone(),
+            search: c.search.map(round6),
+        })
+        .collect();
+    let probes = scene
+        .probes
+        .iter()
+        .map(|p| ProbeSummary {
+            name: p.name.clone(),
+            body: scene
+                .bodies
+                .get(p.body)
+                .map_or(String::new(), |b| b.name.clone()),
+            at: p.at.iter().map(|v| round6(*v)).collect(),
+        })
+        .collect();
+    let totals = Totals {
+        bodies: scene.bodies.len(),
+        subdomains: scene.bodies.iter().map(Body::subdomain_count).sum(),
+        elements: scene.bodies.iter().map(Body::elements).sum(),
+        nodes: scene.bodies.iter().map(Body::nodes).sum(),
+        primal_dofs: scene.bodies.iter().map(Body::primal_dofs).sum(),
+        design_variables: scene.design.len(),
+    };
+    let mut params = scene.params.clone();
+    params.iter_mut().for_each(|p| p.value = round6(p.value));
+    let mut materials = scene.materials.clone();
+    for m in &mut materials {
+        m.young = round6(m.young);
+        m.poisson = round6(m.poisson);
+        m.density = m.density.map(round6);
+    }
+    Summary {
+        scene: scene.name.clone(),
+        dim: scene.dim,
+        thickness: round6(scene.thickness),
+        totals,
+        memory: estimate(scene),
+        constants: params,
+        materials,
+        bodies,
+        obstacles,
+        conditions,
+        gravity: scene.gravity.clone(),
+        glues,
+        contacts,
+        probes,
+        design: scene.design.clone(),
+        objective: scene.objective.as_ref().map(|o| o.text.clone()),
+        constraints: scene.constraints.iter().map(|c| c.text.clone()).collect(),
+        solver: scene.solver.clone(),
+        sensitivity: scene.sensitivity.clone(),
+        optimize: scene.optimize.clone(),
+    }
+}
+
+fn section(out: &mut String, title: &str) {
+    let _ = writeln!(out, "\n{title}");
+}
+
+impl fmt::Display for Summary {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let mut o = String::new();
+        let t = &self.totals;
+        let kind = match self.dim {
+            Dimension::Two => format!("2D plane strain, thickness {} m", num(self.thickness)),
+            Dimension::Three => "3D".to_string(),
+        };
+        let _ = writeln!(o, "scene {}: {kind}", self.scene);
+        let _ = writeln!(
+            o,
+            "  {}, {}, {} elements, {} nodes, {} primal unknowns",
+            plural(t.bodies, "body", "bodies"),
+            plural(t.subdomains, "subdomain", "subdomains"),
+            t.elements,
+            t.nodes,
+            t.primal_dofs
+        );
+        let m = &self.memory;
+        let _ = writeln!(
+            o,
+            "  estimated memory {} (stiffness {}, factors {}, vectors {})",
+            crate::lang::check::bytes(m.total()),
+            crate::lang::check::bytes(m.stiffness),
+            crate::lang::check::bytes(m.factors),
+            crate::lang::check::bytes(m.vectors)
+        );
+        if !self.constants.is_empty() {
+            section(&mut o, "constants");
+            for p in &self.constants {
+                let set = if p.overridden { "   (--set)" } else { "" };
+                let _ = writeln!(o, "  {:<10} = {}{set}", p.name, num(p.value));
+            }
+        }
+        section(&mut o, "materials");
+        for m in &self.materials {
+            let rho = m
+                .density
+                .map_or(String::new(), |r| format!("  rho = {} kg/m^3", num(r)));
+            let _ = writeln!(
+                o,
+                "  {:<10} E = {} Pa  nu = {}{rho}",
+                m.name,
+                num(m.young),
+                num(m.poisson)
+            );
+        }
+        section(&mut o, "bodies");
+        let axes = ["x", "y", "z"];
+        for b in &self.bodies {
+            let ext: Vec<String> = b
+                .extent
+                .iter()
+                .zip(axes)
+                .map(|(e, a)| format!("{a} = {} .. {}", num(e[0]), num(e[1])))
+                .collect();
+            let _ = writeln!(o, "  {:<10} {}, {} m", b.name, b.material, ext.join(", "));
+            for (face, text) in [("bottom", &b.bottom), ("top", &b.top)] {
+                if let Some(t) = text {
+                    let _ = writeln!(o, "  {:<10} {face} = {t}", "");
+                }
+            }
+            let per: Vec<usize> = b
+                .mesh
+                .iter()
+                .zip(&b.subdomains)
+                .map(|(m, s)| m / s)
+                .collect();
+            let _ = writeln!(
+                o,
+                "  {:<10} mesh {} ({} elements, {} nodes), subdomains {} of {} elements, {} primal unknowns{}",
+                "",
+                grid_str(&b.mesh),
+                b.elements,
+                b.nodes,
+                grid_str(&b.subdomains),
+                grid_str(&per),
+                b.primal_dofs,
+                if b.designed { ", moves with the design" } else { "" }
+            );
+        }
+        if !self.obstacles.is_empty() {
+            section(&mut o, "obstacles");
+            for ob in &self.obstacles {
+                let what = match (&ob.normal, ob.radius) {
+                    (Some(n), _) => format!(
+                        "plane through {} m, outward normal {}",
+                        vec_str(&ob.point),
+                        vec_str(n)
+                    ),
+                    (None, Some(r)) => format!(
+                        "{} at {} m, radius {} m",
+                        ob.kind,
+                        vec_str(&ob.point),
+                        num(r)
+                    ),
+                    _ => ob.kind.to_string(),
+                };
+                let _ = writeln!(o, "  {:<10} {what}", ob.name);
+            }
+        }
+        if !self.conditions.is_empty() || self.gravity.is_some() {
+            section(&mut o, "supports and loads");
+            for c in &self.conditions {
+                let _ = writeln!(o, "  {:<9} {:<22} {}", c.kind, c.selection, c.detail);
+            }
+            if let Some(g) = &self.gravity {
+                let _ = writeln!(o, "  gravity   {} m/s^2", vec_str(g));
+            }
+        }
+        for (title, pairs) in [("glue", &self.glues), ("contacts", &self.contacts)] {
+            if pairs.is_empty() {
+                continue;
+            }
+            section(&mut o, title);
+            for p in pairs {
+                let search = p
+                    .search
+                    .map_or("automatic".to_string(), |s| format!("{} m", num(s)));
+                let _ = writeln!(
+                    o,
+                    "  {:<10} primary {}, secondary {}, search {search}",
+                    p.name, p.primary, p.secondary
+                );
+            }
+        }
+        if !self.probes.is_empty() {
+            section(&mut o, "probes");
+            for p in &self.probes {
+                let _ = writeln!(o, "  {:<10} {} at {} m", p.name, p.body, vec_str(&p.at));
+            }
+        }
+        if !self.design.is_empty() {
+            section(&mut o, &format!("design variables ({})", self.design.len()));
+            for d in &self.design {
+                let _ = writeln!(
+                    o,
+                    "  {:<10} init {:<8} in [{}, {}]",
+                    d.name,
+                    num(d.init),
+                    num(d.lower),
+                    num(d.upper)
+                );
+            }
+        }
+        if let Some(obj) = &self.objective {
+            section(&mut o, "objective");
+            let _ = writeln!(o, "  minimize {obj}");
+            for c in &self.constraints {
+                let _ = writeln!(o, "  subject to {c}");
+            }
+        }
+        section(&mut o, "settings");
+        let s = &self.solver;
+        let _ = writeln!(
+            o,
+            "  solver       {}, tolerance {}, at most {} iterations, preconditioner {}",
+            enum_name(&s.method),
+            num(s.tolerance),
+            s.max_iterations,
+            enum_name(&s.preconditioner)
+        );
+        let se = &self.sensitivity;
+        let _ = writeln!(
+            o,
+            "  sensitivity  {} (finite differences: {}, step {})",
+            enum_name(&se.method),
+            enum_name(&se.scheme),
+            num(se.step)
+        );
+        let op = &self.optimize;
+        let _ = writeln!(
+            o,
+            "  optimize     {}, at most {} iterations, tolerance {}",
+            enum_name(&op.method),
+            op.max_iterations,
+            num(op.tolerance)
+        );
+        f.write_str(&o)
+    }
+}
+
+/// "1 body", "2 bodies".
+pub fn plural(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// The name a settings enum has in the language (its serde name).
+fn enum_name<T: Serialize>(v: &T) -> String {
+    serde_json::to_value(v)
+        .ok()
+        .and_then(|j| j.as_str().map(str::to_string))
+        .unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn numbers_are_rounded_for_people() {
+        assert_eq!(num(0.1 + 0.2), "0.3");
+        assert_eq!(num(2.1e11), "2.1e11");
+        assert_eq!(num(1e-8), "1e-8");
+        assert_eq!(num(1000.0), "1000");
+        assert_eq!(num(-0.01), "-0.01");
+        assert_eq!(num(0.0), "0");
+    }
+}

@@ -1,0 +1,104 @@
+//! How much memory a scene will need, estimated from its mesh before anything is
+//! allocated, so that a scene too large for the machine is refused up front.
+//!
+//! The factor sizes follow what faer's supernodal Cholesky with AMD ordering gave on
+//! square plane-strain Q1 subdomains (`shared/design/crates.md`: 2,178 dofs -> 0.69 MB,
+//! 8,450 -> 4.7 MB, 33,282 -> 23 MB, i.e. about 6 n log2 n nonzeros) and the usual
+//! n^(4/3) growth of 3D nested-dissection fill.
+
+use crate::lang::scene::Scene;
+use serde::Serialize;
+
+/// Estimated bytes of each part of a solve, and the unknown count behind it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct MemoryEstimate {
+    /// Primal unknowns over all subdomains (duplicated interface nodes counted).
+    pub dofs: f64,
+    /// Sparse stiffness matrices of the subdomains.
+    pub stiffness: f64,
+    /// Cholesky factors of the subdomains.
+    pub factors: f64,
+    /// Work vectors of the solver (a few dozen primal vectors).
+    pub vectors: f64,
+}
+
+impl MemoryEstimate {
+    pub fn total(&self) -> f64 {
+        self.stiffness + self.factors + self.vectors
+    }
+}
+
+/// Estimates the memory of a scene from its meshes and cuts (f64 throughout, so
+/// absurd meshes cannot overflow).
+pub fn estimate(scene: &Scene) -> MemoryEstimate {
+    let mut e = MemoryEstimate {
+        dofs: 0.0,
+        stiffness: 0.0,
+        factors: 0.0,
+        vectors: 0.0,
+    };
+    for body in &scene.bodies {
+        let d = body.mesh.len() as f64;
+        let subs: f64 = body.subdomains.iter().map(|&s| s as f64).product();
+        let per_sub_nodes: f64 = body
+            .mesh
+            .iter()
+            .zip(&body.subdomains)
+            .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
+            .product();
+        let n = per_sub_nodes * d;
+        // Rows of Q1/hex8 stiffness couple 9 or 27 nodes; 12 bytes per entry (value + index).
+        let row = if d == 2.0 { 18.0 } else { 81.0 };
+        let nnz_l = if d == 2.0 {
+            6.0 * n * n.max(2.0).log2()
+        } else {
+            20.0 * n.powf(4.0 / 3.0)
+        };
+        e.dofs += n * subs;
+        e.stiffness += subs * n * row * 12.0;
+        e.factors += subs * nnz_l * 12.0;
+        e.vectors += subs * n * 8.0 * 30.0;
+    }
+    e
+}
+
+/// Bytes as "1.2 GiB".
+pub fn bytes(b: f64) -> String {
+    let units = ["B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB"];
+    let mut v = b;
+    let mut u = 0;
+    while v >= 1024.0 && u + 1 < units.len() {
+        v /= 1024.0;
+        u += 1;
+    }
+    if v >= 1e4 {
+        format!("{v:.2e} {}", units[u])
+    } else if u == 0 {
+        format!("{v:.0} {}", units[u])
+    } else {
+        format!("{v:.1} {}", units[u])
+    }
+}
+
+/// A large count as "1.2e12" or "833".
+pub fn count(n: f64) -> String {
+    if n < 1e7 {
+        format!("{n:.0}")
+    } else {
+        format!("{n:.2e}")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn byte_sizes_read_well() {
+        assert_eq!(bytes(512.0), "512 B");
+        assert_eq!(bytes(1536.0), "1.5 KiB");
+        assert_eq!(bytes(3.0 * 1024.0 * 1024.0 * 1024.0), "3.0 GiB");
+        assert_eq!(count(833.0), "833");
+        assert_eq!(count(1.5e12), "1.50e12");
+    }
+}

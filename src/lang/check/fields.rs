@@ -1,0 +1,189 @@
+//! Fields of a block: which are known, which are required, and their values' shapes.
+
+use super::names;
+use super::{quote_list, Checker};
+use crate::lang::ast::{Block, Expr, Field, Span, Value};
+use crate::lang::diag::Diagnostic;
+
+/// One field a block accepts.
+pub(crate) struct Spec {
+    pub name: &'static str,
+    pub required: bool,
+    /// What to write, for the hint when it is missing: `E = 210 GPa`.
+    pub example: &'static str,
+}
+
+pub(crate) const fn req(name: &'static str, example: &'static str) -> Spec {
+    Spec {
+        name,
+        required: true,
+        example,
+    }
+}
+
+pub(crate) const fn opt(name: &'static str, example: &'static str) -> Spec {
+    Spec {
+        name,
+        required: false,
+        example,
+    }
+}
+
+/// The fields of one block, by name, after checking names.
+pub(crate) struct Fields<'a> {
+    found: Vec<&'a Field>,
+}
+
+impl<'a> Fields<'a> {
+    pub fn get(&self, name: &str) -> Option<&'a Field> {
+        self.found.iter().copied().find(|f| f.name.name == name)
+    }
+}
+
+impl<'a> Checker<'a> {
+    /// Checks a block's field names against `spec`: unknown (with a suggestion),
+    /// given twice, required and missing. `what` names the block in messages
+    /// ("material `steel`"), `at` is where to point when a field is missing.
+    /// `unknown_hint` overrides the hint for a field not in `spec`.
+    pub(crate) fn fields(
+        &mut self,
+        block: &'a Block,
+        spec: &[Spec],
+        what: &str,
+        at: Span,
+        unknown_hint: &dyn Fn(&str) -> Option<String>,
+    ) -> Fields<'a> {
+        let mut found: Vec<&'a Field> = Vec::new();
+        for field in &block.fields {
+            let name = field.name.name.as_str();
+            if !spec.iter().any(|s| s.name == name) {
+                let known: Vec<&str> = spec.iter().map(|s| s.name).collect();
+                let help = unknown_hint(name)
+                    .or_else(|| names::did_you_mean(name, known.iter().copied()))
+                    .unwrap_or_else(|| format!("the fields of {what} are {}", quote_list(&known)));
+                self.error(
+                    Diagnostic::new(
+                        "cso::unknown-field",
+                        format!("unknown field `{name}` in {what}"),
+                    )
+                    .label(field.name.span, "not a field here")
+                    .help(help),
+                );
+                continue;
+            }
+            if let Some(first) = found.iter().find(|f| f.name.name == name) {
+                self.error(
+                    Diagnostic::new(
+                        "cso::duplicate",
+                        format!("field `{name}` is given twice in {what}"),
+                    )
+                    .label(field.name.span, "given again here")
+                    .label(first.name.span, "first given here")
+                    .help("keep one of them"),
+                );
+                continue;
+            }
+            found.push(field);
+        }
+        let missing: Vec<&Spec> = spec
+            .iter()
+            .filter(|s| s.required && !found.iter().any(|f| f.name.name == s.name))
+            .collect();
+        if !missing.is_empty() {
+            let names: Vec<&str> = missing.iter().map(|s| s.name).collect();
+            let examples: Vec<&str> = missing.iter().map(|s| s.example).collect();
+            let noun = if missing.len() == 1 {
+                "field"
+            } else {
+                "fields"
+            };
+            self.error(
+                Diagnostic::new(
+                    "cso::missing-field",
+                    format!("{what} lacks the required {noun} {}", quote_list(&names)),
+                )
+                .label(at, format!("{} missing", quote_list(&names)))
+                .help(format!("add {}", quote_list(&examples))),
+            );
+        }
+        Fields { found }
+    }
+
+    /// The expression of a field, or an error if it has none or is a range or grid.
+    pub(crate) fn expr_of(&mut self, field: &'a Field, expect: &str) -> Option<&'a Expr> {
+        match &field.value {
+            Some(Value::Expr(e)) => Some(e),
+            Some(other) => {
+                let found = match other {
+                    Value::Range(..) => "a range `a .. b`",
+                    _ => "a grid `n x m`",
+                };
+                self.error(
+                    Diagnostic::new(
+                        "cso::wrong-value",
+                        format!("`{}` expects {expect}, found {found}", field.name.name),
+                    )
+                    .label(other.span(), format!("expected {expect}")),
+                );
+                None
+            }
+            None => {
+                self.error(self.needs_value(field, expect));
+                None
+            }
+        }
+    }
+
+    /// The two ends of a range field `a .. b`.
+    pub(crate) fn range_of(&mut self, field: &'a Field) -> Option<(&'a Expr, &'a Expr)> {
+        match &field.value {
+            Some(Value::Range(a, b)) => Some((a, b)),
+            Some(other) => {
+                let n = &field.name.name;
+                self.error(
+                    Diagnostic::new(
+                        "cso::wrong-value",
+                        format!("`{n}` expects a range `from .. to`"),
+                    )
+                    .label(other.span(), "expected a range")
+                    .help(format!("write e.g. `{n} = 0 .. 1`")),
+                );
+                None
+            }
+            None => {
+                self.error(self.needs_value(field, "a range `from .. to`"));
+                None
+            }
+        }
+    }
+
+    /// The entries of a grid field `16 x 16` (a lone number counts as one entry).
+    pub(crate) fn grid_of(&mut self, field: &'a Field) -> Option<Vec<&'a Expr>> {
+        match &field.value {
+            Some(Value::Grid(g)) => Some(g.iter().collect()),
+            Some(Value::Expr(e)) => Some(vec![e]),
+            Some(other) => {
+                let n = &field.name.name;
+                self.error(
+                    Diagnostic::new(
+                        "cso::wrong-value",
+                        format!("`{n}` expects counts along each axis, like `16 x 16`"),
+                    )
+                    .label(other.span(), "expected `n x m`"),
+                );
+                None
+            }
+            None => {
+                self.error(self.needs_value(field, "counts like `16 x 16`"));
+                None
+            }
+        }
+    }
+
+    fn needs_value(&self, field: &Field, expect: &str) -> Diagnostic {
+        let n = &field.name.name;
+        Diagnostic::new("cso::missing-value", format!("field `{n}` has no value"))
+            .label(field.name.span, format!("expected `{n} = ...`"))
+            .help(format!("`{n}` expects {expect}"))
+    }
+}

@@ -1,0 +1,482 @@
+//! Syntax tree to checked [`Scene`]: names, fields, dimensions, units, bounds, size.
+//!
+//! The checker walks every item once, collecting *all* errors; an item with an
+//! error still gets a placeholder so later items that refer to it are checked too,
+//! without repeating the error. Only a scene with no error at all is returned.
+
+mod budget;
+mod fields;
+mod functional;
+mod items;
+mod names;
+mod values;
+
+pub use budget::{bytes, estimate, MemoryEstimate};
+pub use names::{did_you_mean, distance, suggest};
+
+use super::ast::{File, Ident, Item, ItemKind, Span};
+use super::diag::{self, Diagnostic};
+use super::expr::Formula;
+use super::parse::parse_file;
+use super::scene::*;
+use super::units::Quantity;
+use names::{Kind, Table};
+use std::collections::{HashMap, HashSet};
+
+/// Options of one check.
+#[derive(Debug, Clone, Default)]
+pub struct CheckOptions {
+    /// `--set NAME=VALUE`: each value replaces the `let` of that name.
+    pub overrides: Vec<(String, String)>,
+    /// Refuse scenes whose estimated memory exceeds this many bytes (None: no limit).
+    pub memory_limit: Option<u64>,
+}
+
+/// Parses and checks a source text. Every error of the file is reported, sorted by
+/// position.
+pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>> {
+    let (file, mut diags) = parse_file(src);
+    let mut checker = Checker::new(src, &file, opts);
+    let scene = checker.run();
+    diags.extend(checker.diags);
+    if diags.is_empty() {
+        Ok(scene)
+    } else {
+        diag::sort(&mut diags);
+        Err(diags)
+    }
+}
+
+/// The state of a `let` while the checker resolves it on first use.
+#[derive(Debug, Clone)]
+enum LetState {
+    Pending,
+    InProgress,
+    Done(Option<(Formula, Quantity)>),
+}
+
+/// A design item: scalar `h` or array `a[N]`, and where its entries start.
+#[derive(Debug, Clone)]
+struct DesignGroup {
+    name: String,
+    size: Option<usize>,
+    first: usize,
+    quantity: Quantity,
+}
+
+pub(crate) struct Checker<'a> {
+    src: &'a str,
+    file: &'a File,
+    opts: &'a CheckOptions,
+    pub(crate) diags: Vec<Diagnostic>,
+    dim: Dimension,
+    tables: HashMap<Kind, Table>,
+    broken: HashSet<String>,
+    /// `let` items by table index: the expression as written and its state.
+    lets: Vec<(&'a Ident, &'a super::ast::Expr, LetState)>,
+    /// Overrides already resolved, by `let` index.
+    overridden: HashMap<usize, Option<(Formula, Quantity)>>,
+    designs: Vec<DesignGroup>,
+    design_vars: Vec<DesignVar>,
+    materials: Vec<Material>,
+    bodies: Vec<Body>,
+    /// Per body: is its material's density known (for gravity)?
+    obstacles: Vec<Obstacle>,
+}
+
+impl<'a> Checker<'a> {
+    fn new(src: &'a str, file: &'a File, opts: &'a CheckOptions) -> Self {
+        let tables = Kind::ALL.iter().map(|k| (*k, Table::default())).collect();
+        Checker {
+            src,
+            file,
+            opts,
+            diags: Vec::new(),
+            dim: Dimension::Two,
+            tables,
+            broken: file.broken_names.iter().cloned().collect(),
+            lets: Vec::new(),
+            overridden: HashMap::new(),
+            designs: Vec::new(),
+            design_vars: Vec::new(),
+            materials: Vec::new(),
+            bodies: Vec::new(),
+            obstacles: Vec::new(),
+        }
+    }
+
+    pub(crate) fn error(&mut self, d: Diagnostic) {
+        self.diags.push(d);
+    }
+
+    /// The source text of a span.
+    pub(crate) fn text(&self, span: Span) -> &'a str {
+        self.src.get(span.start..span.end).unwrap_or("")
+    }
+
+    fn table(&self, kind: Kind) -> &Table {
+        // Every kind has a table from `new`.
+        &self.tables[&kind]
+    }
+
+    fn table_mut(&mut self, kind: Kind) -> &mut Table {
+        self.tables.entry(kind).or_default()
+    }
+
+    /// Looks up a name of one kind; reports it when unknown (with a suggestion and,
+    /// when the name exists as another kind, what it is).
+    pub(crate) fn lookup(&mut self, kind: Kind, name: &str, span: Span) -> Option<usize> {
+        if let Some(i) = self.table(kind).get(name) {
+            return Some(i);
+        }
+        if self.broken.contains(name) {
+            return None;
+        }
+        let mut d = Diagnostic::new(
+            "cso::unknown-name",
+            format!("unknown {} `{name}`", kind.noun()),
+        )
+        .label(span, format!("no {} of this name", kind.noun()));
+        let other = Kind::ALL
+            .iter()
+            .find(|k| **k != kind && self.table(**k).get(name).is_some());
+        let table = self.table(kind);
+        if let Some(s) = names::did_you_mean(name, table.names.iter().map(String::as_str)) {
+            d = d.help(s);
+        } else if let Some(other) = other {
+            d = d.help(format!(
+                "`{name}` is {}; {} is expected here",
+                other.article(),
+                kind.article()
+            ));
+        } else if table.is_empty() {
+            d = d.help(format!("this scene defines no {}", kind.noun()));
+        } else {
+            d = d.help(format!(
+                "known {}s: {}",
+                kind.noun(),
+                quote_list(&table.names)
+            ));
+        }
+        self.error(d);
+        None
+    }
+
+    /// Pass 1: the scene item, and every named item in a table.
+    fn collect(&mut self) -> Option<&'a Item> {
+        let mut scene: Option<&'a Item> = None;
+        for item in &self.file.items {
+            match &item.kind {
+                ItemKind::Let { name, value } => {
+                    if self.define(Kind::Let, name) {
+                        self.lets.push((name, value, LetState::Pending));
+                    }
+                }
+                ItemKind::Block { keyword, name, .. } => {
+                    let kind = match keyword.name.as_str() {
+                        "scene" => {
+                            if let Some(first) = scene {
+                                self.error(
+                                    Diagnostic::new("cso::duplicate", "a second `scene` item")
+                                        .label(keyword.span, "second scene")
+                                        .label(first.span, "the scene is defined here")
+                                        .help("a file describes one scene; remove one of them"),
+                                );
+                            } else {
+                                scene = Some(item);
+                            }
+                            continue;
+                        }
+                        "material" => Kind::Material,
+                        "body" => Kind::Body,
+                        "obstacle" => Kind::Obstacle,
+                        "design" => Kind::Design,
+                        "glue" => Kind::Glue,
+                        "contact" => Kind::Contact,
+                        "probe" => Kind::Probe,
+                        _ => continue,
+                    };
+                    match name {
+                        Some(name) => {
+                            self.define(kind, name);
+                        }
+                        None => self.error(
+                            Diagnostic::new(
+                                "cso::missing-name",
+                                format!("a {} needs a name", keyword.name),
+                            )
+                            .label(keyword.span, "no name after this")
+                            .help(format!("write `{} NAME {{ ... }}`", keyword.name)),
+                        ),
+                    }
+                }
+                _ => {}
+            }
+        }
+        scene
+    }
+
+    /// Adds a name to its table; reports duplicates and reserved words.
+    fn define(&mut self, kind: Kind, name: &Ident) -> bool {
+        if let Some(why) = reserved(&name.name) {
+            self.error(
+                Diagnostic::new(
+                    "cso::reserved",
+                    format!("`{}` cannot be used as a name", name.name),
+                )
+                .label(name.span, why)
+                .help("choose another name"),
+            );
+            return false;
+        }
+        match self.table_mut(kind).insert(&name.name, name.span) {
+            Ok(_) => true,
+            Err(first) => {
+                self.error(
+                    Diagnostic::new(
+                        "cso::duplicate",
+                        format!("{} `{}` is defined twice", kind.noun(), name.name),
+                    )
+                    .label(name.span, "second definition")
+                    .label(first, "first defined here")
+                    .help(format!(
+                        "rename one of them; {} names must be unique",
+                        kind.noun()
+                    )),
+                );
+                false
+            }
+        }
+    }
+
+    fn run(&mut self) -> Scene {
+        let scene_item = self.collect();
+        let (name, dim, thickness) = self.scene(scene_item);
+        self.dim = dim;
+        self.resolve_overrides();
+        let mut scene = Scene {
+            name,
+            dim,
+            thickness,
+            params: Vec::new(),
+            materials: Vec::new(),
+            design: Vec::new(),
+            bodies: Vec::new(),
+            obstacles: Vec::new(),
+            conditions: Vec::new(),
+            gravity: None,
+            glues: Vec::new(),
+            contacts: Vec::new(),
+            probes: Vec::new(),
+            objective: None,
+            constraints: Vec::new(),
+            solver: SolverSettings::default(),
+            sensitivity: SensitivitySettings::default(),
+            optimize: OptimizeSettings::default(),
+        };
+        let file = self.file;
+        // Definitions first (in file order within each kind), then what uses them.
+        for item in &file.items {
+            if let ItemKind::Block {
+                keyword,
+                name,
+                size,
+                body,
+            } = &item.kind
+            {
+                match keyword.name.as_str() {
+                    "material" => self.material(name.as_ref(), body),
+                    "design" => self.design(keyword, name.as_ref(), size.as_ref(), body),
+                    _ => {}
+                }
+            }
+        }
+        for item in &file.items {
+            if let ItemKind::Block {
+                keyword,
+                name,
+                size,
+                body,
+            } = &item.kind
+            {
+                if keyword.name != "design" {
+                    if let Some(size) = size {
+                        self.error(
+                            Diagnostic::new(
+                                "cso::unexpected-size",
+                                format!(
+                                    "only `design` items take a size `[N]`, not `{}`",
+                                    keyword.name
+                                ),
+                            )
+                            .label(size.span, "remove this"),
+                        );
+                    }
+                }
+                match keyword.name.as_str() {
+                    "body" => self.body(name.as_ref(), body),
+                    "obstacle" => self.obstacle(name.as_ref(), body),
+                    _ => {}
+                }
+            }
+        }
+        for item in &file.items {
+            match &item.kind {
+                ItemKind::Block {
+                    keyword,
+                    name,
+                    body,
+                    ..
+                } => match keyword.name.as_str() {
+                    "glue" => {
+                        if let Some(g) = self.glue(name.as_ref(), body) {
+                            scene.glues.push(g);
+                        }
+                    }
+                    "contact" => {
+                        if let Some(c) = self.contact(name.as_ref(), body) {
+                            scene.contacts.push(c);
+                        }
+                    }
+                    "probe" => {
+                        if let Some(p) = self.probe(name.as_ref(), body) {
+                            scene.probes.push(p);
+                        }
+                    }
+                    "solver" => scene.solver = self.solver(keyword, body),
+                    "sensitivity" => scene.sensitivity = self.sensitivity(keyword, body),
+                    "optimize" => scene.optimize = self.optimize(keyword, body),
+                    _ => {}
+                },
+                ItemKind::Condition {
+                    keyword,
+                    selection,
+                    fields,
+                    value,
+                } => {
+                    if let Some(c) =
+                        self.condition(keyword, selection, fields.as_ref(), value.as_ref())
+                    {
+                        scene.conditions.push(c);
+                    }
+                }
+                ItemKind::Gravity { value } => {
+                    if scene.gravity.is_some() {
+                        self.error(
+                            Diagnostic::new("cso::duplicate", "gravity is given twice")
+                                .label(item.span, "second `gravity`"),
+                        );
+                    }
+                    scene.gravity = self.gravity(item.span, value);
+                }
+                ItemKind::Let { .. } => {}
+                ItemKind::Minimize { .. } | ItemKind::SubjectTo { .. } => {}
+            }
+        }
+        self.objectives(&mut scene);
+        // Every `let`, used or not, is checked and reported once.
+        for i in 0..self.lets.len() {
+            let (name, _, _) = self.lets[i];
+            if let Some((f, _)) = self.let_value(i) {
+                if let Some(value) = f.as_const() {
+                    let overridden = self.overridden.contains_key(&i);
+                    scene.params.push(Param {
+                        name: name.name.clone(),
+                        value,
+                        overridden,
+                    });
+                }
+            }
+        }
+        scene.materials = std::mem::take(&mut self.materials);
+        scene.design = std::mem::take(&mut self.design_vars);
+        scene.bodies = std::mem::take(&mut self.bodies);
+        scene.obstacles = std::mem::take(&mut self.obstacles);
+        self.whole_scene(&scene);
+        scene
+    }
+
+    /// Checks that need the whole scene: gravity needs densities, constraints need
+    /// an objective, the size fits the machine, the faces do not cross.
+    fn whole_scene(&mut self, scene: &Scene) {
+        if self.diags.is_empty() {
+            let est = budget::estimate(scene);
+            if let Some(limit) = self.opts.memory_limit {
+                if est.total() > limit as f64 {
+                    let span = self
+                        .file
+                        .items
+                        .iter()
+                        .find(|i| matches!(&i.kind, ItemKind::Block { keyword, .. } if keyword.name == "body"))
+                        .map_or(Span::default(), |i| i.span);
+                    let span = Span::new(span.start, span.start + 4);
+                    self.error(
+                        Diagnostic::new(
+                            "cso::too-large",
+                            format!(
+                                "this scene needs about {} of memory, more than the {} allowed here",
+                                budget::bytes(est.total()),
+                                budget::bytes(limit as f64)
+                            ),
+                        )
+                        .label(span, format!("{} primal unknowns in all", budget::count(est.dofs)))
+                        .help(format!(
+                            "estimate: stiffness {}, factors {}, vectors {}; use a coarser `mesh`, \
+                             or more `subdomains` (smaller factors)",
+                            budget::bytes(est.stiffness),
+                            budget::bytes(est.factors),
+                            budget::bytes(est.vectors)
+                        )),
+                    );
+                    return;
+                }
+            }
+            self.faces_do_not_cross(scene);
+        }
+    }
+}
+
+/// Why a word cannot be a name, if it cannot.
+fn reserved(name: &str) -> Option<&'static str> {
+    if super::units::is_unit(name) {
+        return Some("this is a unit");
+    }
+    if super::parse::ITEM_KEYWORDS.contains(&name) || name == "to" {
+        return Some("this is a keyword");
+    }
+    if matches!(name, "x" | "y" | "z") {
+        return Some("this is a coordinate");
+    }
+    if matches!(
+        name,
+        "pi" | "sqrt"
+            | "abs"
+            | "exp"
+            | "ln"
+            | "sin"
+            | "cos"
+            | "tan"
+            | "min"
+            | "max"
+            | "bezier"
+            | "compliance"
+            | "energy"
+            | "contact_force"
+            | "pressure_norm"
+            | "area"
+            | "volume"
+            | "initial"
+    ) {
+        return Some("this is a built-in name");
+    }
+    None
+}
+
+/// `a`, `b` and `c` as "`a`, `b`, `c`".
+pub(crate) fn quote_list<S: AsRef<str>>(names: &[S]) -> String {
+    names
+        .iter()
+        .map(|n| format!("`{}`", n.as_ref()))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

@@ -1,0 +1,312 @@
+//! Checked geometry expressions and their evaluation, generic over the number type.
+//!
+//! A [`Formula`] is what the checker makes of an expression that may depend on the
+//! face coordinates (`x`, `y`, `z`) and on design variables: names resolved, `let`
+//! values inlined, units converted to SI. [`Formula::eval`] runs on `f64` for the
+//! state and on dual numbers (`num_dual::Dual64`, `DualVec`, ...) seeded by a design
+//! direction for exact shape derivatives, so the two can never disagree.
+
+use num_dual::DualNum;
+
+/// The number types geometry and elements are evaluated in: `f64`, and dual numbers
+/// over `f64` (`num_dual::Dual64`, `DualVec64<N>`, ...) for exact derivatives.
+pub trait Scalar: DualNum<Primitive = f64> + Copy {}
+
+impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}
+
+/// A function of one argument.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Func {
+    Sqrt,
+    Abs,
+    Exp,
+    Ln,
+    Sin,
+    Cos,
+    Tan,
+}
+
+impl Func {
+    pub fn from_name(name: &str) -> Option<Func> {
+        Some(match name {
+            "sqrt" => Func::Sqrt,
+            "abs" => Func::Abs,
+            "exp" => Func::Exp,
+            "ln" => Func::Ln,
+            "sin" => Func::Sin,
+            "cos" => Func::Cos,
+            "tan" => Func::Tan,
+            _ => return None,
+        })
+    }
+}
+
+/// Arithmetic of two operands.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Arith {
+    Add,
+    Sub,
+    Mul,
+    Div,
+    Min,
+    Max,
+}
+
+/// A checked scalar expression of the coordinates and the design variables.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Formula {
+    Const(f64),
+    /// Coordinate 0 (`x`), 1 (`y`) or 2 (`z`).
+    Coord(usize),
+    /// A design variable, by its flat index.
+    Design(usize),
+    Neg(Box<Formula>),
+    Arith(Arith, Box<Formula>, Box<Formula>),
+    Pow(Box<Formula>, Box<Formula>),
+    Func(Func, Box<Formula>),
+    /// `bezier(coefficients, t)`: Bernstein polynomial of degree `n - 1`.
+    Bezier(Vec<Formula>, Box<Formula>),
+}
+
+/// Where a formula is evaluated: coordinates and design values of one number type.
+pub struct Point<'a, T> {
+    pub coords: [T; 3],
+    pub design: &'a [T],
+}
+
+impl Formula {
+    /// The value at `at`. Out-of-domain arguments (`sqrt(-1)`) give NaN, which the
+    /// callers check for and report with the place.
+    pub fn eval<T: Scalar>(&self, at: &Point<'_, T>) -> T {
+        match self {
+            Formula::Const(c) => T::from(*c),
+            Formula::Coord(i) => at.coords[*i],
+            Formula::Design(i) => at
+                .design
+                .get(*i)
+                .copied()
+                .unwrap_or_else(|| T::from(f64::NAN)),
+            Formula::Neg(a) => -a.eval(at),
+            Formula::Arith(op, a, b) => {
+                let (a, b) = (a.eval(at), b.eval(at));
+                match op {
+                    Arith::Add => a + b,
+                    Arith::Sub => a - b,
+                    Arith::Mul => a * b,
+                    Arith::Div => a / b,
+                    Arith::Min => {
+                        if b.re() < a.re() {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    Arith::Max => {
+                        if b.re() > a.re() {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                }
+            }
+            Formula::Pow(a, b) => {
+                let base = a.eval(at);
+                match b.as_ref() {
+                    // Integer powers keep derivatives right for negative bases.
+                    Formula::Const(p) if p.fract() == 0.0 && p.abs() <= i32::MAX as f64 => {
+                        base.powi(*p as i32)
+                    }
+                    Formula::Const(p) => base.powf(*p),
+                    exp => base.powd(exp.eval(at)),
+                }
+            }
+            Formula::Func(f, a) => {
+                let a = a.eval(at);
+                match f {
+                    Func::Sqrt => a.sqrt(),
+                    Func::Abs => a.abs(),
+                    Func::Exp => a.exp(),
+                    Func::Ln => a.ln(),
+                    Func::Sin => a.sin(),
+                    Func::Cos => a.cos(),
+                    Func::Tan => a.tan(),
+                }
+            }
+            Formula::Bezier(coeffs, t) => bezier(coeffs, t.eval(at), at),
+        }
+    }
+
+    /// The value at plain coordinates and design values.
+    pub fn eval_f64(&self, coords: [f64; 3], design: &[f64]) -> f64 {
+        self.eval(&Point { coords, design })
+    }
+
+    /// Does the formula depend on coordinate `i`?
+    pub fn uses_coord(&self, i: usize) -> bool {
+        self.any(&|f| matches!(f, Formula::Coord(j) if *j == i))
+    }
+
+    /// Does the formula depend on any design variable?
+    pub fn uses_design(&self) -> bool {
+        self.any(&|f| matches!(f, Formula::Design(_)))
+    }
+
+    /// The constant value, when the formula depends on nothing.
+    pub fn as_const(&self) -> Option<f64> {
+        match self {
+            Formula::Const(c) => Some(*c),
+            _ => None,
+        }
+    }
+
+    fn any(&self, pred: &dyn Fn(&Formula) -> bool) -> bool {
+        if pred(self) {
+            return true;
+        }
+        match self {
+            Formula::Const(_) | Formula::Coord(_) | Formula::Design(_) => false,
+            Formula::Neg(a) | Formula::Func(_, a) => a.any(pred),
+            Formula::Arith(_, a, b) | Formula::Pow(a, b) => a.any(pred) || b.any(pred),
+            Formula::Bezier(c, t) => t.any(pred) || c.iter().any(|c| c.any(pred)),
+        }
+    }
+}
+
+/// De Casteljau's algorithm: stable for any degree, and it runs on dual numbers.
+fn bezier<T: Scalar>(coeffs: &[Formula], t: T, at: &Point<'_, T>) -> T {
+    let mut b: Vec<T> = coeffs.iter().map(|c| c.eval(at)).collect();
+    let one_minus_t = T::from(1.0) - t;
+    for level in (1..b.len()).rev() {
+        for i in 0..level {
+            b[i] = b[i] * one_minus_t + b[i + 1] * t;
+        }
+    }
+    b.first().copied().unwrap_or_else(|| T::from(0.0))
+}
+
+/// A checked condition on node coordinates (a selection filter).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Cond {
+    Cmp(CmpOp, Formula, Formula),
+    And(Box<Cond>, Box<Cond>),
+    Or(Box<Cond>, Box<Cond>),
+    Not(Box<Cond>),
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CmpOp {
+    Lt,
+    Le,
+    Gt,
+    Ge,
+    Eq,
+    Ne,
+}
+
+impl Cond {
+    /// Whether a point with these coordinates is kept. Comparisons are exact on
+    /// the evaluated values, except `==`/`!=`, which allow `tol` (a fraction of
+    /// the body size, so that `x == 1.5` finds the grid line at 1.5).
+    pub fn holds(&self, coords: [f64; 3], design: &[f64], tol: f64) -> bool {
+        match self {
+            Cond::Cmp(op, a, b) => {
+                let (a, b) = (a.eval_f64(coords, design), b.eval_f64(coords, design));
+                match op {
+                    CmpOp::Lt => a < b,
+                    CmpOp::Le => a <= b + tol,
+                    CmpOp::Gt => a > b,
+                    CmpOp::Ge => a + tol >= b,
+                    CmpOp::Eq => (a - b).abs() <= tol,
+                    CmpOp::Ne => (a - b).abs() > tol,
+                }
+            }
+            Cond::And(a, b) => a.holds(coords, design, tol) && b.holds(coords, design, tol),
+            Cond::Or(a, b) => a.holds(coords, design, tol) || b.holds(coords, design, tol),
+            Cond::Not(a) => !a.holds(coords, design, tol),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use num_dual::Dual64;
+
+    fn c(v: f64) -> Box<Formula> {
+        Box::new(Formula::Const(v))
+    }
+
+    #[test]
+    fn bezier_matches_bernstein_form() {
+        // degree 3: sum_k C(3,k) t^k (1-t)^(3-k) a_k
+        let a = [0.04, 0.01, 0.3, -0.2];
+        let f = Formula::Bezier(
+            a.iter().map(|v| Formula::Const(*v)).collect(),
+            Box::new(Formula::Coord(0)),
+        );
+        for t in [0.0, 0.2, 0.5, 0.9, 1.0] {
+            let s = 1.0 - t;
+            let want = a[0] * s * s * s
+                + 3.0 * a[1] * t * s * s
+                + 3.0 * a[2] * t * t * s
+                + a[3] * t * t * t;
+            assert!((f.eval_f64([t, 0.0, 0.0], &[]) - want).abs() < 1e-15);
+        }
+    }
+
+    #[test]
+    fn dual_numbers_give_the_derivative_wrt_a_design_variable() {
+        // bottom = 1 + bezier(a, x) with a = [d0, d1]: d/d(d1) at x = t is t.
+        let f = Formula::Arith(
+            Arith::Add,
+            c(1.0),
+            Box::new(Formula::Bezier(
+                vec![Formula::Design(0), Formula::Design(1)],
+                Box::new(Formula::Coord(0)),
+            )),
+        );
+        let design = [Dual64::from(0.3), Dual64::from(0.7).derivative()];
+        let at = Point {
+            coords: [Dual64::from(0.25), Dual64::from(0.0), Dual64::from(0.0)],
+            design: &design,
+        };
+        let v = f.eval(&at);
+        assert!((v.re - (1.0 + 0.75 * 0.3 + 0.25 * 0.7)).abs() < 1e-15);
+        assert!((v.eps - 0.25).abs() < 1e-15);
+    }
+
+    #[test]
+    fn sqrt_derivative_matches_finite_difference() {
+        // R - sqrt(R^2 - x^2), derivative wrt R (design 0) at x = 0.01.
+        let f = Formula::Arith(
+            Arith::Sub,
+            Box::new(Formula::Design(0)),
+            Box::new(Formula::Func(
+                Func::Sqrt,
+                Box::new(Formula::Arith(
+                    Arith::Sub,
+                    Box::new(Formula::Pow(Box::new(Formula::Design(0)), c(2.0))),
+                    Box::new(Formula::Pow(Box::new(Formula::Coord(0)), c(2.0))),
+                )),
+            )),
+        );
+        let r = 0.05;
+        let design = [Dual64::from(r).derivative()];
+        let at = Point {
+            coords: [Dual64::from(0.01), Dual64::from(0.0), Dual64::from(0.0)],
+            design: &design,
+        };
+        let d = f.eval(&at).eps;
+        let h = 1e-7;
+        let fd = (f.eval_f64([0.01, 0.0, 0.0], &[r + h]) - f.eval_f64([0.01, 0.0, 0.0], &[r - h]))
+            / (2.0 * h);
+        assert!((d - fd).abs() < 1e-7, "{d} vs {fd}");
+    }
+
+    #[test]
+    fn negative_base_integer_power_is_defined() {
+        let f = Formula::Pow(Box::new(Formula::Coord(0)), c(2.0));
+        assert_eq!(f.eval_f64([-3.0, 0.0, 0.0], &[]), 9.0);
+    }
+}

@@ -1,0 +1,448 @@
+//! The checked scene: what a `.cso` file means, typed, validated, in SI units.
+//!
+//! Everything here refers to other things by index, never by name, and nothing
+//! here has a span: the checker has already said everything there was to say
+//! about the text. Geometry that may move with the design stays a [`Formula`];
+//! everything else is a number.
+
+use super::expr::{Arith, Cond, Formula, Func};
+use serde::Serialize;
+
+/// 2D (plane strain) or 3D.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum Dimension {
+    #[serde(rename = "2D")]
+    Two,
+    #[serde(rename = "3D")]
+    Three,
+}
+
+impl Dimension {
+    /// Number of coordinates (and displacement components).
+    pub fn n(self) -> usize {
+        match self {
+            Dimension::Two => 2,
+            Dimension::Three => 3,
+        }
+    }
+}
+
+/// A whole checked scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    pub name: String,
+    pub dim: Dimension,
+    /// Out-of-plane thickness (2D); 1 in 3D.
+    pub thickness: f64,
+    /// The `let` constants that evaluate to numbers, after `--set` overrides.
+    pub params: Vec<Param>,
+    pub materials: Vec<Material>,
+    /// Design variables, flat: `a[6]` gives six entries named `a[0]` .. `a[5]`.
+    pub design: Vec<DesignVar>,
+    pub bodies: Vec<Body>,
+    pub obstacles: Vec<Obstacle>,
+    pub conditions: Vec<Condition>,
+    /// Acceleration of gravity (needs `rho` on every material).
+    pub gravity: Option<Vec<f64>>,
+    pub glues: Vec<Glue>,
+    pub contacts: Vec<Contact>,
+    pub probes: Vec<Probe>,
+    pub objective: Option<Objective>,
+    pub constraints: Vec<Constraint>,
+    pub solver: SolverSettings,
+    pub sensitivity: SensitivitySettings,
+    pub optimize: OptimizeSettings,
+}
+
+impl Scene {
+    /// Initial values of the design variables.
+    pub fn design_init(&self) -> Vec<f64> {
+        self.design.iter().map(|d| d.init).collect()
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Param {
+    pub name: String,
+    pub value: f64,
+    /// Set with `--set` rather than in the file.
+    pub overridden: bool,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Material {
+    pub name: String,
+    /// Young's modulus (Pa).
+    pub young: f64,
+    /// Poisson's ratio, in (-1, 0.5).
+    pub poisson: f64,
+    /// Density (kg/m^3), needed only with gravity.
+    pub density: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DesignVar {
+    /// `h`, or `a[3]` for an entry of an array.
+    pub name: String,
+    pub init: f64,
+    pub lower: f64,
+    pub upper: f64,
+}
+
+/// One structured block of one material.
+#[derive(Debug, Clone)]
+pub struct Body {
+    pub name: String,
+    pub material: usize,
+    /// Extent along each axis (`x`, `y` [, `z`]); the last axis is vertical.
+    pub extent: Vec<(Formula, Formula)>,
+    /// Curved bottom face: height over the other coordinates (x in 2D, x and y in 3D).
+    pub bottom: Option<Formula>,
+    /// Curved top face, likewise.
+    pub top: Option<Formula>,
+    /// The curved faces as written (bottom, top), for reports.
+    pub face_text: [Option<String>; 2],
+    /// Elements along each axis.
+    pub mesh: Vec<usize>,
+    /// Subdomain cuts along each axis (each divides `mesh`).
+    pub subdomains: Vec<usize>,
+}
+
+impl Body {
+    pub fn elements(&self) -> usize {
+        self.mesh.iter().product()
+    }
+
+    pub fn nodes(&self) -> usize {
+        self.mesh.iter().map(|m| m + 1).product()
+    }
+
+    pub fn subdomain_count(&self) -> usize {
+        self.subdomains.iter().product()
+    }
+
+    /// Elements of one subdomain along each axis.
+    pub fn subdomain_mesh(&self) -> Vec<usize> {
+        self.mesh
+            .iter()
+            .zip(&self.subdomains)
+            .map(|(m, s)| m / s.max(&1))
+            .collect()
+    }
+
+    /// Primal unknowns: each subdomain has its own copy of its nodes (TFETI).
+    pub fn primal_dofs(&self) -> usize {
+        let per: usize = self.subdomain_mesh().iter().map(|h| h + 1).product();
+        per * self.subdomain_count() * self.extent.len()
+    }
+
+    /// Is this face a curved one?
+    pub fn is_curved(&self, face: Face) -> bool {
+        match face {
+            Face::Bottom => self.bottom.is_some(),
+            Face::Top => self.top.is_some(),
+            _ => false,
+        }
+    }
+}
+
+/// A face of a structured block.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Face {
+    Left,
+    Right,
+    Bottom,
+    Top,
+    Front,
+    Back,
+}
+
+impl Face {
+    pub const ALL: [Face; 6] = [
+        Face::Left,
+        Face::Right,
+        Face::Bottom,
+        Face::Top,
+        Face::Front,
+        Face::Back,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Face::Left => "left",
+            Face::Right => "right",
+            Face::Bottom => "bottom",
+            Face::Top => "top",
+            Face::Front => "front",
+            Face::Back => "back",
+        }
+    }
+
+    /// The axis normal to the face and whether it is the max side, in `dim` dimensions.
+    pub fn axis(self, dim: Dimension) -> (usize, bool) {
+        let vertical = dim.n() - 1;
+        match self {
+            Face::Left => (0, false),
+            Face::Right => (0, true),
+            Face::Front => (1, false),
+            Face::Back => (1, true),
+            Face::Bottom => (vertical, false),
+            Face::Top => (vertical, true),
+        }
+    }
+}
+
+/// Nodes (and edges/faces) of one face of one body, optionally filtered.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    pub body: usize,
+    pub face: Face,
+    pub filter: Option<Cond>,
+    /// As written, for reports.
+    pub text: String,
+}
+
+#[derive(Debug, Clone)]
+pub enum Obstacle {
+    /// A rigid plane (a line in 2D) through `point` with outward unit `normal`.
+    Plane {
+        name: String,
+        point: Vec<Formula>,
+        normal: Vec<Formula>,
+    },
+    /// A rigid circle/sphere; bodies touch it from outside.
+    Sphere {
+        name: String,
+        center: Vec<Formula>,
+        radius: Formula,
+    },
+}
+
+impl Obstacle {
+    pub fn name(&self) -> &str {
+        match self {
+            Obstacle::Plane { name, .. } | Obstacle::Sphere { name, .. } => name,
+        }
+    }
+}
+
+/// A support or a load on a selection.
+#[derive(Debug, Clone)]
+pub enum Condition {
+    /// Zero displacement of the listed components (0 = ux, 1 = uy, 2 = uz).
+    Fix {
+        sel: Selection,
+        components: Vec<usize>,
+    },
+    /// Prescribed displacement of the listed components (m).
+    Displace {
+        sel: Selection,
+        values: Vec<(usize, f64)>,
+    },
+    /// Zero normal displacement.
+    Symmetry { sel: Selection },
+    /// Surface force per area (Pa).
+    Traction { sel: Selection, value: Vec<f64> },
+    /// Normal pressure (Pa), positive into the body.
+    Pressure { sel: Selection, value: f64 },
+}
+
+impl Condition {
+    pub fn selection(&self) -> &Selection {
+        match self {
+            Condition::Fix { sel, .. }
+            | Condition::Displace { sel, .. }
+            | Condition::Symmetry { sel }
+            | Condition::Traction { sel, .. }
+            | Condition::Pressure { sel, .. } => sel,
+        }
+    }
+
+    pub fn keyword(&self) -> &'static str {
+        match self {
+            Condition::Fix { .. } => "fix",
+            Condition::Displace { .. } => "displace",
+            Condition::Symmetry { .. } => "symmetry",
+            Condition::Traction { .. } => "traction",
+            Condition::Pressure { .. } => "pressure",
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+pub struct Glue {
+    pub name: String,
+    pub primary: Selection,
+    pub secondary: Selection,
+}
+
+/// The primary side of a contact.
+#[derive(Debug, Clone)]
+pub enum Primary {
+    Face(Selection),
+    Obstacle(usize),
+}
+
+#[derive(Debug, Clone)]
+pub struct Contact {
+    pub name: String,
+    pub primary: Primary,
+    pub secondary: Selection,
+    /// Largest initial gap that gets a contact row; `None`: decided when lowering.
+    pub search: Option<f64>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub struct Probe {
+    pub name: String,
+    pub body: usize,
+    pub at: Vec<f64>,
+}
+
+/// A functional of the solution and the design (objective and constraints).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Functional {
+    /// A number, or a formula of the design variables (no coordinates).
+    Geometry(Formula),
+    /// f^T u
+    Compliance,
+    /// 1/2 u^T K u
+    Energy,
+    /// Total normal force of a contact.
+    ContactForce(usize),
+    /// q-norm of the contact pressure over the contact face.
+    PressureNorm(usize, f64),
+    /// Area of a 2D body.
+    Area(usize),
+    /// Volume of a 3D body.
+    Volume(usize),
+    /// Displacement component of a probe.
+    Probe(usize, usize),
+    /// The value at the initial design (a constant).
+    Initial(Box<Functional>),
+    Neg(Box<Functional>),
+    Arith(Arith, Box<Functional>, Box<Functional>),
+    Pow(Box<Functional>, f64),
+    Func(Func, Box<Functional>),
+}
+
+#[derive(Debug, Clone)]
+pub struct Objective {
+    pub functional: Functional,
+    pub text: String,
+}
+
+/// `lhs <= rhs` or `lhs >= rhs`.
+#[derive(Debug, Clone)]
+pub struct Constraint {
+    pub lhs: Functional,
+    pub upper: bool,
+    pub rhs: Functional,
+    pub text: String,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SolverMethod {
+    Tfeti,
+    Feti,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Preconditioner {
+    None,
+    Lumped,
+    Dirichlet,
+}
+
+/// `solver { ... }`
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SolverSettings {
+    /// Default `tfeti`.
+    pub method: SolverMethod,
+    /// Relative tolerance of the dual solve; default 1e-6.
+    pub tolerance: f64,
+    /// Cap on Hessian applications of the whole solve; default 2000.
+    pub max_iterations: usize,
+    /// Dual preconditioner; default `none`.
+    pub preconditioner: Preconditioner,
+    /// Classical FETI only: relative pivot tolerance that detects the kernel; default 1e-10.
+    pub eps: f64,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        SolverSettings {
+            method: SolverMethod::Tfeti,
+            tolerance: 1e-6,
+            max_iterations: 2000,
+            preconditioner: Preconditioner::None,
+            eps: 1e-10,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SensitivityMethod {
+    SemiAnalytic,
+    Adjoint,
+    FiniteDifference,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Scheme {
+    Forward,
+    Central,
+}
+
+/// `sensitivity { ... }`
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct SensitivitySettings {
+    /// Default `semi_analytic`.
+    pub method: SensitivityMethod,
+    /// Finite-difference step; default 1e-6.
+    pub step: f64,
+    /// Finite-difference scheme; default `central`.
+    pub scheme: Scheme,
+}
+
+impl Default for SensitivitySettings {
+    fn default() -> Self {
+        SensitivitySettings {
+            method: SensitivityMethod::SemiAnalytic,
+            step: 1e-6,
+            scheme: Scheme::Central,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum OptimizeMethod {
+    Mma,
+}
+
+/// `optimize { ... }`
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OptimizeSettings {
+    /// Default `mma` (Svanberg's method of moving asymptotes).
+    pub method: OptimizeMethod,
+    /// Default 50.
+    pub max_iterations: usize,
+    /// KKT tolerance of the design problem; default 1e-6.
+    pub tolerance: f64,
+}
+
+impl Default for OptimizeSettings {
+    fn default() -> Self {
+        OptimizeSettings {
+            method: OptimizeMethod::Mma,
+            max_iterations: 50,
+            tolerance: 1e-6,
+        }
+    }
+}
