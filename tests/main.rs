@@ -1,1 +1,34 @@
+//! One integration-test binary (one link on 2 cores), made of modules.
 
+mod cli;
+mod diagnostics;
+mod examples;
+mod front_end;
+mod fuzz;
+
+use std::path::{Path, PathBuf};
+
+/// The repository root.
+pub fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// `.cso` files of a folder, sorted by name.
+pub fn cso_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
+        .expect("folder exists")
+        .map(|e| e.expect("entry").path())
+        .filter(|p| p.extension().is_some_and(|e| e == "cso"))
+        .collect();
+    files.sort();
+    files
+}
+
+/// Check options of the tests: a fixed memory limit so that results do not
+/// depend on the machine.
+pub fn options() -> cso::lang::CheckOptions {
+    cso::lang::CheckOptions {
+        overrides: Vec::new(),
+        memory_limit: Some(16 << 30),
+    }
+}

@@ -44,13 +44,24 @@ pub const ITEM_KEYWORDS: &[&str] = &[
 pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
     let mut file = File::default();
     let mut diags = Vec::new();
+    if let Some(d) = too_deep(src) {
+        return (file, vec![d]);
+    }
     let mut pos = skip_blank(src, 0);
     while pos < src.len() {
         match CsoParser::parse(Rule::item, &src[pos..]) {
             Ok(mut pairs) => match pairs.next() {
                 Some(pair) => {
                     let end = pos + pair.as_span().end();
-                    file.items.push(item(pair, pos));
+                    match too_long(&pair, pos) {
+                        Some(d) => {
+                            diags.push(d);
+                            if let Some(name) = item_name(src, pos) {
+                                file.broken_names.push(name);
+                            }
+                        }
+                        None => file.items.push(item(pair, pos)),
+                    }
                     pos = skip_blank(src, end.max(pos + 1));
                 }
                 None => break,
@@ -67,13 +78,95 @@ pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
     (file, diags)
 }
 
+/// Brackets may nest this deep (the parser recurses once per level).
+pub const MAX_NESTING: usize = 32;
+/// Terms of one `+`/`*`/`&&` chain, and prefix/postfix operators on one operand.
+pub const MAX_CHAIN: usize = 256;
+
+/// Refuses sources whose nesting would exhaust the parser's stack; scanned before
+/// parsing because the parser recurses once per level.
+fn too_deep(src: &str) -> Option<Diagnostic> {
+    let bytes = src.as_bytes();
+    let (mut depth, mut pos) = (0usize, 0usize);
+    while pos < bytes.len() {
+        match bytes[pos] {
+            b'#' => {
+                while pos < bytes.len() && bytes[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            b'"' => {
+                pos += 1;
+                while pos < bytes.len() && bytes[pos] != b'"' && bytes[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            b'(' | b'[' | b'{' => {
+                depth += 1;
+                if depth > MAX_NESTING {
+                    return Some(
+                        Diagnostic::new(
+                            "cso::too-deep",
+                            format!("brackets nested more than {MAX_NESTING} deep"),
+                        )
+                        .label(Span::new(pos, pos + 1), "too deep here")
+                        .help("split the expression with `let` constants"),
+                    );
+                }
+            }
+            b')' | b']' | b'}' => depth = depth.saturating_sub(1),
+            _ => {}
+        }
+        pos += 1;
+    }
+    None
+}
+
+/// Refuses an item with an operator chain longer than [`MAX_CHAIN`] (the syntax
+/// tree nests once per term, and everything after walks it recursively).
+fn too_long(pair: &Pair<Rule>, offset: usize) -> Option<Diagnostic> {
+    for p in pair.clone().into_inner().flatten() {
+        let chain = matches!(
+            p.as_rule(),
+            Rule::or_expr
+                | Rule::and_expr
+                | Rule::add_expr
+                | Rule::mul_expr
+                | Rule::unary_expr
+                | Rule::pow_expr
+                | Rule::pow_operand
+                | Rule::postfix_expr
+        );
+        if chain {
+            let n = p.clone().into_inner().count();
+            if n > 2 * MAX_CHAIN {
+                return Some(
+                    Diagnostic::new(
+                        "cso::too-long",
+                        format!("an expression of more than {MAX_CHAIN} terms"),
+                    )
+                    .label(span_of(&p, offset), format!("{} operators and operands", n))
+                    .help("split the expression with `let` constants"),
+                );
+            }
+        }
+    }
+    None
+}
+
 /// Parses a lone expression (the value of `--set NAME=VALUE`).
 pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
+    if let Some(d) = too_deep(src) {
+        return Err(d);
+    }
     let start = skip_blank(src, 0);
     let parsed = CsoParser::parse(Rule::expr, &src[start..]);
     match parsed {
         Ok(mut pairs) => match pairs.next() {
             Some(pair) => {
+                if let Some(d) = too_long(&pair, start) {
+                    return Err(d);
+                }
                 let end = start + pair.as_span().end();
                 let rest = skip_blank(src, end);
                 if rest < src.len() {
@@ -236,6 +329,7 @@ fn rule_name(rule: Rule) -> Option<&'static str> {
         | Rule::mul_expr
         | Rule::unary_expr
         | Rule::pow_expr
+        | Rule::pow_operand
         | Rule::postfix_expr
         | Rule::paren_or_vector
         | Rule::list
@@ -488,7 +582,6 @@ fn value(pair: Pair<Rule>, offset: usize) -> Value {
 }
 
 fn expr(pair: Pair<Rule>, offset: usize) -> Expr {
-    let span = span_of(&pair, offset);
     match pair.as_rule() {
         Rule::expr => expr(next(&mut pair.into_inner()), offset),
         Rule::or_expr | Rule::and_expr | Rule::cmp_expr | Rule::add_expr | Rule::mul_expr => {
@@ -513,32 +606,48 @@ fn expr(pair: Pair<Rule>, offset: usize) -> Expr {
             };
             let mut e = expr(last.clone(), offset);
             for op in ops.iter().rev() {
-                let op_span = span_of(op, offset);
-                let un = if op.as_rule() == Rule::op_not {
-                    UnOp::Not
-                } else {
-                    UnOp::Neg
-                };
-                let span = op_span.to(e.span);
-                e = Expr {
-                    kind: ExprKind::Unary(un, Box::new(e)),
-                    span,
-                };
+                e = prefixed(op, e, offset);
             }
             e
         }
         Rule::pow_expr => {
-            let mut parts = pair.into_inner();
-            let base = expr(next(&mut parts), offset);
-            match parts.next() {
-                Some(_op) => {
-                    let exp = expr(next(&mut parts), offset);
-                    Expr {
-                        kind: ExprKind::Binary(BinOp::Pow, Box::new(base), Box::new(exp)),
-                        span,
+            // Operands with their prefix operators; `-a ^ b` never reaches here
+            // (unary_expr takes the first operand's prefix), `a ^ -b ^ c` does.
+            let mut operands: Vec<(Vec<Pair<Rule>>, Expr)> = Vec::new();
+            for p in pair.into_inner() {
+                match p.as_rule() {
+                    Rule::op_pow => {}
+                    Rule::pow_operand => {
+                        let mut parts: Vec<Pair<Rule>> = p.into_inner().collect();
+                        let base = match parts.pop() {
+                            Some(b) => expr(b, offset),
+                            None => unreachable_item(),
+                        };
+                        operands.push((parts, base));
                     }
+                    _ => operands.push((Vec::new(), expr(p, offset))),
                 }
-                None => base,
+            }
+            let mut acc: Option<Expr> = None;
+            while let Some((prefix, base)) = operands.pop() {
+                let mut e = match acc.take() {
+                    Some(exp) => {
+                        let span = base.span.to(exp.span);
+                        Expr {
+                            kind: ExprKind::Binary(BinOp::Pow, Box::new(base), Box::new(exp)),
+                            span,
+                        }
+                    }
+                    None => base,
+                };
+                for op in prefix.iter().rev() {
+                    e = prefixed(op, e, offset);
+                }
+                acc = Some(e);
+            }
+            match acc {
+                Some(e) => e,
+                None => unreachable_item(),
             }
         }
         Rule::postfix_expr => {
@@ -566,6 +675,20 @@ fn expr(pair: Pair<Rule>, offset: usize) -> Expr {
             e
         }
         _ => atom(pair, offset),
+    }
+}
+
+/// `-e` or `!e`.
+fn prefixed(op: &Pair<Rule>, e: Expr, offset: usize) -> Expr {
+    let un = if op.as_rule() == Rule::op_not {
+        UnOp::Not
+    } else {
+        UnOp::Neg
+    };
+    let span = span_of(op, offset).to(e.span);
+    Expr {
+        kind: ExprKind::Unary(un, Box::new(e)),
+        span,
     }
 }
 

@@ -109,16 +109,18 @@ pub struct Body {
 }
 
 impl Body {
+    // Counts saturate: a scene too large to solve is refused by the checker's
+    // memory estimate, but its summary must not overflow on the way.
     pub fn elements(&self) -> usize {
-        self.mesh.iter().product()
+        saturating_product(self.mesh.iter().copied())
     }
 
     pub fn nodes(&self) -> usize {
-        self.mesh.iter().map(|m| m + 1).product()
+        saturating_product(self.mesh.iter().map(|m| m.saturating_add(1)))
     }
 
     pub fn subdomain_count(&self) -> usize {
-        self.subdomains.iter().product()
+        saturating_product(self.subdomains.iter().copied())
     }
 
     /// Elements of one subdomain along each axis.
@@ -132,8 +134,8 @@ impl Body {
 
     /// Primal unknowns: each subdomain has its own copy of its nodes (TFETI).
     pub fn primal_dofs(&self) -> usize {
-        let per: usize = self.subdomain_mesh().iter().map(|h| h + 1).product();
-        per * self.subdomain_count() * self.extent.len()
+        let per = saturating_product(self.subdomain_mesh().iter().map(|h| h.saturating_add(1)));
+        saturating_product([per, self.subdomain_count(), self.extent.len()])
     }
 
     /// Is this face a curved one?
@@ -144,6 +146,10 @@ impl Body {
             _ => false,
         }
     }
+}
+
+fn saturating_product(v: impl IntoIterator<Item = usize>) -> usize {
+    v.into_iter().fold(1usize, usize::saturating_mul)
 }
 
 /// A face of a structured block.

@@ -54,8 +54,55 @@ impl<'a> Checker<'a> {
         unknown_hint: &dyn Fn(&str) -> Option<String>,
     ) -> Fields<'a> {
         let mut found: Vec<&'a Field> = Vec::new();
-        for field in &block.fields {
+        // Fields written without a value: reported here, but still "given".
+        let mut valueless: Vec<&str> = Vec::new();
+        let mut skip_next = false;
+        for (i, field) in block.fields.iter().enumerate() {
+            if std::mem::take(&mut skip_next) {
+                continue;
+            }
             let name = field.name.name.as_str();
+            if field.value.is_none() {
+                valueless.push(name);
+                let next = block.fields.get(i + 1).filter(|n| {
+                    n.value.is_none()
+                        && self
+                            .src
+                            .get(field.span.end..n.span.start)
+                            .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
+                });
+                let after_grid = i
+                    .checked_sub(1)
+                    .and_then(|j| block.fields.get(j))
+                    .filter(|p| matches!(p.value, Some(Value::Grid(_))) && name == "x")
+                    .filter(|p| {
+                        self.src
+                            .get(p.span.end..field.span.start)
+                            .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
+                    });
+                let d = match (after_grid, next) {
+                    (Some(p), _) => Diagnostic::new("cso::syntax", "expected a count after `x`")
+                        .label(field.span, "expected a number after this")
+                        .help(format!(
+                            "complete the counts (`{0} = 4 x 4` in 2D, `{0} = 4 x 4 x 4` in 3D) or drop the last `x`",
+                            p.name.name
+                        )),
+                    (None, Some(n)) => {
+                        skip_next = true;
+                        Diagnostic::new(
+                            "cso::syntax",
+                            format!("expected `=` between `{name}` and `{}`", n.name.name),
+                        )
+                        .label(field.span.to(n.span), "missing `=`")
+                        .help(format!("write `{name} = {}`", n.name.name))
+                    }
+                    (None, None) => Diagnostic::new("cso::missing-value", format!("field `{name}` has no value"))
+                        .label(field.name.span, format!("expected `{name} = ...`"))
+                        .help("every field of this block is written `NAME = VALUE`"),
+                };
+                self.error(d);
+                continue;
+            }
             if !spec.iter().any(|s| s.name == name) {
                 let known: Vec<&str> = spec.iter().map(|s| s.name).collect();
                 let help = unknown_hint(name)
@@ -87,7 +134,11 @@ impl<'a> Checker<'a> {
         }
         let missing: Vec<&Spec> = spec
             .iter()
-            .filter(|s| s.required && !found.iter().any(|f| f.name.name == s.name))
+            .filter(|s| {
+                s.required
+                    && !found.iter().any(|f| f.name.name == s.name)
+                    && !valueless.contains(&s.name)
+            })
             .collect();
         if !missing.is_empty() {
             let names: Vec<&str> = missing.iter().map(|s| s.name).collect();

@@ -74,6 +74,8 @@ pub(crate) struct Checker<'a> {
     broken: HashSet<String>,
     /// `let` items by table index: the expression as written and its state.
     lets: Vec<(&'a Ident, &'a super::ast::Expr, LetState)>,
+    /// How many `let` values are being resolved inside each other right now.
+    let_depth: usize,
     /// Overrides already resolved, by `let` index.
     overridden: HashMap<usize, Option<(Formula, Quantity)>>,
     designs: Vec<DesignGroup>,
@@ -96,6 +98,7 @@ impl<'a> Checker<'a> {
             tables,
             broken: file.broken_names.iter().cloned().collect(),
             lets: Vec::new(),
+            let_depth: 0,
             overridden: HashMap::new(),
             designs: Vec::new(),
             design_vars: Vec::new(),

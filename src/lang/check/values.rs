@@ -22,6 +22,9 @@ pub(crate) const FUNCTIONALS: &[&str] = &[
 
 const COORDS: [&str; 3] = ["x", "y", "z"];
 
+/// A `let` may use another that uses another ... this many levels deep.
+const MAX_LET_DEPTH: usize = 64;
+
 /// Folds a formula of constants into one `Const`.
 fn fold(f: Formula) -> Formula {
     if !f.uses_design() && !(0..3).any(|i| f.uses_coord(i)) && f.as_const().is_none() {
@@ -252,7 +255,21 @@ impl<'a> Checker<'a> {
             LetState::Pending => {
                 self.lets[i].2 = LetState::InProgress;
                 let value = self.lets[i].1;
-                let v = self.formula(value);
+                self.let_depth += 1;
+                let v = if self.let_depth > MAX_LET_DEPTH {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::too-deep",
+                            format!("constants defined through more than {MAX_LET_DEPTH} other constants"),
+                        )
+                        .label(value.span, "too deep here")
+                        .help("define some of the constants directly"),
+                    );
+                    None
+                } else {
+                    self.formula(value)
+                };
+                self.let_depth -= 1;
                 if matches!(self.lets[i].2, LetState::InProgress) {
                     self.lets[i].2 = LetState::Done(v.clone());
                 }

@@ -1,0 +1,83 @@
+//! The `cso` command as a user runs it: exit codes, output streams, `--set`, `--json`.
+
+use crate::root;
+use std::process::Command;
+
+fn cso(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_cso"))
+        .args(args)
+        .current_dir(root())
+        .output()
+        .expect("cso runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+#[test]
+fn check_passes_on_the_examples_and_fails_with_code_1_on_errors() {
+    let (code, out, _) = cso(&["check", "examples/two_blocks.cso", "examples/hertz3d.cso"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.contains("ok examples/two_blocks.cso: scene `two_blocks` (2D), 2 bodies"),
+        "{out}"
+    );
+    let (code, _, err) = cso(&[
+        "check",
+        "examples/two_blocks.cso",
+        "tests/diagnostics/01_missing_closing_brace.cso",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("01_missing_closing_brace.cso:"), "{err}");
+}
+
+#[test]
+fn io_and_usage_errors_exit_with_code_2() {
+    let (code, _, err) = cso(&["check", "no/such/file.cso"]);
+    assert_eq!(code, 2);
+    assert!(err.contains("cannot read no/such/file.cso"), "{err}");
+    let (code, _, _) = cso(&["frobnicate"]);
+    assert_eq!(code, 2);
+    let (code, _, err) = cso(&["--set", "novalue", "check", "examples/hertz2d.cso"]);
+    assert_eq!(code, 2, "{err}");
+}
+
+#[test]
+fn set_changes_the_compiled_scene_and_bad_values_are_diagnosed() {
+    let (code, out, err) = cso(&["--set", "P=3 MN/m", "compile", "examples/hertz2d.cso"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("traction  roller.top             (0, -1.5e8) Pa"),
+        "{out}"
+    );
+    assert!(out.contains("P          = 3e6   (--set)"), "{out}");
+    let (code, _, err) = cso(&["compile", "examples/hertz2d.cso", "--set", "w=3 GPa"]);
+    assert_eq!(code, 1);
+    assert!(
+        err.contains("`--set w` gives a pressure (Pa), but `w` is a length (m)"),
+        "{err}"
+    );
+    assert!(err.contains("command line"), "{err}");
+}
+
+#[test]
+fn compile_json_is_valid_and_carries_the_counts() {
+    let (code, out, err) = cso(&["compile", "examples/scont2d.cso", "--json"]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    assert_eq!(v["scene"], "scont2d");
+    assert_eq!(v["dim"], "2D");
+    assert_eq!(v["totals"]["primal_dofs"], 2592);
+    assert_eq!(v["design"].as_array().map(Vec::len), Some(6));
+    assert_eq!(v["design"][0]["name"], "a[0]");
+    assert_eq!(v["optimize"]["max_iterations"], 30);
+}
+
+#[test]
+fn help_shows_examples() {
+    let (code, out, _) = cso(&["--help"]);
+    assert_eq!(code, 0);
+    assert!(out.contains("cso check examples/*.cso"), "{out}");
+}

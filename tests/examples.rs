@@ -1,0 +1,47 @@
+//! Every canonical scene checks as written; its summary is what a user reads.
+
+use crate::{cso_files, options, root};
+use cso::io::summary::summarize;
+use cso::lang::compile;
+
+#[test]
+fn every_example_checks_and_its_summary_is_stable() {
+    let files = cso_files(&root().join("examples"));
+    assert!(
+        files.len() >= 6,
+        "the six canonical scenes are in examples/"
+    );
+    for path in files {
+        let src = std::fs::read_to_string(&path).expect("readable");
+        let name = path
+            .file_stem()
+            .expect("stem")
+            .to_string_lossy()
+            .to_string();
+        let scene = match compile(&src, &options()) {
+            Ok(s) => s,
+            Err(d) => panic!(
+                "{name} does not check:\n{}",
+                cso::lang::diag::render(&d, &name, &src)
+            ),
+        };
+        insta::assert_snapshot!(format!("summary_{name}"), summarize(&scene).to_string());
+    }
+}
+
+#[test]
+fn examples_match_the_shared_canonical_scenes() {
+    // examples/ holds copies of ../shared/examples; they must not drift.
+    let shared = root().join("../shared/examples");
+    if !shared.exists() {
+        return;
+    }
+    for path in cso_files(&shared) {
+        let ours = root()
+            .join("examples")
+            .join(path.file_name().expect("name"));
+        let a = std::fs::read_to_string(&path).expect("readable");
+        let b = std::fs::read_to_string(&ours).unwrap_or_default();
+        assert_eq!(a, b, "{} differs from the shared scene", ours.display());
+    }
+}
