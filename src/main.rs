@@ -3,6 +3,7 @@
 use clap::{Parser, Subcommand};
 use cso::io::summary::{plural, summarize};
 use cso::lang::{compile, diag, CheckOptions};
+use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
@@ -53,6 +54,20 @@ fn parse_set(s: &str) -> Result<(String, String), String> {
     }
 }
 
+// Writes that ignore a closed pipe (`cso check ... | head`) instead of panicking.
+macro_rules! out {
+    ($($t:tt)*) => {{ let _ = write!(std::io::stdout(), $($t)*); }};
+}
+macro_rules! outln {
+    ($($t:tt)*) => {{ let _ = writeln!(std::io::stdout(), $($t)*); }};
+}
+macro_rules! err {
+    ($($t:tt)*) => {{ let _ = write!(std::io::stderr(), $($t)*); }};
+}
+macro_rules! errln {
+    ($($t:tt)*) => {{ let _ = writeln!(std::io::stderr(), $($t)*); }};
+}
+
 /// Exit codes: 0 success, 1 errors in a scene, 2 I/O or usage errors.
 const EXIT_SCENE: u8 = 1;
 const EXIT_IO: u8 = 2;
@@ -70,7 +85,7 @@ fn main() -> ExitCode {
                 let code = match load(file, &opts) {
                     Ok(scene) => {
                         let s = summarize(&scene);
-                        println!(
+                        outln!(
                             "ok {}: scene `{}` ({}), {}, {}, {} primal unknowns",
                             file.display(),
                             scene.name,
@@ -96,14 +111,14 @@ fn main() -> ExitCode {
                 let summary = summarize(&scene);
                 if *json {
                     match serde_json::to_string_pretty(&summary) {
-                        Ok(s) => println!("{s}"),
+                        Ok(s) => outln!("{s}"),
                         Err(e) => {
-                            eprintln!("error: cannot write JSON: {e}");
+                            errln!("error: cannot write JSON: {e}");
                             return ExitCode::from(EXIT_IO);
                         }
                     }
                 } else {
-                    print!("{summary}");
+                    out!("{summary}");
                 }
                 ExitCode::SUCCESS
             }
@@ -117,15 +132,15 @@ fn load(path: &Path, opts: &CheckOptions) -> Result<cso::lang::Scene, u8> {
     let src = match std::fs::read_to_string(path) {
         Ok(s) => s,
         Err(e) => {
-            eprintln!("error: cannot read {}: {e}", path.display());
+            errln!("error: cannot read {}: {e}", path.display());
             return Err(EXIT_IO);
         }
     };
     compile(&src, opts).map_err(|diags| {
         let name = path.display().to_string();
-        eprint!("{}", diag::render(&diags, &name, &src));
+        err!("{}", diag::render(&diags, &name, &src));
         let n = diags.len();
-        eprintln!(
+        errln!(
             "error: {} has {n} error{}",
             name,
             if n == 1 { "" } else { "s" }

@@ -188,10 +188,10 @@ fn pathological_inputs_are_refused_without_crashing() {
     let at_depth = format!("let a = {}1{}", "(-".repeat(31), ")".repeat(31));
     let at_chain = format!("let a = 1{}", "+1".repeat(255));
     let at_tower = format!("let a = 1{}", "^1".repeat(255));
-    let let_chain: String = (0..64)
+    let let_chain: String = (0..63)
         .map(|i| format!("let c{i} = c{} + 1\n", i + 1))
         .collect::<String>()
-        + "let c64 = 0\n";
+        + "let c63 = 0\n";
     for src in [&at_depth, &at_chain, &at_tower, &let_chain] {
         let full = format!("scene s {{ dim = 2 }}\n{src}\n");
         assert!(

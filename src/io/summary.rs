@@ -15,6 +15,7 @@ use std::fmt::{self, Write};
 #[derive(Debug, Clone, Serialize)]
 pub struct Summary {
     pub scene: String,
+    pub title: Option<String>,
     pub dim: Dimension,
     pub thickness: f64,
     pub totals: Totals,
@@ -98,27 +99,7 @@ pub struct ProbeSummary {
     pub at: Vec<f64>,
 }
 
-/// Rounds to 6 significant digits (stable across machines).
-pub fn round6(v: f64) -> f64 {
-    if v == 0.0 || !v.is_finite() {
-        return v;
-    }
-    format!("{v:.5e}").parse().unwrap_or(v)
-}
-
-/// A number as a person reads it: `0.04`, `1000`, `2.1e11`, `1e-8`.
-pub fn num(v: f64) -> String {
-    let r = round6(v);
-    let a = r.abs();
-    if r == 0.0 {
-        "0".into()
-    } else if (1e-3..1e6).contains(&a) {
-        format!("{r}")
-    } else {
-        let s = format!("{r:e}");
-        s.replace("e-0", "e-")
-    }
-}
+pub use crate::lang::diag::{num, round6};
 
 fn vec_str(v: &[f64]) -> String {
     format!(
@@ -285,6 +266,7 @@ pub fn summarize(scene: &Scene) -> Summary {
     }
     Summary {
         scene: scene.name.clone(),
+        title: scene.title.clone(),
         dim: scene.dim,
         thickness: round6(scene.thickness),
         totals,
@@ -320,6 +302,9 @@ impl fmt::Display for Summary {
             Dimension::Three => "3D".to_string(),
         };
         let _ = writeln!(o, "scene {}: {kind}", self.scene);
+        if let Some(t) = &self.title {
+            let _ = writeln!(o, "  \"{t}\"");
+        }
         let _ = writeln!(
             o,
             "  {}, {}, {} elements, {} nodes, {} primal unknowns",

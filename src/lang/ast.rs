@@ -42,9 +42,9 @@ pub struct Ident {
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct File {
     pub items: Vec<Item>,
-    /// Names given by items that failed to parse (`body punch {` with a syntax error
-    /// inside): the checker does not call them unknown where they are used.
-    pub broken_names: Vec<String>,
+    /// Keyword and name of each item that failed to parse (`body punch {` with a
+    /// syntax error inside): the checker does not call them unknown where used.
+    pub broken: Vec<(String, Option<String>)>,
 }
 
 /// One top-level item.

@@ -156,3 +156,24 @@ pub fn sort(diags: &mut Vec<Diagnostic>) {
     diags.sort_by_key(|d| d.offset());
     diags.dedup();
 }
+
+/// Rounds to 6 significant digits (stable across machines).
+pub fn round6(v: f64) -> f64 {
+    if v == 0.0 || !v.is_finite() {
+        return v;
+    }
+    format!("{v:.5e}").parse().unwrap_or(v)
+}
+
+/// A number as a person reads it: `0.04`, `1000`, `2.1e11`, `1e-8` (6 digits at most).
+pub fn num(v: f64) -> String {
+    let r = round6(v);
+    let a = r.abs();
+    if r == 0.0 {
+        "0".into()
+    } else if !r.is_finite() || (1e-3..1e6).contains(&a) {
+        format!("{r}")
+    } else {
+        format!("{r:e}")
+    }
+}

@@ -44,11 +44,31 @@ pub const ITEM_KEYWORDS: &[&str] = &[
 pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
     let mut file = File::default();
     let mut diags = Vec::new();
-    if let Some(d) = too_deep(src) {
-        return (file, vec![d]);
-    }
+    let deep = deep_positions(src);
+    let mut deep_next = 0;
+    // Where the last item that parsed ends, to notice junk after it on its line.
+    let mut last_end: Option<usize> = None;
     let mut pos = skip_blank(src, 0);
     while pos < src.len() {
+        while deep_next < deep.len() && deep[deep_next] < pos {
+            deep_next += 1;
+        }
+        if let Some(&at) = deep.get(deep_next) {
+            let stop = resync(src, pos);
+            if at < stop {
+                diags.push(
+                    Diagnostic::new(
+                        "cso::too-deep",
+                        format!("brackets nested more than {MAX_NESTING} deep"),
+                    )
+                    .label(Span::new(at, at + 1), "too deep here")
+                    .help("split the expression with `let` constants"),
+                );
+                file.broken.extend(item_name(src, pos));
+                pos = stop;
+                continue;
+            }
+        }
         match CsoParser::parse(Rule::item, &src[pos..]) {
             Ok(mut pairs) => match pairs.next() {
                 Some(pair) => {
@@ -56,21 +76,26 @@ pub fn parse_file(src: &str) -> (File, Vec<Diagnostic>) {
                     match too_long(&pair, pos) {
                         Some(d) => {
                             diags.push(d);
-                            if let Some(name) = item_name(src, pos) {
-                                file.broken_names.push(name);
-                            }
+                            file.broken.extend(item_name(src, pos));
                         }
                         None => file.items.push(item(pair, pos)),
                     }
+                    last_end = Some(end);
                     pos = skip_blank(src, end.max(pos + 1));
                 }
                 None => break,
             },
             Err(err) => {
                 diags.push(syntax_error(src, pos, &err));
-                if let Some(name) = item_name(src, pos) {
-                    file.broken_names.push(name);
+                // Junk on the line of the previous item (`let w = 1.2.3`): that
+                // item was cut short, so its meaning is not to be trusted either.
+                if last_end.is_some_and(|e| !src[e..pos].contains('\n')) {
+                    if let Some(prev) = file.items.pop() {
+                        file.broken.extend(item_name(src, prev.span.start));
+                    }
                 }
+                file.broken.extend(item_name(src, pos));
+                last_end = None;
                 pos = resync(src, pos);
             }
         }
@@ -83,11 +108,12 @@ pub const MAX_NESTING: usize = 32;
 /// Terms of one `+`/`*`/`&&` chain, and prefix/postfix operators on one operand.
 pub const MAX_CHAIN: usize = 256;
 
-/// Refuses sources whose nesting would exhaust the parser's stack; scanned before
-/// parsing because the parser recurses once per level.
-fn too_deep(src: &str) -> Option<Diagnostic> {
+/// Where brackets first nest deeper than [`MAX_NESTING`] (each time they do): the
+/// items there are refused before parsing, because the parser recurses once per level.
+fn deep_positions(src: &str) -> Vec<usize> {
     let bytes = src.as_bytes();
     let (mut depth, mut pos) = (0usize, 0usize);
+    let mut out = Vec::new();
     while pos < bytes.len() {
         match bytes[pos] {
             b'#' => {
@@ -103,15 +129,8 @@ fn too_deep(src: &str) -> Option<Diagnostic> {
             }
             b'(' | b'[' | b'{' => {
                 depth += 1;
-                if depth > MAX_NESTING {
-                    return Some(
-                        Diagnostic::new(
-                            "cso::too-deep",
-                            format!("brackets nested more than {MAX_NESTING} deep"),
-                        )
-                        .label(Span::new(pos, pos + 1), "too deep here")
-                        .help("split the expression with `let` constants"),
-                    );
+                if depth == MAX_NESTING + 1 {
+                    out.push(pos);
                 }
             }
             b')' | b']' | b'}' => depth = depth.saturating_sub(1),
@@ -119,7 +138,7 @@ fn too_deep(src: &str) -> Option<Diagnostic> {
         }
         pos += 1;
     }
-    None
+    out
 }
 
 /// Refuses an item with an operator chain longer than [`MAX_CHAIN`] (the syntax
@@ -156,8 +175,12 @@ fn too_long(pair: &Pair<Rule>, offset: usize) -> Option<Diagnostic> {
 
 /// Parses a lone expression (the value of `--set NAME=VALUE`).
 pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
-    if let Some(d) = too_deep(src) {
-        return Err(d);
+    if let Some(&at) = deep_positions(src).first() {
+        return Err(Diagnostic::new(
+            "cso::too-deep",
+            format!("brackets nested more than {MAX_NESTING} deep"),
+        )
+        .label(Span::new(at, at + 1), "too deep here"));
     }
     let start = skip_blank(src, 0);
     let parsed = CsoParser::parse(Rule::expr, &src[start..]);
@@ -186,8 +209,9 @@ pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
     }
 }
 
-/// The name an item starting at `pos` gives (`body punch {` gives `punch`), if any.
-fn item_name(src: &str, pos: usize) -> Option<String> {
+/// The keyword and name of an item starting at `pos` (`body punch {` gives
+/// `("body", Some("punch"))`), if it starts with a keyword.
+fn item_name(src: &str, pos: usize) -> Option<(String, Option<String>)> {
     let mut words = src[pos..]
         .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
         .filter(|w| !w.is_empty());
@@ -195,7 +219,7 @@ fn item_name(src: &str, pos: usize) -> Option<String> {
     if !ITEM_KEYWORDS.contains(&keyword) {
         return None;
     }
-    words.next().map(str::to_string)
+    Some((keyword.to_string(), words.next().map(str::to_string)))
 }
 
 /// Skips blanks and comments.
@@ -354,6 +378,7 @@ fn rule_name(rule: Rule) -> Option<&'static str> {
         Rule::comma => "`,`",
         Rule::dotdot => "`..`",
         Rule::grid_x => "`x`",
+        Rule::grid_atom => "a count",
         Rule::unit | Rule::unit_term | Rule::unit_name => "a unit",
         Rule::unit_power => "an integer power",
         Rule::unit_op => "`*` or `/`",
@@ -368,6 +393,9 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
             InputLocation::Pos(p) => p,
             InputLocation::Span((s, _)) => s,
         };
+    if let Some(d) = malformed_number(src, at) {
+        return d;
+    }
     let (found, span) = found_at(src, at);
     let mut expected: Vec<&str> = match &err.variant {
         ErrorVariant::ParsingError { positives, .. } => {
@@ -378,6 +406,34 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
     // Operators are always possible after an expression; list them last, once.
     expected.sort_by_key(|e| (e.starts_with("an operator"), *e));
     expected.dedup();
+    let open = unclosed(src, offset, at);
+    // The error sits on a line that starts a new item while a `{` is still open:
+    // the block before it was not closed.
+    let line_start = src[..at].rfind('\n').map_or(0, |n| n + 1);
+    let indent = src[line_start..].len() - src[line_start..].trim_start().len();
+    let first_word: String = src[line_start + indent..]
+        .chars()
+        .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+        .collect();
+    if let Some(&brace) = open.iter().rev().find(|&&p| src.as_bytes()[p] == b'{') {
+        if ITEM_KEYWORDS.contains(&first_word.as_str()) && line_start > brace {
+            let word = line_start + indent;
+            let before = src[..line_start].trim_end().len();
+            return Diagnostic::new(
+                "cso::unclosed",
+                "a block is not closed before the next item",
+            )
+            .label(Span::new(brace, brace + 1), "this `{` is not closed")
+            .label(
+                Span::new(word, word + first_word.len()),
+                "the next item starts here",
+            )
+            .help(format!(
+                "add `}}` at the end of line {}",
+                src[..before].matches('\n').count() + 1
+            ));
+        }
+    }
     let what = match expected.len() {
         0 => "unexpected input".to_string(),
         1 => format!("expected {}", expected[0]),
@@ -387,32 +443,91 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
             expected[n - 1]
         ),
     };
-    let mut diag = Diagnostic::new("cso::syntax", format!("{what}, found {found}"))
-        .label(span, format!("expected {}", short_expected(&expected)));
+    let label = match expected.len() {
+        1 => format!("expected {}", expected[0]),
+        2 => format!("expected {} or {}", expected[0], expected[1]),
+        _ => "not expected here".to_string(),
+    };
+    let mut diag =
+        Diagnostic::new("cso::syntax", format!("{what}, found {found}")).label(span, label);
+    if let Some(&p) = open.last().filter(|&&p| src.as_bytes()[p] != b'{') {
+        let c = src[p..].chars().next().unwrap_or('(');
+        diag = diag.label(Span::new(p, p + 1), format!("this `{c}` is not closed"));
+    }
     if let Some(hint) = syntax_hint(src, at, &expected) {
         diag = diag.help(hint);
     }
     diag
 }
 
-fn short_expected(expected: &[&str]) -> String {
-    match expected.first() {
-        Some(first) if expected.len() == 1 => first.to_string(),
-        Some(first) => format!("{first} or ..."),
-        None => "something else".to_string(),
+/// `1.2.3`: a number with a second decimal point, reported as one thing.
+fn malformed_number(src: &str, at: usize) -> Option<Diagnostic> {
+    let b = src.as_bytes();
+    let digit = |i: usize| b.get(i).is_some_and(u8::is_ascii_digit);
+    if b.get(at) != Some(&b'.') || !(at > 0 && digit(at - 1)) || !digit(at + 1) {
+        return None;
     }
+    let numberish = |c: u8| c.is_ascii_digit() || c == b'.';
+    let start = src[..at]
+        .bytes()
+        .rposition(|c| !numberish(c))
+        .map_or(0, |p| p + 1);
+    let end = at
+        + src[at..]
+            .bytes()
+            .position(|c| !numberish(c))
+            .unwrap_or(src.len() - at);
+    let text = &src[start..end];
+    Some(
+        Diagnostic::new("cso::syntax", format!("malformed number `{text}`"))
+            .label(
+                Span::new(start, end),
+                "a number has at most one decimal point",
+            )
+            .help("write numbers like `12`, `0.5`, `1e-3`, `2.1E11`"),
+    )
+}
+
+/// Brackets opened between `from` and `to` and not closed by `to`, innermost last.
+fn unclosed(src: &str, from: usize, to: usize) -> Vec<usize> {
+    let b = src.as_bytes();
+    let mut stack = Vec::new();
+    let mut pos = from;
+    while pos < to.min(b.len()) {
+        match b[pos] {
+            b'#' => {
+                while pos < b.len() && b[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            b'"' => {
+                pos += 1;
+                while pos < b.len() && b[pos] != b'"' && b[pos] != b'\n' {
+                    pos += 1;
+                }
+            }
+            b'(' | b'[' | b'{' => stack.push(pos),
+            b')' | b']' | b'}' => {
+                stack.pop();
+            }
+            _ => {}
+        }
+        pos += 1;
+    }
+    stack
 }
 
 /// A hint for the syntax errors people make most.
 fn syntax_hint(src: &str, at: usize, expected: &[&str]) -> Option<String> {
     let rest = &src[at.min(src.len())..];
+    let prev = src[..at.min(src.len())].chars().next_back();
     if rest.starts_with(':') {
         return Some("fields are written `NAME = VALUE`, not `NAME: VALUE`".into());
     }
     if rest.starts_with(';') {
         return Some("separate fields with `,` or a newline; `;` is not used".into());
     }
-    if rest.starts_with("**") {
+    if rest.starts_with("**") || (rest.starts_with('*') && prev == Some('*')) {
         return Some("powers are written `a^b`".into());
     }
     if rest.is_empty() && expected.contains(&"`}`") {
@@ -420,6 +535,9 @@ fn syntax_hint(src: &str, at: usize, expected: &[&str]) -> Option<String> {
     }
     if rest.starts_with('"') {
         return Some("a string must end with `\"` on the same line".into());
+    }
+    if expected.contains(&"`=`") {
+        return Some("fields and constants are written `NAME = VALUE`".into());
     }
     None
 }
@@ -576,7 +694,7 @@ fn value(pair: Pair<Rule>, offset: usize) -> Value {
             let b = expr(next(&mut parts), offset);
             Value::Range(a, b)
         }
-        Rule::grid => Value::Grid(inner(v).map(|p| atom(p, offset)).collect()),
+        Rule::grid => Value::Grid(inner(v).map(|p| grid_atom(p, offset)).collect()),
         _ => Value::Expr(expr(v, offset)),
     }
 }
@@ -675,6 +793,19 @@ fn expr(pair: Pair<Rule>, offset: usize) -> Expr {
             e
         }
         _ => atom(pair, offset),
+    }
+}
+
+/// One count of a grid, with its sign if written.
+fn grid_atom(pair: Pair<Rule>, offset: usize) -> Expr {
+    let mut parts: Vec<Pair<Rule>> = pair.into_inner().collect();
+    let base = match parts.pop() {
+        Some(p) => atom(p, offset),
+        None => unreachable_item(),
+    };
+    match parts.first() {
+        Some(op) => prefixed(op, base, offset),
+        None => base,
     }
 }
 

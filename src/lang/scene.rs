@@ -31,6 +31,8 @@ impl Dimension {
 #[derive(Debug, Clone)]
 pub struct Scene {
     pub name: String,
+    /// `title = "..."` of the scene item, for reports.
+    pub title: Option<String>,
     pub dim: Dimension,
     /// Out-of-plane thickness (2D); 1 in 3D.
     pub thickness: f64,
@@ -136,6 +138,77 @@ impl Body {
     pub fn primal_dofs(&self) -> usize {
         let per = saturating_product(self.subdomain_mesh().iter().map(|h| h.saturating_add(1)));
         saturating_product([per, self.subdomain_count(), self.extent.len()])
+    }
+
+    /// Position of grid node `(i, j[, k])` at the given design, by the
+    /// column-morphing rule: the horizontal coordinates are uniform over the
+    /// extents, the vertical one interpolates linearly between the bottom and top
+    /// faces of its column.
+    pub fn node(&self, idx: [usize; 3], design: &[f64]) -> [f64; 3] {
+        let d = self.extent.len();
+        let v = d - 1;
+        let mut c = [0.0; 3];
+        for a in 0..v {
+            let (lo, hi) = &self.extent[a];
+            let (lo, hi) = (lo.eval_f64([0.0; 3], design), hi.eval_f64([0.0; 3], design));
+            c[a] = lo + (hi - lo) * idx[a] as f64 / self.mesh[a].max(1) as f64;
+        }
+        let (lo, hi) = &self.extent[v];
+        let bottom = self
+            .bottom
+            .as_ref()
+            .map_or_else(|| lo.eval_f64([0.0; 3], design), |f| f.eval_f64(c, design));
+        let top = self
+            .top
+            .as_ref()
+            .map_or_else(|| hi.eval_f64([0.0; 3], design), |f| f.eval_f64(c, design));
+        c[v] = bottom + (top - bottom) * idx[v] as f64 / self.mesh[v].max(1) as f64;
+        c
+    }
+
+    /// Grid indices of the nodes of one face, in lexicographic order.
+    pub fn face_indices(&self, face: Face) -> Vec<[usize; 3]> {
+        let dim = if self.extent.len() == 2 {
+            Dimension::Two
+        } else {
+            Dimension::Three
+        };
+        let (axis, max) = face.axis(dim);
+        let d = self.extent.len();
+        let mut ranges: Vec<Vec<usize>> = (0..3)
+            .map(|a| {
+                if a < d {
+                    (0..=self.mesh[a]).collect()
+                } else {
+                    vec![0]
+                }
+            })
+            .collect();
+        ranges[axis] = vec![if max { self.mesh[axis] } else { 0 }];
+        let mut out = Vec::new();
+        for &i in &ranges[0] {
+            for &j in &ranges[1] {
+                for &k in &ranges[2] {
+                    out.push([i, j, k]);
+                }
+            }
+        }
+        out
+    }
+
+    /// Number of nodes on one face (saturating), to decide whether listing them is cheap.
+    pub fn face_node_count(&self, face: Face) -> usize {
+        let dim = if self.extent.len() == 2 {
+            Dimension::Two
+        } else {
+            Dimension::Three
+        };
+        let (axis, _) = face.axis(dim);
+        saturating_product(
+            (0..self.extent.len())
+                .filter(|a| *a != axis)
+                .map(|a| self.mesh[a].saturating_add(1)),
+        )
     }
 
     /// Is this face a curved one?

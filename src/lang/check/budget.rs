@@ -6,11 +6,11 @@
 //! 8,450 -> 4.7 MB, 33,282 -> 23 MB, i.e. about 6 n log2 n nonzeros) and the usual
 //! n^(4/3) growth of 3D nested-dissection fill.
 
-use crate::lang::scene::Scene;
+use crate::lang::scene::{Body, Scene};
 use serde::Serialize;
 
 /// Estimated bytes of each part of a solve, and the unknown count behind it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct MemoryEstimate {
     /// Primal unknowns over all subdomains (duplicated interface nodes counted).
     pub dofs: f64,
@@ -31,35 +31,42 @@ impl MemoryEstimate {
 /// Estimates the memory of a scene from its meshes and cuts (f64 throughout, so
 /// absurd meshes cannot overflow).
 pub fn estimate(scene: &Scene) -> MemoryEstimate {
-    let mut e = MemoryEstimate {
-        dofs: 0.0,
-        stiffness: 0.0,
-        factors: 0.0,
-        vectors: 0.0,
+    scene
+        .bodies
+        .iter()
+        .map(estimate_body)
+        .fold(MemoryEstimate::default(), |a, b| MemoryEstimate {
+            dofs: a.dofs + b.dofs,
+            stiffness: a.stiffness + b.stiffness,
+            factors: a.factors + b.factors,
+            vectors: a.vectors + b.vectors,
+        })
+}
+
+/// The estimate of one body.
+pub fn estimate_body(body: &Body) -> MemoryEstimate {
+    let d = body.mesh.len() as f64;
+    let subs: f64 = body.subdomains.iter().map(|&s| s as f64).product();
+    let per_sub_nodes: f64 = body
+        .mesh
+        .iter()
+        .zip(&body.subdomains)
+        .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
+        .product();
+    let n = per_sub_nodes * d;
+    // Rows of Q1/hex8 stiffness couple 9 or 27 nodes; 12 bytes per entry (value + index).
+    let row = if d == 2.0 { 18.0 } else { 81.0 };
+    let nnz_l = if d == 2.0 {
+        6.0 * n * n.max(2.0).log2()
+    } else {
+        20.0 * n.powf(4.0 / 3.0)
     };
-    for body in &scene.bodies {
-        let d = body.mesh.len() as f64;
-        let subs: f64 = body.subdomains.iter().map(|&s| s as f64).product();
-        let per_sub_nodes: f64 = body
-            .mesh
-            .iter()
-            .zip(&body.subdomains)
-            .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
-            .product();
-        let n = per_sub_nodes * d;
-        // Rows of Q1/hex8 stiffness couple 9 or 27 nodes; 12 bytes per entry (value + index).
-        let row = if d == 2.0 { 18.0 } else { 81.0 };
-        let nnz_l = if d == 2.0 {
-            6.0 * n * n.max(2.0).log2()
-        } else {
-            20.0 * n.powf(4.0 / 3.0)
-        };
-        e.dofs += n * subs;
-        e.stiffness += subs * n * row * 12.0;
-        e.factors += subs * nnz_l * 12.0;
-        e.vectors += subs * n * 8.0 * 30.0;
+    MemoryEstimate {
+        dofs: n * subs,
+        stiffness: subs * n * row * 12.0,
+        factors: subs * nnz_l * 12.0,
+        vectors: subs * n * 8.0 * 30.0,
     }
-    e
 }
 
 /// Bytes as "1.2 GiB".

@@ -74,12 +74,19 @@ impl<'a> Checker<'a> {
                 let after_grid = i
                     .checked_sub(1)
                     .and_then(|j| block.fields.get(j))
-                    .filter(|p| matches!(p.value, Some(Value::Grid(_))) && name == "x")
+                    .filter(|p| {
+                        matches!(p.value, Some(Value::Grid(_) | Value::Expr(_))) && name == "x"
+                    })
                     .filter(|p| {
                         self.src
                             .get(p.span.end..field.span.start)
                             .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
                     });
+                if let Some(p) = after_grid {
+                    // `mesh = 4 x`: the counts are incomplete; report that once.
+                    found.retain(|f| f.name.name != p.name.name);
+                    valueless.push(p.name.name.as_str());
+                }
                 let d = match (after_grid, next) {
                     (Some(p), _) => Diagnostic::new("cso::syntax", "expected a count after `x`")
                         .label(field.span, "expected a number after this")
@@ -108,6 +115,14 @@ impl<'a> Checker<'a> {
                 let help = unknown_hint(name)
                     .or_else(|| names::did_you_mean(name, known.iter().copied()))
                     .unwrap_or_else(|| format!("the fields of {what} are {}", quote_list(&known)));
+                // A misspelt required field is not also reported as missing: the
+                // hint names the field it was meant to be.
+                for s in spec {
+                    if help.contains(&format!("`{}`", s.name)) && !help.starts_with("the fields of")
+                    {
+                        valueless.push(s.name);
+                    }
+                }
                 self.error(
                     Diagnostic::new(
                         "cso::unknown-field",
@@ -142,7 +157,8 @@ impl<'a> Checker<'a> {
             .collect();
         if !missing.is_empty() {
             let names: Vec<&str> = missing.iter().map(|s| s.name).collect();
-            let examples: Vec<&str> = missing.iter().map(|s| s.example).collect();
+            let examples: Vec<String> =
+                missing.iter().map(|s| format!("`{}`", s.example)).collect();
             let noun = if missing.len() == 1 {
                 "field"
             } else {
@@ -154,7 +170,7 @@ impl<'a> Checker<'a> {
                     format!("{what} lacks the required {noun} {}", quote_list(&names)),
                 )
                 .label(at, format!("{} missing", quote_list(&names)))
-                .help(format!("add {}", quote_list(&examples))),
+                .help(format!("add {}", examples.join(", "))),
             );
         }
         Fields { found }

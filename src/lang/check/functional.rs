@@ -291,7 +291,7 @@ impl<'a> Checker<'a> {
                 let q = self.number(&args[1], Some(Dim::NONE), "the norm's exponent `q`")?;
                 if q < 1.0 {
                     self.error(
-                        Diagnostic::new("cso::range", format!("`pressure_norm` needs q >= 1, found {q}"))
+                        Diagnostic::new("cso::range", format!("`pressure_norm` needs q >= 1, found {}", crate::lang::diag::num(q)))
                             .label(args[1].span, "q below 1 is not a norm")
                             .help("use e.g. q = 2, or a large q (8 .. 16) to approximate the peak pressure"),
                     );
@@ -318,7 +318,8 @@ impl<'a> Checker<'a> {
                         )
                         .label(e.span, format!("use `{want}`"))
                         .help(format!(
-                            "a {d} body has an {want}: write `{want}({})`",
+                            "a {d} body has {} {want}: write `{want}({})`",
+                            if want == "area" { "an" } else { "a" },
                             self.text(args[0].span)
                         )),
                     );

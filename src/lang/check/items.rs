@@ -4,7 +4,7 @@ use super::fields::{opt, req, Spec};
 use super::names::Kind;
 use super::{quote_list, Checker, DesignGroup};
 use crate::lang::ast::{Block, Expr, ExprKind, Ident, Item, ItemKind, Span, Value};
-use crate::lang::diag::Diagnostic;
+use crate::lang::diag::{num, Diagnostic};
 use crate::lang::expr::Formula;
 use crate::lang::scene::*;
 use crate::lang::units::{Dim, Quantity};
@@ -14,8 +14,15 @@ const FACE_HINT: &str =
 
 impl<'a> Checker<'a> {
     /// `scene NAME { dim, thickness }`: returns name, dimension and thickness.
-    pub(crate) fn scene(&mut self, item: Option<&'a Item>) -> (String, Dimension, f64) {
+    pub(crate) fn scene(
+        &mut self,
+        item: Option<&'a Item>,
+    ) -> (String, Option<String>, Dimension, f64) {
         let Some(item) = item else {
+            if self.file.broken.iter().any(|(k, _)| k == "scene") {
+                // The scene item is there but did not parse; that error was reported.
+                return ("unnamed".into(), None, Dimension::Two, 1.0);
+            }
             self.error(
                 Diagnostic::new("cso::missing-scene", "the file has no `scene` item")
                     .label(
@@ -24,7 +31,7 @@ impl<'a> Checker<'a> {
                     )
                     .help("add `scene NAME { dim = 2 }` (or `dim = 3`) at the top"),
             );
-            return ("unnamed".into(), Dimension::Two, 1.0);
+            return ("unnamed".into(), None, Dimension::Two, 1.0);
         };
         let ItemKind::Block {
             keyword,
@@ -33,7 +40,7 @@ impl<'a> Checker<'a> {
             ..
         } = &item.kind
         else {
-            return ("unnamed".into(), Dimension::Two, 1.0);
+            return ("unnamed".into(), None, Dimension::Two, 1.0);
         };
         let scene_name = name
             .as_ref()
@@ -41,10 +48,7 @@ impl<'a> Checker<'a> {
         let at = name
             .as_ref()
             .map_or(keyword.span, |n| keyword.span.to(n.span));
-        let spec = [
-            req("dim", "`dim = 2`"),
-            opt("thickness", "`thickness = 1 m`"),
-        ];
+        let spec = [req("dim", "dim = 2"), opt("thickness", "thickness = 1 m")];
         let f = self.fields(body, &spec, "the scene", at, &|_| None);
         let mut dim = Dimension::Two;
         if let Some(e) = f.get("dim").and_then(|fl| self.expr_of(fl, "2 or 3")) {
@@ -52,8 +56,11 @@ impl<'a> Checker<'a> {
                 Some(v) if v == 2.0 => dim = Dimension::Two,
                 Some(v) if v == 3.0 => dim = Dimension::Three,
                 Some(v) => self.error(
-                    Diagnostic::new("cso::dimension", format!("`dim` must be 2 or 3, found {v}"))
-                        .label(e.span, "expected 2 or 3"),
+                    Diagnostic::new(
+                        "cso::dimension",
+                        format!("`dim` must be 2 or 3, found {}", num(v)),
+                    )
+                    .label(e.span, "expected 2 or 3"),
                 ),
                 None => {}
             }
@@ -77,13 +84,30 @@ impl<'a> Checker<'a> {
                 }
             }
         }
-        (scene_name, dim, thickness)
+        let title = f
+            .get("title")
+            .and_then(|fl| self.expr_of(fl, "a string"))
+            .and_then(|e| match &e.kind {
+                crate::lang::ast::ExprKind::Str(t) => Some(t.clone()),
+                _ => {
+                    self.error(
+                        Diagnostic::new("cso::wrong-value", "`title` expects a string")
+                            .label(e.span, "not a string")
+                            .help(format!("write `title = \"{}\"`", self.text(e.span))),
+                    );
+                    None
+                }
+            });
+        (scene_name, title, dim, thickness)
     }
 
     fn positive(&mut self, e: &Expr, v: f64, what: &str) {
         self.error(
-            Diagnostic::new("cso::range", format!("{what} must be positive, found {v}"))
-                .label(e.span, "expected a value > 0"),
+            Diagnostic::new(
+                "cso::range",
+                format!("{what} must be positive, found {}", num(v)),
+            )
+            .label(e.span, "expected a value > 0"),
         );
     }
 
@@ -92,9 +116,9 @@ impl<'a> Checker<'a> {
         let label = name.map_or("material".to_string(), |n| format!("material `{}`", n.name));
         let at = name.map_or(body.span, |n| n.span);
         let spec = [
-            req("E", "`E = 210 GPa`"),
-            req("nu", "`nu = 0.3`"),
-            opt("rho", "`rho = 7850 kg/m^3`"),
+            req("E", "E = 210 GPa"),
+            req("nu", "nu = 0.3"),
+            opt("rho", "rho = 7850 kg/m^3"),
         ];
         let hint = |n: &str| match n {
             "e" | "young" | "youngs_modulus" => Some("Young's modulus is written `E`".to_string()),
@@ -131,10 +155,17 @@ impl<'a> Checker<'a> {
                     self.error(
                         Diagnostic::new(
                             "cso::range",
-                            format!("Poisson's ratio `nu` must lie in (-1, 0.5), found {v}"),
+                            format!(
+                                "Poisson's ratio `nu` must lie in (-1, 0.5), found {}",
+                                num(v)
+                            ),
                         )
                         .label(e.span, why)
-                        .help("nearly incompressible materials: use e.g. `nu = 0.49`"),
+                        .help(if v >= 0.5 {
+                            "nearly incompressible materials: use e.g. `nu = 0.49`"
+                        } else {
+                            "most engineering materials have nu between 0.2 and 0.45"
+                        }),
                     );
                 }
             }
@@ -162,9 +193,9 @@ impl<'a> Checker<'a> {
         let Some(name) = name else { return };
         let label = format!("design variable `{}`", name.name);
         let spec = [
-            req("init", "`init = 0.1`"),
-            req("lower", "`lower = 0`"),
-            req("upper", "`upper = 1`"),
+            req("init", "init = 0.1"),
+            req("lower", "lower = 0"),
+            req("upper", "upper = 1"),
         ];
         let hint = |n: &str| match n {
             "min" | "lb" | "low" => Some("the lower bound is written `lower`".to_string()),
@@ -225,42 +256,28 @@ impl<'a> Checker<'a> {
             values.push(vals.unwrap_or_else(|| vec![f64::NAN; count]));
         }
         let first = self.design_vars.len();
+        // Entries that break `lower <= init <= upper`, grouped by what is wrong, so
+        // that `lower = 1, upper = 0` on `a[6]` is one error, not six.
+        let mut crossed: Vec<String> = Vec::new();
+        let mut outside: Vec<String> = Vec::new();
         for i in 0..count {
             let (init, lower, upper) = (values[0][i], values[1][i], values[2][i]);
             let var = match n {
                 Some(_) => format!("{}[{i}]", name.name),
                 None => name.name.clone(),
             };
-            if lower.is_finite()
-                && upper.is_finite()
-                && init.is_finite()
-                && !(lower <= init && init <= upper)
-            {
-                let span = f
-                    .get("init")
-                    .and_then(|fl| fl.value.as_ref())
-                    .map_or(name.span, Value::span);
-                let (what, fix) = if lower > upper {
-                    (
-                        format!("lower bound {lower} is above upper bound {upper}"),
-                        "swap `lower` and `upper`",
-                    )
-                } else if init < lower {
-                    (
-                        format!("init {init} is below lower bound {lower}"),
-                        "move `init` into [lower, upper]",
-                    )
-                } else {
-                    (
-                        format!("init {init} is above upper bound {upper}"),
-                        "move `init` into [lower, upper]",
-                    )
-                };
-                self.error(
-                    Diagnostic::new("cso::bounds", format!("design variable `{var}`: {what}"))
-                        .label(span, "must satisfy lower <= init <= upper")
-                        .help(fix),
-                );
+            if [init, lower, upper].iter().all(|v| v.is_finite()) {
+                if lower > upper {
+                    crossed.push(format!("`{var}`: {} > {}", num(lower), num(upper)));
+                } else if init < lower || init > upper {
+                    let side = if init < lower { "below" } else { "above" };
+                    outside.push(format!(
+                        "`{var}`: {} is {side} [{}, {}]",
+                        num(init),
+                        num(lower),
+                        num(upper)
+                    ));
+                }
             }
             self.design_vars.push(DesignVar {
                 name: var,
@@ -268,6 +285,45 @@ impl<'a> Checker<'a> {
                 lower,
                 upper,
             });
+        }
+        let span_of = |key: &str| {
+            f.get(key)
+                .and_then(|fl| fl.value.as_ref())
+                .map_or(name.span, Value::span)
+        };
+        if !crossed.is_empty() {
+            let what = if crossed.len() == 1 {
+                crossed[0].clone()
+            } else {
+                summarize_list(&crossed)
+            };
+            self.error(
+                Diagnostic::new(
+                    "cso::bounds",
+                    format!(
+                        "the lower bound of `{}` is above its upper bound",
+                        name.name
+                    ),
+                )
+                .label(span_of("lower"), "lower bound")
+                .label(span_of("upper"), "upper bound")
+                .help(format!("{what}; swap `lower` and `upper`")),
+            );
+        }
+        if !outside.is_empty() {
+            let what = if outside.len() == 1 {
+                outside[0].clone()
+            } else {
+                summarize_list(&outside)
+            };
+            self.error(
+                Diagnostic::new(
+                    "cso::bounds",
+                    format!("the initial value of `{}` is outside its bounds", name.name),
+                )
+                .label(span_of("init"), "must satisfy lower <= init <= upper")
+                .help(format!("{what}; move `init` into [lower, upper]")),
+            );
         }
         self.designs.push(DesignGroup {
             name: name.name.clone(),
@@ -334,7 +390,7 @@ impl<'a> Checker<'a> {
             if !v.is_finite() {
                 self.error(
                     Diagnostic::new("cso::not-finite", format!("{what} is not a finite number"))
-                        .label(item.span, format!("evaluates to {v}")),
+                        .label(item.span, format!("evaluates to {}", num(v))),
                 );
                 return (None, q);
             }
@@ -349,20 +405,21 @@ impl<'a> Checker<'a> {
 
     /// `body NAME { material, x, y[, z], bottom, top, mesh, subdomains }`
     pub(crate) fn body(&mut self, name: Option<&'a Ident>, block: &'a Block) {
+        let errors_before = self.diags.len();
         let label = name.map_or("body".to_string(), |n| format!("body `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
         let d = self.dim.n();
         let mut spec: Vec<Spec> = vec![
-            req("material", "`material = NAME`"),
-            req("x", "`x = 0 .. 1`"),
-            req("y", "`y = 0 .. 1`"),
+            req("material", "material = NAME"),
+            req("x", "x = 0 .. 1"),
+            req("y", "y = 0 .. 1"),
         ];
         if d == 3 {
-            spec.push(req("z", "`z = 0 .. 1`"));
+            spec.push(req("z", "z = 0 .. 1"));
         }
         spec.extend([
-            opt("bottom", "`bottom = ...`"),
-            opt("top", "`top = ...`"),
+            opt("bottom", "bottom = ..."),
+            opt("top", "top = ..."),
             req(
                 "mesh",
                 if d == 2 {
@@ -371,7 +428,7 @@ impl<'a> Checker<'a> {
                     "`mesh = 8 x 8 x 8`"
                 },
             ),
-            opt("subdomains", "`subdomains = 2 x 2`"),
+            opt("subdomains", "subdomains = 2 x 2"),
         ]);
         let dim = self.dim;
         let hint = move |n: &str| match n {
@@ -432,7 +489,7 @@ impl<'a> Checker<'a> {
                         self.error(
                             Diagnostic::new(
                                 "cso::range",
-                                format!("the extent `{key} = {l} .. {h}` is empty"),
+                                format!("the extent `{key} = {} .. {}` is empty", num(l), num(h)),
                             )
                             .label(a.span.to(b.span), "the start must be below the end")
                             .help(format!(
@@ -499,6 +556,13 @@ impl<'a> Checker<'a> {
                 body.subdomains = s;
             }
         }
+        let value_span = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
+        self.body_spans.push(super::BodySpans {
+            name: at,
+            mesh: value_span("mesh"),
+            faces: [value_span("bottom"), value_span("top")],
+            ok: self.diags.len() == errors_before,
+        });
         self.bodies.push(body);
     }
 
@@ -522,7 +586,14 @@ impl<'a> Checker<'a> {
                         entries.len()
                     ),
                 )
-                .label(span, format!("{} count(s)", entries.len()))
+                .label(
+                    span,
+                    if entries.len() == 1 {
+                        "1 count".to_string()
+                    } else {
+                        format!("{} counts", entries.len())
+                    },
+                )
                 .help(format!("write `{key} = {example}`")),
             );
             return None;
@@ -548,13 +619,13 @@ impl<'a> Checker<'a> {
         let circle = has("center") || has("radius");
         let spec = if circle {
             [
-                req("center", "`center = (0, 0)`"),
-                req("radius", "`radius = 1 m`"),
+                req("center", "center = (0, 0)"),
+                req("radius", "radius = 1 m"),
             ]
         } else {
             [
-                req("point", "`point = (0, 0)`"),
-                req("normal", "`normal = (0, 1)`"),
+                req("point", "point = (0, 0)"),
+                req("normal", "normal = (0, 1)"),
             ]
         };
         let hint = |k: &str| {
@@ -696,12 +767,61 @@ impl<'a> Checker<'a> {
             Some(f) => Some(self.filter(f)?),
             None => None,
         };
-        Some(Selection {
+        let sel = Selection {
             body: body?,
             face: face_kind,
             filter,
             text: self.text(e.span).to_string(),
-        })
+        };
+        self.not_empty(&sel, e.span)?;
+        Some(sel)
+    }
+
+    /// A filtered selection keeps at least one node at the initial design.
+    fn not_empty(&mut self, sel: &Selection, span: Span) -> Option<()> {
+        let Some(filter) = &sel.filter else {
+            return Some(());
+        };
+        if !self.body_spans.get(sel.body).is_some_and(|s| s.ok) {
+            return Some(());
+        }
+        let Some(body) = self.bodies.get(sel.body) else {
+            return Some(());
+        };
+        if body.face_node_count(sel.face) > 1_000_000 {
+            return Some(()); // too large to list here; the lowering checks it
+        }
+        let design = self.design_init();
+        let nodes: Vec<[f64; 3]> = body
+            .face_indices(sel.face)
+            .into_iter()
+            .map(|i| body.node(i, &design))
+            .collect();
+        if nodes.iter().flatten().any(|c| !c.is_finite()) {
+            return Some(()); // the body's own error is reported elsewhere
+        }
+        let d = body.extent.len();
+        let (lo, hi) = bounding_box(&nodes, d);
+        let size = (0..d)
+            .map(|a| hi[a] - lo[a])
+            .fold(0.0, f64::max)
+            .max(1e-300);
+        if nodes.iter().any(|c| filter.holds(*c, &design, 1e-9 * size)) {
+            return Some(());
+        }
+        let face = format!("{}.{}", body.name, sel.face.name());
+        let spans: Vec<String> = (0..d)
+            .map(|a| format!("{} = {} .. {}", ["x", "y", "z"][a], num(lo[a]), num(hi[a])))
+            .collect();
+        self.error(
+            Diagnostic::new(
+                "cso::empty-selection",
+                format!("the selection `{}` is empty", sel.text),
+            )
+            .label(span, format!("no node of `{face}` satisfies the filter"))
+            .help(format!("the nodes of `{face}` lie in {}", spans.join(", "))),
+        );
+        None
     }
 
     /// `fix`, `displace`, `symmetry`, `traction`, `pressure`.
@@ -937,8 +1057,8 @@ impl<'a> Checker<'a> {
         let label = name.map_or("glue".to_string(), |n| format!("glue `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
         let spec = [
-            req("primary", "`primary = BODY.FACE`"),
-            req("secondary", "`secondary = BODY.FACE`"),
+            req("primary", "primary = BODY.FACE"),
+            req("secondary", "secondary = BODY.FACE"),
         ];
         let f = self.fields(block, &spec, &label, at, &|_| None);
         let p = f
@@ -987,9 +1107,9 @@ impl<'a> Checker<'a> {
         let label = name.map_or("contact".to_string(), |n| format!("contact `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
         let spec = [
-            req("primary", "`primary = BODY.FACE` (or an obstacle)"),
-            req("secondary", "`secondary = BODY.FACE`"),
-            opt("search", "`search = 1 mm`"),
+            req("primary", "primary = BODY.FACE"),
+            req("secondary", "secondary = BODY.FACE"),
+            opt("search", "search = 1 mm"),
         ];
         let hint = |k: &str| match k {
             "master" => Some("the master side is called `primary`".to_string()),
@@ -1059,7 +1179,7 @@ impl<'a> Checker<'a> {
     pub(crate) fn probe(&mut self, name: Option<&'a Ident>, block: &'a Block) -> Option<Probe> {
         let label = name.map_or("probe".to_string(), |n| format!("probe `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
-        let spec = [req("body", "`body = NAME`"), req("at", "`at = (0, 0)`")];
+        let spec = [req("body", "body = NAME"), req("at", "at = (0, 0)")];
         let f = self.fields(block, &spec, &label, at, &|_| None);
         let body = f
             .get("body")
@@ -1078,11 +1198,60 @@ impl<'a> Checker<'a> {
             .get("at")
             .and_then(|fl| self.expr_of(fl, "a point"))
             .and_then(|e| self.vector(e, Some(Dim::LENGTH), "`at`"));
+        let (body, point) = (body?, point?);
+        self.probe_inside(
+            body,
+            &point,
+            f.get("at")
+                .and_then(|fl| fl.value.as_ref())
+                .map_or(at, Value::span),
+        )?;
         Some(Probe {
             name: name?.name.clone(),
-            body: body?,
-            at: point?,
+            body,
+            at: point,
         })
+    }
+
+    /// A probe point lies in its body's bounding box (at the initial design): the
+    /// nearest node to a point far outside is almost certainly not what was meant.
+    fn probe_inside(&mut self, b: usize, point: &[f64], span: Span) -> Option<()> {
+        if !self.body_spans.get(b).is_some_and(|s| s.ok) {
+            return Some(());
+        }
+        let body = self.bodies.get(b)?;
+        let d = body.extent.len();
+        if point.len() != d || body.face_node_count(Face::Bottom) > 1_000_000 {
+            return Some(());
+        }
+        let design = self.design_init();
+        let nodes: Vec<[f64; 3]> = [Face::Bottom, Face::Top]
+            .iter()
+            .flat_map(|f| body.face_indices(*f))
+            .map(|i| body.node(i, &design))
+            .collect();
+        if nodes.iter().flatten().any(|c| !c.is_finite()) {
+            return Some(());
+        }
+        let (lo, hi) = bounding_box(&nodes, d);
+        let size = (0..d).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        let tol = 1e-9 * size;
+        if (0..d).all(|a| point[a] >= lo[a] - tol && point[a] <= hi[a] + tol) {
+            return Some(());
+        }
+        let spans: Vec<String> = (0..d)
+            .map(|a| format!("{} = {} .. {}", ["x", "y", "z"][a], num(lo[a]), num(hi[a])))
+            .collect();
+        let name = body.name.clone();
+        self.error(
+            Diagnostic::new(
+                "cso::probe",
+                format!("the probe point lies outside body `{name}`"),
+            )
+            .label(span, "outside the body")
+            .help(format!("body `{name}` spans {}", spans.join(", "))),
+        );
+        None
     }
 
     /// `solver { method, tolerance, max_iterations, preconditioner, eps }`
@@ -1217,7 +1386,7 @@ impl<'a> Checker<'a> {
             self.error(
                 Diagnostic::new(
                     "cso::range",
-                    format!("{what} must lie in (0, 1), found {v}"),
+                    format!("{what} must lie in (0, 1), found {}", num(v)),
                 )
                 .label(e.span, "expected e.g. 1e-6"),
             );
@@ -1230,24 +1399,11 @@ impl<'a> Checker<'a> {
     /// every grid column of the initial design.
     pub(crate) fn faces_do_not_cross(&mut self, scene: &Scene) {
         let design = scene.design_init();
-        let file = self.file;
         for (b, body) in scene.bodies.iter().enumerate() {
             if body.bottom.is_none() && body.top.is_none() {
                 continue;
             }
-            let span = file
-                .items
-                .iter()
-                .filter_map(|i| match &i.kind {
-                    ItemKind::Block {
-                        keyword,
-                        name: Some(n),
-                        ..
-                    } if keyword.name == "body" => Some(n.span),
-                    _ => None,
-                })
-                .nth(b)
-                .unwrap_or_default();
+            let spans = self.body_spans.get(b).cloned().unwrap_or_default();
             let d = body.extent.len();
             let v = d - 1;
             let lo: Vec<f64> = body
@@ -1264,10 +1420,9 @@ impl<'a> Checker<'a> {
             let ny = if d == 3 { body.mesh[1] } else { 0 };
             // Every grid column where that is cheap; an even sample of them otherwise.
             let stride = |n: usize| (n / 2048).max(1);
-            let (sx, sy) = (stride(nx), stride(ny));
-            let columns = |n: usize, s: usize| (0..=n).step_by(s).chain(std::iter::once(n));
-            'columns: for j in columns(ny, sy) {
-                for i in columns(nx, sx) {
+            let columns = |n: usize| (0..=n).step_by(stride(n)).chain(std::iter::once(n));
+            'columns: for j in columns(ny) {
+                for i in columns(nx) {
                     let mut c = [0.0; 3];
                     c[0] = lo[0] + (hi[0] - lo[0]) * i as f64 / nx as f64;
                     if d == 3 {
@@ -1279,27 +1434,37 @@ impl<'a> Checker<'a> {
                         .map_or(lo[v], |f| f.eval_f64(c, &design));
                     let top = body.top.as_ref().map_or(hi[v], |f| f.eval_f64(c, &design));
                     let at = if d == 2 {
-                        format!("x = {}", c[0])
+                        format!("x = {}", num(c[0]))
                     } else {
-                        format!("x = {}, y = {}", c[0], c[1])
+                        format!("x = {}, y = {}", num(c[0]), num(c[1]))
                     };
+                    let face_span =
+                        |k: usize| spans.faces[k].or(spans.faces[1 - k]).unwrap_or(spans.name);
                     if !bottom.is_finite() || !top.is_finite() {
-                        let face = if bottom.is_finite() { "top" } else { "bottom" };
+                        let (face, k, value) = if bottom.is_finite() {
+                            ("top", 1, top)
+                        } else {
+                            ("bottom", 0, bottom)
+                        };
                         self.error(
-                            Diagnostic::new("cso::geometry", format!("the {face} face of body `{}` is undefined at {at}", body.name))
-                                .label(span, format!("evaluates to {} there", if bottom.is_finite() { top } else { bottom }))
-                                .help("check the face's formula over the whole extent (a square root of a negative number?)"),
+                            Diagnostic::new(
+                                "cso::geometry",
+                                format!("the {face} face of body `{}` is undefined at {at}", body.name),
+                            )
+                            .label(face_span(k), format!("evaluates to {} there", num(value)))
+                            .help("the face's formula must be defined over the whole extent (a square root of a negative number?)"),
                         );
                         break 'columns;
                     }
                     if bottom >= top {
+                        let k = if body.bottom.is_some() { 0 } else { 1 };
                         self.error(
                             Diagnostic::new(
                                 "cso::geometry",
-                                format!("body `{}` has no thickness at {at}", body.name),
+                                format!("the bottom face of body `{}` reaches its top face at {at}", body.name),
                             )
-                            .label(span, format!("bottom {bottom} is not below top {top}"))
-                            .help("the bottom face must stay below the top face everywhere"),
+                            .label(face_span(k), format!("bottom {} is not below top {}", num(bottom), num(top)))
+                            .help("the bottom face must stay below the top face over the whole extent"),
                         );
                         break 'columns;
                     }
@@ -1307,6 +1472,29 @@ impl<'a> Checker<'a> {
             }
         }
     }
+}
+
+/// The first three entries of a long list, and how many more.
+fn summarize_list(items: &[String]) -> String {
+    let shown = items.iter().take(3).cloned().collect::<Vec<_>>().join("; ");
+    if items.len() > 3 {
+        format!("{shown}; and {} more", items.len() - 3)
+    } else {
+        shown
+    }
+}
+
+/// Lower and upper corners of points in `d` dimensions.
+fn bounding_box(points: &[[f64; 3]], d: usize) -> ([f64; 3], [f64; 3]) {
+    let mut lo = [f64::INFINITY; 3];
+    let mut hi = [f64::NEG_INFINITY; 3];
+    for p in points {
+        for a in 0..d {
+            lo[a] = lo[a].min(p[a]);
+            hi[a] = hi[a].max(p[a]);
+        }
+    }
+    (lo, hi)
 }
 
 fn join_x(v: &[usize]) -> String {

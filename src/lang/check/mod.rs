@@ -37,6 +37,7 @@ pub struct CheckOptions {
 pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>> {
     let (file, mut diags) = parse_file(src);
     let mut checker = Checker::new(src, &file, opts);
+    checker.syntax_errors = !diags.is_empty();
     let scene = checker.run();
     diags.extend(checker.diags);
     if diags.is_empty() {
@@ -53,6 +54,17 @@ enum LetState {
     Pending,
     InProgress,
     Done(Option<(Formula, Quantity)>),
+}
+
+/// Where a body's parts are written, for errors found after checking it.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct BodySpans {
+    name: Span,
+    mesh: Option<Span>,
+    /// Bottom and top face expressions.
+    faces: [Option<Span>; 2],
+    /// The body checked without error (else later checks of it would guess).
+    ok: bool,
 }
 
 /// A design item: scalar `h` or array `a[N]`, and where its entries start.
@@ -76,14 +88,19 @@ pub(crate) struct Checker<'a> {
     lets: Vec<(&'a Ident, &'a super::ast::Expr, LetState)>,
     /// How many `let` values are being resolved inside each other right now.
     let_depth: usize,
+    /// The `let` values being resolved right now, outermost first (to name a cycle).
+    let_stack: Vec<usize>,
     /// Overrides already resolved, by `let` index.
     overridden: HashMap<usize, Option<(Formula, Quantity)>>,
     designs: Vec<DesignGroup>,
     design_vars: Vec<DesignVar>,
     materials: Vec<Material>,
     bodies: Vec<Body>,
-    /// Per body: is its material's density known (for gravity)?
     obstacles: Vec<Obstacle>,
+    /// Per body, where its name, mesh and curved faces are written.
+    body_spans: Vec<BodySpans>,
+    /// The parser reported errors: checks of the whole scene would guess.
+    syntax_errors: bool,
 }
 
 impl<'a> Checker<'a> {
@@ -96,15 +113,18 @@ impl<'a> Checker<'a> {
             diags: Vec::new(),
             dim: Dimension::Two,
             tables,
-            broken: file.broken_names.iter().cloned().collect(),
+            broken: file.broken.iter().filter_map(|(_, n)| n.clone()).collect(),
             lets: Vec::new(),
             let_depth: 0,
+            let_stack: Vec::new(),
             overridden: HashMap::new(),
             designs: Vec::new(),
             design_vars: Vec::new(),
             materials: Vec::new(),
             bodies: Vec::new(),
             obstacles: Vec::new(),
+            body_spans: Vec::new(),
+            syntax_errors: false,
         }
     }
 
@@ -156,8 +176,8 @@ impl<'a> Checker<'a> {
             d = d.help(format!("this scene defines no {}", kind.noun()));
         } else {
             d = d.help(format!(
-                "known {}s: {}",
-                kind.noun(),
+                "known {}: {}",
+                kind.plural(),
                 quote_list(&table.names)
             ));
         }
@@ -179,10 +199,14 @@ impl<'a> Checker<'a> {
                     let kind = match keyword.name.as_str() {
                         "scene" => {
                             if let Some(first) = scene {
+                                let first_kw = match &first.kind {
+                                    ItemKind::Block { keyword, .. } => keyword.span,
+                                    _ => first.span,
+                                };
                                 self.error(
                                     Diagnostic::new("cso::duplicate", "a second `scene` item")
                                         .label(keyword.span, "second scene")
-                                        .label(first.span, "the scene is defined here")
+                                        .label(first_kw, "the scene is defined here")
                                         .help("a file describes one scene; remove one of them"),
                                 );
                             } else {
@@ -222,6 +246,8 @@ impl<'a> Checker<'a> {
     /// Adds a name to its table; reports duplicates and reserved words.
     fn define(&mut self, kind: Kind, name: &Ident) -> bool {
         if let Some(why) = reserved(&name.name) {
+            // Uses of the name would only repeat this error.
+            self.broken.insert(name.name.clone());
             self.error(
                 Diagnostic::new(
                     "cso::reserved",
@@ -254,11 +280,12 @@ impl<'a> Checker<'a> {
 
     fn run(&mut self) -> Scene {
         let scene_item = self.collect();
-        let (name, dim, thickness) = self.scene(scene_item);
+        let (name, title, dim, thickness) = self.scene(scene_item);
         self.dim = dim;
         self.resolve_overrides();
         let mut scene = Scene {
             name,
+            title,
             dim,
             thickness,
             params: Vec::new(),
@@ -402,40 +429,48 @@ impl<'a> Checker<'a> {
     /// Checks that need the whole scene: gravity needs densities, constraints need
     /// an objective, the size fits the machine, the faces do not cross.
     fn whole_scene(&mut self, scene: &Scene) {
-        if self.diags.is_empty() {
-            let est = budget::estimate(scene);
-            if let Some(limit) = self.opts.memory_limit {
-                if est.total() > limit as f64 {
-                    let span = self
-                        .file
-                        .items
-                        .iter()
-                        .find(|i| matches!(&i.kind, ItemKind::Block { keyword, .. } if keyword.name == "body"))
-                        .map_or(Span::default(), |i| i.span);
-                    let span = Span::new(span.start, span.start + 4);
-                    self.error(
-                        Diagnostic::new(
-                            "cso::too-large",
-                            format!(
-                                "this scene needs about {} of memory, more than the {} allowed here",
-                                budget::bytes(est.total()),
-                                budget::bytes(limit as f64)
-                            ),
-                        )
-                        .label(span, format!("{} primal unknowns in all", budget::count(est.dofs)))
-                        .help(format!(
-                            "estimate: stiffness {}, factors {}, vectors {}; use a coarser `mesh`, \
-                             or more `subdomains` (smaller factors)",
-                            budget::bytes(est.stiffness),
-                            budget::bytes(est.factors),
-                            budget::bytes(est.vectors)
-                        )),
-                    );
-                    return;
-                }
-            }
-            self.faces_do_not_cross(scene);
+        if !self.diags.is_empty() || self.syntax_errors {
+            return;
         }
+        let est = budget::estimate(scene);
+        if let Some(limit) = self.opts.memory_limit {
+            if est.total() > limit as f64 {
+                // Point at the mesh of the body that needs the most.
+                let biggest = (0..scene.bodies.len()).max_by(|&a, &b| {
+                    let (ea, eb) = (
+                        budget::estimate_body(&scene.bodies[a]),
+                        budget::estimate_body(&scene.bodies[b]),
+                    );
+                    ea.total().total_cmp(&eb.total())
+                });
+                let span = biggest
+                    .and_then(|b| self.body_spans.get(b))
+                    .map_or(Span::default(), |s| s.mesh.unwrap_or(s.name));
+                let who = biggest.map_or(String::new(), |b| {
+                    format!(" (mostly body `{}`)", scene.bodies[b].name)
+                });
+                self.error(
+                    Diagnostic::new(
+                        "cso::too-large",
+                        format!(
+                            "this scene needs about {} of memory{who}, more than the {} allowed here",
+                            budget::bytes(est.total()),
+                            budget::bytes(limit as f64)
+                        ),
+                    )
+                    .label(span, format!("{} primal unknowns in all", budget::count(est.dofs)))
+                    .help(format!(
+                        "estimate: stiffness {}, factors {}, vectors {}; use a coarser `mesh`, \
+                         or more `subdomains` (smaller factors)",
+                        budget::bytes(est.stiffness),
+                        budget::bytes(est.factors),
+                        budget::bytes(est.vectors)
+                    )),
+                );
+                return;
+            }
+        }
+        self.faces_do_not_cross(scene);
     }
 }
 

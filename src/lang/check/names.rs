@@ -30,6 +30,15 @@ impl Kind {
         }
     }
 
+    /// "bodies", "materials".
+    pub fn plural(self) -> String {
+        match self {
+            Kind::Body => "bodies".to_string(),
+            Kind::Design => "design variables".to_string(),
+            k => format!("{}s", k.noun()),
+        }
+    }
+
     /// "a body", "an obstacle".
     pub fn article(self) -> String {
         let n = self.noun();
@@ -82,20 +91,32 @@ impl Table {
     }
 }
 
-/// Levenshtein distance (small strings only: names and field names).
+/// Edit distance counting a swap of two neighbours as one edit (optimal string
+/// alignment), so `sfot` is one typo away from `soft`. Small strings only.
 pub fn distance(a: &str, b: &str) -> usize {
     let a: Vec<char> = a.chars().collect();
     let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    for (i, ca) in a.iter().enumerate() {
-        let mut cur = vec![i + 1; b.len() + 1];
-        for (j, cb) in b.iter().enumerate() {
-            let sub = prev[j] + usize::from(ca != cb);
-            cur[j + 1] = sub.min(prev[j + 1] + 1).min(cur[j] + 1);
-        }
-        prev = cur;
+    let (n, m) = (a.len(), b.len());
+    let mut d = vec![vec![0usize; m + 1]; n + 1];
+    for (i, row) in d.iter_mut().enumerate() {
+        row[0] = i;
     }
-    prev[b.len()]
+    for j in 0..=m {
+        d[0][j] = j;
+    }
+    for i in 1..=n {
+        for j in 1..=m {
+            let cost = usize::from(a[i - 1] != b[j - 1]);
+            let mut v = (d[i - 1][j] + 1)
+                .min(d[i][j - 1] + 1)
+                .min(d[i - 1][j - 1] + cost);
+            if i > 1 && j > 1 && a[i - 1] == b[j - 2] && a[i - 2] == b[j - 1] {
+                v = v.min(d[i - 2][j - 2] + 1);
+            }
+            d[i][j] = v;
+        }
+    }
+    d[n][m]
 }
 
 /// The closest candidate, if it is close enough to be a plausible typo.
@@ -135,5 +156,7 @@ mod tests {
         assert_eq!(suggest("E", ["E", "nu"]), None);
         assert_eq!(suggest("e", ["E", "nu"]), Some("E"));
         assert_eq!(suggest("zzz", ["base", "punch"]), None);
+        assert_eq!(distance("sfot", "soft"), 1);
+        assert_eq!(suggest("sfot", ["steel", "soft"]), Some("soft"));
     }
 }

@@ -55,7 +55,7 @@ impl<'a> Checker<'a> {
                     let Some((f, d)) = units::unit(name) else {
                         continue;
                     };
-                    if power.abs() > 12 {
+                    if power.unsigned_abs() > 12 {
                         self.error(
                             Diagnostic::new(
                                 "cso::unit",
@@ -187,6 +187,9 @@ impl<'a> Checker<'a> {
         if name == "pi" {
             return Some((Formula::Const(std::f64::consts::PI), Quantity::Bare));
         }
+        if self.broken.contains(name) {
+            return None;
+        }
         if units::is_unit(name) {
             self.error(
                 Diagnostic::new("cso::unit", format!("unit `{name}` without a number"))
@@ -204,9 +207,6 @@ impl<'a> Checker<'a> {
                 .label(span, "not known before solving")
                 .help("functionals can only be used in `minimize` and `subject to`"),
             );
-            return None;
-        }
-        if self.broken.contains(name) {
             return None;
         }
         let mut d = Diagnostic::new("cso::unknown-name", format!("unknown name `{name}`"))
@@ -256,6 +256,7 @@ impl<'a> Checker<'a> {
                 self.lets[i].2 = LetState::InProgress;
                 let value = self.lets[i].1;
                 self.let_depth += 1;
+                self.let_stack.push(i);
                 let v = if self.let_depth > MAX_LET_DEPTH {
                     self.error(
                         Diagnostic::new(
@@ -270,6 +271,7 @@ impl<'a> Checker<'a> {
                     self.formula(value)
                 };
                 self.let_depth -= 1;
+                self.let_stack.pop();
                 if matches!(self.lets[i].2, LetState::InProgress) {
                     self.lets[i].2 = LetState::Done(v.clone());
                 }
@@ -748,8 +750,10 @@ impl<'a> Checker<'a> {
         let v = f.as_const().unwrap_or(f64::NAN);
         if !v.is_finite() {
             self.error(
-                Diagnostic::new("cso::not-finite", format!("{what} is not a finite number"))
-                    .label(e.span, format!("evaluates to {v}")),
+                Diagnostic::new("cso::not-finite", format!("{what} is not a finite number")).label(
+                    e.span,
+                    format!("evaluates to {}", crate::lang::diag::num(v)),
+                ),
             );
             return None;
         }
@@ -797,8 +801,12 @@ impl<'a> Checker<'a> {
             Dim::LENGTH => " (e.g. `10 mm`)",
             Dim::DENSITY => " (e.g. `7850 kg/m^3`)",
             Dim::ACCELERATION => " (e.g. `9.81 m/s^2`)",
-            Dim::NONE => "; remove the unit",
             _ => "",
+        };
+        let help = if want.is_none() {
+            "remove the unit; this value is a plain number".to_string()
+        } else {
+            format!("write it in {want}{example}")
         };
         self.error(
             Diagnostic::new(
@@ -806,7 +814,7 @@ impl<'a> Checker<'a> {
                 format!("{what} expects {}, found {}", want.describe(), q.describe()),
             )
             .label(e.span, format!("this is {}", q.describe()))
-            .help(format!("write it in {want}{example}")),
+            .help(help),
         );
         false
     }
@@ -823,7 +831,10 @@ impl<'a> Checker<'a> {
             self.error(
                 Diagnostic::new(
                     "cso::integer",
-                    format!("{what} must be a whole number of at least {min}, found {v}"),
+                    format!(
+                        "{what} must be a whole number of at least {min}, found {}",
+                        crate::lang::diag::num(v)
+                    ),
                 )
                 .label(e.span, format!("not {kind}")),
             );
