@@ -149,7 +149,7 @@ fn scont2d_face_derivatives_are_bernstein_polynomials() {
     assert_eq!(init.len(), 6);
     // d bottom / d a[k] at x is the Bernstein basis B_{k,5}(x - 1).
     let binom = [1.0, 5.0, 10.0, 10.0, 5.0, 1.0];
-    for k in 0..6 {
+    for (k, &c) in binom.iter().enumerate() {
         let design: Vec<Dual64> = init
             .iter()
             .enumerate()
@@ -167,7 +167,7 @@ fn scont2d_face_derivatives_are_bernstein_polynomials() {
                 design: &design,
             };
             let t: f64 = x - 1.0;
-            let want = binom[k] * t.powi(k as i32) * (1.0 - t).powi(5 - k as i32);
+            let want = c * t.powi(k as i32) * (1.0 - t).powi(5 - k as i32);
             let got = bottom.eval(&at);
             assert!(
                 (got.eps - want).abs() < 1e-14,

@@ -142,7 +142,7 @@ pub fn render(diags: &[Diagnostic], name: &str, text: &str) -> String {
     for diag in diags {
         let source = match &diag.origin {
             Some((n, t)) => NamedSource::new(n.clone(), t.clone()),
-            None => NamedSource::new(name.to_string(), text.to_string()),
+            None => NamedSource::new(name, text.to_string()),
         };
         let wrapped = WithSource { diag, source };
         // Writing to a String cannot fail; a formatter error would only drop this one.

@@ -174,13 +174,15 @@ fn too_long(pair: &Pair<Rule>, offset: usize) -> Option<Diagnostic> {
 }
 
 /// Parses a lone expression (the value of `--set NAME=VALUE`).
-pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
+pub fn parse_expr(src: &str) -> Result<Expr, Box<Diagnostic>> {
     if let Some(&at) = deep_positions(src).first() {
-        return Err(Diagnostic::new(
-            "cso::too-deep",
-            format!("brackets nested more than {MAX_NESTING} deep"),
-        )
-        .label(Span::new(at, at + 1), "too deep here"));
+        return Err(Box::new(
+            Diagnostic::new(
+                "cso::too-deep",
+                format!("brackets nested more than {MAX_NESTING} deep"),
+            )
+            .label(Span::new(at, at + 1), "too deep here"),
+        ));
     }
     let start = skip_blank(src, 0);
     let parsed = CsoParser::parse(Rule::expr, &src[start..]);
@@ -188,24 +190,28 @@ pub fn parse_expr(src: &str) -> Result<Expr, Diagnostic> {
         Ok(mut pairs) => match pairs.next() {
             Some(pair) => {
                 if let Some(d) = too_long(&pair, start) {
-                    return Err(d);
+                    return Err(Box::new(d));
                 }
                 let end = start + pair.as_span().end();
                 let rest = skip_blank(src, end);
                 if rest < src.len() {
                     let (found, span) = found_at(src, rest);
-                    return Err(Diagnostic::new(
-                        "cso::syntax",
-                        format!("unexpected {found} after the value"),
-                    )
-                    .label(span, "the value should end here"));
+                    return Err(Box::new(
+                        Diagnostic::new(
+                            "cso::syntax",
+                            format!("unexpected {found} after the value"),
+                        )
+                        .label(span, "the value should end here"),
+                    ));
                 }
                 Ok(expr(pair, start))
             }
-            None => Err(Diagnostic::new("cso::syntax", "expected a value")
-                .label(Span::new(0, src.len()), "")),
+            None => Err(Box::new(
+                Diagnostic::new("cso::syntax", "expected a value")
+                    .label(Span::new(0, src.len()), ""),
+            )),
         },
-        Err(err) => Err(syntax_error(src, start, &err)),
+        Err(err) => Err(Box::new(syntax_error(src, start, &err))),
     }
 }
 

@@ -26,11 +26,11 @@ impl Dim {
     pub const FORCE_PER_LENGTH: Dim = Dim([0, 1, -2]);
     pub const ENERGY: Dim = Dim([2, 1, -2]);
 
-    pub fn mul(self, o: Dim) -> Dim {
+    pub fn times(self, o: Dim) -> Dim {
         Dim([self.0[0] + o.0[0], self.0[1] + o.0[1], self.0[2] + o.0[2]])
     }
 
-    pub fn div(self, o: Dim) -> Dim {
+    pub fn per(self, o: Dim) -> Dim {
         Dim([self.0[0] - o.0[0], self.0[1] - o.0[1], self.0[2] - o.0[2]])
     }
 
@@ -193,10 +193,10 @@ impl Quantity {
     }
 
     /// Result of `*`.
-    pub fn mul(self, o: Quantity) -> Quantity {
+    pub fn times(self, o: Quantity) -> Quantity {
         use Quantity::*;
         match (self, o) {
-            (Known(a), Known(b)) => Known(a.mul(b)),
+            (Known(a), Known(b)) => Known(a.times(b)),
             (Known(a), Bare) | (Bare, Known(a)) => Known(a),
             (Bare, Bare) => Bare,
             _ => Unchecked,
@@ -204,12 +204,12 @@ impl Quantity {
     }
 
     /// Result of `/`.
-    pub fn div(self, o: Quantity) -> Quantity {
+    pub fn per(self, o: Quantity) -> Quantity {
         use Quantity::*;
         match (self, o) {
-            (Known(a), Known(b)) => Known(a.div(b)),
+            (Known(a), Known(b)) => Known(a.per(b)),
             (Known(a), Bare) => Known(a),
-            (Bare, Known(b)) => Known(Dim::NONE.div(b)),
+            (Bare, Known(b)) => Known(Dim::NONE.per(b)),
             (Bare, Bare) => Bare,
             _ => Unchecked,
         }
@@ -217,7 +217,7 @@ impl Quantity {
 
     /// Result of `+`/`-`/comparison when compatible, or `None` when the two known
     /// dimensions differ.
-    pub fn add(self, o: Quantity) -> Option<Quantity> {
+    pub fn plus(self, o: Quantity) -> Option<Quantity> {
         use Quantity::*;
         match (self, o) {
             (Known(a), Known(b)) => (a == b).then_some(Known(a)),
@@ -244,10 +244,10 @@ mod tests {
     fn derived_units_have_the_right_dimensions() {
         let (kn, force) = unit("kN").unwrap();
         let (m, length) = unit("m").unwrap();
-        assert_eq!(force.div(length), Dim::FORCE_PER_LENGTH);
-        assert_eq!(Dim::FORCE.div(Dim::AREA), Dim::PRESSURE);
+        assert_eq!(force.per(length), Dim::FORCE_PER_LENGTH);
+        assert_eq!(Dim::FORCE.per(Dim::AREA), Dim::PRESSURE);
         assert_eq!(kn / m, 1e3);
-        assert_eq!(Dim::MASS.div(Dim::VOLUME), Dim::DENSITY);
+        assert_eq!(Dim::MASS.per(Dim::VOLUME), Dim::DENSITY);
         assert_eq!(Dim::AREA.root(2), Some(Dim::LENGTH));
         assert_eq!(Dim::LENGTH.root(2), None);
     }
@@ -265,11 +265,11 @@ mod tests {
     fn bare_numbers_adapt_and_unchecked_spreads() {
         use Quantity::*;
         let l = Known(Dim::LENGTH);
-        assert_eq!(l.add(Bare), Some(l));
-        assert_eq!(l.add(Known(Dim::PRESSURE)), None);
-        assert_eq!(Bare.mul(l), l);
-        assert_eq!(Unchecked.mul(l), Unchecked);
-        assert_eq!(Unchecked.add(l), Some(l));
-        assert_eq!(Bare.div(l), Known(Dim([-1, 0, 0])));
+        assert_eq!(l.plus(Bare), Some(l));
+        assert_eq!(l.plus(Known(Dim::PRESSURE)), None);
+        assert_eq!(Bare.times(l), l);
+        assert_eq!(Unchecked.times(l), Unchecked);
+        assert_eq!(Unchecked.plus(l), Some(l));
+        assert_eq!(Bare.per(l), Known(Dim([-1, 0, 0])));
     }
 }

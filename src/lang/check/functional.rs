@@ -86,7 +86,7 @@ impl<'a> Checker<'a> {
         let lhs = self.functional(a);
         let rhs = self.functional(b);
         let ((lhs, qa), (rhs, qb)) = (lhs?, rhs?);
-        if qa.add(qb).is_none() {
+        if qa.plus(qb).is_none() {
             self.error(
                 Diagnostic::new(
                     "cso::unit",
@@ -139,7 +139,7 @@ impl<'a> Checker<'a> {
                         let (a, qa) = self.functional(&args[0])?;
                         let (b, qb) = self.functional(&args[1])?;
                         let op = if n == "min" { Arith::Min } else { Arith::Max };
-                        let q = qa.add(qb).unwrap_or(Quantity::Unchecked);
+                        let q = qa.plus(qb).unwrap_or(Quantity::Unchecked);
                         return Some((Functional::Arith(op, Box::new(a), Box::new(b)), q));
                     }
                 }
@@ -189,9 +189,9 @@ impl<'a> Checker<'a> {
                 let fb = self.functional(b);
                 let ((fa, qa), (fb, qb)) = (fa?, fb?);
                 let q = match op {
-                    BinOp::Mul => qa.mul(qb),
-                    BinOp::Div => qa.div(qb),
-                    _ => match qa.add(qb) {
+                    BinOp::Mul => qa.times(qb),
+                    BinOp::Div => qa.per(qb),
+                    _ => match qa.plus(qb) {
                         Some(q) => q,
                         None => {
                             self.error(

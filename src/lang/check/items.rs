@@ -53,8 +53,8 @@ impl<'a> Checker<'a> {
         let mut dim = Dimension::Two;
         if let Some(e) = f.get("dim").and_then(|fl| self.expr_of(fl, "2 or 3")) {
             match self.number(e, Some(Dim::NONE), "`dim`") {
-                Some(v) if v == 2.0 => dim = Dimension::Two,
-                Some(v) if v == 3.0 => dim = Dimension::Three,
+                Some(2.0) => dim = Dimension::Two,
+                Some(3.0) => dim = Dimension::Three,
                 Some(v) => self.error(
                     Diagnostic::new(
                         "cso::dimension",
@@ -237,7 +237,7 @@ impl<'a> Checker<'a> {
                 continue;
             };
             let (vals, q) = self.design_values(e, key, n);
-            if let Some(next) = quantity.add(q) {
+            if let Some(next) = quantity.plus(q) {
                 quantity = next;
             } else {
                 self.error(
@@ -260,8 +260,8 @@ impl<'a> Checker<'a> {
         // that `lower = 1, upper = 0` on `a[6]` is one error, not six.
         let mut crossed: Vec<String> = Vec::new();
         let mut outside: Vec<String> = Vec::new();
-        for i in 0..count {
-            let (init, lower, upper) = (values[0][i], values[1][i], values[2][i]);
+        let bounds = values[0].iter().zip(&values[1]).zip(&values[2]);
+        for (i, ((&init, &lower), &upper)) in bounds.enumerate() {
             let var = match n {
                 Some(_) => format!("{}[{i}]", name.name),
                 None => name.name.clone(),
@@ -378,7 +378,7 @@ impl<'a> Checker<'a> {
             let Some((f, qi)) = self.formula(item) else {
                 return (None, q);
             };
-            q = q.add(qi).unwrap_or(qi);
+            q = q.plus(qi).unwrap_or(qi);
             if f.uses_design() || (0..3).any(|i| f.uses_coord(i)) {
                 self.error(
                     Diagnostic::new("cso::not-constant", format!("{what} must be a constant"))
@@ -485,7 +485,7 @@ impl<'a> Checker<'a> {
                         lo.eval_f64([0.0; 3], &design),
                         hi.eval_f64([0.0; 3], &design),
                     );
-                    if !(l < h) {
+                    if l.is_nan() || h.is_nan() || l >= h {
                         self.error(
                             Diagnostic::new(
                                 "cso::range",
@@ -649,7 +649,7 @@ impl<'a> Checker<'a> {
                 .and_then(|e| {
                     let r = self.geometry(e, Dim::LENGTH, 0, "`radius`")?;
                     let v = r.eval_f64([0.0; 3], &self.design_init());
-                    if !(v > 0.0) {
+                    if v.is_nan() || v <= 0.0 {
                         self.positive(e, v, "the radius");
                         return None;
                     }
@@ -681,7 +681,7 @@ impl<'a> Checker<'a> {
                 }
                 let design = self.design_init();
                 let norm: f64 = out.iter().map(|g| g.eval_f64([0.0; 3], &design).powi(2)).sum::<f64>().sqrt();
-                if !(norm > 0.0 && norm.is_finite()) {
+                if norm.is_nan() || norm <= 0.0 || norm.is_infinite() {
                     self.error(
                         Diagnostic::new("cso::range", "the normal of a plane cannot be zero")
                             .label(e.span, "zero vector")
@@ -867,7 +867,7 @@ impl<'a> Checker<'a> {
             };
             self.error(
                 Diagnostic::new("cso::missing-value", format!("`{kw}` needs a value"))
-                    .label(sel.span, format!("expected `= ...` after this"))
+                    .label(sel.span, "expected `= ...` after this")
                     .help(format!("write `{kw} {} = {example}`", self.text(sel.span))),
             );
             return None;
@@ -1155,7 +1155,7 @@ impl<'a> Checker<'a> {
         let search = match f.get("search").and_then(|fl| self.expr_of(fl, "a length")) {
             Some(e) => {
                 let v = self.number(e, Some(Dim::LENGTH), "`search`")?;
-                if !(v > 0.0) {
+                if v.is_nan() || v <= 0.0 {
                     self.positive(e, v, "`search`");
                     return None;
                 }
@@ -1382,7 +1382,7 @@ impl<'a> Checker<'a> {
         let e = self.expr_of(fl, "a small positive number")?;
         let what = format!("`{}`", fl.name.name);
         let v = self.number(e, Some(Dim::NONE), &what)?;
-        if !(v > 0.0 && v < 1.0) {
+        if v.is_nan() || v <= 0.0 || v >= 1.0 {
             self.error(
                 Diagnostic::new(
                     "cso::range",

@@ -190,10 +190,8 @@ impl<'a> Checker<'a> {
         let mut scene: Option<&'a Item> = None;
         for item in &self.file.items {
             match &item.kind {
-                ItemKind::Let { name, value } => {
-                    if self.define(Kind::Let, name) {
-                        self.lets.push((name, value, LetState::Pending));
-                    }
+                ItemKind::Let { name, value } if self.define(Kind::Let, name) => {
+                    self.lets.push((name, value, LetState::Pending));
                 }
                 ItemKind::Block { keyword, name, .. } => {
                     let kind = match keyword.name.as_str() {

@@ -66,7 +66,7 @@ impl<'a> Checker<'a> {
                         return None;
                     }
                     factor *= f.powi(*power);
-                    dim = dim.mul(d.pow(*power));
+                    dim = dim.times(d.pow(*power));
                 }
                 Some((Formula::Const(value * factor), Quantity::Known(dim)))
             }
@@ -141,12 +141,8 @@ impl<'a> Checker<'a> {
 
     fn name_value(&mut self, name: &str, span: Span) -> Option<(Formula, Quantity)> {
         if let Some(i) = self.table(Kind::Let).get(name) {
-            let v = self.let_value(i);
-            if v.is_none() {
-                // The let's own error was reported where it is defined.
-                return None;
-            }
-            return v;
+            // None: the let's own error was reported where it is defined.
+            return self.let_value(i);
         }
         if let Some(g) = self.designs.iter().find(|g| g.name == name).cloned() {
             if g.size.is_some() {
@@ -327,7 +323,7 @@ impl<'a> Checker<'a> {
                     for l in &mut d.labels {
                         l.span = Span::new(l.span.start + value_start, l.span.end + value_start);
                     }
-                    self.error(d);
+                    self.error(*d);
                     None
                 }
             };
@@ -388,9 +384,9 @@ impl<'a> Checker<'a> {
         }
         let ((fa, qa), (fb, qb)) = (lhs?, rhs?);
         let q = match op {
-            BinOp::Mul => qa.mul(qb),
-            BinOp::Div => qa.div(qb),
-            _ => match qa.add(qb) {
+            BinOp::Mul => qa.times(qb),
+            BinOp::Div => qa.per(qb),
+            _ => match qa.plus(qb) {
                 Some(q) => q,
                 None => {
                     self.mismatch(op, a, qa, b, qb);
@@ -526,7 +522,7 @@ impl<'a> Checker<'a> {
         if arity == 2 {
             let (fa, qa) = self.formula(&args[0])?;
             let (fb, qb) = self.formula(&args[1])?;
-            let Some(q) = qa.add(qb) else {
+            let Some(q) = qa.plus(qb) else {
                 self.mismatch(BinOp::Ne, &args[0], qa, &args[1], qb);
                 return None;
             };
@@ -600,7 +596,7 @@ impl<'a> Checker<'a> {
                 let mut ok = true;
                 for item in items {
                     match self.formula(item) {
-                        Some((f, qi)) => match q.add(qi) {
+                        Some((f, qi)) => match q.plus(qi) {
                             Some(n) => {
                                 q = n;
                                 out.push(f);
@@ -690,7 +686,7 @@ impl<'a> Checker<'a> {
             });
             self.error(
                 Diagnostic::new("cso::index", format!("`{name}` is not a design array"))
-                    .label(base.span, format!("{what}"))
+                    .label(base.span, what)
                     .help(help),
             );
             return None;
@@ -915,7 +911,7 @@ impl<'a> Checker<'a> {
             ExprKind::Binary(op, a, b) if op.is_comparison() => {
                 let (fa, fb) = (self.formula(a), self.formula(b));
                 let ((fa, qa), (fb, qb)) = (fa?, fb?);
-                if qa.add(qb).is_none() {
+                if qa.plus(qb).is_none() {
                     self.mismatch(*op, a, qa, b, qb);
                     return None;
                 }
