@@ -48,7 +48,11 @@ impl<'a> Checker<'a> {
         let at = name
             .as_ref()
             .map_or(keyword.span, |n| keyword.span.to(n.span));
-        let spec = [req("dim", "dim = 2"), opt("thickness", "thickness = 1 m")];
+        let spec = [
+            req("dim", "dim = 2"),
+            opt("thickness", "thickness = 1 m"),
+            opt("title", "title = \"...\""),
+        ];
         let f = self.fields(body, &spec, "the scene", at, &|_| None);
         let mut dim = Dimension::Two;
         if let Some(e) = f.get("dim").and_then(|fl| self.expr_of(fl, "2 or 3")) {
