@@ -52,7 +52,7 @@ fn set_changes_the_compiled_scene_and_bad_values_are_diagnosed() {
         out.contains("traction  roller.top             (0, -1.5e8) Pa"),
         "{out}"
     );
-    assert!(out.contains("P          = 3e6   (--set)"), "{out}");
+    assert!(out.contains("P          = 3e6 N/m   (--set)"), "{out}");
     let (code, _, err) = cso(&["compile", "examples/hertz2d.cso", "--set", "w=3 GPa"]);
     assert_eq!(code, 1);
     assert!(

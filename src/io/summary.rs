@@ -327,7 +327,8 @@ impl fmt::Display for Summary {
             section(&mut o, "constants");
             for p in &self.constants {
                 let set = if p.overridden { "   (--set)" } else { "" };
-                let _ = writeln!(o, "  {:<10} = {}{set}", p.name, num(p.value));
+                let unit = p.unit.as_ref().map_or(String::new(), |u| format!(" {u}"));
+                let _ = writeln!(o, "  {:<10} = {}{unit}{set}", p.name, num(p.value));
             }
         }
         section(&mut o, "materials");
@@ -458,22 +459,25 @@ impl fmt::Display for Summary {
             s.max_iterations,
             enum_name(&s.preconditioner)
         );
-        let se = &self.sensitivity;
-        let _ = writeln!(
-            o,
-            "  sensitivity  {} (finite differences: {}, step {})",
-            enum_name(&se.method),
-            enum_name(&se.scheme),
-            num(se.step)
-        );
-        let op = &self.optimize;
-        let _ = writeln!(
-            o,
-            "  optimize     {}, at most {} iterations, tolerance {}",
-            enum_name(&op.method),
-            op.max_iterations,
-            num(op.tolerance)
-        );
+        // Sensitivity and optimization settings matter only with design variables.
+        if !self.design.is_empty() {
+            let se = &self.sensitivity;
+            let _ = writeln!(
+                o,
+                "  sensitivity  {} (finite differences: {}, step {})",
+                enum_name(&se.method),
+                enum_name(&se.scheme),
+                num(se.step)
+            );
+            let op = &self.optimize;
+            let _ = writeln!(
+                o,
+                "  optimize     {}, at most {} iterations, tolerance {}",
+                enum_name(&op.method),
+                op.max_iterations,
+                num(op.tolerance)
+            );
+        }
         f.write_str(&o)
     }
 }

@@ -403,6 +403,16 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
         return d;
     }
     let (found, span) = found_at(src, at);
+    if src[at.min(src.len())..].starts_with('"')
+        && !src[at + 1..].lines().next().unwrap_or("").contains('"')
+    {
+        return Diagnostic::new("cso::syntax", "unterminated string")
+            .label(
+                Span::new(at, at + 1),
+                "this string is not closed on its line",
+            )
+            .help("a string must end with `\"` on the same line");
+    }
     let mut expected: Vec<&str> = match &err.variant {
         ErrorVariant::ParsingError { positives, .. } => {
             positives.iter().filter_map(|r| rule_name(*r)).collect()
@@ -438,6 +448,44 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
                 "add `}}` at the end of line {}",
                 src[..before].matches('\n').count() + 1
             ));
+        }
+    }
+    // A word where an item should start: a misspelt keyword, most likely.
+    if expected.first().is_some_and(|e| e.starts_with("an item")) {
+        if let Some(word) = found
+            .strip_prefix("name `")
+            .and_then(|w| w.strip_suffix('`'))
+        {
+            let help = crate::lang::check::did_you_mean(word, ITEM_KEYWORDS.iter().copied())
+                .unwrap_or_else(|| {
+                    format!(
+                        "items start with {}",
+                        ITEM_KEYWORDS
+                            .iter()
+                            .map(|k| format!("`{k}`"))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    )
+                });
+            return Diagnostic::new("cso::syntax", format!("unknown item `{word}`"))
+                .label(span, "not an item keyword")
+                .help(help);
+        }
+        if found == "`}`" {
+            return Diagnostic::new("cso::syntax", "a `}` with no open block")
+                .label(span, "nothing to close here")
+                .help("remove this `}`, or the `}` before it that closed the block too early");
+        }
+    }
+    // The innermost unclosed `(` or `[` opened on an earlier line: that is the error.
+    if let Some(&p) = open.last().filter(|&&p| src.as_bytes()[p] != b'{') {
+        if src[p..at].contains('\n') {
+            let c = src[p..].chars().next().unwrap_or('(');
+            let close = if c == '(' { ')' } else { ']' };
+            return Diagnostic::new("cso::unclosed", format!("unclosed `{c}`"))
+                .label(Span::new(p, p + 1), format!("this `{c}` is not closed"))
+                .label(span, format!("expected `{close}` before this"))
+                .help(format!("add `{close}` where the expression ends"));
         }
     }
     let what = match expected.len() {

@@ -69,6 +69,8 @@ pub struct Param {
     pub value: f64,
     /// Set with `--set` rather than in the file.
     pub overridden: bool,
+    /// SI unit of the value when it was written with units (`m`, `N/m`).
+    pub unit: Option<String>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -92,7 +92,7 @@ pub fn count(n: f64) -> String {
     if n < 1e7 {
         format!("{n:.0}")
     } else {
-        format!("{n:.2e}")
+        format!("{n:.1e}")
     }
 }
 
@@ -106,6 +106,6 @@ mod tests {
         assert_eq!(bytes(1536.0), "1.5 KiB");
         assert_eq!(bytes(3.0 * 1024.0 * 1024.0 * 1024.0), "3.0 GiB");
         assert_eq!(count(833.0), "833");
-        assert_eq!(count(1.5e12), "1.50e12");
+        assert_eq!(count(1.5e12), "1.5e12");
     }
 }

@@ -89,7 +89,7 @@ impl<'a> Checker<'a> {
                 }
                 let d = match (after_grid, next) {
                     (Some(p), _) => Diagnostic::new("cso::syntax", "expected a count after `x`")
-                        .label(field.span, "expected a number after this")
+                        .label(field.name.span, "expected a count after this `x`")
                         .help(format!(
                             "complete the counts (`{0} = 4 x 4` in 2D, `{0} = 4 x 4 x 4` in 3D) or drop the last `x`",
                             p.name.name

@@ -2,7 +2,7 @@
 
 use super::fields::{opt, req, Spec};
 use super::names::Kind;
-use super::{quote_list, Checker, DesignGroup};
+use super::{quote_list, quote_or, Checker, DesignGroup};
 use crate::lang::ast::{Block, Expr, ExprKind, Ident, Item, ItemKind, Span, Value};
 use crate::lang::diag::{num, Diagnostic};
 use crate::lang::expr::Formula;
@@ -106,10 +106,16 @@ impl<'a> Checker<'a> {
     }
 
     fn positive(&mut self, e: &Expr, v: f64, what: &str) {
+        let written = self.text(e.span);
+        let found = if written.parse::<f64>().is_ok() || v.is_nan() {
+            format!("`{written}`")
+        } else {
+            format!("`{written}` = {}", num(v))
+        };
         self.error(
             Diagnostic::new(
                 "cso::range",
-                format!("{what} must be positive, found {}", num(v)),
+                format!("{what} must be positive, found {found}"),
             )
             .label(e.span, "expected a value > 0"),
         );
@@ -427,9 +433,9 @@ impl<'a> Checker<'a> {
             req(
                 "mesh",
                 if d == 2 {
-                    "`mesh = 16 x 16`"
+                    "mesh = 16 x 16"
                 } else {
-                    "`mesh = 8 x 8 x 8`"
+                    "mesh = 8 x 8 x 8"
                 },
             ),
             opt("subdomains", "subdomains = 2 x 2"),
@@ -551,7 +557,10 @@ impl<'a> Checker<'a> {
                             )
                             .label(
                                 fl.value.as_ref().map_or(fl.span, Value::span),
-                                "each count of `mesh` must be a multiple of the cut",
+                                bad.iter()
+                                    .map(|&i| format!("{} is not a multiple of {}", m[i], s[i]))
+                                    .collect::<Vec<_>>()
+                                    .join(", "),
                             )
                             .help(format!("e.g. `mesh = {}`", fixed.join(" x "))),
                         );
@@ -760,9 +769,12 @@ impl<'a> Checker<'a> {
                 let help = super::names::did_you_mean(&face.name, names.iter().copied())
                     .unwrap_or_else(|| format!("the faces are {}", quote_list(&names)));
                 self.error(
-                    Diagnostic::new("cso::selection", format!("unknown face `{}`", face.name))
-                        .label(face.span, "not a face")
-                        .help(help),
+                    Diagnostic::new(
+                        "cso::selection",
+                        format!("unknown face `{}` of body `{body_name}`", face.name),
+                    )
+                    .label(face.span, "not a face")
+                    .help(help),
                 );
                 return None;
             }
@@ -814,9 +826,7 @@ impl<'a> Checker<'a> {
             return Some(());
         }
         let face = format!("{}.{}", body.name, sel.face.name());
-        let spans: Vec<String> = (0..d)
-            .map(|a| format!("{} = {} .. {}", ["x", "y", "z"][a], num(lo[a]), num(hi[a])))
-            .collect();
+        let spans: Vec<String> = (0..d).map(|a| extent_text(a, lo[a], hi[a])).collect();
         self.error(
             Diagnostic::new(
                 "cso::empty-selection",
@@ -973,7 +983,7 @@ impl<'a> Checker<'a> {
             }
             "symmetry" => {
                 let sel = selection?;
-                self.flat_face(&sel, keyword.span.to(sel_expr.span))?;
+                self.flat_face(&sel, sel_expr.span)?;
                 Condition::Symmetry { sel }
             }
             "traction" => {
@@ -1005,7 +1015,7 @@ impl<'a> Checker<'a> {
                     "cso::symmetry",
                     format!("`symmetry` needs a flat face; `{}` is curved", sel.text),
                 )
-                .label(at, "a symmetry plane must be plane")
+                .label(at, "a curved face")
                 .help("put the symmetry plane on `left`, `right` (or `front`, `back` in 3D)"),
             );
             return None;
@@ -1021,7 +1031,7 @@ impl<'a> Checker<'a> {
             "cso::component",
             format!("unknown displacement component `{}`", name.name),
         )
-        .label(name.span, format!("expected {}", quote_list(allowed)));
+        .label(name.span, format!("expected {}", quote_or(allowed)));
         if name.name == "uz" {
             d = d.help("`uz` exists only in 3D scenes");
         } else if let Some(s) = super::names::did_you_mean(&name.name, allowed.iter().copied()) {
@@ -1052,6 +1062,22 @@ impl<'a> Checker<'a> {
                 .label(at, "gravity acts on mass")
                 .help("add `rho = ...` (e.g. `rho = 7850 kg/m^3`) to each material"),
             );
+            // Point at each material without a density, too.
+            let spans: Vec<Span> = self
+                .materials
+                .iter()
+                .enumerate()
+                .filter(|(_, m)| m.density.is_none())
+                .filter_map(|(i, _)| self.table(Kind::Material).spans.get(i).copied())
+                .collect();
+            if let Some(d) = self.diags.last_mut() {
+                for s in spans {
+                    d.labels.push(crate::lang::diag::Label {
+                        span: s,
+                        text: "no `rho`".into(),
+                    });
+                }
+            }
         }
         Some(g)
     }
@@ -1238,14 +1264,15 @@ impl<'a> Checker<'a> {
             return Some(());
         }
         let (lo, hi) = bounding_box(&nodes, d);
-        let size = (0..d).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
-        let tol = 1e-9 * size;
+        // Within one element of the box: the nearest node is then a node of the
+        // body near the point (a point just below a curved face is fine).
+        let tol = (0..d)
+            .map(|a| (hi[a] - lo[a]) / body.mesh[a].max(1) as f64)
+            .fold(0.0, f64::max);
         if (0..d).all(|a| point[a] >= lo[a] - tol && point[a] <= hi[a] + tol) {
             return Some(());
         }
-        let spans: Vec<String> = (0..d)
-            .map(|a| format!("{} = {} .. {}", ["x", "y", "z"][a], num(lo[a]), num(hi[a])))
-            .collect();
+        let spans: Vec<String> = (0..d).map(|a| extent_text(a, lo[a], hi[a])).collect();
         let name = body.name.clone();
         self.error(
             Diagnostic::new(
@@ -1367,16 +1394,15 @@ impl<'a> Checker<'a> {
             }
         }
         let found = self.text(e.span);
-        let help = super::names::did_you_mean(found, names.iter().copied())
-            .unwrap_or_else(|| format!("choose {expect}"));
-        self.error(
-            Diagnostic::new(
-                "cso::choice",
-                format!("`{}` cannot be `{found}`", fl.name.name),
-            )
-            .label(e.span, format!("expected {expect}"))
-            .help(help),
-        );
+        let mut d = Diagnostic::new(
+            "cso::choice",
+            format!("`{}` cannot be `{found}`", fl.name.name),
+        )
+        .label(e.span, format!("expected {}", quote_or(&names)));
+        if let Some(s) = super::names::did_you_mean(found, names.iter().copied()) {
+            d = d.help(s);
+        }
+        self.error(d);
         None
     }
 
@@ -1438,9 +1464,9 @@ impl<'a> Checker<'a> {
                         .map_or(lo[v], |f| f.eval_f64(c, &design));
                     let top = body.top.as_ref().map_or(hi[v], |f| f.eval_f64(c, &design));
                     let at = if d == 2 {
-                        format!("x = {}", num(c[0]))
+                        format!("x = {} m", num(c[0]))
                     } else {
-                        format!("x = {}, y = {}", num(c[0]), num(c[1]))
+                        format!("x = {} m, y = {} m", num(c[0]), num(c[1]))
                     };
                     let face_span =
                         |k: usize| spans.faces[k].or(spans.faces[1 - k]).unwrap_or(spans.name);
@@ -1478,13 +1504,31 @@ impl<'a> Checker<'a> {
     }
 }
 
-/// The first three entries of a long list, and how many more.
+/// Entries "`a[0]`: detail" as one line: the detail once when all entries share
+/// it, else the first three and how many more.
 fn summarize_list(items: &[String]) -> String {
+    let details: Vec<&str> = items
+        .iter()
+        .map(|i| i.split_once(": ").map_or(i.as_str(), |(_, d)| d))
+        .collect();
+    if details.windows(2).all(|w| w[0] == w[1]) {
+        return format!("{} (all {} entries)", details[0], items.len());
+    }
     let shown = items.iter().take(3).cloned().collect::<Vec<_>>().join("; ");
     if items.len() > 3 {
         format!("{shown}; and {} more", items.len() - 3)
     } else {
         shown
+    }
+}
+
+/// "x = 0 .. 3 m", or "y = 1 m" for a flat extent.
+fn extent_text(axis: usize, lo: f64, hi: f64) -> String {
+    let a = ["x", "y", "z"][axis];
+    if lo == hi {
+        format!("{a} = {} m", num(lo))
+    } else {
+        format!("{a} = {} .. {} m", num(lo), num(hi))
     }
 }
 

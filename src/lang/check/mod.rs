@@ -155,32 +155,43 @@ impl<'a> Checker<'a> {
         if self.broken.contains(name) {
             return None;
         }
-        let mut d = Diagnostic::new(
-            "cso::unknown-name",
-            format!("unknown {} `{name}`", kind.noun()),
-        )
-        .label(span, format!("no {} of this name", kind.noun()));
         let other = Kind::ALL
             .iter()
-            .find(|k| **k != kind && self.table(**k).get(name).is_some());
+            .copied()
+            .find(|k| *k != kind && self.table(*k).get(name).is_some());
         let table = self.table(kind);
-        if let Some(s) = names::did_you_mean(name, table.names.iter().map(String::as_str)) {
-            d = d.help(s);
-        } else if let Some(other) = other {
-            d = d.help(format!(
-                "`{name}` is {}; {} is expected here",
-                other.article(),
-                kind.article()
-            ));
-        } else if table.is_empty() {
-            d = d.help(format!("this scene defines no {}", kind.noun()));
-        } else {
-            d = d.help(format!(
-                "known {}: {}",
-                kind.plural(),
-                quote_list(&table.names)
-            ));
-        }
+        let suggestion = names::did_you_mean(name, table.names.iter().map(String::as_str));
+        let d = match (other, suggestion) {
+            (Some(other), None) => Diagnostic::new(
+                "cso::wrong-kind",
+                format!(
+                    "expected {}, found {} `{name}`",
+                    kind.article(),
+                    other.noun()
+                ),
+            )
+            .label(span, format!("{} here", other.article()))
+            .help(if table.is_empty() {
+                format!("this scene defines no {}", kind.noun())
+            } else {
+                format!("the {} are {}", kind.plural(), quote_list(&table.names))
+            }),
+            (_, suggestion) => {
+                let help = suggestion.unwrap_or_else(|| {
+                    if table.is_empty() {
+                        format!("this scene defines no {}", kind.noun())
+                    } else {
+                        format!("known {}: {}", kind.plural(), quote_list(&table.names))
+                    }
+                });
+                Diagnostic::new(
+                    "cso::unknown-name",
+                    format!("unknown {} `{name}`", kind.noun()),
+                )
+                .label(span, format!("no {} of this name", kind.noun()))
+                .help(help)
+            }
+        };
         self.error(d);
         None
     }
@@ -405,13 +416,14 @@ impl<'a> Checker<'a> {
         // Every `let`, used or not, is checked and reported once.
         for i in 0..self.lets.len() {
             let (name, _, _) = self.lets[i];
-            if let Some((f, _)) = self.let_value(i) {
+            if let Some((f, q)) = self.let_value(i) {
                 if let Some(value) = f.as_const() {
                     let overridden = self.overridden.contains_key(&i);
                     scene.params.push(Param {
                         name: name.name.clone(),
                         value,
                         overridden,
+                        unit: q.dim().filter(|d| !d.is_none()).map(|d| d.to_string()),
                     });
                 }
             }
@@ -506,6 +518,16 @@ fn reserved(name: &str) -> Option<&'static str> {
         return Some("this is a built-in name");
     }
     None
+}
+
+/// `a`, `b` and `c` as "`a`, `b` or `c`".
+pub(crate) fn quote_or<S: AsRef<str>>(names: &[S]) -> String {
+    let q: Vec<String> = names.iter().map(|n| format!("`{}`", n.as_ref())).collect();
+    match q.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} or {last}", rest.join(", ")),
+        Some((last, _)) => last.clone(),
+        None => String::new(),
+    }
 }
 
 /// `a`, `b` and `c` as "`a`, `b`, `c`".

@@ -234,18 +234,40 @@ impl<'a> Checker<'a> {
         match &self.lets[i].2 {
             LetState::Done(v) => v.clone(),
             LetState::InProgress => {
-                let (name, value, _) = self.lets[i];
-                self.error(
-                    Diagnostic::new(
-                        "cso::cycle",
-                        format!("`{}` is defined in terms of itself", name.name),
-                    )
-                    .label(
-                        value.span,
-                        "uses its own value, directly or through other constants",
-                    ),
+                let name = self.lets[i].0;
+                let from = self.let_stack.iter().position(|&j| j == i).unwrap_or(0);
+                let cycle: Vec<usize> = self.let_stack[from..].to_vec();
+                let chain: Vec<&str> = cycle
+                    .iter()
+                    .map(|&j| self.lets[j].0.name.as_str())
+                    .chain(std::iter::once(name.name.as_str()))
+                    .collect();
+                let mut d = Diagnostic::new(
+                    "cso::cycle",
+                    format!("`{}` is defined in terms of itself", name.name),
                 );
-                self.lets[i].2 = LetState::Done(None);
+                if chain.len() > 2 {
+                    d.message = format!("constants defined in a circle: {}", chain.join(" -> "));
+                }
+                for &j in &cycle {
+                    let (n, v, _) = self.lets[j];
+                    let next =
+                        self.lets[*cycle.iter().skip_while(|&&k| k != j).nth(1).unwrap_or(&i)].0;
+                    d = d.label(v.span, format!("`{}` uses `{}`", n.name, next.name));
+                }
+                d = d.help(if cycle.len() > 1 {
+                    "define one of them without the others".to_string()
+                } else {
+                    format!(
+                        "give `{}` a value that does not use `{}`",
+                        name.name, name.name
+                    )
+                });
+                self.error(d);
+                // Every constant of the circle is now known to fail.
+                for &j in &cycle {
+                    self.lets[j].2 = LetState::Done(None);
+                }
                 None
             }
             LetState::Pending => {
@@ -793,7 +815,7 @@ impl<'a> Checker<'a> {
             return true;
         }
         let example = match want {
-            Dim::PRESSURE => " (e.g. `210 GPa`, `5 kN/m^2`)",
+            Dim::PRESSURE => " (e.g. `5 kPa`, `210 GPa`)",
             Dim::LENGTH => " (e.g. `10 mm`)",
             Dim::DENSITY => " (e.g. `7850 kg/m^3`)",
             Dim::ACCELERATION => " (e.g. `9.81 m/s^2`)",
