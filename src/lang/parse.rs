@@ -108,36 +108,47 @@ pub const MAX_NESTING: usize = 32;
 /// Terms of one `+`/`*`/`&&` chain, and prefix/postfix operators on one operand.
 pub const MAX_CHAIN: usize = 256;
 
-/// Where brackets first nest deeper than [`MAX_NESTING`] (each time they do): the
-/// items there are refused before parsing, because the parser recurses once per level.
-fn deep_positions(src: &str) -> Vec<usize> {
-    let bytes = src.as_bytes();
-    let (mut depth, mut pos) = (0usize, 0usize);
-    let mut out = Vec::new();
-    while pos < bytes.len() {
-        match bytes[pos] {
+/// Calls `f(position, byte)` for every bracket `( ) [ ] { }` in `src[from..to]`
+/// outside comments and strings.
+fn for_each_bracket(src: &str, from: usize, to: usize, mut f: impl FnMut(usize, u8)) {
+    let b = src.as_bytes();
+    let to = to.min(b.len());
+    let mut pos = from;
+    while pos < to {
+        match b[pos] {
             b'#' => {
-                while pos < bytes.len() && bytes[pos] != b'\n' {
+                while pos < b.len() && b[pos] != b'\n' {
                     pos += 1;
                 }
             }
             b'"' => {
                 pos += 1;
-                while pos < bytes.len() && bytes[pos] != b'"' && bytes[pos] != b'\n' {
+                while pos < b.len() && b[pos] != b'"' && b[pos] != b'\n' {
                     pos += 1;
                 }
             }
-            b'(' | b'[' | b'{' => {
-                depth += 1;
-                if depth == MAX_NESTING + 1 {
-                    out.push(pos);
-                }
-            }
-            b')' | b']' | b'}' => depth = depth.saturating_sub(1),
+            c @ (b'(' | b'[' | b'{' | b')' | b']' | b'}') => f(pos, c),
             _ => {}
         }
         pos += 1;
     }
+}
+
+/// Where brackets first nest deeper than [`MAX_NESTING`] (each time they do): the
+/// items there are refused before parsing, because the parser recurses once per level.
+fn deep_positions(src: &str) -> Vec<usize> {
+    let mut depth = 0usize;
+    let mut out = Vec::new();
+    for_each_bracket(src, 0, src.len(), |pos, c| {
+        if matches!(c, b'(' | b'[' | b'{') {
+            depth += 1;
+            if depth == MAX_NESTING + 1 {
+                out.push(pos);
+            }
+        } else {
+            depth = depth.saturating_sub(1);
+        }
+    });
     out
 }
 
@@ -544,30 +555,14 @@ fn malformed_number(src: &str, at: usize) -> Option<Diagnostic> {
 
 /// Brackets opened between `from` and `to` and not closed by `to`, innermost last.
 fn unclosed(src: &str, from: usize, to: usize) -> Vec<usize> {
-    let b = src.as_bytes();
     let mut stack = Vec::new();
-    let mut pos = from;
-    while pos < to.min(b.len()) {
-        match b[pos] {
-            b'#' => {
-                while pos < b.len() && b[pos] != b'\n' {
-                    pos += 1;
-                }
-            }
-            b'"' => {
-                pos += 1;
-                while pos < b.len() && b[pos] != b'"' && b[pos] != b'\n' {
-                    pos += 1;
-                }
-            }
-            b'(' | b'[' | b'{' => stack.push(pos),
-            b')' | b']' | b'}' => {
-                stack.pop();
-            }
-            _ => {}
+    for_each_bracket(src, from, to, |pos, c| {
+        if matches!(c, b'(' | b'[' | b'{') {
+            stack.push(pos);
+        } else {
+            stack.pop();
         }
-        pos += 1;
-    }
+    });
     stack
 }
 

@@ -87,14 +87,7 @@ impl<'a> Checker<'a> {
         let rhs = self.functional(b);
         let ((lhs, qa), (rhs, qb)) = (lhs?, rhs?);
         if qa.plus(qb).is_none() {
-            self.error(
-                Diagnostic::new(
-                    "cso::unit",
-                    format!("cannot compare {} with {}", qa.describe(), qb.describe()),
-                )
-                .label(a.span, format!("this is {}", qa.describe()))
-                .label(b.span, format!("this is {}", qb.describe())),
-            );
+            self.mismatch(*op, a, qa, b, qb);
             return None;
         }
         Some(Constraint {
@@ -194,23 +187,15 @@ impl<'a> Checker<'a> {
                     _ => match qa.plus(qb) {
                         Some(q) => q,
                         None => {
-                            self.error(
-                                Diagnostic::new("cso::unit", format!("cannot add {} and {}", qa.describe(), qb.describe()))
-                                    .label(a.span, format!("this is {}", qa.describe()))
-                                    .label(b.span, format!("this is {}", qb.describe()))
-                                    .help("scale one side to make them comparable, e.g. divide by its initial value"),
-                            );
+                            self.mismatch(*op, a, qa, b, qb);
                             return None;
                         }
                     },
                 };
-                let op = match op {
-                    BinOp::Add => Arith::Add,
-                    BinOp::Sub => Arith::Sub,
-                    BinOp::Mul => Arith::Mul,
-                    _ => Arith::Div,
-                };
-                Some((Functional::Arith(op, Box::new(fa), Box::new(fb)), q))
+                Some((
+                    Functional::Arith(super::values::arith_of(*op), Box::new(fa), Box::new(fb)),
+                    q,
+                ))
             }
             ExprKind::Binary(BinOp::Pow, a, b) => {
                 let (fa, qa) = self.functional(a)?;

@@ -25,6 +25,16 @@ const COORDS: [&str; 3] = ["x", "y", "z"];
 /// A `let` may use another that uses another ... this many levels deep.
 const MAX_LET_DEPTH: usize = 64;
 
+/// The arithmetic of `+ - * /` (callers have ruled out the other operators).
+pub(crate) fn arith_of(op: BinOp) -> Arith {
+    match op {
+        BinOp::Add => Arith::Add,
+        BinOp::Sub => Arith::Sub,
+        BinOp::Mul => Arith::Mul,
+        _ => Arith::Div,
+    }
+}
+
 /// Folds a formula of constants into one `Const`.
 fn fold(f: Formula) -> Formula {
     if !f.uses_design() && !(0..3).any(|i| f.uses_coord(i)) && f.as_const().is_none() {
@@ -416,16 +426,13 @@ impl<'a> Checker<'a> {
                 }
             },
         };
-        let op = match op {
-            BinOp::Add => Arith::Add,
-            BinOp::Sub => Arith::Sub,
-            BinOp::Mul => Arith::Mul,
-            _ => Arith::Div,
-        };
-        Some((fold(Formula::Arith(op, Box::new(fa), Box::new(fb))), q))
+        Some((
+            fold(Formula::Arith(arith_of(op), Box::new(fa), Box::new(fb))),
+            q,
+        ))
     }
 
-    fn mismatch(&mut self, op: BinOp, a: &Expr, qa: Quantity, b: &Expr, qb: Quantity) {
+    pub(crate) fn mismatch(&mut self, op: BinOp, a: &Expr, qa: Quantity, b: &Expr, qb: Quantity) {
         let verb = match op {
             BinOp::Add => "add".to_string(),
             BinOp::Sub => "subtract".to_string(),
