@@ -234,3 +234,43 @@ fn formulas_without_design_fold_to_constants() {
     let f = &s.bodies[0].extent[0].1;
     assert!(matches!(f, Formula::Const(_)));
 }
+
+#[test]
+fn the_scene_title_is_kept_and_must_be_a_string() {
+    let src = BASE.replace(
+        "scene s { dim = 2 }",
+        "scene s { dim = 2, title = \"punch test\" }",
+    );
+    let s = compile(&src, &options()).expect("checks");
+    assert_eq!(s.title.as_deref(), Some("punch test"));
+    let bad = BASE.replace("scene s { dim = 2 }", "scene s { dim = 2, title = punch }");
+    let e = errors(&bad, &options());
+    assert!(e.iter().any(|m| m == "`title` expects a string"), "{e:?}");
+}
+
+#[test]
+fn three_dimensional_scenes_take_three_components_and_faces() {
+    let src = "scene s { dim = 3 }
+material steel { E = 210 GPa, nu = 0.3 }
+body brick { material = steel, x = 0 .. 1, y = 0 .. 1, z = 0 .. 1, mesh = 2 x 2 x 2,
+             bottom = 0.01 * (x^2 + y^2) }
+fix brick.front { uz }
+traction brick.top = (0, 0, -5 kPa)
+probe corner { body = brick, at = (1, 1, 1) }
+minimize corner.uz
+";
+    let s = compile(src, &options()).expect("checks");
+    assert_eq!(s.dim, Dimension::Three);
+    assert_eq!(s.bodies[0].primal_dofs(), 81);
+    match &s.conditions[0] {
+        Condition::Fix { components, .. } => assert_eq!(components, &vec![2]),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(
+        s.objective.expect("objective").functional,
+        Functional::Probe(0, 2)
+    );
+    // The bottom face moves with (x, y): 0.02 at the far corner.
+    let node = s.bodies[0].node([2, 2, 0], &[]);
+    assert!((node[2] - 0.02).abs() < 1e-15);
+}
