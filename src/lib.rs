@@ -5,8 +5,15 @@
 //! operators -> solvers -> reports. The command-line tool is a thin shell over
 //! this library.
 
+// Index loops mirror the formulas they implement (k[a][b], g[s][j * n + k]).
+#![allow(clippy::needless_range_loop)]
+
+pub mod fem;
 pub mod io;
 pub mod lang;
+pub mod model;
+pub mod qp;
+pub mod tfeti;
 
 /// Memory a scene may use on this machine: 80% of physical memory (Linux
 /// `/proc/meminfo`), or 16 GiB when that cannot be read.

@@ -1,3 +1,6 @@
 //! What cso shows a person: summaries and (later) reports, VTU and SVG.
 
+pub mod atomic;
+pub mod plot;
 pub mod summary;
+pub mod vtu;

@@ -1,0 +1,893 @@
+//! SVG charts: convergence histories and pictures of (deformed) meshes.
+//!
+//! Reports need a few pictures that open in any browser and diff as text:
+//! residual and objective histories (often on log axes) and the mesh coloured by
+//! a cell quantity (stress, contact pressure, design change). They are drawn
+//! with plotters' SVG backend into a `String`, so the caller decides where the
+//! bytes go (normally [`super::atomic::write_atomic`]).
+//!
+//! plotters is built without font features: its fallback font code only
+//! *estimates* text extents (roughly 0.7 em per character) and the SVG backend
+//! emits `<text>` elements that the viewer renders, so titles, axis labels, tick
+//! labels and legends all work without font libraries; only their layout is
+//! approximate. Coordinates in the SVG are whole pixels.
+//!
+//! Data are drawn as given except that points which cannot be shown are
+//! skipped: non-finite coordinates, and non-positive ones on a log axis. An
+//! empty chart still renders (axes over a default range), so a report never
+//! lacks a picture because an iteration produced nothing to plot.
+
+use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use std::ops::Range;
+
+/// Why a chart could not be drawn.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum PlotError {
+    /// The caller's arrays do not fit together (lengths, indices).
+    #[error("bad plot input: {0}")]
+    Input(String),
+    /// plotters failed while drawing (its error types are generic over the
+    /// backend, so they are carried as text).
+    #[error("drawing failed: {0}")]
+    Draw(String),
+}
+
+/// Converts any plotters error into [`PlotError::Draw`].
+fn draw_err(e: impl std::fmt::Display) -> PlotError {
+    PlotError::Draw(e.to_string())
+}
+
+/// One line of a [`line_chart`]: `y[i]` against `x[i]`.
+#[derive(Debug, Clone, Copy)]
+pub struct Series<'a> {
+    /// Legend entry; an empty name gets none.
+    pub name: &'a str,
+    pub x: &'a [f64],
+    pub y: &'a [f64],
+}
+
+const LINE_SIZE: (u32, u32) = (800, 500);
+const FONT: &str = "sans-serif";
+const TITLE_SIZE: u32 = 24;
+const LABEL_SIZE: u32 = 16;
+
+/// Colours of successive series (matplotlib's "tab10"): distinguishable and
+/// familiar from other tools' plots of the same runs.
+const PALETTE: [RGBColor; 10] = [
+    RGBColor(31, 119, 180),
+    RGBColor(255, 127, 14),
+    RGBColor(44, 160, 44),
+    RGBColor(214, 39, 40),
+    RGBColor(148, 103, 189),
+    RGBColor(140, 86, 75),
+    RGBColor(227, 119, 194),
+    RGBColor(127, 127, 127),
+    RGBColor(188, 189, 34),
+    RGBColor(23, 190, 207),
+];
+
+/// A line chart of several series, each a polyline, with a legend when any
+/// series has a name.
+///
+/// With `log_x`/`log_y` the axis is logarithmic and points with a non-positive
+/// coordinate on it are skipped (a residual that reached exactly zero has no
+/// place on a log axis). Non-finite points are skipped too; the line joins
+/// the neighbours of a skipped point.
+///
+/// # Errors
+/// [`PlotError::Input`] when a series' `x` and `y` differ in length;
+/// [`PlotError::Draw`] if plotters fails.
+pub fn line_chart(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+    log_x: bool,
+    log_y: bool,
+) -> Result<String, PlotError> {
+    for s in series {
+        if s.x.len() != s.y.len() {
+            return Err(PlotError::Input(format!(
+                "series {:?} has {} x values and {} y values",
+                s.name,
+                s.x.len(),
+                s.y.len()
+            )));
+        }
+    }
+    let lines: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|s| {
+            s.x.iter()
+                .zip(s.y)
+                .map(|(&x, &y)| (x, y))
+                .filter(|&(x, y)| shown(x, log_x) && shown(y, log_y))
+                .collect()
+        })
+        .collect();
+    let xr = axis_range(lines.iter().flatten().map(|p| p.0), log_x);
+    let yr = axis_range(lines.iter().flatten().map(|p| p.1), log_y);
+    let names: Vec<&str> = series.iter().map(|s| s.name).collect();
+    let text = ChartText {
+        title,
+        x_label,
+        y_label,
+    };
+
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, LINE_SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        // Linear and log axes are different coordinate types in plotters, so
+        // each combination is its own instance of the generic drawing code.
+        match (log_x, log_y) {
+            (false, false) => draw_lines(&root, xr, yr, &text, &lines, &names),
+            (true, false) => draw_lines(&root, xr.log_scale(), yr, &text, &lines, &names),
+            (false, true) => draw_lines(&root, xr, yr.log_scale(), &text, &lines, &names),
+            (true, true) => {
+                draw_lines(&root, xr.log_scale(), yr.log_scale(), &text, &lines, &names)
+            }
+        }?;
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// The texts around a chart.
+struct ChartText<'a> {
+    title: &'a str,
+    x_label: &'a str,
+    y_label: &'a str,
+}
+
+/// The body of [`line_chart`] for one choice of axis types.
+fn draw_lines<X, Y>(
+    root: &DrawingArea<SVGBackend, Shift>,
+    x: X,
+    y: Y,
+    text: &ChartText,
+    lines: &[Vec<(f64, f64)>],
+    names: &[&str],
+) -> Result<(), PlotError>
+where
+    X: AsRangedCoord<Value = f64>,
+    Y: AsRangedCoord<Value = f64>,
+    X::CoordDescType: ValueFormatter<f64>,
+    Y::CoordDescType: ValueFormatter<f64>,
+{
+    let mut chart = ChartBuilder::on(root)
+        .caption(text.title, (FONT, TITLE_SIZE))
+        .margin(15)
+        .x_label_area_size(45)
+        .y_label_area_size(75)
+        .build_cartesian_2d(x, y)
+        .map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .x_desc(text.x_label)
+        .y_desc(text.y_label)
+        .label_style((FONT, LABEL_SIZE))
+        .axis_desc_style((FONT, LABEL_SIZE))
+        .x_label_formatter(&|v| tick_label(*v))
+        .y_label_formatter(&|v| tick_label(*v))
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(draw_err)?;
+
+    let mut any_legend = false;
+    for (i, (line, name)) in lines.iter().zip(names).enumerate() {
+        let color = PALETTE[i % PALETTE.len()];
+        let anno = chart
+            .draw_series(LineSeries::new(line.iter().copied(), color.stroke_width(2)))
+            .map_err(draw_err)?;
+        if !name.is_empty() {
+            any_legend = true;
+            // A filled swatch rather than plotters' default line sample keeps
+            // the SVG at exactly one <polyline> per series.
+            anno.label(*name).legend(move |(x, y)| {
+                Rectangle::new([(x, y - 5), (x + 16, y + 5)], color.filled())
+            });
+        }
+    }
+    if any_legend {
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font((FONT, LABEL_SIZE))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK.mix(0.4))
+            .draw()
+            .map_err(draw_err)?;
+    }
+    Ok(())
+}
+
+/// Whether a coordinate can be placed on its axis.
+fn shown(v: f64, log: bool) -> bool {
+    v.is_finite() && (!log || v > 0.0)
+}
+
+/// The axis range covering `values` with a little room, never empty or
+/// degenerate (plotters divides by its width), and positive on a log axis.
+fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
+        (lo.min(v), hi.max(v))
+    });
+    if !(lo.is_finite() && hi.is_finite()) {
+        return if log { 1.0..10.0 } else { 0.0..1.0 };
+    }
+    if log {
+        // Padding by a constant factor is a constant distance on the log axis.
+        let (lo, hi) = if hi / lo < 1.0 + 1e-9 {
+            (lo / 2.0, hi * 2.0)
+        } else {
+            (lo / 1.1, hi * 1.1)
+        };
+        // Above 1e300 the padded end overflows; clamp to what still has a log.
+        (lo.max(f64::MIN_POSITIVE))..(hi.min(f64::MAX))
+    } else {
+        let width = hi - lo;
+        let pad = if width > 0.0 && width.is_finite() {
+            0.05 * width
+        } else if lo != 0.0 && lo.is_finite() {
+            0.5 * lo.abs()
+        } else {
+            0.5
+        };
+        let (a, b) = (lo - pad, hi + pad);
+        if a.is_finite() && b.is_finite() && a < b {
+            a..b
+        } else {
+            // Ranges near f64::MAX: unpadded, which plotters still draws.
+            lo.min(hi - 1.0)..hi
+        }
+    }
+}
+
+/// Short tick text: plain for moderate magnitudes, exponent form otherwise,
+/// with four significant digits (enough to tell ticks apart, short enough to
+/// fit).
+fn tick_label(v: f64) -> String {
+    let a = v.abs();
+    if a == 0.0 {
+        "0".to_string()
+    } else if (1e-3..1e5).contains(&a) {
+        let digits = (3 - a.log10().floor() as i32).clamp(0, 6) as usize;
+        let s = format!("{v:.digits$}");
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_string()
+        } else {
+            s
+        }
+    } else {
+        let s = format!("{v:.3e}");
+        match s.split_once('e') {
+            Some((m, e)) if m.contains('.') => {
+                format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
+            }
+            _ => s,
+        }
+    }
+}
+
+const MESH_WIDTH: u32 = 800;
+const COLORBAR_WIDTH: u32 = 110;
+const MESH_MARGIN: u32 = 15;
+const MESH_X_LABELS: u32 = 35;
+const MESH_Y_LABELS: u32 = 60;
+/// Fill of cells without a value, or whose value is not finite.
+const NO_VALUE: RGBColor = RGBColor(225, 225, 225);
+const EDGE: RGBColor = RGBColor(60, 60, 60);
+const OUTLINE: RGBColor = RGBColor(150, 150, 150);
+
+/// A picture of a quadrilateral mesh with equal scales on both axes (so shapes
+/// and gaps look as they are), each cell filled by the colour of its value
+/// under a viridis map with a colour bar, or light grey without values.
+/// `outline` polylines (the undeformed body, an obstacle) are drawn over the
+/// cells as thin grey lines.
+///
+/// Cells with a non-finite corner are skipped; a non-finite value is drawn
+/// grey and left out of the colour scale.
+///
+/// # Errors
+/// [`PlotError::Input`] when `values` does not have one entry per cell or a
+/// cell refers to a missing point; [`PlotError::Draw`] if plotters fails.
+pub fn mesh_plot(
+    title: &str,
+    points: &[[f64; 2]],
+    cells: &[[usize; 4]],
+    values: Option<&[f64]>,
+    outline: &[Vec<[f64; 2]>],
+) -> Result<String, PlotError> {
+    if let Some(v) = values {
+        if v.len() != cells.len() {
+            return Err(PlotError::Input(format!(
+                "{} cell values for {} cells",
+                v.len(),
+                cells.len()
+            )));
+        }
+    }
+    if let Some((c, cell)) = cells
+        .iter()
+        .enumerate()
+        .find(|(_, cell)| cell.iter().any(|&i| i >= points.len()))
+    {
+        return Err(PlotError::Input(format!(
+            "cell {c} refers to point {:?}, but there are {} points",
+            cell.iter().max(),
+            points.len()
+        )));
+    }
+
+    let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
+    let drawn: Vec<usize> = (0..cells.len())
+        .filter(|&c| cells[c].iter().all(|&i| finite(&points[i])))
+        .collect();
+    let used = drawn
+        .iter()
+        .flat_map(|&c| cells[c].iter().map(|&i| points[i]))
+        .chain(outline.iter().flatten().copied().filter(finite));
+    let bounds = used.fold(None, |b: Option<[f64; 4]>, p| {
+        Some(match b {
+            None => [p[0], p[0], p[1], p[1]],
+            Some([x0, x1, y0, y1]) => [x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1])],
+        })
+    });
+    let [x0, x1, y0, y1] = bounds.unwrap_or([0.0, 1.0, 0.0, 1.0]);
+
+    let scale = values.and_then(|v| {
+        let (lo, hi) = v
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                (lo.min(x), hi.max(x))
+            });
+        (lo <= hi).then_some((lo, hi))
+    });
+
+    // Height from the data's aspect ratio, within limits; the equal-scale
+    // ranges below absorb what the limits cut off.
+    let plot_w = f64::from(MESH_WIDTH - COLORBAR_WIDTH - 2 * MESH_MARGIN - MESH_Y_LABELS);
+    let aspect = if x1 > x0 { (y1 - y0) / (x1 - x0) } else { 1.0 };
+    let plot_h = (plot_w * aspect).clamp(150.0, 800.0);
+    let height = plot_h as u32 + 2 * MESH_MARGIN + MESH_X_LABELS + 50;
+
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (MESH_WIDTH, height)).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root.titled(title, (FONT, TITLE_SIZE)).map_err(draw_err)?;
+        let (chart_area, bar_area) = root.split_horizontally(MESH_WIDTH - COLORBAR_WIDTH);
+
+        let builder = || {
+            let mut b = ChartBuilder::on(&chart_area);
+            b.margin(MESH_MARGIN)
+                .x_label_area_size(MESH_X_LABELS)
+                .y_label_area_size(MESH_Y_LABELS);
+            b
+        };
+        // Building a chart without a caption draws nothing, so a first build
+        // measures the plotting area exactly; the second uses ranges with equal
+        // units per pixel on both axes.
+        let (w, h) = builder()
+            .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+            .map_err(draw_err)?
+            .plotting_area()
+            .dim_in_pixel();
+        let (xr, yr) = equal_aspect([x0, x1], [y0, y1], (w, h));
+        let mut chart = builder().build_cartesian_2d(xr, yr).map_err(draw_err)?;
+        chart
+            .configure_mesh()
+            .disable_mesh()
+            .label_style((FONT, LABEL_SIZE))
+            .x_label_formatter(&|v| tick_label(*v))
+            .y_label_formatter(&|v| tick_label(*v))
+            .draw()
+            .map_err(draw_err)?;
+
+        let fill = |c: usize| match (values, scale) {
+            (Some(v), Some((lo, hi))) if v[c].is_finite() => {
+                let t = if hi > lo {
+                    (v[c] - lo) / (hi - lo)
+                } else {
+                    0.5
+                };
+                viridis(t)
+            }
+            _ => NO_VALUE,
+        };
+        let corners = |c: usize| -> Vec<(f64, f64)> {
+            cells[c]
+                .iter()
+                .map(|&i| (points[i][0], points[i][1]))
+                .collect()
+        };
+        chart
+            .draw_series(
+                drawn
+                    .iter()
+                    .map(|&c| Polygon::new(corners(c), fill(c).filled())),
+            )
+            .map_err(draw_err)?;
+        chart
+            .draw_series(drawn.iter().map(|&c| {
+                let mut ring = corners(c);
+                ring.push(ring[0]);
+                PathElement::new(ring, EDGE.stroke_width(1))
+            }))
+            .map_err(draw_err)?;
+        chart
+            .draw_series(outline.iter().map(|line| {
+                let pts = line.iter().filter(|p| finite(p)).map(|p| (p[0], p[1]));
+                PathElement::new(pts.collect::<Vec<_>>(), OUTLINE.stroke_width(1))
+            }))
+            .map_err(draw_err)?;
+
+        if let Some((lo, hi)) = scale {
+            draw_colorbar(&bar_area, lo, hi, h).map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    Ok(svg)
+}
+
+/// Ranges containing `[x0, x1] x [y0, y1]` (with a small margin), centred,
+/// with the same data units per pixel on both axes of a `w x h` pixel area.
+fn equal_aspect(x: [f64; 2], y: [f64; 2], (w, h): (u32, u32)) -> (Range<f64>, Range<f64>) {
+    let (w, h) = (f64::from(w.max(1)), f64::from(h.max(1)));
+    let mut dx = (x[1] - x[0]) * 1.04;
+    let mut dy = (y[1] - y[0]) * 1.04;
+    if !(dx > 0.0 || dy > 0.0) {
+        // A single point: show one unit around it.
+        dx = 1.0;
+        dy = 1.0;
+    }
+    let per_px = (dx / w).max(dy / h);
+    let (hx, hy) = (0.5 * per_px * w, 0.5 * per_px * h);
+    let (cx, cy) = (0.5 * (x[0] + x[1]), 0.5 * (y[0] + y[1]));
+    ((cx - hx)..(cx + hx), (cy - hy)..(cy + hy))
+}
+
+/// A vertical colour bar of the value range, as stacked rectangles (not
+/// polygons, so a mesh's cells are the only `<polygon>`s in the SVG).
+fn draw_colorbar(
+    area: &DrawingArea<SVGBackend, Shift>,
+    lo: f64,
+    hi: f64,
+    plot_h: u32,
+) -> Result<(), DrawingAreaErrorKind<<SVGBackend<'static> as DrawingBackend>::ErrorType>> {
+    const STEPS: i32 = 64;
+    let top = MESH_MARGIN as i32;
+    let bar_h = (plot_h as i32).max(STEPS);
+    let (x0, x1) = (10, 30);
+    for k in 0..STEPS {
+        let t = 1.0 - (f64::from(k) + 0.5) / f64::from(STEPS);
+        let ya = top + bar_h * k / STEPS;
+        let yb = top + bar_h * (k + 1) / STEPS;
+        area.draw(&Rectangle::new([(x0, ya), (x1, yb)], viridis(t).filled()))?;
+    }
+    area.draw(&Rectangle::new(
+        [(x0, top), (x1, top + bar_h)],
+        BLACK.stroke_width(1),
+    ))?;
+    let style = TextStyle::from((FONT, LABEL_SIZE).into_font()).color(&BLACK);
+    let mid = 0.5 * (lo + hi);
+    for (v, y) in [(hi, top), (mid, top + bar_h / 2), (lo, top + bar_h)] {
+        area.draw(&Text::new(tick_label(v), (x1 + 6, y - 6), style.clone()))?;
+    }
+    Ok(())
+}
+
+/// The viridis colour map at `t` in `[0, 1]` (clamped): perceptually uniform
+/// and readable in grey print, so equal value steps look like equal steps.
+fn viridis(t: f64) -> RGBColor {
+    const STOPS: [(u8, u8, u8); 9] = [
+        (68, 1, 84),
+        (71, 44, 122),
+        (59, 81, 139),
+        (44, 113, 142),
+        (33, 144, 141),
+        (39, 173, 129),
+        (92, 200, 99),
+        (170, 220, 50),
+        (253, 231, 37),
+    ];
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    let s = t * (STOPS.len() - 1) as f64;
+    let k = (s.floor() as usize).min(STOPS.len() - 2);
+    let f = s - k as f64;
+    let mix = |a: u8, b: u8| (f64::from(a) + f * (f64::from(b) - f64::from(a))).round() as u8;
+    let (a, b) = (STOPS[k], STOPS[k + 1]);
+    RGBColor(mix(a.0, b.0), mix(a.1, b.1), mix(a.2, b.2))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `points="x,y x,y ..."` of every `<tag ...>` in `svg` whose attributes
+    /// contain `with` (plotters draws axes and ticks as polylines too, so the
+    /// data's polylines are told apart by their style).
+    fn shapes_with(svg: &str, tag: &str, with: &str) -> Vec<Vec<(i32, i32)>> {
+        svg.split(&format!("<{tag} "))
+            .skip(1)
+            .filter(|rest| rest[..rest.find('>').unwrap()].contains(with))
+            .map(|rest| {
+                let start = rest.find("points=\"").unwrap() + 8;
+                let end = start + rest[start..].find('"').unwrap();
+                rest[start..end]
+                    .split_whitespace()
+                    .map(|xy| {
+                        let (x, y) = xy.split_once(',').unwrap();
+                        (x.parse().unwrap(), y.parse().unwrap())
+                    })
+                    .collect()
+            })
+            .collect()
+    }
+
+    fn shapes(svg: &str, tag: &str) -> Vec<Vec<(i32, i32)>> {
+        shapes_with(svg, tag, "")
+    }
+
+    /// The data lines of a line chart: the only polylines 2 px wide.
+    fn series_lines(svg: &str) -> Vec<Vec<(i32, i32)>> {
+        shapes_with(svg, "polyline", "stroke-width=\"2\"")
+    }
+
+    #[test]
+    fn line_chart_has_title_labels_and_one_polyline_per_series() {
+        let x = [1.0, 2.0, 3.0, 4.0];
+        let svg = line_chart(
+            "Residual & <history>",
+            "iteration",
+            "relative residual",
+            &[
+                Series {
+                    name: "MPRGP",
+                    x: &x,
+                    y: &[1.0, 0.5, 0.25, 0.125],
+                },
+                Series {
+                    name: "SMALBE",
+                    x: &x,
+                    y: &[2.0, 1.0, 0.1, 0.01],
+                },
+                Series {
+                    name: "",
+                    x: &x[..2],
+                    y: &[0.3, 0.3],
+                },
+            ],
+            false,
+            false,
+        )
+        .unwrap();
+        assert!(svg.starts_with("<svg"), "{}", &svg[..40]);
+        assert!(svg.trim_end().ends_with("</svg>"));
+        assert!(svg.contains(">\nResidual &amp; &lt;history&gt;\n</text>"));
+        assert!(svg.contains(">\niteration\n</text>"));
+        assert!(svg.contains(">\nrelative residual\n</text>"));
+        assert!(svg.contains(">\nMPRGP\n</text>"));
+        assert!(svg.contains(">\nSMALBE\n</text>"));
+        let lines = series_lines(&svg);
+        assert_eq!(lines.len(), 3);
+        assert_eq!(lines.iter().map(Vec::len).collect::<Vec<_>>(), [4, 4, 2]);
+        // The first series falls monotonically: pixel y grows downwards.
+        assert!(lines[0]
+            .windows(2)
+            .all(|w| w[0].0 < w[1].0 && w[0].1 < w[1].1));
+        assert!(svg.contains("stroke=\"#1F77B4\""), "palette colour");
+    }
+
+    #[test]
+    fn empty_and_non_finite_input_still_renders() {
+        let svg = line_chart("nothing", "x", "y", &[], false, false).unwrap();
+        assert!(svg.starts_with("<svg") && svg.contains("nothing"));
+        assert!(series_lines(&svg).is_empty());
+
+        let svg = line_chart(
+            "gaps",
+            "x",
+            "y",
+            &[
+                Series {
+                    name: "a",
+                    x: &[],
+                    y: &[],
+                },
+                Series {
+                    name: "b",
+                    x: &[0.0, f64::NAN, 2.0, 3.0],
+                    y: &[1.0, 1.0, f64::INFINITY, 2.0],
+                },
+                Series {
+                    name: "c",
+                    x: &[5.0],
+                    y: &[5.0],
+                },
+                Series {
+                    name: "d",
+                    x: &[f64::NAN],
+                    y: &[1.0],
+                },
+            ],
+            false,
+            false,
+        )
+        .unwrap();
+        let lines = series_lines(&svg);
+        assert_eq!(lines.iter().map(Vec::len).collect::<Vec<_>>(), [2, 1]);
+        assert!(!svg.contains("NaN") && !svg.contains("inf"));
+
+        let constant = [7.0; 3];
+        let svg = line_chart(
+            "flat",
+            "x",
+            "y",
+            &[Series {
+                name: "",
+                x: &constant,
+                y: &constant,
+            }],
+            false,
+            false,
+        )
+        .unwrap();
+        assert_eq!(series_lines(&svg).len(), 1);
+    }
+
+    #[test]
+    fn log_axes_skip_non_positive_values() {
+        let x = [0.0, 1.0, 2.0, 3.0, -1.0, 10.0];
+        let y = [1.0, 1e-3, 0.0, -5.0, 1.0, 1e-12];
+        for (lx, ly, expect) in [(false, true, 4), (true, false, 4), (true, true, 2)] {
+            let svg = line_chart(
+                "log",
+                "it",
+                "r",
+                &[Series {
+                    name: "r",
+                    x: &x,
+                    y: &y,
+                }],
+                lx,
+                ly,
+            )
+            .unwrap();
+            let lines = series_lines(&svg);
+            assert_eq!(lines.len(), 1, "{lx} {ly}");
+            assert_eq!(lines[0].len(), expect, "{lx} {ly}");
+        }
+        // Nothing positive at all: an empty log chart.
+        let svg = line_chart(
+            "log",
+            "x",
+            "y",
+            &[Series {
+                name: "z",
+                x: &[0.0, -1.0],
+                y: &[0.0, 0.0],
+            }],
+            true,
+            true,
+        )
+        .unwrap();
+        assert!(series_lines(&svg).is_empty());
+        // Extreme magnitudes.
+        let svg = line_chart(
+            "huge",
+            "x",
+            "y",
+            &[Series {
+                name: "h",
+                x: &[1e-300, 1e300],
+                y: &[f64::MIN_POSITIVE, f64::MAX],
+            }],
+            true,
+            true,
+        )
+        .unwrap();
+        assert_eq!(series_lines(&svg).len(), 1);
+        let svg = line_chart(
+            "huge",
+            "x",
+            "y",
+            &[Series {
+                name: "h",
+                x: &[-f64::MAX, f64::MAX],
+                y: &[f64::MAX, f64::MAX],
+            }],
+            false,
+            false,
+        )
+        .unwrap();
+        assert_eq!(series_lines(&svg).len(), 1);
+    }
+
+    #[test]
+    fn zz_dump() {
+        let x = [1.0, 2.0, 3.0, 4.0];
+        let svg = line_chart(
+            "Residual",
+            "iteration",
+            "relative residual",
+            &[
+                Series {
+                    name: "MPRGP",
+                    x: &x,
+                    y: &[1.0, 0.5, 0.25, 0.125],
+                },
+                Series {
+                    name: "SMALBE",
+                    x: &x,
+                    y: &[2.0, 1.0, 0.1, 0.01],
+                },
+            ],
+            false,
+            true,
+        )
+        .unwrap();
+        std::fs::write("/tmp/plotdev/line.svg", svg).unwrap();
+        let (points, cells) = grid(2);
+        let svg = mesh_plot(
+            "von Mises",
+            &points,
+            &cells,
+            Some(&[1.0, 2.0, 3.0, 4.0]),
+            &[],
+        )
+        .unwrap();
+        std::fs::write("/tmp/plotdev/mesh.svg", svg).unwrap();
+    }
+
+    #[test]
+    fn mismatched_series_is_an_input_error() {
+        let err = line_chart(
+            "t",
+            "x",
+            "y",
+            &[Series {
+                name: "s",
+                x: &[1.0],
+                y: &[],
+            }],
+            false,
+            false,
+        );
+        assert!(matches!(err, Err(PlotError::Input(_))));
+    }
+
+    /// Points of an `n x n` grid of unit squares and its cells.
+    fn grid(n: usize) -> (Vec<[f64; 2]>, Vec<[usize; 4]>) {
+        let mut points = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                points.push([i as f64, j as f64]);
+            }
+        }
+        let id = |i: usize, j: usize| i + (n + 1) * j;
+        let mut cells = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                cells.push([id(i, j), id(i + 1, j), id(i + 1, j + 1), id(i, j + 1)]);
+            }
+        }
+        (points, cells)
+    }
+
+    #[test]
+    fn mesh_plot_of_2x2_grid_has_4_square_polygons() {
+        let (points, cells) = grid(2);
+        let outline = vec![vec![
+            [0.0, 0.0],
+            [2.0, 0.0],
+            [2.0, 2.0],
+            [0.0, 2.0],
+            [0.0, 0.0],
+        ]];
+        let svg = mesh_plot(
+            "von Mises",
+            &points,
+            &cells,
+            Some(&[1.0, 2.0, 3.0, 4.0]),
+            &outline,
+        )
+        .unwrap();
+        assert!(svg.starts_with("<svg"));
+        assert!(svg.contains(">\nvon Mises\n</text>"));
+        let polys = shapes(&svg, "polygon");
+        assert_eq!(polys.len(), 4);
+        // Equal aspect: every unit square is square in pixels (to rounding).
+        for p in &polys {
+            let xs: Vec<i32> = p.iter().map(|q| q.0).collect();
+            let ys: Vec<i32> = p.iter().map(|q| q.1).collect();
+            let w = xs.iter().max().unwrap() - xs.iter().min().unwrap();
+            let h = ys.iter().max().unwrap() - ys.iter().min().unwrap();
+            assert!(w > 50 && (w - h).abs() <= 2, "{w} x {h}");
+        }
+        // Lowest value gets the dark end of viridis, highest the yellow end.
+        assert!(svg.contains("fill=\"#440154\""));
+        assert!(svg.contains("fill=\"#FDE725\""));
+        // 4 cell borders and the outline.
+        assert_eq!(shapes_with(&svg, "polyline", "stroke=\"#3C3C3C\"").len(), 4);
+        assert_eq!(shapes_with(&svg, "polyline", "stroke=\"#969696\"").len(), 1);
+    }
+
+    #[test]
+    fn mesh_plot_keeps_equal_aspect_for_wide_and_tall_meshes() {
+        for (sx, sy) in [(10.0, 1.0), (1.0, 10.0), (1e-3, 1e-3)] {
+            let (mut points, cells) = grid(2);
+            for p in &mut points {
+                p[0] *= sx;
+                p[1] *= sy;
+            }
+            let svg = mesh_plot("aspect", &points, &cells, None, &[]).unwrap();
+            let polys = shapes(&svg, "polygon");
+            assert_eq!(polys.len(), 4);
+            let p = &polys[0];
+            let w = f64::from(
+                p.iter().map(|q| q.0).max().unwrap() - p.iter().map(|q| q.0).min().unwrap(),
+            );
+            let h = f64::from(
+                p.iter().map(|q| q.1).max().unwrap() - p.iter().map(|q| q.1).min().unwrap(),
+            );
+            let ratio = (w / h) / (sx / sy);
+            assert!((ratio - 1.0).abs() < 0.1, "{sx} {sy}: {w} x {h}");
+            assert!(svg.contains("fill=\"#E1E1E1\""), "no values: grey cells");
+        }
+    }
+
+    #[test]
+    fn mesh_plot_survives_bad_values_and_reports_bad_indices() {
+        let (mut points, cells) = grid(2);
+        let svg = mesh_plot(
+            "nan",
+            &points,
+            &cells,
+            Some(&[f64::NAN, 1.0, 1.0, f64::INFINITY]),
+            &[],
+        )
+        .unwrap();
+        assert_eq!(shapes(&svg, "polygon").len(), 4);
+        points[4] = [f64::NAN, 0.0]; // the centre node: every cell touches it
+        let svg = mesh_plot("nan", &points, &cells, None, &[vec![[f64::NAN, 0.0]]]).unwrap();
+        assert!(shapes(&svg, "polygon").is_empty());
+        let svg = mesh_plot("empty", &[], &[], None, &[]).unwrap();
+        assert!(svg.starts_with("<svg"));
+        assert!(matches!(
+            mesh_plot("bad", &points, &[[0, 1, 2, 99]], None, &[]),
+            Err(PlotError::Input(_))
+        ));
+        assert!(matches!(
+            mesh_plot("bad", &points, &cells, Some(&[1.0]), &[]),
+            Err(PlotError::Input(_))
+        ));
+    }
+
+    #[test]
+    fn tick_labels_are_short() {
+        assert_eq!(tick_label(0.0), "0");
+        assert_eq!(tick_label(0.5), "0.5");
+        assert_eq!(tick_label(20.0), "20");
+        assert_eq!(tick_label(1234.5678), "1235");
+        assert_eq!(tick_label(0.012345), "0.01235");
+        assert_eq!(tick_label(1e-6), "1e-6");
+        assert_eq!(tick_label(-2.5e7), "-2.5e7");
+    }
+
+    #[test]
+    fn viridis_ends_and_clamps() {
+        assert_eq!(viridis(0.0), RGBColor(68, 1, 84));
+        assert_eq!(viridis(1.0), RGBColor(253, 231, 37));
+        assert_eq!(viridis(2.0), viridis(1.0));
+        assert_eq!(viridis(f64::NAN), viridis(0.0));
+    }
+}

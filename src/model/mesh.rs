@@ -1,0 +1,169 @@
+//! Structured meshes of bodies, cut into subdomains that each own a copy of their nodes.
+
+use super::LowerError;
+use crate::lang::scene::Scene;
+
+/// One body's structured grid: `(nx + 1) x (ny + 1)` nodes, node `(i, j)` at
+/// index `j * (nx + 1) + i`, placed by the column-morphing rule.
+#[derive(Debug, Clone)]
+pub struct BodyMesh {
+    pub name: String,
+    pub nx: usize,
+    pub ny: usize,
+    /// Subdomain cuts along x and y.
+    pub sx: usize,
+    pub sy: usize,
+    /// Global index of this body's first subdomain.
+    pub first_subdomain: usize,
+    pub coords: Vec<[f64; 2]>,
+}
+
+impl BodyMesh {
+    pub fn node(&self, i: usize, j: usize) -> usize {
+        j * (self.nx + 1) + i
+    }
+
+    /// Grid position of a node index.
+    pub fn ij(&self, node: usize) -> (usize, usize) {
+        (node % (self.nx + 1), node / (self.nx + 1))
+    }
+
+    /// Elements per subdomain along x and y.
+    pub fn h(&self) -> (usize, usize) {
+        (self.nx / self.sx, self.ny / self.sy)
+    }
+
+    /// Every copy of a grid node: (global subdomain, local node), the first one is
+    /// the node's "owner" (used for loads, supports and contact rows).
+    pub fn copies(&self, node: usize) -> Vec<(usize, usize)> {
+        let (i, j) = self.ij(node);
+        let (hx, hy) = self.h();
+        let blocks = |k: usize, h: usize, n: usize, s: usize| -> Vec<usize> {
+            if k % h == 0 && k > 0 && k < n {
+                vec![k / h - 1, k / h]
+            } else {
+                vec![(k / h).min(s - 1)]
+            }
+        };
+        let mut out = Vec::with_capacity(4);
+        for by in blocks(j, hy, self.ny, self.sy) {
+            for bx in blocks(i, hx, self.nx, self.sx) {
+                let sub = self.first_subdomain + by * self.sx + bx;
+                let (li, lj) = (i - bx * hx, j - by * hy);
+                out.push((sub, lj * (hx + 1) + li));
+            }
+        }
+        out
+    }
+
+    /// The grid node nearest to a point.
+    pub fn nearest(&self, p: &[f64]) -> usize {
+        let mut best = (f64::INFINITY, 0);
+        for (k, c) in self.coords.iter().enumerate() {
+            let d = (c[0] - p[0]).powi(2) + (c[1] - p.get(1).copied().unwrap_or(0.0)).powi(2);
+            if d < best.0 {
+                best = (d, k);
+            }
+        }
+        best.1
+    }
+
+    /// Grid nodes of a face (2D: left, right, bottom, top), in order along the face.
+    pub fn face_nodes(&self, face: crate::lang::scene::Face) -> Vec<usize> {
+        use crate::lang::scene::Face;
+        match face {
+            Face::Left => (0..=self.ny).map(|j| self.node(0, j)).collect(),
+            Face::Right => (0..=self.ny).map(|j| self.node(self.nx, j)).collect(),
+            Face::Bottom => (0..=self.nx).map(|i| self.node(i, 0)).collect(),
+            Face::Top => (0..=self.nx).map(|i| self.node(i, self.ny)).collect(),
+            Face::Front | Face::Back => Vec::new(),
+        }
+    }
+}
+
+/// One subdomain: a block of one body's elements with its own copy of the nodes.
+#[derive(Debug, Clone)]
+pub struct SubdomainMesh {
+    pub body: usize,
+    /// Block position among the body's cuts.
+    pub block: (usize, usize),
+    /// Local nodes, `(hx + 1) x (hy + 1)`, and their body grid node.
+    pub coords: Vec<[f64; 2]>,
+    pub grid: Vec<usize>,
+    /// Elements as local node indices, counter-clockwise.
+    pub elements: Vec<[usize; 4]>,
+    pub young: f64,
+    pub poisson: f64,
+    pub thickness: f64,
+    /// Nodal loads, interleaved (`2 * nodes`).
+    pub f: Vec<f64>,
+}
+
+/// Builds every body's grid and its subdomains at the given design.
+pub fn build(
+    scene: &Scene,
+    design: &[f64],
+) -> Result<(Vec<BodyMesh>, Vec<SubdomainMesh>), LowerError> {
+    let mut bodies = Vec::new();
+    let mut subs = Vec::new();
+    for body in &scene.bodies {
+        let (nx, ny) = (body.mesh[0], body.mesh[1]);
+        let (sx, sy) = (body.subdomains[0], body.subdomains[1]);
+        let mut coords = Vec::with_capacity((nx + 1) * (ny + 1));
+        for j in 0..=ny {
+            for i in 0..=nx {
+                let c = body.node([i, j, 0], design);
+                if !c[0].is_finite() || !c[1].is_finite() {
+                    return Err(LowerError::Geometry(format!(
+                        "node ({i}, {j}) of body `{}` has no finite position at this design",
+                        body.name
+                    )));
+                }
+                coords.push([c[0], c[1]]);
+            }
+        }
+        let mesh = BodyMesh {
+            name: body.name.clone(),
+            nx,
+            ny,
+            sx,
+            sy,
+            first_subdomain: subs.len(),
+            coords,
+        };
+        let material = &scene.materials[body.material];
+        let (hx, hy) = mesh.h();
+        for by in 0..sy {
+            for bx in 0..sx {
+                let mut grid = Vec::with_capacity((hx + 1) * (hy + 1));
+                for lj in 0..=hy {
+                    for li in 0..=hx {
+                        grid.push(mesh.node(bx * hx + li, by * hy + lj));
+                    }
+                }
+                let coords = grid.iter().map(|&g| mesh.coords[g]).collect();
+                let mut elements = Vec::with_capacity(hx * hy);
+                for lj in 0..hy {
+                    for li in 0..hx {
+                        let n = lj * (hx + 1) + li;
+                        elements.push([n, n + 1, n + hx + 2, n + hx + 1]);
+                    }
+                }
+                let n = grid.len();
+                subs.push(SubdomainMesh {
+                    body: bodies.len(),
+                    block: (bx, by),
+                    coords,
+                    grid,
+                    elements,
+                    young: material.young,
+                    poisson: material.poisson,
+                    thickness: scene.thickness,
+                    f: vec![0.0; 2 * n],
+                });
+            }
+        }
+        bodies.push(mesh);
+    }
+    Ok((bodies, subs))
+}

@@ -1,0 +1,124 @@
+//! Lowering: a checked [`Scene`] becomes a [`Problem`]: meshes cut into
+//! subdomains (each with its own copy of its nodes), nodal loads, and the rows of
+//! `B u = c` (gluing, Dirichlet, symmetry, glue ties) and `B u <= c` (contact).
+//!
+//! Everything here is per subdomain or per row, so that a distributed backend can
+//! later hand each rank its subdomains and the rows that touch them.
+
+mod loads;
+mod mesh;
+mod rows;
+
+pub use mesh::{BodyMesh, SubdomainMesh};
+pub use rows::{Row, RowKind};
+
+use crate::lang::scene::{Dimension, Scene};
+use std::fmt;
+
+/// The lowered problem: what TFETI needs, and what reports need to map back.
+#[derive(Debug, Clone)]
+pub struct Problem {
+    /// Coordinates per node (2 in 2D).
+    pub dim: usize,
+    pub bodies: Vec<BodyMesh>,
+    pub subdomains: Vec<SubdomainMesh>,
+    /// Equality rows first (`n_equality` of them), then contact rows (inequalities).
+    pub rows: Vec<Row>,
+    pub n_equality: usize,
+    /// Probes: body, grid node nearest to the point.
+    pub probes: Vec<(usize, usize)>,
+}
+
+impl Problem {
+    /// Primal unknowns over all subdomains.
+    pub fn primal_dofs(&self) -> usize {
+        self.subdomains
+            .iter()
+            .map(|s| s.coords.len() * self.dim)
+            .sum()
+    }
+
+    /// Rows by kind, for summaries: (gluing, dirichlet, symmetry, ties, contact).
+    pub fn row_counts(&self) -> RowCounts {
+        let mut c = RowCounts::default();
+        for r in &self.rows {
+            match r.kind {
+                RowKind::Gluing => c.gluing += 1,
+                RowKind::Dirichlet => c.dirichlet += 1,
+                RowKind::Symmetry => c.symmetry += 1,
+                RowKind::Tie { .. } => c.ties += 1,
+                RowKind::Contact { .. } => c.contact += 1,
+            }
+        }
+        c
+    }
+}
+
+/// Number of multipliers of each kind.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct RowCounts {
+    pub gluing: usize,
+    pub dirichlet: usize,
+    pub symmetry: usize,
+    pub ties: usize,
+    pub contact: usize,
+}
+
+/// Why a scene cannot be lowered.
+#[derive(Debug, Clone, PartialEq)]
+pub enum LowerError {
+    /// Not implemented yet for this dimension.
+    Unsupported(String),
+    /// An element with non-positive Jacobian.
+    Inverted {
+        body: String,
+        element: (usize, usize),
+    },
+    /// A selection keeps no node (at this design).
+    EmptySelection(String),
+    /// Non-finite node coordinates (a face undefined at this design).
+    Geometry(String),
+}
+
+impl fmt::Display for LowerError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LowerError::Unsupported(s) => write!(f, "{s}"),
+            LowerError::Inverted { body, element } => write!(
+                f,
+                "element ({}, {}) of body `{body}` is inverted or degenerate (its Jacobian is not positive)",
+                element.0, element.1
+            ),
+            LowerError::EmptySelection(s) => write!(f, "the selection `{s}` is empty"),
+            LowerError::Geometry(s) => write!(f, "{s}"),
+        }
+    }
+}
+
+impl std::error::Error for LowerError {}
+
+/// Lowers a checked scene at the given design.
+pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
+    if scene.dim != Dimension::Two {
+        return Err(LowerError::Unsupported(
+            "solving 3D scenes is not implemented yet (2D first; 3D hexahedra come next)".into(),
+        ));
+    }
+    let (bodies, subdomains) = mesh::build(scene, design)?;
+    let mut problem = Problem {
+        dim: 2,
+        bodies,
+        subdomains,
+        rows: Vec::new(),
+        n_equality: 0,
+        probes: Vec::new(),
+    };
+    loads::apply(scene, &mut problem, design)?;
+    rows::build(scene, &mut problem, design)?;
+    problem.probes = scene
+        .probes
+        .iter()
+        .map(|p| (p.body, problem.bodies[p.body].nearest(&p.at)))
+        .collect();
+    Ok(problem)
+}

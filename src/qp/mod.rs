@@ -1,0 +1,58 @@
+//! Quadratic programming for the TFETI dual: MPRGP for bound constraints and
+//! SMALBE for bounds plus linear equalities, over matrix-free operators.
+//!
+//! # Reference
+//! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009:
+//! MPRGP (ch. 5), SMALBE/SMALE (ch. 6).
+
+mod mprgp;
+mod smalbe;
+
+pub use mprgp::{mprgp, MprgpSettings};
+pub use smalbe::{smalbe, SmalbeSettings};
+
+/// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.
+pub trait Operator {
+    fn dim(&self) -> usize;
+    fn apply(&self, x: &[f64], y: &mut [f64]);
+}
+
+/// Linear equality constraints `G x = 0` with orthonormal rows (`G G^T = I`).
+pub trait Equality {
+    /// Number of rows of `G`.
+    fn rows(&self) -> usize;
+    /// `y = G x` (`y` has `rows()` entries).
+    fn apply(&self, x: &[f64], y: &mut [f64]);
+    /// `x = G^T y`.
+    fn apply_t(&self, y: &[f64], x: &mut [f64]);
+}
+
+/// How a solve ended. Not converging is data, not an error.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+#[serde(rename_all = "snake_case", tag = "status", content = "cause")]
+pub enum Status {
+    Converged,
+    /// The iteration or Hessian-application budget ran out.
+    MaxIterations,
+    /// A numerical breakdown (non-positive curvature, NaN), with the numbers.
+    Breakdown(String),
+}
+
+/// What a solve did and what it cost.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct QpInfo {
+    pub status: Status,
+    /// SMALBE outer iterations (0 for plain MPRGP).
+    pub outer_iterations: usize,
+    /// MPRGP iterations (CG, expansion and proportioning steps) in all.
+    pub inner_iterations: usize,
+    /// Applications of the Hessian `A` (the cost that matters: one `F` each).
+    pub hessian_applications: usize,
+    /// Final `||g^P||` (projected gradient) and `||G x||`.
+    pub projected_gradient: f64,
+    pub feasibility: f64,
+    /// `||g^P|| / ||b||` after each outer iteration (or every 10 MPRGP iterations).
+    pub history: Vec<f64>,
+    /// Estimate of `||A||` by power iteration.
+    pub norm_estimate: f64,
+}

@@ -1,0 +1,766 @@
+//! SMALBE: semi-monotonic augmented Lagrangian for bound and equality
+//! constraints, `min 1/2 x^T A x - b^T x` subject to `x_i >= l_i` and `G x = 0`
+//! with orthonormal rows of `G`.
+//!
+//! The equalities go into the augmented Lagrangian
+//! `L(x, mu, rho) = f(x) + mu^T G x + rho/2 ||G x||^2`, whose Hessian
+//! `A + rho G^T G` is positive definite whenever `A` is positive definite on
+//! `ker G` (the TFETI dual: `A = P F P` is singular on `range G^T`). Each outer
+//! iteration minimizes `L` over the bounds by MPRGP only as precisely as the
+//! current infeasibility deserves (`||g^P|| <= min(M ||G x||, eta)`), then
+//! updates the multipliers `mu += rho G x`. The penalty `rho` stays fixed; the
+//! adaptive precision `M` shrinks when the Lagrangian does not increase enough,
+//! which is what bounds the number of outer iterations independently of the
+//! conditioning of `A`.
+//!
+//! # Reference
+//! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 6 (SMALBE).
+
+use std::cell::Cell;
+
+use super::mprgp::{
+    self, axpy, check_dimensions, dot, estimate_norm, norm2, project, start_vector, step_length,
+    MprgpSettings, Params, Workspace,
+};
+use super::{Equality, Operator, QpInfo, Status};
+
+/// Parameters of [`smalbe`]. Scale-dependent ones are relative to `||A||`
+/// (estimated by power iterations) or `||b||`, so that one set of defaults
+/// serves scenes of any size and units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SmalbeSettings {
+    /// Penalty `rho = rho_factor * ||A||`, kept fixed. Default `1.0`
+    /// (ESPRESO; PERMON uses 1.1): with orthonormal `G` and `A = P F P`, the
+    /// Hessian `A + rho G^T G` then has norm `max(||A||, rho) = ||A||`, so the
+    /// penalty is as strong as it can be without worsening the conditioning.
+    /// On seeded `P S P` test problems (n 150-300, cond(S) 1e2-1e5) 1.1 cost
+    /// 3 % more Hessian applications and 2.0 cost 20 % more.
+    pub rho_factor: f64,
+    /// Initial precision control `M_0 = m0_factor * ||A||`. `M` relates a
+    /// gradient to a displacement, so it is measured in units of `||A||`
+    /// (ESPRESO's absolute `M = 1` made scale-free). Default `1.0`: on the
+    /// same test problems PERMON's `100` spent 7-12 extra outer iterations
+    /// halving `M` before the Lagrangian test settled, for the same number of
+    /// Hessian applications (within 3 %); `0.1` saved another 2 outer
+    /// iterations. The Lagrangian test lowers `M` further where needed.
+    pub m0_factor: f64,
+    /// Divisor `beta > 1` of `M` when the Lagrangian does not increase enough.
+    /// Default `2` (PERMON; ESPRESO's `M <- 0.8 M` is `beta = 1.25`, which
+    /// cost 6 % more Hessian applications on the test problems above).
+    pub beta: f64,
+    /// Cap of the inner tolerance, `eta = eta_factor * ||b||`. Default `0.1`
+    /// (PERMON): the first outer iterations need only a rough minimizer.
+    pub eta_factor: f64,
+    /// Relative tolerance `eps`: stop when `||g^P|| <= eps ||b||` and
+    /// `||G x|| <= eps ||b||`. Default `1e-6`. Tighten it for finite-difference
+    /// sensitivities, whose error contains a term `O(eps / h)`.
+    pub tolerance: f64,
+    /// Most outer iterations. Default `100` (PERMON); a well-tuned run needs
+    /// a handful to a few tens.
+    pub max_outer: usize,
+    /// Budget of Hessian applications in all (power iterations, inner MPRGP
+    /// steps). Default `20_000`: the real limit on the cost of one solve,
+    /// 10 to 200 times what the test problems above needed (100 to 1500).
+    pub max_hessian: usize,
+    /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
+    /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
+    /// `max_iterations` caps each inner solve, and its `abar_factor` is
+    /// relative to the norm of the augmented Hessian `A + rho G^T G`.
+    pub mprgp: MprgpSettings,
+}
+
+impl Default for SmalbeSettings {
+    fn default() -> Self {
+        Self {
+            rho_factor: 1.0,
+            m0_factor: 1.0,
+            beta: 2.0,
+            eta_factor: 0.1,
+            tolerance: 1e-6,
+            max_outer: 100,
+            max_hessian: 20_000,
+            mprgp: MprgpSettings::default(),
+        }
+    }
+}
+
+/// The Hessian of the augmented Lagrangian, `A + rho G^T G`, applied
+/// matrix-free. Its two small buffers are borrowed out of their cells for the
+/// duration of one application, so applying it allocates nothing.
+struct Augmented<'a> {
+    a: &'a dyn Operator,
+    g: &'a dyn Equality,
+    rho: f64,
+    /// `G x` (rows of `G`).
+    gx: Cell<Vec<f64>>,
+    /// `G^T G x`.
+    gtgx: Cell<Vec<f64>>,
+}
+
+impl<'a> Augmented<'a> {
+    fn new(a: &'a dyn Operator, g: &'a dyn Equality, rho: f64) -> Self {
+        Self {
+            a,
+            g,
+            rho,
+            gx: Cell::new(vec![0.0; g.rows()]),
+            gtgx: Cell::new(vec![0.0; a.dim()]),
+        }
+    }
+}
+
+impl Operator for Augmented<'_> {
+    fn dim(&self) -> usize {
+        self.a.dim()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut gx = self.gx.take();
+        let mut gtgx = self.gtgx.take();
+        self.a.apply(x, y);
+        self.g.apply(x, &mut gx);
+        self.g.apply_t(&gx, &mut gtgx);
+        axpy(self.rho, &gtgx, y);
+        self.gx.set(gx);
+        self.gtgx.set(gtgx);
+    }
+}
+
+/// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` and `G x = 0`
+/// by SMALBE with MPRGP inside.
+///
+/// `x` is the initial guess (projected onto the bounds) and the result.
+/// `G` must have orthonormal rows; `A` must be positive definite on `ker G`
+/// (it may be singular elsewhere). The stopping test is relative to `||b||`:
+/// `||g^P(x, mu, rho)|| <= eps ||b||` and `||G x|| <= eps ||b||`, where `g^P`
+/// is the projected gradient of the augmented Lagrangian at the current
+/// multipliers, which at a solution is the KKT residual. If `b = 0` and
+/// `lower <= 0`, the solution `x = 0` is returned at once; with `b = 0` and a
+/// positive bound the scale `||A|| ||P(0)||` replaces `||b||`.
+///
+/// `observer` sees the [`QpInfo`] after every outer iteration (its status
+/// reads `MaxIterations` until the run ends). Applications of the augmented
+/// Hessian count as applications of `a`, as do the power iterations that
+/// estimate `||A||` and `||A + rho G^T G||`. The solve stops with
+/// `MaxIterations` when `max_outer` or `max_hessian` runs out, and with
+/// `Breakdown` on non-positive curvature or NaN. Only the setup allocates.
+///
+/// # Reference
+/// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
+/// ch. 6 (SMALBE) with ch. 5 (MPRGP) inside.
+pub fn smalbe(
+    a: &dyn Operator,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> QpInfo {
+    let n = a.dim();
+    let mut info = QpInfo {
+        status: Status::MaxIterations,
+        outer_iterations: 0,
+        inner_iterations: 0,
+        hessian_applications: 0,
+        projected_gradient: f64::NAN,
+        feasibility: f64::NAN,
+        history: Vec::with_capacity(settings.max_outer.min(1 << 16)),
+        norm_estimate: f64::NAN,
+    };
+    if let Some(why) = check_dimensions(n, b, lower, x) {
+        info.status = Status::Breakdown(why);
+        return info;
+    }
+    let b_norm = norm2(b);
+    if b_norm == 0.0 && lower.iter().all(|&l| l <= 0.0) {
+        x.fill(0.0);
+        info.status = Status::Converged;
+        info.projected_gradient = 0.0;
+        info.feasibility = 0.0;
+        return info;
+    }
+    let m = g.rows();
+    let mut ws = Workspace::new(n);
+    let power = settings.mprgp.power_iterations;
+
+    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar.
+    start_vector(&mut ws.p);
+    let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
+    info.hessian_applications += used;
+    info.norm_estimate = norm_a;
+    if !(norm_a > 0.0 && norm_a.is_finite()) {
+        info.status = Status::Breakdown(format!(
+            "power iteration gives ||A|| = {norm_a:e}: A is zero or not finite"
+        ));
+        return info;
+    }
+    let rho = settings.rho_factor * norm_a;
+    let hessian = Augmented::new(a, g, rho);
+    let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
+    info.hessian_applications += used;
+    let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
+        Ok(v) => v,
+        Err(why) => {
+            info.status = Status::Breakdown(why);
+            return info;
+        }
+    };
+
+    let scale = if b_norm > 0.0 {
+        b_norm
+    } else {
+        let p0: f64 = lower.iter().map(|&l| l.max(0.0).powi(2)).sum();
+        norm_a * p0.sqrt()
+    };
+    let eps_g = settings.tolerance * scale;
+    let eps_f = settings.tolerance * scale;
+    let eta = settings.eta_factor * scale;
+    let mut big_m = settings.m0_factor * norm_a;
+
+    // b~ = b - G^T mu is the linear term of L; mu itself is not needed.
+    let mut b_tilde = b.to_vec();
+    let mut gx = vec![0.0; m];
+    let mut gtgx = vec![0.0; n];
+    let mut lagrangian_prev = f64::NAN;
+    let mut g_ready = false;
+    project(x, lower);
+
+    for k in 0..settings.max_outer {
+        let params = Params {
+            gamma: settings.mprgp.gamma,
+            a_bar,
+            max_iterations: settings.mprgp.max_iterations,
+            max_applications: settings
+                .max_hessian
+                .saturating_sub(info.hessian_applications),
+        };
+        let run = {
+            let mut stop = |x: &[f64], gp: f64| -> bool {
+                if gp > eta && gp > eps_g {
+                    return false;
+                }
+                g.apply(x, &mut gx);
+                let feasibility = norm2(&gx);
+                gp <= (big_m * feasibility).min(eta) || (gp <= eps_g && feasibility <= eps_f)
+            };
+            mprgp::run(
+                &hessian,
+                &b_tilde,
+                lower,
+                x,
+                &params,
+                &mut ws,
+                g_ready,
+                &mut stop,
+                &mut |_, _| {},
+            )
+        };
+        info.outer_iterations = k + 1;
+        info.inner_iterations += run.iterations;
+        info.hessian_applications += run.applications;
+        info.projected_gradient = run.gp_norm;
+        if let Status::Breakdown(why) = run.status {
+            info.status = Status::Breakdown(format!(
+                "{why} (SMALBE outer iteration {}, rho = {rho:e})",
+                k + 1
+            ));
+            observer(&info);
+            return info;
+        }
+        g_ready = true;
+        g.apply(x, &mut gx);
+        let feasibility = norm2(&gx);
+        info.feasibility = feasibility;
+        info.history.push(run.gp_norm / scale);
+        if run.gp_norm <= eps_g && feasibility <= eps_f {
+            info.status = Status::Converged;
+            observer(&info);
+            return info;
+        }
+        if run.status == Status::MaxIterations
+            && settings
+                .max_hessian
+                .saturating_sub(info.hessian_applications)
+                < 2
+        {
+            info.status = Status::MaxIterations;
+            observer(&info);
+            return info;
+        }
+
+        // mu += rho G x: b~ -= rho G^T G x, and the gradient of L moves by
+        // +rho G^T G x, which keeps ws.g exact without applying A again.
+        g.apply_t(&gx, &mut gtgx);
+        axpy(-rho, &gtgx, &mut b_tilde);
+        axpy(rho, &gtgx, &mut ws.g);
+        // L(x_k, mu_{k+1}, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~.
+        let lagrangian = 0.5 * (dot(x, &ws.g) - dot(x, &b_tilde));
+        if k > 0 && lagrangian < lagrangian_prev + 0.5 * rho * feasibility * feasibility {
+            big_m /= settings.beta;
+        }
+        lagrangian_prev = lagrangian;
+        observer(&info);
+    }
+    info.status = Status::MaxIterations;
+    info
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::qp::mprgp::tests::{random_spd, solve_dense, Dense, Lcg};
+
+    /// Dense `G` (m x n, row-major) with orthonormal rows.
+    struct DenseEq {
+        m: usize,
+        n: usize,
+        g: Vec<f64>,
+    }
+
+    impl DenseEq {
+        /// Random rows, orthonormalized by modified Gram-Schmidt.
+        fn random(m: usize, n: usize, rng: &mut Lcg) -> Self {
+            let mut g: Vec<f64> = (0..m * n).map(|_| rng.symmetric()).collect();
+            for i in 0..m {
+                for k in 0..i {
+                    let c: f64 = (0..n).map(|j| g[i * n + j] * g[k * n + j]).sum();
+                    for j in 0..n {
+                        g[i * n + j] -= c * g[k * n + j];
+                    }
+                }
+                let s: f64 = (0..n).map(|j| g[i * n + j].powi(2)).sum::<f64>().sqrt();
+                for j in 0..n {
+                    g[i * n + j] /= s;
+                }
+            }
+            Self { m, n, g }
+        }
+        fn at(&self, i: usize, j: usize) -> f64 {
+            self.g[i * self.n + j]
+        }
+    }
+
+    impl Equality for DenseEq {
+        fn rows(&self) -> usize {
+            self.m
+        }
+        fn apply(&self, x: &[f64], y: &mut [f64]) {
+            for (i, yi) in y.iter_mut().enumerate() {
+                *yi = (0..self.n).map(|j| self.at(i, j) * x[j]).sum();
+            }
+        }
+        fn apply_t(&self, y: &[f64], x: &mut [f64]) {
+            for (j, xj) in x.iter_mut().enumerate() {
+                *xj = (0..self.m).map(|i| self.at(i, j) * y[i]).sum();
+            }
+        }
+    }
+
+    /// `P S P` with `P = I - G^T G` and `S` SPD: singular on `range G^T`,
+    /// positive definite on `ker G`, like the TFETI dual `P F P`.
+    fn projected(s: &Dense, geq: &DenseEq) -> Dense {
+        let n = s.n;
+        let mut p = vec![0.0; n * n];
+        for i in 0..n {
+            for j in 0..n {
+                let q: f64 = (0..geq.m).map(|k| geq.at(k, i) * geq.at(k, j)).sum();
+                p[i * n + j] = f64::from(u8::from(i == j)) - q;
+            }
+        }
+        let mul = |x: &[f64], y: &[f64]| -> Vec<f64> {
+            let mut z = vec![0.0; n * n];
+            for i in 0..n {
+                for j in 0..n {
+                    z[i * n + j] = (0..n).map(|k| x[i * n + k] * y[k * n + j]).sum();
+                }
+            }
+            z
+        };
+        Dense::new(n, mul(&mul(&p, &s.a), &p))
+    }
+
+    /// The minimizer over `x >= lower`, `G x = 0` by enumeration of active
+    /// sets: for each, solve the KKT system of the face and keep the point
+    /// that is feasible with non-negative bound multipliers.
+    fn enumerate(a: &Dense, b: &[f64], lower: &[f64], geq: &DenseEq) -> Vec<f64> {
+        let n = a.n;
+        let m = geq.m;
+        let bounded: Vec<usize> = (0..n).filter(|&i| lower[i].is_finite()).collect();
+        let mut found: Option<Vec<f64>> = None;
+        for mask in 0u32..(1 << bounded.len()) {
+            let mut active = vec![false; n];
+            for (k, &i) in bounded.iter().enumerate() {
+                active[i] = mask & (1 << k) != 0;
+            }
+            let free: Vec<usize> = (0..n).filter(|&i| !active[i]).collect();
+            let nf = free.len();
+            let size = nf + m;
+            let mut kkt = vec![0.0; size * size];
+            let mut rhs = vec![0.0; size];
+            for (r, &i) in free.iter().enumerate() {
+                for (c, &j) in free.iter().enumerate() {
+                    kkt[r * size + c] = a.at(i, j);
+                }
+                for k in 0..m {
+                    kkt[r * size + nf + k] = geq.at(k, i);
+                    kkt[(nf + k) * size + r] = geq.at(k, i);
+                }
+                rhs[r] = b[i]
+                    - (0..n)
+                        .filter(|&j| active[j])
+                        .map(|j| a.at(i, j) * lower[j])
+                        .sum::<f64>();
+            }
+            for k in 0..m {
+                rhs[nf + k] = -(0..n)
+                    .filter(|&j| active[j])
+                    .map(|j| geq.at(k, j) * lower[j])
+                    .sum::<f64>();
+            }
+            let Some(z) = solve_dense(size, &kkt, &rhs) else {
+                continue;
+            };
+            let mut x: Vec<f64> = (0..n)
+                .map(|i| if active[i] { lower[i] } else { 0.0 })
+                .collect();
+            for (r, &i) in free.iter().enumerate() {
+                x[i] = z[r];
+            }
+            let mu = &z[nf..];
+            let mut grad: Vec<f64> = a.mul(&x).iter().zip(b).map(|(ax, bi)| ax - bi).collect();
+            for (j, gj) in grad.iter_mut().enumerate() {
+                *gj += (0..m).map(|k| geq.at(k, j) * mu[k]).sum::<f64>();
+            }
+            let feasible = free.iter().all(|&i| x[i] >= lower[i] - 1e-12);
+            let signs = (0..n).filter(|&i| active[i]).all(|i| grad[i] >= -1e-12);
+            if feasible && signs {
+                if let Some(prev) = &found {
+                    let d = prev
+                        .iter()
+                        .zip(&x)
+                        .fold(0.0f64, |s, (p, q)| s.max((p - q).abs()));
+                    assert!(
+                        d < 1e-9,
+                        "two different KKT points: degenerate test problem"
+                    );
+                } else {
+                    found = Some(x);
+                }
+            }
+        }
+        found.expect("no KKT point found by enumeration")
+    }
+
+    /// Relative KKT residual of `x`, independent of the solver's multipliers:
+    /// the equality multiplier is the least-squares fit on the free set
+    /// (`G_F G_F^T mu = -G_F r_F`), then the projected gradient of the
+    /// Lagrangian and `||G x||` are measured, both over `||b||`.
+    fn kkt(a: &Dense, b: &[f64], lower: &[f64], geq: &DenseEq, x: &[f64]) -> (f64, f64) {
+        let n = a.n;
+        let m = geq.m;
+        for i in 0..n {
+            assert!(x[i] >= lower[i], "x[{i}] = {} below {}", x[i], lower[i]);
+        }
+        let r: Vec<f64> = a.mul(x).iter().zip(b).map(|(ax, bi)| ax - bi).collect();
+        let free: Vec<usize> = (0..n).filter(|&i| x[i] > lower[i]).collect();
+        let mut ggt = vec![0.0; m * m];
+        let mut rhs = vec![0.0; m];
+        for k in 0..m {
+            for l in 0..m {
+                ggt[k * m + l] = free.iter().map(|&i| geq.at(k, i) * geq.at(l, i)).sum();
+            }
+            rhs[k] = -free.iter().map(|&i| geq.at(k, i) * r[i]).sum::<f64>();
+        }
+        let mu = solve_dense(m, &ggt, &rhs).expect("G_F has full row rank");
+        let mut gp2 = 0.0;
+        for i in 0..n {
+            let gi = r[i] + (0..m).map(|k| geq.at(k, i) * mu[k]).sum::<f64>();
+            let gpi = if x[i] > lower[i] { gi } else { gi.min(0.0) };
+            gp2 += gpi * gpi;
+        }
+        let mut gx = vec![0.0; m];
+        geq.apply(x, &mut gx);
+        let bn = norm2(b);
+        (gp2.sqrt() / bn, norm2(&gx) / bn)
+    }
+
+    fn max_diff(x: &[f64], y: &[f64]) -> f64 {
+        x.iter()
+            .zip(y)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()))
+    }
+
+    fn tight() -> SmalbeSettings {
+        SmalbeSettings {
+            tolerance: 1e-10,
+            ..SmalbeSettings::default()
+        }
+    }
+
+    /// Bounds on two of every three variables, at random non-positive levels
+    /// (so that `x = 0` is feasible), the rest free.
+    fn bounds(n: usize, rng: &mut Lcg) -> Vec<f64> {
+        (0..n)
+            .map(|i| {
+                if i % 3 == 2 {
+                    f64::NEG_INFINITY
+                } else {
+                    -0.2 * rng.uniform()
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn equalities_only_match_the_kkt_solve() {
+        let mut rng = Lcg::new(11);
+        for (n, m) in [(3, 1), (6, 2), (20, 3)] {
+            let a = random_spd(n, 0.1, &mut rng);
+            let geq = DenseEq::random(m, n, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = vec![f64::NEG_INFINITY; n];
+            let exact = enumerate(&a, &b, &lower, &geq);
+            let mut x = vec![0.0; n];
+            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            assert_eq!(info.status, Status::Converged, "n = {n}: {info:?}");
+            let scale = exact.iter().fold(0.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-8 * scale,
+                "n = {n}: {x:?} vs {exact:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn bounds_and_equalities_match_enumeration_and_kkt() {
+        let mut rng = Lcg::new(13);
+        let mut active_seen = 0;
+        for trial in 0..30 {
+            let n = 3 + trial % 6;
+            let m = 1 + trial % 2;
+            let a = random_spd(n, 0.2, &mut rng);
+            let geq = DenseEq::random(m, n, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = bounds(n, &mut rng);
+            let exact = enumerate(&a, &b, &lower, &geq);
+            active_seen += (0..n).filter(|&i| exact[i] == lower[i]).count();
+            let mut x = vec![0.0; n];
+            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+            assert!(
+                res <= 1e-8 && feas <= 1e-8,
+                "trial {trial}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-7 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+        assert!(
+            active_seen >= 15,
+            "too few active bounds to test: {active_seen}"
+        );
+    }
+
+    #[test]
+    fn singular_hessian_definite_on_ker_g_converges() {
+        let mut rng = Lcg::new(17);
+        for trial in 0..12 {
+            let n = 4 + trial % 5;
+            let m = 1 + trial % 2;
+            let geq = DenseEq::random(m, n, &mut rng);
+            let s = random_spd(n, 0.1, &mut rng);
+            let a = projected(&s, &geq);
+            // Linear term in range P as in TFETI, b = P d.
+            let d: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let mut gd = vec![0.0; m];
+            geq.apply(&d, &mut gd);
+            let mut gtgd = vec![0.0; n];
+            geq.apply_t(&gd, &mut gtgd);
+            let b: Vec<f64> = d.iter().zip(&gtgd).map(|(di, qi)| di - qi).collect();
+            let lower = bounds(n, &mut rng);
+            let exact = enumerate(&a, &b, &lower, &geq);
+            let mut x = vec![0.0; n];
+            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+            assert!(
+                res <= 1e-8 && feas <= 1e-8,
+                "trial {trial}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-7 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn default_tolerance_is_relative() {
+        let mut rng = Lcg::new(19);
+        let n = 40;
+        let geq = DenseEq::random(4, n, &mut rng);
+        let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| 1e6 * rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng)
+            .iter()
+            .map(|l| 1e6 * l)
+            .collect::<Vec<_>>();
+        let mut x = vec![0.0; n];
+        let info = smalbe(
+            &a,
+            &b,
+            &lower,
+            &geq,
+            &mut x,
+            &SmalbeSettings::default(),
+            &mut |_| {},
+        );
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        assert!(info.projected_gradient <= 1e-6 * norm2(&b));
+        assert!(info.feasibility <= 1e-6 * norm2(&b));
+        let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+        assert!(res <= 1e-5 && feas <= 1e-6, "KKT {res:e}, G x {feas:e}");
+    }
+
+    #[test]
+    fn counts_applications_and_calls_the_observer() {
+        let mut rng = Lcg::new(23);
+        let n = 30;
+        let geq = DenseEq::random(3, n, &mut rng);
+        let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng);
+        let mut x = vec![0.0; n];
+        let mut seen: Vec<(usize, usize, usize)> = Vec::new();
+        let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |i| {
+            seen.push((i.outer_iterations, i.hessian_applications, i.history.len()));
+        });
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        assert_eq!(info.hessian_applications, a.count.get());
+        let power = 2 * SmalbeSettings::default().mprgp.power_iterations;
+        assert!(info.hessian_applications >= power + info.inner_iterations);
+        assert!(info.outer_iterations >= 2, "{info:?}");
+        assert_eq!(seen.len(), info.outer_iterations);
+        for (k, &(outer, apps, hist)) in seen.iter().enumerate() {
+            assert_eq!(outer, k + 1);
+            assert_eq!(hist, k + 1);
+            assert!(k == 0 || apps >= seen[k - 1].1);
+        }
+        assert_eq!(seen.last().map(|s| s.1), Some(info.hessian_applications));
+        assert_eq!(info.history.len(), info.outer_iterations);
+    }
+
+    #[test]
+    fn budgets_end_the_run() {
+        let mut rng = Lcg::new(29);
+        let n = 30;
+        let geq = DenseEq::random(3, n, &mut rng);
+        let a = projected(&random_spd(n, 1e-3, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng);
+        let budget = SmalbeSettings {
+            max_hessian: 35,
+            tolerance: 1e-14,
+            ..SmalbeSettings::default()
+        };
+        let mut x = vec![0.0; n];
+        let info = smalbe(&a, &b, &lower, &geq, &mut x, &budget, &mut |_| {});
+        assert_eq!(info.status, Status::MaxIterations, "{info:?}");
+        assert!(info.hessian_applications <= 35, "{info:?}");
+        assert_eq!(info.hessian_applications, a.count.get());
+        let outer = SmalbeSettings {
+            max_outer: 2,
+            tolerance: 1e-14,
+            ..SmalbeSettings::default()
+        };
+        let mut x = vec![0.0; n];
+        let info = smalbe(&a, &b, &lower, &geq, &mut x, &outer, &mut |_| {});
+        assert_eq!(info.status, Status::MaxIterations, "{info:?}");
+        assert_eq!(info.outer_iterations, 2);
+    }
+
+    #[test]
+    fn zero_load_returns_zero_at_once() {
+        let a = Dense::new(2, vec![2.0, 0.0, 0.0, 1.0]);
+        let geq = DenseEq {
+            m: 1,
+            n: 2,
+            g: vec![std::f64::consts::FRAC_1_SQRT_2; 2],
+        };
+        let mut x = [3.0, -1.0];
+        let mut calls = 0;
+        let info = smalbe(
+            &a,
+            &[0.0, 0.0],
+            &[-1.0, f64::NEG_INFINITY],
+            &geq,
+            &mut x,
+            &tight(),
+            &mut |_| calls += 1,
+        );
+        assert_eq!(info.status, Status::Converged);
+        assert_eq!(x, [0.0, 0.0]);
+        assert_eq!(info.hessian_applications, 0);
+        assert_eq!(calls, 0);
+    }
+
+    #[test]
+    fn zero_load_with_a_positive_bound_is_solved_not_skipped() {
+        // b = 0 but x1 >= 0.5 and x1 + x2 = 0: P(0) is not the solution, so
+        // the scale ||A|| ||P(0)|| replaces ||b|| and the QP is solved.
+        let mut rng = Lcg::new(31);
+        let n = 5;
+        let a = random_spd(n, 0.2, &mut rng);
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let geq = DenseEq {
+            m: 1,
+            n,
+            g: vec![s, s, 0.0, 0.0, 0.0],
+        };
+        let b = vec![0.0; n];
+        let lower = [
+            0.5,
+            f64::NEG_INFINITY,
+            -0.1,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let exact = enumerate(&a, &b, &lower, &geq);
+        assert!(exact[0] == 0.5, "the bound should be active: {exact:?}");
+        let mut x = vec![0.0; n];
+        let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        assert!(max_diff(&x, &exact) <= 1e-8, "{x:?} vs {exact:?}");
+    }
+
+    #[test]
+    fn tiny_hand_computed_problem() {
+        // min 1/2 ||x||^2 - x1 - 2 x2 + x3 s.t. x1 - x2 = 0 (G = [1 -1 0]/sqrt 2),
+        // x3 >= 0: x1 = x2 = 3/2, x3 = 0 (active, gradient 1 >= 0).
+        let a = Dense::new(3, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let s = std::f64::consts::FRAC_1_SQRT_2;
+        let geq = DenseEq {
+            m: 1,
+            n: 3,
+            g: vec![s, -s, 0.0],
+        };
+        let lower = [f64::NEG_INFINITY, f64::NEG_INFINITY, 0.0];
+        let mut x = [0.0; 3];
+        let info = smalbe(
+            &a,
+            &[1.0, 2.0, -1.0],
+            &lower,
+            &geq,
+            &mut x,
+            &tight(),
+            &mut |_| {},
+        );
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        assert!(max_diff(&x, &[1.5, 1.5, 0.0]) < 1e-9, "{x:?}");
+    }
+}

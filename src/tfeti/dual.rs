@@ -1,0 +1,301 @@
+//! The TFETI dual: `F = B K^+ B^T` applied subdomain by subdomain, the natural
+//! coarse space `G = R^T B^T` with orthonormalized rows, and the projector
+//! `P = I - G~^T G~`.
+//!
+//! # Reference
+//! Dostál, Horák, Kučera, *Total FETI — an easier implementable variant of the
+//! FETI method*, Commun. Numer. Meth. Engng 2006.
+
+use super::subdomain::Subdomain;
+use crate::qp::{Equality, Operator};
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::{Mat, MatMut, Par, Side};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+
+/// The rows of `B` that touch one subdomain, in local form.
+#[derive(Debug, Clone, Default)]
+pub struct LocalRows {
+    /// Global row index of each local row (sorted).
+    pub rows: Vec<usize>,
+    /// (local row, local dof, coefficient).
+    pub entries: Vec<(usize, usize, f64)>,
+}
+
+impl LocalRows {
+    /// `x = B_s^T l` (x has the subdomain's dofs).
+    pub fn scatter_t(&self, l: &[f64], x: &mut [f64]) {
+        x.iter_mut().for_each(|v| *v = 0.0);
+        for &(r, d, v) in &self.entries {
+            x[d] += v * l[self.rows[r]];
+        }
+    }
+
+    /// `y = B_s x` (y has one entry per local row).
+    pub fn gather(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for &(r, d, v) in &self.entries {
+            y[r] += v * x[d];
+        }
+    }
+}
+
+struct Work {
+    x: Vec<f64>,
+    y: Vec<f64>,
+}
+
+/// Why the coarse problem cannot be set up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoarseError {
+    /// (subdomain, mode 0 = x translation, 1 = y translation, 2 = rotation) of the
+    /// rigid motions that no row of `B` holds.
+    pub free_modes: Vec<(usize, usize)>,
+}
+
+/// `F`, `G~`, `P` of one decomposed problem.
+pub struct Dual {
+    pub subs: Vec<Subdomain>,
+    pub local: Vec<LocalRows>,
+    /// Number of multipliers.
+    pub m: usize,
+    /// Per subdomain `G_s = R_s^T B_s^T`: 3 x (local rows), row-major.
+    g: Vec<Vec<f64>>,
+    /// Lower Cholesky factor of `G G^T` (3N x 3N): `G~ = L^-1 G`.
+    l: Mat<f64>,
+    work: Vec<Mutex<Work>>,
+    /// Applications of `F` so far.
+    pub f_applications: AtomicUsize,
+}
+
+impl Dual {
+    /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
+    /// some subdomain is not touched by any row (G G^T singular).
+    pub fn new(subs: Vec<Subdomain>, local: Vec<LocalRows>, m: usize) -> Result<Self, CoarseError> {
+        let mut g = Vec::with_capacity(subs.len());
+        for (s, sub) in subs.iter().enumerate() {
+            let lr = &local[s];
+            let nr = lr.rows.len();
+            let mut gs = vec![0.0; 3 * nr];
+            for &(r, d, v) in &lr.entries {
+                for j in 0..3 {
+                    gs[j * nr + r] += v * sub.r_col(j)[d];
+                }
+            }
+            g.push(gs);
+        }
+        // G G^T, block (s, t) from the rows s and t share.
+        let n3 = 3 * subs.len();
+        let mut owners: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m];
+        for (s, lr) in local.iter().enumerate() {
+            for (k, &row) in lr.rows.iter().enumerate() {
+                owners[row].push((s, k));
+            }
+        }
+        let mut ggt = Mat::<f64>::zeros(n3, n3);
+        for own in &owners {
+            for &(s, ks) in own {
+                let ns = local[s].rows.len();
+                for &(t, kt) in own {
+                    let nt = local[t].rows.len();
+                    for i in 0..3 {
+                        for j in 0..3 {
+                            ggt[(3 * s + i, 3 * t + j)] += g[s][i * ns + ks] * g[t][j * nt + kt];
+                        }
+                    }
+                }
+            }
+        }
+        let scale = (0..n3)
+            .map(|i| ggt[(i, i)])
+            .fold(0.0f64, f64::max)
+            .max(1e-300);
+        let free: Vec<(usize, usize)> = (0..n3)
+            .filter(|&i| ggt[(i, i)] <= 1e-12 * scale)
+            .map(|i| (i / 3, i % 3))
+            .collect();
+        if !free.is_empty() {
+            return Err(CoarseError { free_modes: free });
+        }
+        let l = match ggt.llt(Side::Lower) {
+            Ok(llt) => llt.L().to_owned(),
+            Err(_) => {
+                return Err(CoarseError {
+                    free_modes: null_modes(&ggt),
+                })
+            }
+        };
+        let min_pivot = (0..n3).map(|i| l[(i, i)]).fold(f64::INFINITY, f64::min);
+        if min_pivot * min_pivot <= 1e-12 * scale {
+            return Err(CoarseError {
+                free_modes: null_modes(&ggt),
+            });
+        }
+        let work = subs
+            .iter()
+            .zip(&local)
+            .map(|(s, lr)| {
+                Mutex::new(Work {
+                    x: vec![0.0; s.n],
+                    y: vec![0.0; lr.rows.len()],
+                })
+            })
+            .collect();
+        Ok(Dual {
+            subs,
+            local,
+            m,
+            g,
+            l,
+            work,
+            f_applications: AtomicUsize::new(0),
+        })
+    }
+
+    /// Kernel dimension in all (3 per subdomain).
+    pub fn kernel_dim(&self) -> usize {
+        3 * self.subs.len()
+    }
+
+    /// `y = F x`, subdomains in parallel, summed in a fixed order (deterministic).
+    pub fn apply_f(&self, x: &[f64], y: &mut [f64]) {
+        self.f_applications.fetch_add(1, Ordering::Relaxed);
+        self.subs.par_iter().enumerate().for_each(|(s, sub)| {
+            let mut guard = match self.work[s].lock() {
+                Ok(g) => g,
+                Err(p) => p.into_inner(),
+            };
+            let w = &mut *guard;
+            self.local[s].scatter_t(x, &mut w.x);
+            sub.apply_pinv(&mut w.x);
+            self.local[s].gather(&w.x, &mut w.y);
+        });
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for (s, lr) in self.local.iter().enumerate() {
+            let guard = match self.work[s].lock() {
+                Ok(g) => g,
+                Err(p) => p.into_inner(),
+            };
+            for (k, &row) in lr.rows.iter().enumerate() {
+                y[row] += guard.y[k];
+            }
+        }
+    }
+
+    /// `z = G x` (3N entries, not orthonormalized).
+    pub fn apply_g_raw(&self, x: &[f64], z: &mut [f64]) {
+        for (s, lr) in self.local.iter().enumerate() {
+            let nr = lr.rows.len();
+            for j in 0..3 {
+                z[3 * s + j] = (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
+            }
+        }
+    }
+
+    /// `x = G^T z` (not orthonormalized).
+    pub fn apply_gt_raw(&self, z: &[f64], x: &mut [f64]) {
+        x.iter_mut().for_each(|v| *v = 0.0);
+        for (s, lr) in self.local.iter().enumerate() {
+            let nr = lr.rows.len();
+            for k in 0..nr {
+                x[lr.rows[k]] += (0..3)
+                    .map(|j| self.g[s][j * nr + k] * z[3 * s + j])
+                    .sum::<f64>();
+            }
+        }
+    }
+
+    /// `z <- L^-1 z`.
+    pub fn solve_l(&self, z: &mut [f64]) {
+        let n = z.len();
+        solve_lower_triangular_in_place(
+            self.l.as_ref(),
+            MatMut::from_column_major_slice_mut(z, n, 1),
+            Par::Seq,
+        );
+    }
+
+    /// `z <- L^-T z`.
+    pub fn solve_lt(&self, z: &mut [f64]) {
+        let n = z.len();
+        solve_upper_triangular_in_place(
+            self.l.as_ref().transpose(),
+            MatMut::from_column_major_slice_mut(z, n, 1),
+            Par::Seq,
+        );
+    }
+
+    /// `x <- P x = x - G~^T G~ x`.
+    pub fn project(&self, x: &mut [f64]) {
+        let mut z = vec![0.0; self.kernel_dim()];
+        self.apply_g_raw(x, &mut z);
+        self.solve_l(&mut z);
+        self.solve_lt(&mut z);
+        let mut t = vec![0.0; x.len()];
+        self.apply_gt_raw(&z, &mut t);
+        for (a, b) in x.iter_mut().zip(&t) {
+            *a -= b;
+        }
+    }
+}
+
+/// Names the rigid modes in the null space of `G G^T` (eigenvectors of its
+/// smallest eigenvalues), by their largest entries.
+fn null_modes(ggt: &Mat<f64>) -> Vec<(usize, usize)> {
+    let n = ggt.nrows();
+    let Ok(evd) = ggt.self_adjoint_eigen(Side::Lower) else {
+        return Vec::new();
+    };
+    let s = evd.S();
+    let u = evd.U();
+    let max = (0..n).map(|i| s[i].abs()).fold(0.0f64, f64::max);
+    let mut out = Vec::new();
+    for i in 0..n {
+        if s[i].abs() <= 1e-10 * max {
+            let k = (0..n)
+                .max_by(|&a, &b| u[(a, i)].abs().total_cmp(&u[(b, i)].abs()))
+                .unwrap_or(0);
+            out.push((k / 3, k % 3));
+        }
+    }
+    out
+}
+
+/// `P F P` as the SMALBE Hessian.
+pub struct ProjectedF<'a>(pub &'a Dual);
+
+impl Operator for ProjectedF<'_> {
+    fn dim(&self) -> usize {
+        self.0.m
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut t = x.to_vec();
+        self.0.project(&mut t);
+        self.0.apply_f(&t, y);
+        self.0.project(y);
+    }
+}
+
+/// `G~ = L^-1 G` with orthonormal rows.
+pub struct Orthonormal<'a>(pub &'a Dual);
+
+impl Equality for Orthonormal<'_> {
+    fn rows(&self) -> usize {
+        self.0.kernel_dim()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        self.0.apply_g_raw(x, y);
+        self.0.solve_l(y);
+    }
+
+    fn apply_t(&self, y: &[f64], x: &mut [f64]) {
+        let mut z = y.to_vec();
+        self.0.solve_lt(&mut z);
+        self.0.apply_gt_raw(&z, x);
+    }
+}

@@ -1,0 +1,4 @@
+//! Total FETI: per-subdomain operators and the dual problem.
+
+pub mod dual;
+pub mod subdomain;
