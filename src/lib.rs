@@ -13,6 +13,7 @@ pub mod io;
 pub mod lang;
 pub mod model;
 pub mod qp;
+pub mod state;
 pub mod tfeti;
 
 /// Memory a scene may use on this machine: 80% of physical memory (Linux

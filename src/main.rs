@@ -35,6 +35,17 @@ enum Command {
         #[arg(required = true)]
         files: Vec<PathBuf>,
     },
+    /// Solve the contact state of a 2D scene by Total FETI (SMALBE + MPRGP).
+    Solve {
+        /// The `.cso` file.
+        file: PathBuf,
+        /// Write report.json, one .vtu per body and SVG plots into this folder.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
     /// Check a scene and print what the compiler understood.
     Compile {
         /// The `.cso` file.
@@ -106,6 +117,13 @@ fn main() -> ExitCode {
             }
             ExitCode::from(worst)
         }
+        Command::Solve { file, out, threads } => {
+            let scene = match load(file, &opts) {
+                Ok(s) => s,
+                Err(code) => return ExitCode::from(code),
+            };
+            solve_command(&scene, file, out.as_deref(), *threads)
+        }
         Command::Compile { file, json } => match load(file, &opts) {
             Ok(scene) => {
                 let summary = summarize(&scene);
@@ -147,4 +165,69 @@ fn load(path: &Path, opts: &CheckOptions) -> Result<cso::lang::Scene, u8> {
         );
         EXIT_SCENE
     })
+}
+
+/// `cso solve`: the state solve with a progress line, the summary, and the files.
+fn solve_command(
+    scene: &cso::lang::Scene,
+    file: &Path,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+    {
+        Ok(p) => p,
+        Err(e) => {
+            errln!("error: cannot start threads: {e}");
+            return ExitCode::from(EXIT_IO);
+        }
+    };
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    let design = scene.design_init();
+    let result = pool.install(|| {
+        cso::state::solve(scene, &design, &mut |info| {
+            bar.set_message(format!(
+                "outer {} inner {} Hessian applications {} |g^P|/|b| {:.1e}",
+                info.outer_iterations,
+                info.inner_iterations,
+                info.hessian_applications,
+                info.history.last().copied().unwrap_or(f64::NAN)
+            ));
+            bar.tick();
+        })
+    });
+    bar.finish_and_clear();
+    match result {
+        Ok(state) => {
+            let report = cso::io::report::Report::new(scene, &state);
+            out!("{}", report.summary_text());
+            if let Some(dir) = out {
+                if let Err(e) = cso::io::report::write_all(dir, scene, &state, &report) {
+                    errln!("error: cannot write results to {}: {e}", dir.display());
+                    return ExitCode::from(EXIT_IO);
+                }
+                outln!("results written to {}", dir.display());
+            }
+            if state.converged() {
+                ExitCode::SUCCESS
+            } else {
+                errln!(
+                    "error: {} did not converge: {:?}",
+                    file.display(),
+                    state.info.status
+                );
+                ExitCode::from(EXIT_SCENE)
+            }
+        }
+        Err(e) => {
+            errln!("error: {}: {e}", file.display());
+            ExitCode::from(EXIT_SCENE)
+        }
+    }
 }

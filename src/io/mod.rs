@@ -2,5 +2,6 @@
 
 pub mod atomic;
 pub mod plot;
+pub mod report;
 pub mod summary;
 pub mod vtu;

@@ -73,8 +73,9 @@ const PALETTE: [RGBColor; 10] = [
 ///
 /// With `log_x`/`log_y` the axis is logarithmic and points with a non-positive
 /// coordinate on it are skipped (a residual that reached exactly zero has no
-/// place on a log axis). Non-finite points are skipped too; the line joins
-/// the neighbours of a skipped point.
+/// place on a log axis). Non-finite points and magnitudes beyond 1e300 are
+/// skipped too, as are points more than 200 decades below a log axis' top;
+/// the line joins the neighbours of a skipped point.
 ///
 /// # Errors
 /// [`PlotError::Input`] when a series' `x` and `y` differ in length;
@@ -109,6 +110,15 @@ pub fn line_chart(
         .collect();
     let xr = axis_range(lines.iter().flatten().map(|p| p.0), log_x);
     let yr = axis_range(lines.iter().flatten().map(|p| p.1), log_y);
+    // Only a log axis spanning more than MAX_DECADES drops points here.
+    let lines: Vec<Vec<(f64, f64)>> = lines
+        .into_iter()
+        .map(|line| {
+            line.into_iter()
+                .filter(|(x, y)| xr.contains(x) && yr.contains(y))
+                .collect()
+        })
+        .collect();
     let names: Vec<&str> = series.iter().map(|s| s.name).collect();
     let text = ChartText {
         title,
@@ -204,13 +214,29 @@ where
     Ok(())
 }
 
+/// Largest magnitude drawn. plotters' tick generation never returns when an
+/// axis' width (or, on a log axis, its ratio) overflows to infinity, and
+/// values this large are not results anyone plots, so they are skipped like
+/// non-finite ones.
+const MAX_SHOWN: f64 = 1e300;
+
+/// Most decades a log axis spans (its ratio must stay finite, see
+/// [`MAX_SHOWN`]); when the data span more, the lowest are cut off.
+const MAX_DECADES: f64 = 200.0;
+
+/// Smallest axis width relative to the values' magnitude. Narrower ranges make
+/// plotters' tick rounding work at the limit of f64 precision; data that vary
+/// less than this are drawn as flat.
+const MIN_REL_WIDTH: f64 = 1e-6;
+
 /// Whether a coordinate can be placed on its axis.
 fn shown(v: f64, log: bool) -> bool {
-    v.is_finite() && (!log || v > 0.0)
+    v.is_finite() && v.abs() <= MAX_SHOWN && (!log || v >= 1.0 / MAX_SHOWN)
 }
 
 /// The axis range covering `values` with a little room, never empty or
-/// degenerate (plotters divides by its width), and positive on a log axis.
+/// degenerate (plotters divides by its width), positive on a log axis, and
+/// within the limits above.
 fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
     let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| {
         (lo.min(v), hi.max(v))
@@ -220,29 +246,23 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
     }
     if log {
         // Padding by a constant factor is a constant distance on the log axis.
-        let (lo, hi) = if hi / lo < 1.0 + 1e-9 {
-            (lo / 2.0, hi * 2.0)
+        let lo = lo.max(hi / 10f64.powf(MAX_DECADES));
+        if hi / lo < 1.0 + MIN_REL_WIDTH {
+            (lo / 2.0)..(hi * 2.0)
         } else {
-            (lo / 1.1, hi * 1.1)
-        };
-        // Above 1e300 the padded end overflows; clamp to what still has a log.
-        (lo.max(f64::MIN_POSITIVE))..(hi.min(f64::MAX))
+            (lo / 1.1)..(hi * 1.1)
+        }
     } else {
+        let mag = lo.abs().max(hi.abs());
         let width = hi - lo;
-        let pad = if width > 0.0 && width.is_finite() {
+        let pad = if width > MIN_REL_WIDTH * mag {
             0.05 * width
-        } else if lo != 0.0 && lo.is_finite() {
-            0.5 * lo.abs()
+        } else if mag > 0.0 {
+            0.5 * mag
         } else {
             0.5
         };
-        let (a, b) = (lo - pad, hi + pad);
-        if a.is_finite() && b.is_finite() && a < b {
-            a..b
-        } else {
-            // Ranges near f64::MAX: unpadded, which plotters still draws.
-            lo.min(hi - 1.0)..hi
-        }
+        (lo - pad)..(hi + pad)
     }
 }
 
@@ -288,8 +308,8 @@ const OUTLINE: RGBColor = RGBColor(150, 150, 150);
 /// `outline` polylines (the undeformed body, an obstacle) are drawn over the
 /// cells as thin grey lines.
 ///
-/// Cells with a non-finite corner are skipped; a non-finite value is drawn
-/// grey and left out of the colour scale.
+/// Cells with a non-finite corner (or one beyond 1e300) are skipped; a
+/// non-finite value is drawn grey and left out of the colour scale.
 ///
 /// # Errors
 /// [`PlotError::Input`] when `values` does not have one entry per cell or a
@@ -322,7 +342,7 @@ pub fn mesh_plot(
         )));
     }
 
-    let finite = |p: &[f64; 2]| p[0].is_finite() && p[1].is_finite();
+    let finite = |p: &[f64; 2]| p.iter().all(|&v| shown(v, false));
     let drawn: Vec<usize> = (0..cells.len())
         .filter(|&c| cells[c].iter().all(|&i| finite(&points[i])))
         .collect();
@@ -390,8 +410,9 @@ pub fn mesh_plot(
 
         let fill = |c: usize| match (values, scale) {
             (Some(v), Some((lo, hi))) if v[c].is_finite() => {
+                // Halved so that a range of +-1e300 does not overflow.
                 let t = if hi > lo {
-                    (v[c] - lo) / (hi - lo)
+                    (0.5 * v[c] - 0.5 * lo) / (0.5 * hi - 0.5 * lo)
                 } else {
                     0.5
                 };
@@ -438,14 +459,18 @@ pub fn mesh_plot(
 /// with the same data units per pixel on both axes of a `w x h` pixel area.
 fn equal_aspect(x: [f64; 2], y: [f64; 2], (w, h): (u32, u32)) -> (Range<f64>, Range<f64>) {
     let (w, h) = (f64::from(w.max(1)), f64::from(h.max(1)));
-    let mut dx = (x[1] - x[0]) * 1.04;
-    let mut dy = (y[1] - y[0]) * 1.04;
-    if !(dx > 0.0 || dy > 0.0) {
-        // A single point: show one unit around it.
-        dx = 1.0;
-        dy = 1.0;
-    }
-    let per_px = (dx / w).max(dy / h);
+    let (dx, dy) = ((x[1] - x[0]) * 1.04, (y[1] - y[0]) * 1.04);
+    let mag = [x[0], x[1], y[0], y[1]]
+        .iter()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    // Never narrower than MIN_REL_WIDTH of the magnitude (see there); a
+    // single point gets a window a tenth of its distance from the origin.
+    let floor = match (dx.max(dy) > 0.0, mag > 0.0) {
+        (true, _) => MIN_REL_WIDTH * mag,
+        (false, true) => 0.1 * mag,
+        (false, false) => 1.0,
+    };
+    let per_px = (dx.max(floor) / w).max(dy.max(floor) / h);
     let (hx, hy) = (0.5 * per_px * w, 0.5 * per_px * h);
     let (cx, cy) = (0.5 * (x[0] + x[1]), 0.5 * (y[0] + y[1]));
     ((cx - hx)..(cx + hx), (cy - hy)..(cy + hy))
@@ -681,71 +706,54 @@ mod tests {
         )
         .unwrap();
         assert!(series_lines(&svg).is_empty());
-        // Extreme magnitudes.
-        let svg = line_chart(
-            "huge",
-            "x",
-            "y",
-            &[Series {
-                name: "h",
-                x: &[1e-300, 1e300],
-                y: &[f64::MIN_POSITIVE, f64::MAX],
-            }],
-            true,
-            true,
-        )
-        .unwrap();
-        assert_eq!(series_lines(&svg).len(), 1);
-        let svg = line_chart(
-            "huge",
-            "x",
-            "y",
-            &[Series {
-                name: "h",
-                x: &[-f64::MAX, f64::MAX],
-                y: &[f64::MAX, f64::MAX],
-            }],
-            false,
-            false,
-        )
-        .unwrap();
-        assert_eq!(series_lines(&svg).len(), 1);
     }
 
+    /// plotters' tick generation never returns on axes whose width or ratio
+    /// overflows: these must finish (run under a timeout when changing them).
     #[test]
-    fn zz_dump() {
-        let x = [1.0, 2.0, 3.0, 4.0];
-        let svg = line_chart(
-            "Residual",
-            "iteration",
-            "relative residual",
-            &[
-                Series {
-                    name: "MPRGP",
-                    x: &x,
-                    y: &[1.0, 0.5, 0.25, 0.125],
-                },
-                Series {
-                    name: "SMALBE",
-                    x: &x,
-                    y: &[2.0, 1.0, 0.1, 0.01],
-                },
-            ],
-            false,
-            true,
-        )
-        .unwrap();
-        std::fs::write("/tmp/plotdev/line.svg", svg).unwrap();
-        let (points, cells) = grid(2);
-        let svg = mesh_plot(
-            "von Mises",
-            &points,
-            &cells,
-            Some(&[1.0, 2.0, 3.0, 4.0]),
-            &[],
-        )
-        .unwrap();
-        std::fs::write("/tmp/plotdev/mesh.svg", svg).unwrap();
+    fn extreme_magnitudes_finish() {
+        let lines = |svg: &str| series_lines(svg).iter().map(Vec::len).collect::<Vec<_>>();
+        let log = |x: &[f64], y: &[f64]| {
+            line_chart("huge", "x", "y", &[Series { name: "h", x, y }], true, true).unwrap()
+        };
+        let lin = |x: &[f64], y: &[f64]| {
+            line_chart(
+                "huge",
+                "x",
+                "y",
+                &[Series { name: "h", x, y }],
+                false,
+                false,
+            )
+            .unwrap()
+        };
+        // 600 decades: the lowest are cut at 200 below the top.
+        let svg = log(&[1e-300, 1e150, 1e300], &[1.0, 1e100, 1e250]);
+        assert_eq!(lines(&svg), [2]);
+        assert!(lines(&log(&[f64::MIN_POSITIVE, f64::MAX], &[1.0, 1.0])).is_empty());
+        let svg = lin(&[-f64::MAX, -1e300, 1e300, f64::MAX], &[0.0, 1.0, 2.0, 3.0]);
+        assert_eq!(lines(&svg), [2]);
+        let svg = lin(&[1.0, 2.0, 3.0], &[1e15, 1e15 + 0.125, 1e15]);
+        assert_eq!(lines(&svg), [3]);
+        let svg = lin(&[1e-300, 2e-300, 3e-300], &[-1e-300, 0.0, 5e-324]);
+        assert_eq!(lines(&svg), [3]);
+
+        for (scale, offset) in [(4e299, 0.0), (1e-300, 0.0), (1.0, 1e15), (1e-10, 1e10)] {
+            let (mut points, cells) = grid(2);
+            for p in &mut points {
+                p[0] = p[0] * scale + offset;
+                p[1] = p[1] * scale - offset;
+            }
+            let svg = mesh_plot(
+                "huge",
+                &points,
+                &cells,
+                Some(&[1e300, -1e300, 0.0, 1.0]),
+                &[],
+            )
+            .unwrap();
+            assert_eq!(shapes(&svg, "polygon").len(), 4, "{scale} {offset}");
+        }
     }
 
     #[test]

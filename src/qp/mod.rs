@@ -8,7 +8,7 @@
 mod mprgp;
 mod smalbe;
 
-pub use mprgp::{mprgp, MprgpSettings};
+pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
 pub use smalbe::{smalbe, SmalbeSettings};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.

@@ -442,7 +442,7 @@ pub(super) fn start_vector(v: &mut [f64]) {
 /// # Reference
 /// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 5
 /// (the choice `a_bar <= 2 / ||A||`).
-pub(super) fn estimate_norm(
+pub fn estimate_norm(
     a: &dyn Operator,
     v: &mut [f64],
     w: &mut [f64],

@@ -264,8 +264,10 @@ fn null_modes(ggt: &Mat<f64>) -> Vec<(usize, usize)> {
     out
 }
 
-/// `P F P` as the SMALBE Hessian.
-pub struct ProjectedF<'a>(pub &'a Dual);
+/// `P F P / ||P F P||` as the SMALBE Hessian. Scaling by the norm makes the
+/// dual problem dimensionless, so that SMALBE's tests `||g^P|| <= eps ||b||`
+/// and `||G l|| <= eps ||b||` compare like with like whatever the stiffness.
+pub struct ProjectedF<'a>(pub &'a Dual, pub f64);
 
 impl Operator for ProjectedF<'_> {
     fn dim(&self) -> usize {
@@ -277,6 +279,8 @@ impl Operator for ProjectedF<'_> {
         self.0.project(&mut t);
         self.0.apply_f(&t, y);
         self.0.project(y);
+        let scale = self.1;
+        y.iter_mut().for_each(|v| *v *= scale);
     }
 }
 

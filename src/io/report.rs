@@ -1,0 +1,477 @@
+//! What `cso solve` reports: a summary for people, `report.json` for programs,
+//! one `.vtu` per body for ParaView and SVG plots.
+//!
+//! # `report.json` (all values SI: m, N, Pa, J, s)
+//! - `scene`, `sizes`: primal unknowns and multipliers (the seed's "Primal/Dual
+//!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros;
+//! - `solver`: status, outer/inner iterations, Hessian applications (`F` products
+//!   inside SMALBE) and all `F` applications, tolerance, `history` (relative
+//!   projected gradient after each outer iteration);
+//! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
+//! - `energy` (1/2 u^T K u), `compliance` (f^T u);
+//! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
+//! - `contacts`: per contact total normal force, active count and per node
+//!   `x`, `y`, `gap` (after deformation), `multiplier` (normal force, N) and
+//!   `pressure` (force over the node's tributary area);
+//! - `probes`: `ux`, `uy` at the node nearest to each probe point.
+
+use crate::fem::quad::{plane_strain, quad_strain_at};
+use crate::io::atomic::write_atomic;
+use crate::io::plot::{line_chart, mesh_plot, Series};
+use crate::io::vtu::{vtu_string, CellType, Field, VtuMesh};
+use crate::lang::diag::{num, round6};
+use crate::lang::scene::Scene;
+use crate::model::{RowCounts, RowKind};
+use crate::qp::Status;
+use crate::state::{Kkt, State, Times};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::path::Path;
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Sizes {
+    pub primal: usize,
+    pub dual: usize,
+    pub multipliers: RowCounts,
+    pub kernel: usize,
+    pub subdomains: usize,
+    pub factor_nonzeros: usize,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct SolverReport {
+    pub status: Status,
+    pub outer_iterations: usize,
+    pub inner_iterations: usize,
+    pub hessian_applications: usize,
+    pub f_applications: usize,
+    pub tolerance: f64,
+    /// Final `||g^P|| / ||b||` and `||G l|| / ||b||` of the dual problem.
+    pub projected_gradient: f64,
+    pub feasibility: f64,
+    pub history: Vec<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ContactNode {
+    pub x: f64,
+    pub y: f64,
+    pub gap: f64,
+    pub multiplier: f64,
+    pub pressure: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ContactReport {
+    pub name: String,
+    pub total_force: f64,
+    pub active: usize,
+    pub nodes: Vec<ContactNode>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct BodyReport {
+    pub name: String,
+    pub max_abs_u: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct ProbeReport {
+    pub name: String,
+    pub x: f64,
+    pub y: f64,
+    pub ux: f64,
+    pub uy: f64,
+}
+
+/// The wire format of `report.json`.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    pub scene: String,
+    pub sizes: Sizes,
+    pub solver: SolverReport,
+    pub times: Times,
+    pub kkt: Kkt,
+    pub energy: f64,
+    pub compliance: f64,
+    pub bodies: Vec<BodyReport>,
+    pub contacts: Vec<ContactReport>,
+    pub probes: Vec<ProbeReport>,
+}
+
+impl Report {
+    pub fn new(scene: &Scene, state: &State) -> Report {
+        let p = &state.problem;
+        let sizes = Sizes {
+            primal: p.primal_dofs(),
+            dual: p.rows.len(),
+            multipliers: p.row_counts(),
+            kernel: state.dual.kernel_dim(),
+            subdomains: p.subdomains.len(),
+            factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
+        };
+        let solver = SolverReport {
+            status: state.info.status.clone(),
+            outer_iterations: state.info.outer_iterations,
+            inner_iterations: state.info.inner_iterations,
+            hessian_applications: state.info.hessian_applications,
+            f_applications: state.f_applications,
+            tolerance: scene.solver.tolerance,
+            projected_gradient: state.info.projected_gradient / state.b_norm.max(f64::MIN_POSITIVE),
+            feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
+            history: state.info.history.clone(),
+        };
+        let bodies = p
+            .bodies
+            .iter()
+            .enumerate()
+            .map(|(b, body)| BodyReport {
+                name: body.name.clone(),
+                max_abs_u: (0..body.coords.len())
+                    .map(|n| {
+                        let u = state.node_displacement(b, n);
+                        (u[0] * u[0] + u[1] * u[1]).sqrt()
+                    })
+                    .fold(0.0, f64::max),
+            })
+            .collect();
+        let bu = row_values(state);
+        let mut contacts: Vec<ContactReport> = scene
+            .contacts
+            .iter()
+            .map(|c| ContactReport {
+                name: c.name.clone(),
+                total_force: 0.0,
+                active: 0,
+                nodes: Vec::new(),
+            })
+            .collect();
+        let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        for (i, row) in p.rows.iter().enumerate() {
+            if let RowKind::Contact {
+                contact,
+                body,
+                node,
+                area,
+                ..
+            } = row.kind
+            {
+                let force = state.lambda[i] / row.scale;
+                let gap = (row.c - bu[i]) * row.scale;
+                let c = &mut contacts[contact];
+                c.total_force += force;
+                if state.lambda[i] > 1e-8 * lmax {
+                    c.active += 1;
+                }
+                let x = p.bodies[body].coords[node];
+                c.nodes.push(ContactNode {
+                    x: x[0],
+                    y: x[1],
+                    gap,
+                    multiplier: force,
+                    pressure: if area > 0.0 { force / area } else { 0.0 },
+                });
+            }
+        }
+        for c in &mut contacts {
+            c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
+        }
+        let probes = scene
+            .probes
+            .iter()
+            .zip(&p.probes)
+            .map(|(pr, &(b, n))| {
+                let u = state.node_displacement(b, n);
+                let x = p.bodies[b].coords[n];
+                ProbeReport {
+                    name: pr.name.clone(),
+                    x: x[0],
+                    y: x[1],
+                    ux: u[0],
+                    uy: u[1],
+                }
+            })
+            .collect();
+        Report {
+            scene: scene.name.clone(),
+            sizes,
+            solver,
+            times: state.times.clone(),
+            kkt: state.kkt.clone(),
+            energy: state.energy(),
+            compliance: state.compliance(),
+            bodies,
+            contacts,
+            probes,
+        }
+    }
+
+    /// The summary printed by `cso solve`. With `timings = false` (snapshots) the
+    /// machine-dependent times are left out.
+    pub fn summary(&self, timings: bool) -> String {
+        let mut o = String::new();
+        let s = &self.sizes;
+        let m = &s.multipliers;
+        let _ = writeln!(o, "scene {}: solved by TFETI (SMALBE + MPRGP)", self.scene);
+        let _ = writeln!(
+            o,
+            "  primal/dual unknowns {}/{} (gluing {}, supports {}, symmetry {}, ties {}, contact {}), kernel {}, {} subdomains",
+            s.primal, s.dual, m.gluing, m.dirichlet, m.symmetry, m.ties, m.contact, s.kernel, s.subdomains
+        );
+        let v = &self.solver;
+        let status = match &v.status {
+            Status::Converged => "converged".to_string(),
+            Status::MaxIterations => "stopped at the iteration limit".to_string(),
+            Status::Breakdown(c) => format!("broke down: {c}"),
+        };
+        let _ = writeln!(
+            o,
+            "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {})",
+            v.outer_iterations,
+            v.inner_iterations,
+            v.hessian_applications,
+            num(v.tolerance)
+        );
+        if timings {
+            let t = &self.times;
+            let _ = writeln!(
+                o,
+                "  time {:.3} s (lower {:.3}, factorize {:.3}, coarse {:.3}, solve {:.3}, reconstruct {:.3})",
+                t.total, t.lower, t.factorize, t.coarse, t.solve, t.reconstruct
+            );
+        }
+        let k = &self.kkt;
+        let _ = writeln!(
+            o,
+            "  KKT residuals: equilibrium {}, equalities {}, penetration {}, sign {}, complementarity {}",
+            bucket(k.equilibrium),
+            bucket(k.equality),
+            bucket(k.penetration),
+            bucket(k.sign),
+            bucket(k.complementarity)
+        );
+        let _ = writeln!(
+            o,
+            "  energy {} J, compliance {} J",
+            num(self.energy),
+            num(self.compliance)
+        );
+        for b in &self.bodies {
+            let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
+        }
+        for c in &self.contacts {
+            let peak = c.nodes.iter().map(|n| n.pressure).fold(0.0, f64::max);
+            let _ = writeln!(
+                o,
+                "  contact {:<8} force {} N, {} of {} nodes active, peak pressure {} Pa",
+                c.name,
+                num(c.total_force),
+                c.active,
+                c.nodes.len(),
+                num(peak)
+            );
+        }
+        for p in &self.probes {
+            let _ = writeln!(
+                o,
+                "  probe {:<10} ux {} m, uy {} m",
+                p.name,
+                num(p.ux),
+                num(p.uy)
+            );
+        }
+        o
+    }
+
+    pub fn summary_text(&self) -> String {
+        self.summary(true)
+    }
+}
+
+/// A residual as an order of magnitude bound, stable across machines: "< 1e-9".
+pub fn bucket(x: f64) -> String {
+    if x == 0.0 {
+        return "0".into();
+    }
+    let e = x.log10().ceil() as i32;
+    format!("< 1e{e}")
+}
+
+/// `B u` per row.
+fn row_values(state: &State) -> Vec<f64> {
+    let mut bu = vec![0.0; state.lambda.len()];
+    for (s, lr) in state.dual.local.iter().enumerate() {
+        let mut y = vec![0.0; lr.rows.len()];
+        lr.gather(&state.u[s], &mut y);
+        for (k, &row) in lr.rows.iter().enumerate() {
+            bu[row] += y[k];
+        }
+    }
+    bu
+}
+
+/// Writes `report.json`, `BODY.vtu` per body, `contact_NAME.svg` per contact and
+/// `deformed.svg`, each atomically.
+pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let json = serde_json::to_string_pretty(report).map_err(std::io::Error::other)?;
+    write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    let p = &state.problem;
+    let mut outline = Vec::new();
+    let mut all_points = Vec::new();
+    let mut all_cells = Vec::new();
+    let mut all_vm = Vec::new();
+    let umax = report
+        .bodies
+        .iter()
+        .map(|b| b.max_abs_u)
+        .fold(0.0, f64::max);
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for b in &p.bodies {
+        for c in &b.coords {
+            for a in 0..2 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+    }
+    let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    // Deformed shape magnified so the largest displacement is 5% of the scene.
+    let magnify = if umax > 0.0 { 0.05 * size / umax } else { 0.0 };
+    for (b, body) in p.bodies.iter().enumerate() {
+        let n = body.coords.len();
+        let disp: Vec<[f64; 3]> = (0..n)
+            .map(|k| {
+                let u = state.node_displacement(b, k);
+                [u[0], u[1], 0.0]
+            })
+            .collect();
+        let points: Vec<[f64; 3]> = body.coords.iter().map(|c| [c[0], c[1], 0.0]).collect();
+        let mut cells = Vec::new();
+        let mut subdomain = Vec::new();
+        let mut stress = Vec::new();
+        let mut von_mises = Vec::new();
+        let first = body.first_subdomain;
+        for s in first..first + body.sx * body.sy {
+            let m = &p.subdomains[s];
+            let d = plane_strain(m.young, m.poisson);
+            for e in &m.elements {
+                cells.push(e.iter().map(|&l| m.grid[l]).collect::<Vec<usize>>());
+                subdomain.push(s as i64);
+                let x = [
+                    m.coords[e[0]],
+                    m.coords[e[1]],
+                    m.coords[e[2]],
+                    m.coords[e[3]],
+                ];
+                let mut ue = [0.0; 8];
+                for k in 0..4 {
+                    ue[2 * k] = state.u[s][2 * e[k]];
+                    ue[2 * k + 1] = state.u[s][2 * e[k] + 1];
+                }
+                let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
+                let sig: Vec<f64> = (0..3)
+                    .map(|r| (0..3).map(|c| d[r][c] * eps[c]).sum())
+                    .collect();
+                let szz = m.poisson * (sig[0] + sig[1]);
+                let vm = (0.5
+                    * ((sig[0] - sig[1]).powi(2)
+                        + (sig[1] - szz).powi(2)
+                        + (szz - sig[0]).powi(2))
+                    + 3.0 * sig[2] * sig[2])
+                    .sqrt();
+                stress.push([sig[0], sig[1], sig[2]]);
+                von_mises.push(vm);
+            }
+        }
+        let mut pressure = vec![0.0; n];
+        for (i, row) in p.rows.iter().enumerate() {
+            if let RowKind::Contact {
+                body: cb,
+                node,
+                area,
+                ..
+            } = row.kind
+            {
+                if cb == b && area > 0.0 {
+                    pressure[node] += state.lambda[i] / row.scale / area;
+                }
+            }
+        }
+        let mesh = VtuMesh {
+            points: &points,
+            cells: &cells,
+            cell_type: CellType::Quad,
+        };
+        let vtu = vtu_string(
+            &mesh,
+            &[
+                ("displacement", Field::Vector(&disp)),
+                ("contact pressure", Field::Scalar(&pressure)),
+            ],
+            &[
+                ("stress (xx, yy, xy)", Field::Vector(&stress)),
+                ("von Mises", Field::Scalar(&von_mises)),
+                ("subdomain", Field::Int(&subdomain)),
+            ],
+        );
+        write_atomic(&dir.join(format!("{}.vtu", body.name)), vtu.as_bytes())?;
+        let base = all_points.len();
+        for (k, c) in body.coords.iter().enumerate() {
+            all_points.push([c[0] + magnify * disp[k][0], c[1] + magnify * disp[k][1]]);
+        }
+        for cell in &cells {
+            all_cells.push([
+                cell[0] + base,
+                cell[1] + base,
+                cell[2] + base,
+                cell[3] + base,
+            ]);
+        }
+        all_vm.extend_from_slice(&von_mises);
+        let ring: Vec<[f64; 2]> = [
+            body.face_nodes(crate::lang::scene::Face::Bottom),
+            body.face_nodes(crate::lang::scene::Face::Right),
+            body.face_nodes(crate::lang::scene::Face::Top)
+                .into_iter()
+                .rev()
+                .collect(),
+            body.face_nodes(crate::lang::scene::Face::Left)
+                .into_iter()
+                .rev()
+                .collect(),
+        ]
+        .concat()
+        .into_iter()
+        .map(|k| body.coords[k])
+        .collect();
+        outline.push(ring);
+    }
+    let title = format!(
+        "{}: deformed (x{}), von Mises stress",
+        scene.name,
+        num(round6(magnify))
+    );
+    let svg = mesh_plot(&title, &all_points, &all_cells, Some(&all_vm), &outline)
+        .map_err(std::io::Error::other)?;
+    write_atomic(&dir.join("deformed.svg"), svg.as_bytes())?;
+    for c in &report.contacts {
+        let x: Vec<f64> = c.nodes.iter().map(|n| n.x).collect();
+        let y: Vec<f64> = c.nodes.iter().map(|n| n.pressure).collect();
+        let svg = line_chart(
+            &format!("{}: contact pressure along `{}`", scene.name, c.name),
+            "x (m)",
+            "pressure (Pa)",
+            &[Series {
+                name: &c.name,
+                x: &x,
+                y: &y,
+            }],
+            false,
+            false,
+        )
+        .map_err(std::io::Error::other)?;
+        write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
+    }
+    Ok(())
+}

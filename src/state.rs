@@ -1,0 +1,468 @@
+//! The state solve: lower the scene, build the subdomains' operators, solve the
+//! TFETI dual by SMALBE + MPRGP, reconstruct the displacements, and check the
+//! KKT conditions in primal terms.
+//!
+//! ```text
+//! F = B K^+ B^T,  d = B K^+ f - c,  G = R^T B^T,  e = R^T f
+//! min 1/2 l^T F l - l^T d   s.t.  l_I >= 0,  G l = e
+//! ```
+//! Homogenized with `l~ = G~^T e~` (G~ orthonormal rows), solved for `l^ = l - l~`
+//! with Hessian `P F P`, linear term `P (d - F l~)`, bounds `l^_I >= -l~_I`.
+
+use crate::lang::scene::Scene;
+use crate::model::{lower, LowerError, Problem, RowKind};
+use crate::qp::{estimate_norm, smalbe, QpInfo, SmalbeSettings, Status};
+use crate::tfeti::dual::{CoarseError, Dual, LocalRows, Orthonormal, ProjectedF};
+use crate::tfeti::subdomain::{Subdomain, SubdomainError};
+use faer::{Mat, Side};
+use rayon::prelude::*;
+use std::fmt;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+/// Wall time of each phase, seconds.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Times {
+    pub lower: f64,
+    pub factorize: f64,
+    pub coarse: f64,
+    pub solve: f64,
+    pub reconstruct: f64,
+    pub total: f64,
+}
+
+/// KKT residuals in primal terms, each relative to a natural scale.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Kkt {
+    /// `||K u - f + B^T l|| / max(||f||, ||B^T l||)`.
+    pub equilibrium: f64,
+    /// `||B_E u - c_E|| / max(||c||, h ||u||)`: gluing, supports, ties.
+    pub equality: f64,
+    /// Largest penetration `max(B_I u - c_I, 0)`, relative like `equality`.
+    pub penetration: f64,
+    /// Largest negative contact multiplier, relative to `max |l|`.
+    pub sign: f64,
+    /// `max |l_i (B_i u - c_i)|` over contact rows, relative to `max |l| * scale`.
+    pub complementarity: f64,
+}
+
+impl Kkt {
+    pub fn worst(&self) -> f64 {
+        [
+            self.equilibrium,
+            self.equality,
+            self.penetration,
+            self.sign,
+            self.complementarity,
+        ]
+        .into_iter()
+        .fold(0.0, f64::max)
+    }
+}
+
+/// A solved state.
+pub struct State {
+    pub problem: Problem,
+    pub dual: Dual,
+    /// Displacements per subdomain (interleaved).
+    pub u: Vec<Vec<f64>>,
+    /// Multipliers of the normalized rows.
+    pub lambda: Vec<f64>,
+    pub alpha: Vec<f64>,
+    pub info: QpInfo,
+    pub times: Times,
+    pub kkt: Kkt,
+    /// Applications of `F` in all (solve, set-up and reconstruction).
+    pub f_applications: usize,
+    /// `||b||` of the homogenized dual problem (the scale of its residuals).
+    pub b_norm: f64,
+}
+
+/// Why a state solve could not run or finish.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolveError {
+    Lower(LowerError),
+    Subdomain {
+        body: String,
+        block: (usize, usize),
+        error: SubdomainError,
+    },
+    /// Rigid motions that no support, glue or contact holds.
+    FreeRigidModes(Vec<String>),
+    /// The multipliers do not determine the rigid motions of some subdomain.
+    Reconstruction(String),
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SolveError::Lower(e) => write!(f, "{e}"),
+            SolveError::Subdomain { body, block, error } => {
+                write!(f, "subdomain ({}, {}) of body `{body}`: {error:?}", block.0, block.1)
+            }
+            SolveError::FreeRigidModes(m) => write!(
+                f,
+                "the scene does not hold every rigid motion: {}; add a support, a glue or a contact that acts in that direction",
+                m.join("; ")
+            ),
+            SolveError::Reconstruction(s) => write!(f, "{s}"),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {}
+
+const MODES: [&str; 3] = ["translation in x", "translation in y", "rotation"];
+
+fn name_modes(problem: &Problem, modes: &[(usize, usize)]) -> Vec<String> {
+    let mut out: Vec<String> = modes
+        .iter()
+        .map(|&(s, m)| {
+            let sub = &problem.subdomains[s];
+            format!("body `{}` ({}) ", problem.bodies[sub.body].name, MODES[m])
+        })
+        .collect();
+    out.sort();
+    out.dedup();
+    out.into_iter().map(|s| s.trim_end().to_string()).collect()
+}
+
+/// Builds the local row lists of every subdomain.
+fn local_rows(problem: &Problem) -> Vec<LocalRows> {
+    let mut local = vec![LocalRows::default(); problem.subdomains.len()];
+    for (r, row) in problem.rows.iter().enumerate() {
+        for &(s, d, v) in &row.entries {
+            let lr = &mut local[s];
+            if lr.rows.last() != Some(&r) {
+                lr.rows.push(r);
+            }
+            let k = lr.rows.len() - 1;
+            lr.entries.push((k, d, v));
+        }
+    }
+    local
+}
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
+pub fn solve(
+    scene: &Scene,
+    design: &[f64],
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
+    let t0 = Instant::now();
+    let mut times = Times::default();
+    let problem = lower(scene, design).map_err(SolveError::Lower)?;
+    times.lower = t0.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let subs: Vec<Result<Subdomain, SolveError>> = problem
+        .subdomains
+        .par_iter()
+        .map(|m| {
+            let body = &problem.bodies[m.body];
+            Subdomain::new(m, body.h().0).map_err(|error| SolveError::Subdomain {
+                body: body.name.clone(),
+                block: m.block,
+                error,
+            })
+        })
+        .collect();
+    let subs: Vec<Subdomain> = subs.into_iter().collect::<Result<_, _>>()?;
+    times.factorize = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let m = problem.rows.len();
+    let dual = Dual::new(subs, local_rows(&problem), m).map_err(|CoarseError { free_modes }| {
+        SolveError::FreeRigidModes(name_modes(&problem, &free_modes))
+    })?;
+    // d = B K^+ f - c, e = R^T f
+    let mut d = vec![0.0; m];
+    let mut e = vec![0.0; dual.kernel_dim()];
+    for (s, sub) in dual.subs.iter().enumerate() {
+        let f = &problem.subdomains[s].f;
+        for j in 0..3 {
+            e[3 * s + j] = sub.r_col(j).iter().zip(f).map(|(a, b)| a * b).sum();
+        }
+        let mut x = f.clone();
+        sub.apply_pinv(&mut x);
+        let lr = &dual.local[s];
+        let mut y = vec![0.0; lr.rows.len()];
+        lr.gather(&x, &mut y);
+        for (k, &row) in lr.rows.iter().enumerate() {
+            d[row] += y[k];
+        }
+    }
+    for (di, row) in d.iter_mut().zip(&problem.rows) {
+        *di -= row.c;
+    }
+    // l~ = G~^T e~ with e~ = L^-1 e.
+    let mut et = e.clone();
+    dual.solve_l(&mut et);
+    let g = Orthonormal(&dual);
+    let mut l_tilde = vec![0.0; m];
+    crate::qp::Equality::apply_t(&g, &et, &mut l_tilde);
+    let mut fl = vec![0.0; m];
+    dual.apply_f(&l_tilde, &mut fl);
+    let mut b: Vec<f64> = d.iter().zip(&fl).map(|(a, b)| a - b).collect();
+    dual.project(&mut b);
+    let lower_bounds: Vec<f64> = (0..m)
+        .map(|i| {
+            if i < problem.n_equality {
+                f64::NEG_INFINITY
+            } else {
+                -l_tilde[i]
+            }
+        })
+        .collect();
+    times.coarse = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let settings = SmalbeSettings {
+        tolerance: scene.solver.tolerance,
+        max_hessian: scene.solver.max_iterations,
+        // Outer iterations are cheap here (a few MPRGP steps each on contact
+        // scenes); the budget that matters is Hessian applications.
+        max_outer: 1000,
+        ..SmalbeSettings::default()
+    };
+    // ||P F P|| by power iteration from a deterministic start; the dual problem
+    // is solved scaled by it (same minimizer, dimensionless residuals).
+    let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+    dual.project(&mut v);
+    let mut w = vec![0.0; m];
+    let (pfp, _) = estimate_norm(&ProjectedF(&dual, 1.0), &mut v, &mut w, 10);
+    let scale = if pfp > 0.0 && pfp.is_finite() {
+        1.0 / pfp
+    } else {
+        1.0
+    };
+    let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
+    let mut lhat = vec![0.0; m];
+    let info = smalbe(
+        &ProjectedF(&dual, scale),
+        &b,
+        &lower_bounds,
+        &g,
+        &mut lhat,
+        &settings,
+        observer,
+    );
+    let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
+    times.solve = t.elapsed().as_secs_f64();
+
+    let t = Instant::now();
+    let (u, alpha) = reconstruct(&problem, &dual, &lambda, &d)?;
+    let kkt = kkt(&problem, &dual, &u, &lambda);
+    times.reconstruct = t.elapsed().as_secs_f64();
+    times.total = t0.elapsed().as_secs_f64();
+    let f_applications = dual.f_applications.load(Ordering::Relaxed);
+    let b_norm = norm(&b);
+    Ok(State {
+        problem,
+        dual,
+        u,
+        lambda,
+        alpha,
+        info,
+        times,
+        kkt,
+        f_applications,
+        b_norm,
+    })
+}
+
+/// `alpha` from the rows that hold at the solution (equalities and active
+/// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
+/// `u = K^+ (f - B^T l) + R alpha`.
+fn reconstruct(
+    problem: &Problem,
+    dual: &Dual,
+    lambda: &[f64],
+    d: &[f64],
+) -> Result<(Vec<Vec<f64>>, Vec<f64>), SolveError> {
+    let m = lambda.len();
+    let lmax = lambda[problem.n_equality..]
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()));
+    let active: Vec<bool> = (0..m)
+        .map(|i| i < problem.n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
+        .collect();
+    let mut fl = vec![0.0; m];
+    dual.apply_f(lambda, &mut fl);
+    let r: Vec<f64> = (0..m)
+        .map(|i| if active[i] { fl[i] - d[i] } else { 0.0 })
+        .collect();
+    // G~ G~^T and G~ r over the active rows.
+    let n3 = dual.kernel_dim();
+    let mut owners: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m];
+    for (s, lr) in dual.local.iter().enumerate() {
+        for (k, &row) in lr.rows.iter().enumerate() {
+            owners[row].push((s, k));
+        }
+    }
+    let gcol = |s: usize, k: usize, j: usize| -> f64 {
+        // column k of G_s = R_s^T B_s^T, entry j
+        let lr = &dual.local[s];
+        lr.entries
+            .iter()
+            .filter(|(kk, _, _)| *kk == k)
+            .map(|&(_, dof, v)| v * dual.subs[s].r_col(j)[dof])
+            .sum()
+    };
+    let mut gg = Mat::<f64>::zeros(n3, n3);
+    let mut rhs = vec![0.0; n3];
+    for (row, own) in owners.iter().enumerate() {
+        if !active[row] {
+            continue;
+        }
+        let cols: Vec<(usize, [f64; 3])> = own
+            .iter()
+            .map(|&(s, k)| (s, [gcol(s, k, 0), gcol(s, k, 1), gcol(s, k, 2)]))
+            .collect();
+        for &(s, gs) in &cols {
+            for i in 0..3 {
+                rhs[3 * s + i] += gs[i] * r[row];
+            }
+            for &(t, gt) in &cols {
+                for i in 0..3 {
+                    for j in 0..3 {
+                        gg[(3 * s + i, 3 * t + j)] += gs[i] * gt[j];
+                    }
+                }
+            }
+        }
+    }
+    let llt = gg.llt(Side::Lower).map_err(|_| {
+        SolveError::Reconstruction(
+            "the rigid motions are not determined by the supports and the active contacts (a body is held by no active contact)".into(),
+        )
+    })?;
+    let mut alpha = rhs;
+    {
+        use faer::linalg::solvers::SolveCore;
+        llt.solve_in_place_with_conj(
+            faer::Conj::No,
+            faer::MatMut::from_column_major_slice_mut(&mut alpha, n3, 1),
+        );
+    }
+    let u: Vec<Vec<f64>> = dual
+        .subs
+        .par_iter()
+        .enumerate()
+        .map(|(s, sub)| {
+            let lr = &dual.local[s];
+            let mut btl = vec![0.0; sub.n];
+            lr.scatter_t(lambda, &mut btl);
+            let mut x: Vec<f64> = problem.subdomains[s]
+                .f
+                .iter()
+                .zip(&btl)
+                .map(|(f, b)| f - b)
+                .collect();
+            sub.apply_pinv(&mut x);
+            for j in 0..3 {
+                let a = alpha[3 * s + j];
+                for (xi, ri) in x.iter_mut().zip(sub.r_col(j)) {
+                    *xi += a * ri;
+                }
+            }
+            x
+        })
+        .collect();
+    Ok((u, alpha))
+}
+
+/// KKT residuals of the primal problem at `(u, l)`.
+fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
+    let mut eq_res = 0.0;
+    let (mut f2, mut bt2, mut u2) = (0.0, 0.0, 0.0);
+    for (s, sub) in dual.subs.iter().enumerate() {
+        let mut ku = vec![0.0; sub.n];
+        sub.k.mul(&u[s], &mut ku);
+        let mut btl = vec![0.0; sub.n];
+        dual.local[s].scatter_t(lambda, &mut btl);
+        let f = &problem.subdomains[s].f;
+        for i in 0..sub.n {
+            eq_res += (ku[i] - f[i] + btl[i]).powi(2);
+            f2 += f[i] * f[i];
+            bt2 += btl[i] * btl[i];
+            u2 += u[s][i] * u[s][i];
+        }
+    }
+    let mut bu = vec![0.0; lambda.len()];
+    for (s, lr) in dual.local.iter().enumerate() {
+        let mut y = vec![0.0; lr.rows.len()];
+        lr.gather(&u[s], &mut y);
+        for (k, &row) in lr.rows.iter().enumerate() {
+            bu[row] += y[k];
+        }
+    }
+    let c_norm = norm(&problem.rows.iter().map(|r| r.c).collect::<Vec<_>>());
+    let scale_u = c_norm
+        .max(1e-3 * u2.sqrt() / (problem.primal_dofs() as f64).sqrt())
+        .max(f64::MIN_POSITIVE);
+    let lmax = lambda
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(f64::MIN_POSITIVE);
+    let mut k = Kkt {
+        equilibrium: eq_res.sqrt() / f2.sqrt().max(bt2.sqrt()).max(f64::MIN_POSITIVE),
+        ..Kkt::default()
+    };
+    let mut eq2 = 0.0;
+    for (i, row) in problem.rows.iter().enumerate() {
+        let gap = bu[i] - row.c;
+        if matches!(row.kind, RowKind::Contact { .. }) {
+            k.penetration = k.penetration.max(gap.max(0.0) / scale_u);
+            k.sign = k.sign.max((-lambda[i]).max(0.0) / lmax);
+            k.complementarity = k
+                .complementarity
+                .max((lambda[i] * gap).abs() / (lmax * scale_u));
+        } else {
+            eq2 += gap * gap;
+        }
+    }
+    k.equality = eq2.sqrt() / scale_u;
+    k
+}
+
+impl State {
+    /// Has the dual solve converged?
+    pub fn converged(&self) -> bool {
+        self.info.status == Status::Converged
+    }
+
+    /// Displacement of a body's grid node (from its first copy).
+    pub fn node_displacement(&self, body: usize, node: usize) -> [f64; 2] {
+        let (s, l) = self.problem.bodies[body].copies(node)[0];
+        [self.u[s][2 * l], self.u[s][2 * l + 1]]
+    }
+
+    /// `1/2 u^T K u`.
+    pub fn energy(&self) -> f64 {
+        self.dual
+            .subs
+            .iter()
+            .enumerate()
+            .map(|(s, sub)| {
+                let mut ku = vec![0.0; sub.n];
+                sub.k.mul(&self.u[s], &mut ku);
+                0.5 * ku.iter().zip(&self.u[s]).map(|(a, b)| a * b).sum::<f64>()
+            })
+            .sum()
+    }
+
+    /// `f^T u`.
+    pub fn compliance(&self) -> f64 {
+        self.problem
+            .subdomains
+            .iter()
+            .zip(&self.u)
+            .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
+            .sum()
+    }
+}
