@@ -5,6 +5,8 @@ mod diagnostics;
 mod examples;
 mod front_end;
 mod fuzz;
+mod reference;
+mod state;
 
 use std::path::{Path, PathBuf};
 

@@ -210,6 +210,23 @@ impl Report {
     /// machine-dependent times are left out.
     pub fn summary(&self, timings: bool) -> String {
         let mut o = String::new();
+        // For snapshots (timings off): 4 significant digits, and displacements
+        // below the solver's resolution (1e-6 of the largest) shown as 0.
+        let umax = self.bodies.iter().map(|b| b.max_abs_u).fold(0.0, f64::max);
+        let num = |v: f64| {
+            if timings {
+                num(v)
+            } else {
+                num(format!("{v:.3e}").parse().unwrap_or(v))
+            }
+        };
+        let disp = |v: f64| {
+            if !timings && v.abs() < 1e-6 * umax {
+                "0".to_string()
+            } else {
+                num(v)
+            }
+        };
         let s = &self.sizes;
         let m = &s.multipliers;
         let _ = writeln!(o, "scene {}: solved by TFETI (SMALBE + MPRGP)", self.scene);
@@ -276,8 +293,8 @@ impl Report {
                 o,
                 "  probe {:<10} ux {} m, uy {} m",
                 p.name,
-                num(p.ux),
-                num(p.uy)
+                disp(p.ux),
+                disp(p.uy)
             );
         }
         o
