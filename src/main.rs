@@ -1,7 +1,7 @@
 //! The `cso` command: a thin shell over the library.
 
 use clap::{Parser, Subcommand};
-use cso::io::summary::{plural, summarize};
+use cso::io::summary::{plural, summarize, summarize_with_operators};
 use cso::lang::{compile, diag, CheckOptions};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -126,7 +126,7 @@ fn main() -> ExitCode {
         }
         Command::Compile { file, json } => match load(file, &opts) {
             Ok(scene) => {
-                let summary = summarize(&scene);
+                let summary = summarize_with_operators(&scene);
                 if *json {
                     match serde_json::to_string_pretty(&summary) {
                         Ok(s) => outln!("{s}"),

@@ -147,18 +147,12 @@ fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
 }
 
-/// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
-pub fn solve(
-    scene: &Scene,
-    design: &[f64],
-    observer: &mut dyn FnMut(&QpInfo),
-) -> Result<State, SolveError> {
+/// Lowers the scene and builds every subdomain's operators (assembly, kernel,
+/// factorization), in parallel over subdomains. Returns the lowering time too.
+pub fn setup(scene: &Scene, design: &[f64]) -> Result<(Problem, Vec<Subdomain>, f64), SolveError> {
     let t0 = Instant::now();
-    let mut times = Times::default();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
-    times.lower = t0.elapsed().as_secs_f64();
-
-    let t = Instant::now();
+    let lower_time = t0.elapsed().as_secs_f64();
     let subs: Vec<Result<Subdomain, SolveError>> = problem
         .subdomains
         .par_iter()
@@ -172,7 +166,42 @@ pub fn solve(
         })
         .collect();
     let subs: Vec<Subdomain> = subs.into_iter().collect::<Result<_, _>>()?;
-    times.factorize = t.elapsed().as_secs_f64();
+    Ok((problem, subs, lower_time))
+}
+
+/// Sizes of the TFETI operators of a scene, as `cso compile` prints them.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct OperatorSizes {
+    pub primal: usize,
+    pub multipliers: usize,
+    pub by_kind: crate::model::RowCounts,
+    pub kernel: usize,
+    pub factor_nonzeros: usize,
+}
+
+/// Lowers and factorizes (no solve) to report the operators' sizes.
+pub fn operator_sizes(scene: &Scene, design: &[f64]) -> Result<OperatorSizes, SolveError> {
+    let (problem, subs, _) = setup(scene, design)?;
+    Ok(OperatorSizes {
+        primal: problem.primal_dofs(),
+        multipliers: problem.rows.len(),
+        by_kind: problem.row_counts(),
+        kernel: 3 * subs.len(),
+        factor_nonzeros: subs.iter().map(|s| s.factor_nnz).sum(),
+    })
+}
+
+/// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
+pub fn solve(
+    scene: &Scene,
+    design: &[f64],
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
+    let t0 = Instant::now();
+    let mut times = Times::default();
+    let (problem, subs, lower_time) = setup(scene, design)?;
+    times.lower = lower_time;
+    times.factorize = t0.elapsed().as_secs_f64() - lower_time;
 
     let t = Instant::now();
     let m = problem.rows.len();

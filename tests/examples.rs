@@ -1,7 +1,7 @@
 //! Every canonical scene checks as written; its summary is what a user reads.
 
 use crate::{cso_files, options, root};
-use cso::io::summary::summarize;
+use cso::io::summary::summarize_with_operators;
 use cso::lang::compile;
 
 #[test]
@@ -25,7 +25,10 @@ fn every_example_checks_and_its_summary_is_stable() {
                 cso::lang::diag::render(&d, &name, &src)
             ),
         };
-        insta::assert_snapshot!(format!("summary_{name}"), summarize(&scene).to_string());
+        insta::assert_snapshot!(
+            format!("summary_{name}"),
+            summarize_with_operators(&scene).to_string()
+        );
     }
 }
 

@@ -35,6 +35,10 @@ pub struct Summary {
     pub solver: SolverSettings,
     pub sensitivity: SensitivitySettings,
     pub optimize: OptimizeSettings,
+    /// TFETI operator sizes (2D scenes; lowering and factorization, no solve).
+    pub tfeti: Option<crate::state::OperatorSizes>,
+    /// Why there are no operator sizes, when there are none.
+    pub tfeti_note: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -286,7 +290,19 @@ pub fn summarize(scene: &Scene) -> Summary {
         solver: scene.solver.clone(),
         sensitivity: scene.sensitivity.clone(),
         optimize: scene.optimize.clone(),
+        tfeti: None,
+        tfeti_note: None,
     }
+}
+
+/// The summary with the TFETI operators' sizes (lowers and factorizes).
+pub fn summarize_with_operators(scene: &Scene) -> Summary {
+    let mut s = summarize(scene);
+    match crate::state::operator_sizes(scene, &scene.design_init()) {
+        Ok(sizes) => s.tfeti = Some(sizes),
+        Err(e) => s.tfeti_note = Some(e.to_string()),
+    }
+    s
 }
 
 fn section(out: &mut String, title: &str) {
@@ -448,6 +464,25 @@ impl fmt::Display for Summary {
             for c in &self.constraints {
                 let _ = writeln!(o, "  subject to {c}");
             }
+        }
+        if let Some(t) = &self.tfeti {
+            let k = &t.by_kind;
+            section(&mut o, "TFETI operators");
+            let _ = writeln!(
+                o,
+                "  primal unknowns {}, multipliers {} (gluing {}, supports {}, symmetry {}, ties {}, contact {})",
+                t.primal, t.multipliers, k.gluing, k.dirichlet, k.symmetry, k.ties, k.contact
+            );
+            let _ = writeln!(
+                o,
+                "  kernel dimension {}, Cholesky factors {} nonzeros ({})",
+                t.kernel,
+                t.factor_nonzeros,
+                crate::lang::check::bytes(t.factor_nonzeros as f64 * 8.0)
+            );
+        } else if let Some(n) = &self.tfeti_note {
+            section(&mut o, "TFETI operators");
+            let _ = writeln!(o, "  not built: {n}");
         }
         section(&mut o, "settings");
         let s = &self.solver;
