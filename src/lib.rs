@@ -8,6 +8,7 @@
 // Index loops mirror the formulas they implement (k[a][b], g[s][j * n + k]).
 #![allow(clippy::needless_range_loop)]
 
+pub mod bench;
 pub mod fem;
 pub mod io;
 pub mod lang;

@@ -46,6 +46,24 @@ enum Command {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
+    /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
+    /// with more and more subdomains and prints a Markdown table.
+    Bench {
+        /// Which benchmark (`scaling`).
+        which: String,
+        /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
+        #[arg(long = "hh")]
+        hh: Vec<usize>,
+        /// Largest cut of the base, `SXxSY` (default 32x16).
+        #[arg(long, default_value = "32x16")]
+        max_cuts: String,
+        /// Relative tolerance of the dual solve.
+        #[arg(long, default_value_t = 1e-6)]
+        tolerance: f64,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
     /// Check a scene and print what the compiler understood.
     Compile {
         /// The `.cso` file.
@@ -123,6 +141,37 @@ fn main() -> ExitCode {
                 Err(code) => return ExitCode::from(code),
             };
             solve_command(&scene, file, out.as_deref(), *threads)
+        }
+        Command::Bench {
+            which,
+            hh,
+            max_cuts,
+            tolerance,
+            threads,
+        } => {
+            if which != "scaling" {
+                errln!("error: unknown benchmark `{which}`; the benchmarks are: scaling");
+                return ExitCode::from(EXIT_IO);
+            }
+            let Some((mx, my)) = max_cuts.split_once('x').and_then(|(a, b)| {
+                Some((
+                    a.trim().parse::<usize>().ok()?,
+                    b.trim().parse::<usize>().ok()?,
+                ))
+            }) else {
+                errln!("error: --max-cuts expects SXxSY, e.g. 32x16");
+                return ExitCode::from(EXIT_IO);
+            };
+            bench_scaling(
+                if hh.is_empty() {
+                    vec![16, 32]
+                } else {
+                    hh.clone()
+                },
+                (mx, my),
+                *tolerance,
+                *threads,
+            )
         }
         Command::Compile { file, json } => match load(file, &opts) {
             Ok(scene) => {
@@ -230,4 +279,61 @@ fn solve_command(
             ExitCode::from(EXIT_SCENE)
         }
     }
+}
+
+/// `cso bench scaling`: one Markdown row per decomposition, printed as it finishes.
+fn bench_scaling(
+    hhs: Vec<usize>,
+    max: (usize, usize),
+    tolerance: f64,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+    {
+        Ok(p) => p,
+        Err(e) => {
+            errln!("error: cannot start threads: {e}");
+            return ExitCode::from(EXIT_IO);
+        }
+    };
+    outln!(
+        "threads {}, tolerance {tolerance:e}",
+        pool.current_num_threads()
+    );
+    outln!("| H/h | cuts | subdomains | primal | dual | outer | inner | Hessian | factorize s | solve s | total s | peak MB | KKT |");
+    outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    for hh in hhs {
+        let (mut sx, mut sy) = (2, 1);
+        loop {
+            match pool.install(|| cso::bench::scaling_row(sx, sy, hh, tolerance)) {
+                Ok(r) => outln!(
+                    "| {} | {}x{} | {} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} |",
+                    r.hh,
+                    sx,
+                    sy,
+                    r.subdomains,
+                    r.primal,
+                    r.dual,
+                    r.outer,
+                    r.inner,
+                    r.hessian,
+                    if r.converged { "" } else { " (not converged)" },
+                    r.time_factorize,
+                    r.time_solve,
+                    r.time_total,
+                    r.peak_memory.map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
+                    r.kkt
+                ),
+                Err(e) => errln!("error at {sx}x{sy}: {e}"),
+            }
+            if sx >= max.0 && sy >= max.1 {
+                break;
+            }
+            sx = (sx * 2).min(max.0);
+            sy = (sy * 2).min(max.1);
+        }
+    }
+    ExitCode::SUCCESS
 }

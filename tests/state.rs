@@ -174,3 +174,30 @@ fn report_summaries_of_the_2d_examples() {
         );
     }
 }
+
+#[test]
+fn a_floating_body_pulled_away_from_its_contact_is_refused_before_solving() {
+    let src = std::fs::read_to_string(root().join("examples/semicoercive2d.cso"))
+        .expect("example")
+        .replace(
+            "traction punch.top = (0, -5)",
+            "traction punch.top = (0, 5)",
+        );
+    match solve(&scene(&src), &[], &mut |_| {}) {
+        Err(SolveError::Unbalanced { body, load, .. }) => {
+            assert_eq!(body, "punch");
+            assert!((load[1] - 2.5).abs() < 1e-12, "{load:?}");
+        }
+        Err(e) => panic!("wrong error: {e}"),
+        Ok(s) => panic!("must not solve; got status {:?}", s.info.status),
+    }
+    // The same body pushed sideways is held by its symmetry plane: it solves.
+    let src = std::fs::read_to_string(root().join("examples/semicoercive2d.cso"))
+        .expect("example")
+        .replace(
+            "traction punch.top = (0, -5)",
+            "traction punch.top = (1, -5)",
+        );
+    let state = solve(&scene(&src), &[], &mut |_| {}).expect("solves");
+    assert!(state.converged());
+}

@@ -67,6 +67,8 @@ pub struct Dual {
     /// Lower Cholesky factor of `G G^T` (3N x 3N): `G~ = L^-1 G`.
     l: Mat<f64>,
     work: Vec<Mutex<Work>>,
+    /// Work space of the projector: kernel-sized and multiplier-sized.
+    proj: Mutex<(Vec<f64>, Vec<f64>)>,
     /// Applications of `F` so far.
     pub f_applications: AtomicUsize,
 }
@@ -144,6 +146,7 @@ impl Dual {
                 })
             })
             .collect();
+        let proj = Mutex::new((vec![0.0; n3], vec![0.0; m]));
         Ok(Dual {
             subs,
             local,
@@ -151,6 +154,7 @@ impl Dual {
             g,
             l,
             work,
+            proj,
             f_applications: AtomicUsize::new(0),
         })
     }
@@ -230,13 +234,16 @@ impl Dual {
 
     /// `x <- P x = x - G~^T G~ x`.
     pub fn project(&self, x: &mut [f64]) {
-        let mut z = vec![0.0; self.kernel_dim()];
-        self.apply_g_raw(x, &mut z);
-        self.solve_l(&mut z);
-        self.solve_lt(&mut z);
-        let mut t = vec![0.0; x.len()];
-        self.apply_gt_raw(&z, &mut t);
-        for (a, b) in x.iter_mut().zip(&t) {
+        let mut guard = match self.proj.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        let (z, t) = &mut *guard;
+        self.apply_g_raw(x, z);
+        self.solve_l(z);
+        self.solve_lt(z);
+        self.apply_gt_raw(z, t);
+        for (a, b) in x.iter_mut().zip(t.iter()) {
             *a -= b;
         }
     }
@@ -267,19 +274,38 @@ fn null_modes(ggt: &Mat<f64>) -> Vec<(usize, usize)> {
 /// `P F P / ||P F P||` as the SMALBE Hessian. Scaling by the norm makes the
 /// dual problem dimensionless, so that SMALBE's tests `||g^P|| <= eps ||b||`
 /// and `||G l|| <= eps ||b||` compare like with like whatever the stiffness.
-pub struct ProjectedF<'a>(pub &'a Dual, pub f64);
+pub struct ProjectedF<'a> {
+    dual: &'a Dual,
+    scale: f64,
+    work: Mutex<Vec<f64>>,
+}
+
+impl<'a> ProjectedF<'a> {
+    pub fn new(dual: &'a Dual, scale: f64) -> Self {
+        ProjectedF {
+            dual,
+            scale,
+            work: Mutex::new(vec![0.0; dual.m]),
+        }
+    }
+}
 
 impl Operator for ProjectedF<'_> {
     fn dim(&self) -> usize {
-        self.0.m
+        self.dual.m
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let mut t = x.to_vec();
-        self.0.project(&mut t);
-        self.0.apply_f(&t, y);
-        self.0.project(y);
-        let scale = self.1;
+        let mut guard = match self.work.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        let t = &mut *guard;
+        t.copy_from_slice(x);
+        self.dual.project(t);
+        self.dual.apply_f(t, y);
+        self.dual.project(y);
+        let scale = self.scale;
         y.iter_mut().for_each(|v| *v *= scale);
     }
 }
@@ -298,8 +324,13 @@ impl Equality for Orthonormal<'_> {
     }
 
     fn apply_t(&self, y: &[f64], x: &mut [f64]) {
-        let mut z = y.to_vec();
-        self.0.solve_lt(&mut z);
-        self.0.apply_gt_raw(&z, x);
+        let mut guard = match self.0.proj.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        let z = &mut guard.0;
+        z.copy_from_slice(y);
+        self.0.solve_lt(z);
+        self.0.apply_gt_raw(z, x);
     }
 }

@@ -1,0 +1,88 @@
+//! `cso bench scaling`: the `two_blocks` scene scaled at a fixed ratio H/h of
+//! subdomain to element size, with the base cut into more and more subdomains.
+//! TFETI promises numerical scalability: at fixed H/h the number of Hessian
+//! applications should stay nearly constant as the decomposition grows.
+
+use crate::lang::{compile, CheckOptions};
+use crate::state::{solve, SolveError};
+use serde::Serialize;
+
+/// The `two_blocks` scene with the base cut `sx x sy` and the punch cut
+/// `max(1, sx/4) x max(1, sy/2)`, every subdomain `hh x hh` elements.
+pub fn scaled_two_blocks(sx: usize, sy: usize, hh: usize, tolerance: f64) -> String {
+    let (px, py) = ((sx / 4).max(1), (sy / 2).max(1));
+    format!(
+        "scene scaled {{ dim = 2 }}
+material soft {{ E = 1000, nu = 0.3 }}
+body base {{ material = soft, x = 0 .. 3, y = 0 .. 1, mesh = {} x {}, subdomains = {sx} x {sy} }}
+body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, bottom = 1 + 0.02 * (2*x - 3)^2,
+  mesh = {} x {}, subdomains = {px} x {py} }}
+fix base.bottom
+displace punch.top {{ ux = 0, uy = -0.01 }}
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+solver {{ tolerance = {tolerance:e}, max_iterations = 100000 }}
+",
+        sx * hh,
+        sy * hh,
+        px * hh,
+        py * hh
+    )
+}
+
+/// One row of the scaling table.
+#[derive(Debug, Clone, Serialize)]
+pub struct ScalingRow {
+    pub hh: usize,
+    pub cuts: (usize, usize),
+    pub subdomains: usize,
+    pub primal: usize,
+    pub dual: usize,
+    pub outer: usize,
+    pub inner: usize,
+    pub hessian: usize,
+    pub time_factorize: f64,
+    pub time_solve: f64,
+    pub time_total: f64,
+    /// Peak resident memory of the process so far (Linux `VmHWM`), bytes.
+    pub peak_memory: Option<u64>,
+    pub kkt: f64,
+    pub converged: bool,
+}
+
+/// Peak resident set size of this process (Linux), bytes.
+pub fn peak_memory() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Solves one scaled scene.
+pub fn scaling_row(
+    sx: usize,
+    sy: usize,
+    hh: usize,
+    tolerance: f64,
+) -> Result<ScalingRow, SolveError> {
+    let src = scaled_two_blocks(sx, sy, hh, tolerance);
+    let scene = compile(&src, &CheckOptions::default()).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    let state = solve(&scene, &[], &mut |_| {})?;
+    Ok(ScalingRow {
+        hh,
+        cuts: (sx, sy),
+        subdomains: state.problem.subdomains.len(),
+        primal: state.problem.primal_dofs(),
+        dual: state.problem.rows.len(),
+        outer: state.info.outer_iterations,
+        inner: state.info.inner_iterations,
+        hessian: state.info.hessian_applications,
+        time_factorize: state.times.factorize,
+        time_solve: state.times.solve,
+        time_total: state.times.total,
+        peak_memory: peak_memory(),
+        kkt: state.kkt.worst(),
+        converged: state.converged(),
+    })
+}
