@@ -81,6 +81,8 @@ pub struct State {
 /// Why a state solve could not run or finish.
 #[derive(Debug, Clone, PartialEq)]
 pub enum SolveError {
+    /// A setting the solver does not implement yet (never silently ignored).
+    Unsupported(String),
     Lower(LowerError),
     Subdomain {
         body: String,
@@ -102,6 +104,7 @@ pub enum SolveError {
 impl fmt::Display for SolveError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
+            SolveError::Unsupported(s) => write!(f, "{s}"),
             SolveError::Lower(e) => write!(f, "{e}"),
             SolveError::Subdomain { body, block, error } => {
                 write!(f, "subdomain ({}, {}) of body `{body}`: {error:?}", block.0, block.1)
@@ -331,6 +334,18 @@ pub fn solve(
     design: &[f64],
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
+    use crate::lang::scene::{Preconditioner, SolverMethod};
+    if scene.solver.method == SolverMethod::Feti {
+        return Err(SolveError::Unsupported(
+            "`solver { method = feti }`: classical FETI is not implemented yet; use `tfeti`".into(),
+        ));
+    }
+    if scene.solver.preconditioner != Preconditioner::None {
+        return Err(SolveError::Unsupported(
+            "`solver { preconditioner }`: dual preconditioners are not implemented yet; use `none`"
+                .into(),
+        ));
+    }
     let t0 = Instant::now();
     let mut times = Times::default();
     let (problem, subs, lower_time) = setup(scene, design)?;
