@@ -145,8 +145,9 @@ material mat { E = 1000, nu = 0.3 }
 body base { material = mat, x = 0 .. 2, y = 0 .. 1, mesh = 4 x 2, subdomains = 2 x 1 }
 body loose { material = mat, x = 3 .. 4, y = 0 .. 1, mesh = 2 x 2 }
 fix base.bottom
-traction loose.top = (0, -1)
+traction base.top = (0, -1)
 ";
+    // Unloaded, the loose body still has three free rigid modes.
     match solve(&scene(src), &[], &mut |_| {}) {
         Err(SolveError::FreeRigidModes(modes)) => {
             assert!(
@@ -160,6 +161,16 @@ traction loose.top = (0, -1)
         }
         Err(e) => panic!("wrong error: {e}"),
         Ok(_) => panic!("a floating body with no support must not solve"),
+    }
+    // Loaded, its load cannot be carried at all: refused before any factorization.
+    let loaded = format!("{src}traction loose.top = (0, -1)\n");
+    match solve(&scene(&loaded), &[], &mut |_| {}) {
+        Err(SolveError::Unbalanced { body, why, .. }) => {
+            assert_eq!(body, "loose");
+            assert!(why.contains("nothing holds it"), "{why}");
+        }
+        Err(e) => panic!("wrong error: {e}"),
+        Ok(_) => panic!("must not solve"),
     }
 }
 
