@@ -223,15 +223,9 @@ fn solve_command(
     out: Option<&Path>,
     threads: Option<usize>,
 ) -> ExitCode {
-    let pool = match rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
-        .build()
-    {
+    let pool = match thread_pool(threads) {
         Ok(p) => p,
-        Err(e) => {
-            errln!("error: cannot start threads: {e}");
-            return ExitCode::from(EXIT_IO);
-        }
+        Err(code) => return code,
     };
     let bar = indicatif::ProgressBar::new_spinner();
     bar.set_style(
@@ -288,15 +282,9 @@ fn bench_scaling(
     tolerance: f64,
     threads: Option<usize>,
 ) -> ExitCode {
-    let pool = match rayon::ThreadPoolBuilder::new()
-        .num_threads(threads.unwrap_or(0))
-        .build()
-    {
+    let pool = match thread_pool(threads) {
         Ok(p) => p,
-        Err(e) => {
-            errln!("error: cannot start threads: {e}");
-            return ExitCode::from(EXIT_IO);
-        }
+        Err(code) => return code,
     };
     outln!(
         "threads {}, tolerance {tolerance:e}",
@@ -336,4 +324,15 @@ fn bench_scaling(
         }
     }
     ExitCode::SUCCESS
+}
+
+/// A thread pool of `threads` threads (all cores when None).
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, ExitCode> {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads.unwrap_or(0))
+        .build()
+        .map_err(|e| {
+            errln!("error: cannot start threads: {e}");
+            ExitCode::from(EXIT_IO)
+        })
 }

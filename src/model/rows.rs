@@ -163,6 +163,18 @@ fn supports(
     Ok(())
 }
 
+fn edges_or_error(
+    problem: &Problem,
+    sel: &Selection,
+    design: &[f64],
+) -> Result<Vec<Edge>, LowerError> {
+    let edges = selected_edges(problem, sel, design);
+    if edges.is_empty() {
+        return Err(LowerError::EmptySelection(sel.text.clone()));
+    }
+    Ok(edges)
+}
+
 /// A point projected on a face: segment end nodes, shape values, outward normal.
 struct Projection {
     a: usize,
@@ -224,10 +236,7 @@ fn ties(
     rows: &mut Vec<Row>,
 ) -> Result<(), LowerError> {
     for (g, glue) in scene.glues.iter().enumerate() {
-        let edges = selected_edges(problem, &glue.primary, design);
-        if edges.is_empty() {
-            return Err(LowerError::EmptySelection(glue.primary.text.clone()));
-        }
+        let edges = edges_or_error(problem, &glue.primary, design)?;
         for node in nodes_or_error(problem, &glue.secondary, design)? {
             let p = problem.bodies[glue.secondary.body].coords[node];
             let Some(pr) = project(problem, &edges, glue.primary.body, p) else {
@@ -279,13 +288,7 @@ fn contacts(
             .unwrap_or_else(|| default_search(problem, sec.body));
         let thickness = scene.thickness;
         let primary_edges = match &contact.primary {
-            Primary::Face(p) => {
-                let e = selected_edges(problem, p, design);
-                if e.is_empty() {
-                    return Err(LowerError::EmptySelection(p.text.clone()));
-                }
-                Some((p.body, e))
-            }
+            Primary::Face(p) => Some((p.body, edges_or_error(problem, p, design)?)),
             Primary::Obstacle(_) => None,
         };
         for node in nodes {
