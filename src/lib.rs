@@ -14,6 +14,7 @@ pub mod io;
 pub mod lang;
 pub mod model;
 pub mod qp;
+pub mod sens;
 pub mod state;
 pub mod tfeti;
 

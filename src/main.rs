@@ -46,6 +46,26 @@ enum Command {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
+    /// Gradients of the objective and constraints with respect to the design variables.
+    Sensitivity {
+        /// The `.cso` file.
+        file: PathBuf,
+        /// `semi_analytic`, `adjoint` or `finite_difference` (default: the scene's `sensitivity { method }`).
+        #[arg(long)]
+        method: Option<String>,
+        /// Finite-difference step (default: the scene's `sensitivity { step }`).
+        #[arg(long)]
+        step: Option<f64>,
+        /// `forward` or `central` (default: the scene's `sensitivity { scheme }`).
+        #[arg(long)]
+        scheme: Option<String>,
+        /// Write sensitivity.json into this folder.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
@@ -170,6 +190,27 @@ fn main() -> ExitCode {
                 },
                 (mx, my),
                 *tolerance,
+                *threads,
+            )
+        }
+        Command::Sensitivity {
+            file,
+            method,
+            step,
+            scheme,
+            out,
+            threads,
+        } => {
+            let scene = match load(file, &opts) {
+                Ok(s) => s,
+                Err(code) => return ExitCode::from(code),
+            };
+            sensitivity_command(
+                &scene,
+                method.as_deref(),
+                *step,
+                scheme.as_deref(),
+                out.as_deref(),
                 *threads,
             )
         }
@@ -335,4 +376,95 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, ExitCode> {
             errln!("error: cannot start threads: {e}");
             ExitCode::from(EXIT_IO)
         })
+}
+
+/// `cso sensitivity`: a table of dJ/da_i for the objective and each constraint.
+fn sensitivity_command(
+    scene: &cso::lang::Scene,
+    method: Option<&str>,
+    step: Option<f64>,
+    scheme: Option<&str>,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> ExitCode {
+    use cso::lang::scene::{Scheme, SensitivityMethod};
+    let method = match method {
+        None => scene.sensitivity.method,
+        Some("semi_analytic") => SensitivityMethod::SemiAnalytic,
+        Some("adjoint") => SensitivityMethod::Adjoint,
+        Some("finite_difference") => SensitivityMethod::FiniteDifference,
+        Some(m) => {
+            errln!("error: unknown method `{m}`; the methods are semi_analytic, adjoint, finite_difference");
+            return ExitCode::from(EXIT_IO);
+        }
+    };
+    let scheme = match scheme {
+        None => scene.sensitivity.scheme,
+        Some("forward") => Scheme::Forward,
+        Some("central") => Scheme::Central,
+        Some(s) => {
+            errln!("error: unknown scheme `{s}`; the schemes are forward, central");
+            return ExitCode::from(EXIT_IO);
+        }
+    };
+    if method != SensitivityMethod::FiniteDifference {
+        errln!(
+            "error: the semi-analytical and adjoint sensitivities are not implemented yet; \
+             run with `--method finite_difference` for the baseline"
+        );
+        return ExitCode::from(EXIT_SCENE);
+    }
+    if scene.design.is_empty() {
+        errln!("error: the scene has no design variables (`design NAME {{ init, lower, upper }}`)");
+        return ExitCode::from(EXIT_SCENE);
+    }
+    let h = step.unwrap_or(scene.sensitivity.step);
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let g = match pool.install(|| cso::sens::finite_difference(scene, h, scheme)) {
+        Ok(g) => g,
+        Err(e) => {
+            errln!("error: {e}");
+            return ExitCode::from(EXIT_SCENE);
+        }
+    };
+    outln!("{} gradient of `{}`", g.method, scene.name);
+    for (k, name) in g.functionals.iter().enumerate() {
+        outln!("  {name}   (value {})", cso::lang::diag::num(g.values[k]));
+        for (i, d) in g.design.iter().enumerate() {
+            outln!("    d/d{:<8} {:>14.6e}", d, g.gradient[k][i]);
+        }
+    }
+    outln!(
+        "  cost: {} state solves, {} Hessian applications ({:.1}x one state solve), {:.3} s ({:.1}x)",
+        g.solves,
+        g.hessian_applications,
+        g.hessian_applications as f64 / g.state_hessian_applications.max(1) as f64,
+        g.seconds,
+        g.seconds / g.state_seconds.max(1e-9)
+    );
+    if !g.active_set_changed.is_empty() {
+        outln!(
+            "  warning: the contact active set changed when perturbing {}; those columns are not derivatives",
+            g.active_set_changed.join(", ")
+        );
+    }
+    if let Some(dir) = out {
+        let json = match serde_json::to_string_pretty(&g) {
+            Ok(j) => j,
+            Err(e) => {
+                errln!("error: cannot write JSON: {e}");
+                return ExitCode::from(EXIT_IO);
+            }
+        };
+        if let Err(e) = std::fs::create_dir_all(dir).and_then(|_| {
+            cso::io::atomic::write_atomic(&dir.join("sensitivity.json"), json.as_bytes())
+        }) {
+            errln!("error: cannot write {}: {e}", dir.display());
+            return ExitCode::from(EXIT_IO);
+        }
+    }
+    ExitCode::SUCCESS
 }

@@ -6,6 +6,7 @@ mod examples;
 mod front_end;
 mod fuzz;
 mod reference;
+mod sensitivity;
 mod state;
 
 use std::path::{Path, PathBuf};

@@ -5,7 +5,7 @@
 //! about the text. Geometry that may move with the design stays a [`Formula`];
 //! everything else is a number.
 
-use super::expr::{Arith, Cond, Formula, Func};
+use super::expr::{Arith, Cond, Formula, Func, Point, Scalar};
 use serde::Serialize;
 
 /// 2D (plane strain) or 3D.
@@ -147,24 +147,40 @@ impl Body {
     /// extents, the vertical one interpolates linearly between the bottom and top
     /// faces of its column.
     pub fn node(&self, idx: [usize; 3], design: &[f64]) -> [f64; 3] {
+        self.node_t(idx, design)
+    }
+
+    /// [`Body::node`] in any number type: with dual numbers seeded by a design
+    /// direction, the dual parts are the exact node velocities of that direction.
+    pub fn node_t<T: Scalar>(&self, idx: [usize; 3], design: &[T]) -> [T; 3] {
+        let zero = T::from(0.0);
         let d = self.extent.len();
         let v = d - 1;
-        let mut c = [0.0; 3];
+        let mut c = [zero; 3];
         for a in 0..v {
             let (lo, hi) = &self.extent[a];
-            let (lo, hi) = (lo.eval_f64([0.0; 3], design), hi.eval_f64([0.0; 3], design));
-            c[a] = lo + (hi - lo) * idx[a] as f64 / self.mesh[a].max(1) as f64;
+            let at = Point {
+                coords: [zero; 3],
+                design,
+            };
+            let (lo, hi) = (lo.eval(&at), hi.eval(&at));
+            c[a] = lo + (hi - lo) * (idx[a] as f64 / self.mesh[a].max(1) as f64);
         }
         let (lo, hi) = &self.extent[v];
+        let fixed = Point {
+            coords: [zero; 3],
+            design,
+        };
+        let face = Point { coords: c, design };
         let bottom = self
             .bottom
             .as_ref()
-            .map_or_else(|| lo.eval_f64([0.0; 3], design), |f| f.eval_f64(c, design));
+            .map_or_else(|| lo.eval(&fixed), |f| f.eval(&face));
         let top = self
             .top
             .as_ref()
-            .map_or_else(|| hi.eval_f64([0.0; 3], design), |f| f.eval_f64(c, design));
-        c[v] = bottom + (top - bottom) * idx[v] as f64 / self.mesh[v].max(1) as f64;
+            .map_or_else(|| hi.eval(&fixed), |f| f.eval(&face));
+        c[v] = bottom + (top - bottom) * (idx[v] as f64 / self.mesh[v].max(1) as f64);
         c
     }
 

@@ -1,0 +1,130 @@
+//! Values of the functionals of `minimize` / `subject to` on a solved state.
+
+use crate::lang::expr::{Arith, Func, Scalar};
+use crate::lang::scene::{Body, Dimension, Functional, Scene};
+use crate::model::RowKind;
+use crate::state::State;
+
+/// What a functional is evaluated on: the scene, a design, its solved state, and
+/// the state at the initial design (for `initial(...)`).
+pub struct Eval<'a> {
+    pub scene: &'a Scene,
+    pub design: &'a [f64],
+    pub state: &'a State,
+    /// The state and design `initial(...)` refers to; `None`: this one.
+    pub initial: Option<(&'a State, &'a [f64])>,
+}
+
+/// Area of a 2D body's mesh (shoelace over its boundary nodes) in any number
+/// type: with dual numbers, the exact derivative of the discrete area.
+pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
+    let (nx, ny) = (body.mesh[0], body.mesh.get(1).copied().unwrap_or(1));
+    let mut ring: Vec<[usize; 3]> = Vec::with_capacity(2 * (nx + ny));
+    ring.extend((0..nx).map(|i| [i, 0, 0]));
+    ring.extend((0..ny).map(|j| [nx, j, 0]));
+    ring.extend((1..=nx).rev().map(|i| [i, ny, 0]));
+    ring.extend((1..=ny).rev().map(|j| [0, j, 0]));
+    let pts: Vec<[T; 3]> = ring.iter().map(|&i| body.node_t(i, design)).collect();
+    let mut twice = T::from(0.0);
+    for k in 0..pts.len() {
+        let (p, q) = (pts[k], pts[(k + 1) % pts.len()]);
+        twice += p[0] * q[1] - q[0] * p[1];
+    }
+    twice * 0.5
+}
+
+impl Eval<'_> {
+    /// The value of a functional.
+    pub fn value(&self, f: &Functional) -> f64 {
+        match f {
+            Functional::Geometry(g) => g.eval_f64([0.0; 3], self.design),
+            Functional::Compliance => self.state.compliance(),
+            Functional::Energy => self.state.energy(),
+            Functional::ContactForce(c) => self.contact(*c).iter().map(|(force, _)| force).sum(),
+            Functional::PressureNorm(c, q) => {
+                let sum: f64 = self
+                    .contact(*c)
+                    .iter()
+                    .filter(|(_, area)| *area > 0.0)
+                    .map(|(force, area)| (force / area).abs().powf(*q) * area)
+                    .sum();
+                sum.powf(1.0 / q)
+            }
+            Functional::Area(b) | Functional::Volume(b) => {
+                if self.scene.dim == Dimension::Two {
+                    body_area(&self.scene.bodies[*b], self.design)
+                } else {
+                    f64::NAN
+                }
+            }
+            Functional::Probe(p, comp) => {
+                let (body, node) = self.state.problem.probes[*p];
+                self.state.node_displacement(body, node)[*comp]
+            }
+            Functional::Initial(inner) => match self.initial {
+                Some((state, design)) => Eval {
+                    scene: self.scene,
+                    design,
+                    state,
+                    initial: None,
+                }
+                .value(inner),
+                None => self.value(inner),
+            },
+            Functional::Neg(a) => -self.value(a),
+            Functional::Arith(op, a, b) => {
+                let (a, b) = (self.value(a), self.value(b));
+                match op {
+                    Arith::Add => a + b,
+                    Arith::Sub => a - b,
+                    Arith::Mul => a * b,
+                    Arith::Div => a / b,
+                    Arith::Min => a.min(b),
+                    Arith::Max => a.max(b),
+                }
+            }
+            Functional::Pow(a, p) => self.value(a).powf(*p),
+            Functional::Func(func, a) => {
+                let a = self.value(a);
+                match func {
+                    Func::Sqrt => a.sqrt(),
+                    Func::Abs => a.abs(),
+                    Func::Exp => a.exp(),
+                    Func::Ln => a.ln(),
+                    Func::Sin => a.sin(),
+                    Func::Cos => a.cos(),
+                    Func::Tan => a.tan(),
+                }
+            }
+        }
+    }
+
+    /// (normal force, tributary area) of each node of a contact.
+    fn contact(&self, c: usize) -> Vec<(f64, f64)> {
+        let p = &self.state.problem;
+        p.rows
+            .iter()
+            .enumerate()
+            .filter_map(|(i, row)| match row.kind {
+                RowKind::Contact { contact, area, .. } if contact == c => {
+                    Some((self.state.lambda[i] / row.scale, area))
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    /// The objective and each constraint in the form `g <= 0` (`lhs - rhs` for
+    /// `<=`, `rhs - lhs` for `>=`), with their labels.
+    pub fn all(&self) -> Vec<(String, f64)> {
+        let mut out = Vec::new();
+        if let Some(o) = &self.scene.objective {
+            out.push((format!("minimize {}", o.text), self.value(&o.functional)));
+        }
+        for c in &self.scene.constraints {
+            let (l, r) = (self.value(&c.lhs), self.value(&c.rhs));
+            out.push((c.text.clone(), if c.upper { l - r } else { r - l }));
+        }
+        out
+    }
+}
