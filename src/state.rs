@@ -355,18 +355,82 @@ pub fn solve(
 
     let t = Instant::now();
     let m = problem.rows.len();
-    let dual = Dual::new(subs, local_rows(&problem), m).map_err(|CoarseError { free_modes }| {
-        SolveError::FreeRigidModes(name_modes(&problem, &free_modes))
-    })?;
+    let dual = Dual::new(std::sync::Arc::new(subs), local_rows(&problem), m).map_err(
+        |CoarseError { free_modes }| SolveError::FreeRigidModes(name_modes(&problem, &free_modes)),
+    )?;
+    times.coarse = t.elapsed().as_secs_f64();
+    let t = Instant::now();
+    let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
+    let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+    let settings = SmalbeSettings {
+        tolerance: scene.solver.tolerance,
+        max_hessian: scene.solver.max_iterations,
+        // Outer iterations are cheap here (a few MPRGP steps each on contact
+        // scenes); the budget that matters is Hessian applications.
+        max_outer: 1000,
+        ..SmalbeSettings::default()
+    };
+    let sol = dual_solve(&dual, &f, &c, problem.n_equality, &settings, observer)?;
+    times.solve = t.elapsed().as_secs_f64();
+    let DualSolution {
+        lambda,
+        u,
+        alpha,
+        info,
+        b_norm,
+    } = sol;
+    let t = Instant::now();
+    let kkt = kkt(&problem, &dual, &u, &lambda);
+    times.reconstruct = t.elapsed().as_secs_f64();
+    times.total = t0.elapsed().as_secs_f64();
+    let f_applications = dual.f_applications.load(Ordering::Relaxed);
+    Ok(State {
+        problem,
+        dual,
+        u,
+        lambda,
+        alpha,
+        info,
+        times,
+        kkt,
+        f_applications,
+        b_norm,
+    })
+}
+
+/// A solved dual problem and the primal solution reconstructed from it.
+pub struct DualSolution {
+    pub lambda: Vec<f64>,
+    pub u: Vec<Vec<f64>>,
+    pub alpha: Vec<f64>,
+    pub info: QpInfo,
+    /// `||b||` of the scaled homogenized problem.
+    pub b_norm: f64,
+}
+
+/// Solves `min 1/2 u^T K u - f^T u` s.t. `B_i u = c_i` (rows `i < n_equality`),
+/// `B_i u <= c_i` (the rest) on the TFETI operators of `dual`, by SMALBE on the
+/// homogenized, projected and scaled dual; then reconstructs `u`. The state solve
+/// and the sensitivity problems (all rows equalities: SMALE) share it, and with
+/// it the subdomains' factorizations.
+pub fn dual_solve(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<DualSolution, SolveError> {
+    let m = dual.m;
     // d = B K^+ f - c, e = R^T f
     let mut d = vec![0.0; m];
     let mut e = vec![0.0; dual.kernel_dim()];
     for (s, sub) in dual.subs.iter().enumerate() {
-        let f = &problem.subdomains[s].f;
+        let f = f[s];
         for j in 0..3 {
             e[3 * s + j] = sub.r_col(j).iter().zip(f).map(|(a, b)| a * b).sum();
         }
-        let mut x = f.clone();
+        let mut x = f.to_vec();
         sub.apply_pinv(&mut x);
         let lr = &dual.local[s];
         let mut y = vec![0.0; lr.rows.len()];
@@ -375,8 +439,8 @@ pub fn solve(
             d[row] += y[k];
         }
     }
-    for (di, row) in d.iter_mut().zip(&problem.rows) {
-        *di -= row.c;
+    for (di, ci) in d.iter_mut().zip(c) {
+        *di -= ci;
     }
     // l~ = G~^T e~ with e~ = L^-1 e.
     let mut et = e.clone();
@@ -390,24 +454,13 @@ pub fn solve(
     dual.project(&mut b);
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
-            if i < problem.n_equality {
+            if i < n_equality {
                 f64::NEG_INFINITY
             } else {
                 -l_tilde[i]
             }
         })
         .collect();
-    times.coarse = t.elapsed().as_secs_f64();
-
-    let t = Instant::now();
-    let settings = SmalbeSettings {
-        tolerance: scene.solver.tolerance,
-        max_hessian: scene.solver.max_iterations,
-        // Outer iterations are cheap here (a few MPRGP steps each on contact
-        // scenes); the budget that matters is Hessian applications.
-        max_outer: 1000,
-        ..SmalbeSettings::default()
-    };
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
     let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
@@ -427,30 +480,18 @@ pub fn solve(
         &lower_bounds,
         &g,
         &mut lhat,
-        &settings,
+        settings,
         observer,
     );
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
-    times.solve = t.elapsed().as_secs_f64();
 
-    let t = Instant::now();
-    let (u, alpha) = reconstruct(&problem, &dual, &lambda, &d)?;
-    let kkt = kkt(&problem, &dual, &u, &lambda);
-    times.reconstruct = t.elapsed().as_secs_f64();
-    times.total = t0.elapsed().as_secs_f64();
-    let f_applications = dual.f_applications.load(Ordering::Relaxed);
-    let b_norm = norm(&b);
-    Ok(State {
-        problem,
-        dual,
-        u,
+    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
+    Ok(DualSolution {
         lambda,
+        u,
         alpha,
         info,
-        times,
-        kkt,
-        f_applications,
-        b_norm,
+        b_norm: norm(&b),
     })
 }
 
@@ -458,17 +499,18 @@ pub fn solve(
 /// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
 /// `u = K^+ (f - B^T l) + R alpha`.
 fn reconstruct(
-    problem: &Problem,
     dual: &Dual,
+    f: &[&[f64]],
+    n_equality: usize,
     lambda: &[f64],
     d: &[f64],
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>), SolveError> {
     let m = lambda.len();
-    let lmax = lambda[problem.n_equality..]
+    let lmax = lambda[n_equality..]
         .iter()
         .fold(0.0f64, |a, b| a.max(b.abs()));
     let active: Vec<bool> = (0..m)
-        .map(|i| i < problem.n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
+        .map(|i| i < n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
         .collect();
     let mut fl = vec![0.0; m];
     dual.apply_f(lambda, &mut fl);
@@ -536,12 +578,7 @@ fn reconstruct(
             let lr = &dual.local[s];
             let mut btl = vec![0.0; sub.n];
             lr.scatter_t(lambda, &mut btl);
-            let mut x: Vec<f64> = problem.subdomains[s]
-                .f
-                .iter()
-                .zip(&btl)
-                .map(|(f, b)| f - b)
-                .collect();
+            let mut x: Vec<f64> = f[s].iter().zip(&btl).map(|(f, b)| f - b).collect();
             sub.apply_pinv(&mut x);
             for j in 0..3 {
                 let a = alpha[3 * s + j];

@@ -14,7 +14,7 @@ use faer::linalg::triangular_solve::{
 use faer::{Mat, MatMut, Par, Side};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// The rows of `B` that touch one subdomain, in local form.
 #[derive(Debug, Clone, Default)]
@@ -58,7 +58,8 @@ pub struct CoarseError {
 
 /// `F`, `G~`, `P` of one decomposed problem.
 pub struct Dual {
-    pub subs: Vec<Subdomain>,
+    /// Shared, so that sensitivity problems reuse the state's factorizations.
+    pub subs: Arc<Vec<Subdomain>>,
     pub local: Vec<LocalRows>,
     /// Number of multipliers.
     pub m: usize,
@@ -76,7 +77,11 @@ pub struct Dual {
 impl Dual {
     /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
     /// some subdomain is not touched by any row (G G^T singular).
-    pub fn new(subs: Vec<Subdomain>, local: Vec<LocalRows>, m: usize) -> Result<Self, CoarseError> {
+    pub fn new(
+        subs: Arc<Vec<Subdomain>>,
+        local: Vec<LocalRows>,
+        m: usize,
+    ) -> Result<Self, CoarseError> {
         let mut g = Vec::with_capacity(subs.len());
         for (s, sub) in subs.iter().enumerate() {
             let lr = &local[s];
