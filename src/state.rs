@@ -445,7 +445,7 @@ pub fn dual_solve(
     // l~ = G~^T e~ with e~ = L^-1 e.
     let mut et = e.clone();
     dual.solve_l(&mut et);
-    let g = Orthonormal(&dual);
+    let g = Orthonormal(dual);
     let mut l_tilde = vec![0.0; m];
     crate::qp::Equality::apply_t(&g, &et, &mut l_tilde);
     let mut fl = vec![0.0; m];
@@ -466,7 +466,7 @@ pub fn dual_solve(
     let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
     dual.project(&mut v);
     let mut w = vec![0.0; m];
-    let (pfp, _) = estimate_norm(&ProjectedF::new(&dual, 1.0), &mut v, &mut w, 10);
+    let (pfp, _) = estimate_norm(&ProjectedF::new(dual, 1.0), &mut v, &mut w, 10);
     let scale = if pfp > 0.0 && pfp.is_finite() {
         1.0 / pfp
     } else {
@@ -475,7 +475,7 @@ pub fn dual_solve(
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
     let mut lhat = vec![0.0; m];
     let info = smalbe(
-        &ProjectedF::new(&dual, scale),
+        &ProjectedF::new(dual, scale),
         &b,
         &lower_bounds,
         &g,
