@@ -92,3 +92,28 @@ fn finite_differences_of_compliance_are_consistent_and_symmetric() {
     let g3 = finite_difference(&s, 1e-5, Scheme::Forward).expect("solves");
     assert_eq!(g3.solves, 7);
 }
+
+#[test]
+fn semi_analytic_gradient_agrees_with_central_differences() {
+    let mut s = scont2d();
+    s.solver.tolerance = 1e-10;
+    let exact = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("solves");
+    assert!(fd.active_set_changed.is_empty());
+    assert_eq!(exact.method, "semi_analytic", "no weak contacts on scont2d");
+    for k in 0..exact.functionals.len() {
+        let scale = fd.gradient[k].iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        for i in 0..6 {
+            let (e, f) = (exact.gradient[k][i], fd.gradient[k][i]);
+            eprintln!(
+                "{} a[{i}]: semi-analytic {e:.10e}, central FD {f:.10e}",
+                exact.functionals[k]
+            );
+            assert!(
+                (e - f).abs() < 1e-5 * scale,
+                "{} a[{i}]: {e} vs {f}",
+                exact.functionals[k]
+            );
+        }
+    }
+}

@@ -5,12 +5,12 @@
 //! Everything here is per subdomain or per row, so that a distributed backend can
 //! later hand each rank its subdomains and the rows that touch them.
 
-mod loads;
+pub(crate) mod loads;
 mod mesh;
 mod rows;
 
 pub use mesh::{BodyMesh, SubdomainMesh};
-pub use rows::{Row, RowKind};
+pub use rows::{ContactPrimary, Row, RowKind};
 
 use crate::lang::scene::{Dimension, Scene};
 use std::fmt;

@@ -28,8 +28,15 @@ pub enum RowKind {
     Dirichlet,
     /// Zero normal displacement.
     Symmetry,
-    /// A `glue` item's tie.
-    Tie { glue: usize },
+    /// A `glue` item's tie: component `comp` of secondary node `node` of `body`
+    /// follows the primary segment `(primary body, a, b)`.
+    Tie {
+        glue: usize,
+        body: usize,
+        node: usize,
+        comp: usize,
+        segment: (usize, usize, usize),
+    },
     /// Non-penetration of one secondary node.
     Contact {
         contact: usize,
@@ -41,7 +48,16 @@ pub enum RowKind {
         normal: [f64; 2],
         /// Initial gap (unnormalized).
         gap: f64,
+        /// The primary side: a segment `(body, a, b)` of a face, or an obstacle.
+        primary: ContactPrimary,
     },
+}
+
+/// What a contact row's secondary node touches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ContactPrimary {
+    Segment { body: usize, a: usize, b: usize },
+    Obstacle(usize),
 }
 
 fn push(rows: &mut Vec<Row>, entries: Vec<(usize, usize, f64)>, c: f64, kind: RowKind) {
@@ -250,7 +266,14 @@ fn ties(
                 if pr.nb != 0.0 {
                     e.push((sb, 2 * lb + a, -pr.nb));
                 }
-                push(rows, e, 0.0, RowKind::Tie { glue: g });
+                let kind = RowKind::Tie {
+                    glue: g,
+                    body: glue.secondary.body,
+                    node,
+                    comp: a,
+                    segment: (glue.primary.body, pr.a, pr.b),
+                };
+                push(rows, e, 0.0, kind);
             }
         }
     }
@@ -320,6 +343,11 @@ fn contacts(
                         area,
                         normal: n,
                         gap: pr.gap,
+                        primary: ContactPrimary::Segment {
+                            body: *pb,
+                            a: pr.a,
+                            b: pr.b,
+                        },
                     };
                     push(rows, e, pr.gap, kind);
                 }
@@ -360,6 +388,7 @@ fn contacts(
                         area,
                         normal: n,
                         gap,
+                        primary: ContactPrimary::Obstacle(*o),
                     };
                     push(rows, e, gap, kind);
                 }

@@ -1,11 +1,13 @@
 //! Shape sensitivities: functionals of the solution, exact geometric derivatives
 //! through dual numbers, and finite differences as the baseline.
 //!
-//! The semi-analytical (SMALE on the state's factorization) and adjoint methods
-//! of `shared/design/numerics.md` build on these pieces; they are not here yet.
+//! The semi-analytical method (SMALE on the state's factorization, SMALBE where
+//! weak contacts exist) is in [`semi`]; the adjoint method is not here yet.
 
 pub mod fd;
 pub mod functional;
+pub mod semi;
 
 pub use fd::{finite_difference, Gradient};
 pub use functional::{body_area, Eval};
+pub use semi::{semi_analytic, Sensitivity};

@@ -1,0 +1,627 @@
+//! Semi-analytical shape sensitivities on the state's factorization.
+//!
+//! For a design direction `b`, node velocities `X'` come from the geometry
+//! evaluated with dual numbers; `K' u`, `f'`, `B'`, `c'` from the element, load and
+//! contact-row code evaluated at dual coordinates. Differentiating the KKT system
+//! (numerics.md, "Shape sensitivity"):
+//! ```text
+//! K u' = f' - K' u - B'^T l - B^T l'
+//! B_i u' = c_i' - B_i' u          (equalities and strong contacts, l_i > 0)
+//! B_i u' <= c_i' - B_i' u, l_i' >= 0, complementary   (weak contacts, l_i = 0)
+//! ```
+//! so `u'` solves the same kind of problem with the same `K^+` and `R`: one
+//! assembly and one factorization serve the state and every direction.
+
+use super::functional::body_area;
+use crate::fem::quad::{plane_strain, quad_gauss, quad_stiffness};
+use crate::lang::expr::{Arith, Func, Point};
+use crate::lang::scene::{Condition, Face, Functional, Obstacle, Scene};
+use crate::model::loads::selected_edges;
+use crate::model::{ContactPrimary, RowKind};
+use crate::qp::SmalbeSettings;
+use crate::state::{dual_solve, SolveError, State};
+use crate::tfeti::dual::{Dual, LocalRows};
+use num_dual::{Dual64, DualNum};
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+type D = Dual64;
+
+/// Exact derivatives of one direction.
+pub struct Direction {
+    /// `u'` per subdomain.
+    pub u: Vec<Vec<f64>>,
+    /// `l'` per row of the state (0 for inactive contacts).
+    pub lambda: Vec<f64>,
+    /// `f'` per subdomain.
+    pub f: Vec<Vec<f64>>,
+    /// `u^T K' u`.
+    pub ukpu: f64,
+    /// Scale derivative of each row (0 where the row does not move).
+    pub scale: Vec<f64>,
+    pub hessian_applications: usize,
+}
+
+/// Which contact rows are strong (l > 0), weak (l = 0 with zero gap) or inactive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    Equality,
+    Strong,
+    Weak,
+    Inactive,
+}
+
+/// Classifies the rows of a solved state.
+pub fn classify(state: &State) -> Vec<Class> {
+    let p = &state.problem;
+    let m = state.lambda.len();
+    let lmax = state.lambda[p.n_equality..]
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()));
+    let bu = row_values(state);
+    let cmax = p.rows.iter().map(|r| r.c.abs()).fold(0.0, f64::max);
+    let umax = bu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let gap_tol = 1e-7 * (cmax + umax).max(f64::MIN_POSITIVE);
+    (0..m)
+        .map(|i| {
+            if i < p.n_equality {
+                Class::Equality
+            } else if state.lambda[i] > 1e-8 * lmax {
+                Class::Strong
+            } else if (p.rows[i].c - bu[i]).abs() <= gap_tol {
+                Class::Weak
+            } else {
+                Class::Inactive
+            }
+        })
+        .collect()
+}
+
+fn row_values(state: &State) -> Vec<f64> {
+    let mut bu = vec![0.0; state.lambda.len()];
+    for (s, lr) in state.dual.local.iter().enumerate() {
+        let mut y = vec![0.0; lr.rows.len()];
+        lr.gather(&state.u[s], &mut y);
+        for (k, &row) in lr.rows.iter().enumerate() {
+            bu[row] += y[k];
+        }
+    }
+    bu
+}
+
+/// The design seeded in direction `i` (dual parts `e_i`).
+fn seeded(design: &[f64], i: usize) -> Vec<D> {
+    design
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            if k == i {
+                D::from(*v).derivative()
+            } else {
+                D::from(*v)
+            }
+        })
+        .collect()
+}
+
+/// Body grid node positions with their velocities, per body.
+fn grid_positions(scene: &Scene, design: &[D]) -> Vec<Vec<[D; 2]>> {
+    scene
+        .bodies
+        .iter()
+        .map(|b| {
+            let (nx, ny) = (b.mesh[0], b.mesh[1]);
+            let mut out = Vec::with_capacity((nx + 1) * (ny + 1));
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    let c = b.node_t([i, j, 0], design);
+                    out.push([c[0], c[1]]);
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// A row recomputed at dual coordinates: (entries, rhs), normalized, and the scale.
+type DualRow = (Vec<(usize, usize, D)>, D, D);
+
+fn normalize(entries: Vec<(usize, usize, D)>, c: D) -> DualRow {
+    let s = entries.iter().map(|e| e.2 * e.2).sum::<D>().sqrt();
+    (
+        entries.into_iter().map(|(a, b, v)| (a, b, v / s)).collect(),
+        c / s,
+        s,
+    )
+}
+
+fn perp_normal(delta: [D; 2], nominal: [f64; 2]) -> [D; 2] {
+    let len = (delta[0] * delta[0] + delta[1] * delta[1]).sqrt();
+    let n = [delta[1] / len, -delta[0] / len];
+    if n[0].re * nominal[0] + n[1].re * nominal[1] >= 0.0 {
+        n
+    } else {
+        [-n[0], -n[1]]
+    }
+}
+
+/// Contact and tie rows at dual coordinates (None for rows that do not move).
+fn moving_rows(
+    scene: &Scene,
+    state: &State,
+    pos: &[Vec<[D; 2]>],
+    design: &[D],
+) -> Vec<Option<DualRow>> {
+    let p = &state.problem;
+    let owner = |body: usize, node: usize| p.bodies[body].copies(node)[0];
+    p.rows
+        .iter()
+        .map(|row| match &row.kind {
+            RowKind::Contact {
+                body,
+                node,
+                normal,
+                primary,
+                ..
+            } => {
+                let xp = pos[*body][*node];
+                let (s, l) = owner(*body, *node);
+                match primary {
+                    ContactPrimary::Segment { body: pb, a, b } => {
+                        let (xa, xb) = (pos[*pb][*a], pos[*pb][*b]);
+                        let delta = [xb[0] - xa[0], xb[1] - xa[1]];
+                        let len2 = delta[0] * delta[0] + delta[1] * delta[1];
+                        let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
+                        let n = perp_normal(delta, *normal);
+                        let q = [xa[0] + t * delta[0], xa[1] + t * delta[1]];
+                        let gap = n[0] * (xp[0] - q[0]) + n[1] * (xp[1] - q[1]);
+                        let (sa, la) = owner(*pb, *a);
+                        let (sb, lb) = owner(*pb, *b);
+                        let one = D::from(1.0);
+                        let e = vec![
+                            (s, 2 * l, -n[0]),
+                            (s, 2 * l + 1, -n[1]),
+                            (sa, 2 * la, (one - t) * n[0]),
+                            (sa, 2 * la + 1, (one - t) * n[1]),
+                            (sb, 2 * lb, t * n[0]),
+                            (sb, 2 * lb + 1, t * n[1]),
+                        ];
+                        Some(normalize(e, gap))
+                    }
+                    ContactPrimary::Obstacle(o) => {
+                        let at = Point {
+                            coords: [D::from(0.0); 3],
+                            design,
+                        };
+                        let (n, gap) = match &scene.obstacles[*o] {
+                            Obstacle::Plane { point, normal, .. } => {
+                                let q: Vec<D> = point.iter().map(|f| f.eval(&at)).collect();
+                                let m: Vec<D> = normal.iter().map(|f| f.eval(&at)).collect();
+                                let len = (m[0] * m[0] + m[1] * m[1]).sqrt();
+                                let n = [m[0] / len, m[1] / len];
+                                (n, n[0] * (xp[0] - q[0]) + n[1] * (xp[1] - q[1]))
+                            }
+                            Obstacle::Sphere { center, radius, .. } => {
+                                let c: Vec<D> = center.iter().map(|f| f.eval(&at)).collect();
+                                let r = radius.eval(&at);
+                                let d = ((xp[0] - c[0]) * (xp[0] - c[0])
+                                    + (xp[1] - c[1]) * (xp[1] - c[1]))
+                                    .sqrt();
+                                ([(xp[0] - c[0]) / d, (xp[1] - c[1]) / d], d - r)
+                            }
+                        };
+                        Some(normalize(
+                            vec![(s, 2 * l, -n[0]), (s, 2 * l + 1, -n[1])],
+                            gap,
+                        ))
+                    }
+                }
+            }
+            RowKind::Tie {
+                body,
+                node,
+                comp,
+                segment: (pb, a, b),
+                ..
+            } => {
+                let xp = pos[*body][*node];
+                let (xa, xb) = (pos[*pb][*a], pos[*pb][*b]);
+                let delta = [xb[0] - xa[0], xb[1] - xa[1]];
+                let len2 = delta[0] * delta[0] + delta[1] * delta[1];
+                let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
+                let (s, l) = owner(*body, *node);
+                let (sa, la) = owner(*pb, *a);
+                let (sb, lb) = owner(*pb, *b);
+                let one = D::from(1.0);
+                let e = vec![
+                    (s, 2 * l + comp, one),
+                    (sa, 2 * la + comp, -(one - t)),
+                    (sb, 2 * lb + comp, -t),
+                ];
+                Some(normalize(e, D::from(0.0)))
+            }
+            _ => None,
+        })
+        .collect()
+}
+
+/// `f'` per subdomain (owner copies, like the loads themselves).
+fn load_derivative(
+    scene: &Scene,
+    state: &State,
+    pos: &[Vec<[D; 2]>],
+    design: &[f64],
+) -> Vec<Vec<f64>> {
+    let p = &state.problem;
+    let mut fd: Vec<Vec<f64>> = p.subdomains.iter().map(|m| vec![0.0; m.f.len()]).collect();
+    let thickness = scene.thickness;
+    for cond in &scene.conditions {
+        let (sel, t, pr) = match cond {
+            Condition::Traction { sel, value } => (sel, [value[0], value[1]], 0.0),
+            Condition::Pressure { sel, value } => (sel, [0.0, 0.0], *value),
+            _ => continue,
+        };
+        let right_hand = matches!(sel.face, Face::Bottom | Face::Right);
+        for (a, b, _, _) in selected_edges(p, sel, design) {
+            let (xa, xb) = (pos[sel.body][a], pos[sel.body][b]);
+            let delta = [xb[0] - xa[0], xb[1] - xa[1]];
+            let len = (delta[0] * delta[0] + delta[1] * delta[1]).sqrt();
+            // n * len is the rotated edge vector.
+            let nl = if right_hand {
+                [delta[1], -delta[0]]
+            } else {
+                [-delta[1], delta[0]]
+            };
+            let force = [len * t[0] - nl[0] * pr, len * t[1] - nl[1] * pr];
+            for node in [a, b] {
+                let (s, l) = p.bodies[sel.body].copies(node)[0];
+                fd[s][2 * l] += force[0].eps * thickness / 2.0;
+                fd[s][2 * l + 1] += force[1].eps * thickness / 2.0;
+            }
+        }
+    }
+    if let Some(g) = &scene.gravity {
+        for (s, m) in p.subdomains.iter().enumerate() {
+            let rho = scene.materials[scene.bodies[m.body].material]
+                .density
+                .unwrap_or(0.0);
+            for e in &m.elements {
+                let x: [[D; 2]; 4] = std::array::from_fn(|k| pos[m.body][m.grid[e[k]]]);
+                for (n, det) in quad_gauss(&x) {
+                    for k in 0..4 {
+                        for a in 0..2 {
+                            fd[s][2 * e[k] + a] += rho * g[a] * n[k] * det.eps * m.thickness;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    fd
+}
+
+/// `K' u` per subdomain (only elements whose nodes move).
+fn stiffness_derivative_times_u(state: &State, pos: &[Vec<[D; 2]>]) -> Vec<Vec<f64>> {
+    let p = &state.problem;
+    p.subdomains
+        .iter()
+        .enumerate()
+        .map(|(s, m)| {
+            let mut out = vec![0.0; m.f.len()];
+            let d = plane_strain(m.young, m.poisson);
+            for e in &m.elements {
+                let x: [[D; 2]; 4] = std::array::from_fn(|k| pos[m.body][m.grid[e[k]]]);
+                if x.iter().all(|c| c[0].eps == 0.0 && c[1].eps == 0.0) {
+                    continue;
+                }
+                let Some(ke) = quad_stiffness(&x, &d, m.thickness) else {
+                    continue;
+                };
+                for a in 0..8 {
+                    let ra = 2 * e[a / 2] + a % 2;
+                    for b in 0..8 {
+                        let cb = 2 * e[b / 2] + b % 2;
+                        out[ra] += ke[a][b].eps * state.u[s][cb];
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// The semi-analytical sensitivity problem of a solved state: its rows and operators.
+pub struct Sensitivity<'a> {
+    pub scene: &'a Scene,
+    pub state: &'a State,
+    pub classes: Vec<Class>,
+    /// State rows kept (equalities and strong contacts first, weak after).
+    pub kept: Vec<usize>,
+    pub n_equality: usize,
+    dual: Dual,
+}
+
+impl<'a> Sensitivity<'a> {
+    /// Sets up the sensitivity dual on the state's factorizations.
+    pub fn new(scene: &'a Scene, state: &'a State) -> Result<Self, SolveError> {
+        let classes = classify(state);
+        let mut kept: Vec<usize> = (0..classes.len())
+            .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))
+            .collect();
+        let n_equality = kept.len();
+        kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
+        let mut local = vec![LocalRows::default(); state.problem.subdomains.len()];
+        for (r, &i) in kept.iter().enumerate() {
+            for &(s, d, v) in &state.problem.rows[i].entries {
+                let lr = &mut local[s];
+                if lr.rows.last() != Some(&r) {
+                    lr.rows.push(r);
+                }
+                let k = lr.rows.len() - 1;
+                lr.entries.push((k, d, v));
+            }
+        }
+        let dual = Dual::new(state.dual.subs.clone(), local, kept.len())
+            .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
+        Ok(Sensitivity {
+            scene,
+            state,
+            classes,
+            kept,
+            n_equality,
+            dual,
+        })
+    }
+
+    /// Number of weak contacts (l = 0 on a closed gap): with any, derivatives
+    /// are one-sided (directional), not a gradient.
+    pub fn weak(&self) -> usize {
+        self.classes.iter().filter(|c| **c == Class::Weak).count()
+    }
+
+    /// Exact derivatives in the direction of design variable `i`.
+    pub fn direction(&self, i: usize, tolerance: f64) -> Result<Direction, SolveError> {
+        let scene = self.scene;
+        let state = self.state;
+        let design = scene.design_init();
+        let dd = seeded(&design, i);
+        let pos = grid_positions(scene, &dd);
+        let fprime = load_derivative(scene, state, &pos, &design);
+        let kpu = stiffness_derivative_times_u(state, &pos);
+        let rows = moving_rows(scene, state, &pos, &dd);
+        let p = &state.problem;
+        // f_bar = f' - K'u - B'^T l ; c_bar_i = c_i' - B_i' u
+        let mut fbar: Vec<Vec<f64>> = fprime
+            .iter()
+            .zip(&kpu)
+            .map(|(f, k)| f.iter().zip(k).map(|(a, b)| a - b).collect())
+            .collect();
+        let mut scale = vec![0.0; p.rows.len()];
+        let mut cbar_all = vec![0.0; p.rows.len()];
+        for (r, row) in rows.iter().enumerate() {
+            let Some((entries, c, s)) = row else { continue };
+            scale[r] = s.eps;
+            let mut bu = 0.0;
+            for &(sub, d, v) in entries {
+                fbar[sub][d] -= v.eps * state.lambda[r];
+                bu += v.eps * state.u[sub][d];
+            }
+            cbar_all[r] = c.eps - bu;
+        }
+        let cbar: Vec<f64> = self.kept.iter().map(|&r| cbar_all[r]).collect();
+        let f: Vec<&[f64]> = fbar.iter().map(Vec::as_slice).collect();
+        let settings = SmalbeSettings {
+            tolerance,
+            max_outer: 1000,
+            max_hessian: 100_000,
+            ..SmalbeSettings::default()
+        };
+        let before = self.dual.f_applications.load(Ordering::Relaxed);
+        let sol = dual_solve(
+            &self.dual,
+            &f,
+            &cbar,
+            self.n_equality,
+            &settings,
+            &mut |_| {},
+        )?;
+        let hessian_applications = sol
+            .info
+            .hessian_applications
+            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
+        let mut lambda = vec![0.0; p.rows.len()];
+        for (k, &r) in self.kept.iter().enumerate() {
+            lambda[r] = sol.lambda[k];
+        }
+        let ukpu = kpu
+            .iter()
+            .zip(&state.u)
+            .map(|(k, u)| k.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
+            .sum();
+        Ok(Direction {
+            u: sol.u,
+            lambda,
+            f: fprime,
+            ukpu,
+            scale,
+            hessian_applications,
+        })
+    }
+
+    /// `dJ/da_i` of a functional from the state and one direction's derivatives.
+    pub fn derivative(&self, f: &Functional, i: usize, dir: &Direction) -> Result<f64, String> {
+        let design = self.scene.design_init();
+        let dd = seeded(&design, i);
+        Ok(self.dual_value(f, &dd, dir)?.eps)
+    }
+
+    fn dual_value(&self, f: &Functional, dd: &[D], dir: &Direction) -> Result<D, String> {
+        let state = self.state;
+        let p = &state.problem;
+        let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
+            a.iter()
+                .zip(b)
+                .map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
+                .sum()
+        };
+        let f_state: Vec<Vec<f64>> = p.subdomains.iter().map(|m| m.f.clone()).collect();
+        Ok(match f {
+            Functional::Geometry(g) => g.eval(&Point {
+                coords: [D::from(0.0); 3],
+                design: dd,
+            }),
+            Functional::Compliance => {
+                let v = state.compliance();
+                D::new(v, dot(&dir.f, &state.u) + dot(&f_state, &dir.u))
+            }
+            Functional::Energy => {
+                // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
+                let mut kuu = 0.0;
+                for (s, sub) in state.dual.subs.iter().enumerate() {
+                    let mut ku = vec![0.0; sub.n];
+                    sub.k.mul(&state.u[s], &mut ku);
+                    kuu += ku.iter().zip(&dir.u[s]).map(|(a, b)| a * b).sum::<f64>();
+                }
+                D::new(state.energy(), 0.5 * dir.ukpu + kuu)
+            }
+            Functional::ContactForce(c) => {
+                let mut v = D::from(0.0);
+                for (r, row) in p.rows.iter().enumerate() {
+                    if let RowKind::Contact { contact, .. } = row.kind {
+                        if contact == *c {
+                            let l = D::new(state.lambda[r], dir.lambda[r]);
+                            let s = D::new(row.scale, dir.scale[r]);
+                            v += l / s;
+                        }
+                    }
+                }
+                v
+            }
+            Functional::PressureNorm(..) => {
+                return Err("the derivative of `pressure_norm` is not implemented yet".into());
+            }
+            Functional::Area(b) | Functional::Volume(b) => body_area(&self.scene.bodies[*b], dd),
+            Functional::Probe(pr, comp) => {
+                let (body, node) = p.probes[*pr];
+                let (s, l) = p.bodies[body].copies(node)[0];
+                D::new(state.u[s][2 * l + comp], dir.u[s][2 * l + comp])
+            }
+            Functional::Initial(inner) => D::from(self.dual_value(inner, dd, dir)?.re),
+            Functional::Neg(a) => -self.dual_value(a, dd, dir)?,
+            Functional::Arith(op, a, b) => {
+                let (a, b) = (self.dual_value(a, dd, dir)?, self.dual_value(b, dd, dir)?);
+                match op {
+                    Arith::Add => a + b,
+                    Arith::Sub => a - b,
+                    Arith::Mul => a * b,
+                    Arith::Div => a / b,
+                    Arith::Min => {
+                        if b.re < a.re {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                    Arith::Max => {
+                        if b.re > a.re {
+                            b
+                        } else {
+                            a
+                        }
+                    }
+                }
+            }
+            Functional::Pow(a, q) => self.dual_value(a, dd, dir)?.powf(*q),
+            Functional::Func(func, a) => {
+                let a = self.dual_value(a, dd, dir)?;
+                match func {
+                    Func::Sqrt => a.sqrt(),
+                    Func::Abs => num_traits_abs(a),
+                    Func::Exp => a.exp(),
+                    Func::Ln => a.ln(),
+                    Func::Sin => a.sin(),
+                    Func::Cos => a.cos(),
+                    Func::Tan => a.tan(),
+                }
+            }
+        })
+    }
+}
+
+fn num_traits_abs(a: D) -> D {
+    if a.re < 0.0 {
+        -a
+    } else {
+        a
+    }
+}
+
+/// The semi-analytical gradient of the objective and constraints (as `g <= 0`).
+/// `tolerance` is the relative tolerance of the sensitivity (SMALE) solves.
+pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
+    let t0 = Instant::now();
+    let design = scene.design_init();
+    let state = crate::state::solve(scene, &design, &mut |_| {})?;
+    let state_seconds = t0.elapsed().as_secs_f64();
+    let sens = Sensitivity::new(scene, &state)?;
+    let mut functionals = Vec::new();
+    if let Some(o) = &scene.objective {
+        functionals.push((format!("minimize {}", o.text), o.functional.clone(), None));
+    }
+    for c in &scene.constraints {
+        functionals.push((
+            c.text.clone(),
+            c.lhs.clone(),
+            Some((c.rhs.clone(), c.upper)),
+        ));
+    }
+    let eval = super::Eval {
+        scene,
+        design: &design,
+        state: &state,
+        initial: None,
+    };
+    let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
+    let mut gradient = vec![vec![0.0; design.len()]; functionals.len()];
+    let mut hessian = 0;
+    for i in 0..design.len() {
+        let dir = sens.direction(i, tolerance)?;
+        hessian += dir.hessian_applications;
+        for (k, (_, lhs, rhs)) in functionals.iter().enumerate() {
+            let dl = sens
+                .derivative(lhs, i, &dir)
+                .map_err(SolveError::Unsupported)?;
+            gradient[k][i] = match rhs {
+                None => dl,
+                Some((r, upper)) => {
+                    let dr = sens
+                        .derivative(r, i, &dir)
+                        .map_err(SolveError::Unsupported)?;
+                    if *upper {
+                        dl - dr
+                    } else {
+                        dr - dl
+                    }
+                }
+            };
+        }
+    }
+    let weak = sens.weak();
+    Ok(super::Gradient {
+        method: if weak == 0 {
+            "semi_analytic".to_string()
+        } else {
+            format!("semi_analytic (one-sided: {weak} weak contacts)")
+        },
+        functionals: functionals.into_iter().map(|(n, _, _)| n).collect(),
+        values,
+        design: scene.design.iter().map(|d| d.name.clone()).collect(),
+        gradient,
+        solves: 1,
+        hessian_applications: state.info.hessian_applications + hessian,
+        seconds: t0.elapsed().as_secs_f64(),
+        state_hessian_applications: state.info.hessian_applications,
+        state_seconds,
+        active_set_changed: Vec::new(),
+    })
+}
