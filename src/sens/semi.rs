@@ -40,6 +40,9 @@ pub struct Direction {
     /// Scale derivative of each row (0 where the row does not move).
     pub scale: Vec<f64>,
     pub hessian_applications: usize,
+    /// Contact or tie rows whose node sits at a segment end while sliding along
+    /// it: the derivative is one-sided there.
+    pub kinks: usize,
 }
 
 /// Which contact rows are strong (l > 0), weak (l = 0 with zero gap) or inactive.
@@ -145,16 +148,25 @@ fn perp_normal(delta: [D; 2], nominal: [f64; 2]) -> [D; 2] {
     }
 }
 
+/// Is a projection parameter at a segment end while moving along the face? The
+/// node-to-segment row has a kink there (it switches segment), so its derivative
+/// is one-sided.
+fn at_kink(t: D) -> bool {
+    (t.re <= 1e-9 || t.re >= 1.0 - 1e-9) && t.eps != 0.0
+}
+
 /// Contact and tie rows at dual coordinates (None for rows that do not move).
 fn moving_rows(
     scene: &Scene,
     state: &State,
     pos: &[Vec<[D; 2]>],
     design: &[D],
-) -> Vec<Option<DualRow>> {
+) -> (Vec<Option<DualRow>>, usize) {
     let p = &state.problem;
+    let kinks = std::cell::Cell::new(0usize);
     let owner = |body: usize, node: usize| p.bodies[body].copies(node)[0];
-    p.rows
+    let rows = p
+        .rows
         .iter()
         .map(|row| match &row.kind {
             RowKind::Contact {
@@ -172,6 +184,9 @@ fn moving_rows(
                         let delta = [xb[0] - xa[0], xb[1] - xa[1]];
                         let len2 = delta[0] * delta[0] + delta[1] * delta[1];
                         let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
+                        if at_kink(t) {
+                            kinks.set(kinks.get() + 1);
+                        }
                         let n = perp_normal(delta, *normal);
                         let q = [xa[0] + t * delta[0], xa[1] + t * delta[1]];
                         let gap = n[0] * (xp[0] - q[0]) + n[1] * (xp[1] - q[1]);
@@ -229,6 +244,9 @@ fn moving_rows(
                 let delta = [xb[0] - xa[0], xb[1] - xa[1]];
                 let len2 = delta[0] * delta[0] + delta[1] * delta[1];
                 let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
+                if at_kink(t) {
+                    kinks.set(kinks.get() + 1);
+                }
                 let (s, l) = owner(*body, *node);
                 let (sa, la) = owner(*pb, *a);
                 let (sb, lb) = owner(*pb, *b);
@@ -242,7 +260,8 @@ fn moving_rows(
             }
             _ => None,
         })
-        .collect()
+        .collect();
+    (rows, kinks.get())
 }
 
 /// `f'` per subdomain (owner copies, like the loads themselves).
@@ -388,7 +407,7 @@ impl<'a> Sensitivity<'a> {
         let pos = grid_positions(scene, &dd);
         let fprime = load_derivative(scene, state, &pos, &design);
         let kpu = stiffness_derivative_times_u(state, &pos);
-        let rows = moving_rows(scene, state, &pos, &dd);
+        let (rows, kinks) = moving_rows(scene, state, &pos, &dd);
         let p = &state.problem;
         // f_bar = f' - K'u - B'^T l ; c_bar_i = c_i' - B_i' u
         let mut fbar: Vec<Vec<f64>> = fprime
@@ -445,6 +464,7 @@ impl<'a> Sensitivity<'a> {
             ukpu,
             scale,
             hessian_applications,
+            kinks,
         })
     }
 
@@ -584,9 +604,13 @@ pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, S
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
     let mut gradient = vec![vec![0.0; design.len()]; functionals.len()];
     let mut hessian = 0;
+    let mut kinked = Vec::new();
     for i in 0..design.len() {
         let dir = sens.direction(i, tolerance)?;
         hessian += dir.hessian_applications;
+        if dir.kinks > 0 {
+            kinked.push(scene.design[i].name.clone());
+        }
         for (k, (_, lhs, rhs)) in functionals.iter().enumerate() {
             let dl = sens
                 .derivative(lhs, i, &dir)
@@ -608,10 +632,13 @@ pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, S
     }
     let weak = sens.weak();
     Ok(super::Gradient {
-        method: if weak == 0 {
-            "semi_analytic".to_string()
-        } else {
-            format!("semi_analytic (one-sided: {weak} weak contacts)")
+        method: match (weak, kinked.is_empty()) {
+            (0, true) => "semi_analytic".to_string(),
+            (0, false) => format!(
+                "semi_analytic (one-sided along {}: contact nodes at segment ends slide)",
+                kinked.join(", ")
+            ),
+            _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
         },
         functionals: functionals.into_iter().map(|(n, _, _)| n).collect(),
         values,
