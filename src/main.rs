@@ -407,13 +407,6 @@ fn sensitivity_command(
             return ExitCode::from(EXIT_IO);
         }
     };
-    if method == SensitivityMethod::Adjoint {
-        errln!(
-            "error: the adjoint method is not implemented yet; \
-             use `--method semi_analytic` (exact, same factorization) or `finite_difference`"
-        );
-        return ExitCode::from(EXIT_SCENE);
-    }
     if scene.design.is_empty() {
         errln!("error: the scene has no design variables (`design NAME {{ init, lower, upper }}`)");
         return ExitCode::from(EXIT_SCENE);
@@ -425,7 +418,8 @@ fn sensitivity_command(
     };
     let result = pool.install(|| match method {
         SensitivityMethod::FiniteDifference => cso::sens::finite_difference(scene, h, scheme),
-        _ => cso::sens::semi_analytic(scene, scene.solver.tolerance),
+        SensitivityMethod::Adjoint => cso::sens::adjoint(scene, scene.solver.tolerance),
+        SensitivityMethod::SemiAnalytic => cso::sens::semi_analytic(scene, scene.solver.tolerance),
     });
     let g = match result {
         Ok(g) => g,

@@ -231,3 +231,51 @@ fn matching_meshes_make_sliding_derivatives_one_sided() {
     assert!(g.method.contains("one-sided along w"), "{}", g.method);
     assert!(!g.method.contains("c,"), "{}", g.method);
 }
+
+#[test]
+fn adjoint_and_semi_analytic_agree_to_1e_8() {
+    for src in [
+        std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example"),
+        TWO_BLOCKS_DESIGN.to_string(),
+    ] {
+        let mut s = compile(&src, &options()).expect("checks");
+        s.solver.tolerance = 1e-11;
+        let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
+        let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+        for k in 0..semi.functionals.len() {
+            let scale = semi.gradient[k]
+                .iter()
+                .fold(0.0f64, |a, b| a.max(b.abs()))
+                .max(1e-12);
+            for i in 0..semi.design.len() {
+                let (a, b) = (semi.gradient[k][i], adj.gradient[k][i]);
+                assert!(
+                    (a - b).abs() < 1e-8 * scale,
+                    "{}: {} d/d{}: {a} vs {b}",
+                    s.name,
+                    semi.functionals[k],
+                    semi.design[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn adjoint_refuses_weak_contacts() {
+    let src = "scene weak { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design h { init = 1, lower = 0.5, upper = 1.5 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 12 x 4, subdomains = 2 x 1 }
+body punch { material = soft, x = 1 .. 2, y = 1 .. 1 + h, mesh = 4 x 4 }
+fix base.bottom
+fix punch.top
+contact seat { primary = base.top, secondary = punch.bottom }
+minimize compliance
+";
+    let s = compile(src, &options()).expect("checks");
+    match cso::sens::adjoint(&s, 1e-10) {
+        Err(e) => assert!(e.to_string().contains("weak contacts"), "{e}"),
+        Ok(g) => panic!("a gradient was reported: {:?}", g.gradient),
+    }
+}

@@ -10,4 +10,4 @@ pub mod semi;
 
 pub use fd::{finite_difference, Gradient};
 pub use functional::{body_area, Eval};
-pub use semi::{semi_analytic, Sensitivity};
+pub use semi::{adjoint, semi_analytic, Sensitivity};

@@ -45,6 +45,40 @@ pub struct Direction {
     pub kinks: usize,
 }
 
+/// The right-hand sides of one direction's sensitivity problem.
+pub struct Rhs {
+    pub fbar: Vec<Vec<f64>>,
+    pub cbar: Vec<f64>,
+    pub fprime: Vec<Vec<f64>>,
+    pub ukpu: f64,
+    pub scale: Vec<f64>,
+    pub kinks: usize,
+}
+
+fn solve_settings(tolerance: f64) -> SmalbeSettings {
+    SmalbeSettings {
+        tolerance,
+        max_outer: 1000,
+        max_hessian: 100_000,
+        ..SmalbeSettings::default()
+    }
+}
+
+/// The leaf functionals of an expression (not `initial(...)`, a constant).
+fn collect_leaves<'f>(f: &'f Functional, out: &mut Vec<&'f Functional>) {
+    match f {
+        Functional::Initial(_) => {}
+        Functional::Neg(a) | Functional::Pow(a, _) | Functional::Func(_, a) => {
+            collect_leaves(a, out)
+        }
+        Functional::Arith(_, a, b) => {
+            collect_leaves(a, out);
+            collect_leaves(b, out);
+        }
+        leaf => out.push(leaf),
+    }
+}
+
 /// Which contact rows are strong (l > 0), weak (l = 0 with zero gap) or inactive.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Class {
@@ -400,6 +434,40 @@ impl<'a> Sensitivity<'a> {
 
     /// Exact derivatives in the direction of design variable `i`.
     pub fn direction(&self, i: usize, tolerance: f64) -> Result<Direction, SolveError> {
+        let rhs = self.rhs(i);
+        let p = &self.state.problem;
+        let f: Vec<&[f64]> = rhs.fbar.iter().map(Vec::as_slice).collect();
+        let before = self.dual.f_applications.load(Ordering::Relaxed);
+        let sol = dual_solve(
+            &self.dual,
+            &f,
+            &rhs.cbar,
+            self.n_equality,
+            &solve_settings(tolerance),
+            &mut |_| {},
+        )?;
+        let hessian_applications = sol
+            .info
+            .hessian_applications
+            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
+        let mut lambda = vec![0.0; p.rows.len()];
+        for (k, &r) in self.kept.iter().enumerate() {
+            lambda[r] = sol.lambda[k];
+        }
+        Ok(Direction {
+            u: sol.u,
+            lambda,
+            f: rhs.fprime,
+            ukpu: rhs.ukpu,
+            scale: rhs.scale,
+            hessian_applications,
+            kinks: rhs.kinks,
+        })
+    }
+
+    /// The data of direction `i`: `f_bar = f' - K'u - B'^T l` per subdomain,
+    /// `c_bar = c' - B'u` on the kept rows, and what functionals need.
+    pub fn rhs(&self, i: usize) -> Rhs {
         let scene = self.scene;
         let state = self.state;
         let design = scene.design_init();
@@ -409,7 +477,6 @@ impl<'a> Sensitivity<'a> {
         let kpu = stiffness_derivative_times_u(state, &pos);
         let (rows, kinks) = moving_rows(scene, state, &pos, &dd);
         let p = &state.problem;
-        // f_bar = f' - K'u - B'^T l ; c_bar_i = c_i' - B_i' u
         let mut fbar: Vec<Vec<f64>> = fprime
             .iter()
             .zip(&kpu)
@@ -428,44 +495,131 @@ impl<'a> Sensitivity<'a> {
             cbar_all[r] = c.eps - bu;
         }
         let cbar: Vec<f64> = self.kept.iter().map(|&r| cbar_all[r]).collect();
-        let f: Vec<&[f64]> = fbar.iter().map(Vec::as_slice).collect();
-        let settings = SmalbeSettings {
-            tolerance,
-            max_outer: 1000,
-            max_hessian: 100_000,
-            ..SmalbeSettings::default()
-        };
-        let before = self.dual.f_applications.load(Ordering::Relaxed);
-        let sol = dual_solve(
-            &self.dual,
-            &f,
-            &cbar,
-            self.n_equality,
-            &settings,
-            &mut |_| {},
-        )?;
-        let hessian_applications = sol
-            .info
-            .hessian_applications
-            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
-        let mut lambda = vec![0.0; p.rows.len()];
-        for (k, &r) in self.kept.iter().enumerate() {
-            lambda[r] = sol.lambda[k];
-        }
         let ukpu = kpu
             .iter()
             .zip(&state.u)
             .map(|(k, u)| k.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
             .sum();
-        Ok(Direction {
-            u: sol.u,
-            lambda,
-            f: fprime,
+        Rhs {
+            fbar,
+            cbar,
+            fprime,
             ukpu,
             scale,
-            hessian_applications,
             kinks,
-        })
+        }
+    }
+
+    /// Adjoint gradient of one functional: one dual solve with data `(J_u, J_l)`
+    /// for `(w, nu)`, then `dJ/da_i = J_a,i + w^T f_bar_i + nu^T c_bar_i` for every i.
+    /// Refused with weak contacts (the gradient does not exist there).
+    pub fn adjoint(&self, f: &Functional, tolerance: f64) -> Result<(Vec<f64>, usize), SolveError> {
+        if self.weak() > 0 {
+            return Err(SolveError::Unsupported(format!(
+                "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
+                self.weak()
+            )));
+        }
+        let state = self.state;
+        let p = &state.problem;
+        let m = self.scene.design.len();
+        // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
+        let mut ju: Vec<Vec<f64>> = p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect();
+        let mut jl = vec![0.0; p.rows.len()];
+        let mut leaves = Vec::new();
+        collect_leaves(f, &mut leaves);
+        for leaf in &leaves {
+            let w = self
+                .eval_tree(f, &|l| {
+                    let v = self.leaf_value(l);
+                    if std::ptr::eq(l, *leaf) {
+                        D::new(v, 1.0)
+                    } else {
+                        D::from(v)
+                    }
+                })
+                .eps;
+            if w == 0.0 {
+                continue;
+            }
+            match leaf {
+                Functional::Compliance => {
+                    for (s, m) in p.subdomains.iter().enumerate() {
+                        for (k, v) in m.f.iter().enumerate() {
+                            ju[s][k] += w * v;
+                        }
+                    }
+                }
+                Functional::Energy => {
+                    for (s, sub) in state.dual.subs.iter().enumerate() {
+                        let mut ku = vec![0.0; sub.n];
+                        sub.k.mul(&state.u[s], &mut ku);
+                        for (k, v) in ku.iter().enumerate() {
+                            ju[s][k] += w * v;
+                        }
+                    }
+                }
+                Functional::Probe(pr, comp) => {
+                    let (body, node) = p.probes[*pr];
+                    let (s, l) = p.bodies[body].copies(node)[0];
+                    ju[s][2 * l + comp] += w;
+                }
+                Functional::ContactForce(c) => {
+                    for (r, row) in p.rows.iter().enumerate() {
+                        if matches!(row.kind, RowKind::Contact { contact, .. } if contact == *c) {
+                            jl[r] += w / row.scale;
+                        }
+                    }
+                }
+                Functional::PressureNorm(..) => {
+                    return Err(SolveError::Unsupported(
+                        "the derivative of `pressure_norm` is not implemented yet".into(),
+                    ));
+                }
+                _ => {}
+            }
+        }
+        let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
+        let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
+        let before = self.dual.f_applications.load(Ordering::Relaxed);
+        let sol = dual_solve(
+            &self.dual,
+            &f_adj,
+            &c_adj,
+            self.n_equality,
+            &solve_settings(tolerance),
+            &mut |_| {},
+        )?;
+        let cost = sol
+            .info
+            .hessian_applications
+            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
+        let mut grad = vec![0.0; m];
+        for (i, g) in grad.iter_mut().enumerate() {
+            let rhs = self.rhs(i);
+            // The explicit part: the derivative with u' = 0 and l' = 0.
+            let explicit = Direction {
+                u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
+                lambda: vec![0.0; p.rows.len()],
+                f: rhs.fprime.clone(),
+                ukpu: rhs.ukpu,
+                scale: rhs.scale.clone(),
+                hessian_applications: 0,
+                kinks: rhs.kinks,
+            };
+            let ja = self
+                .derivative(f, i, &explicit)
+                .map_err(SolveError::Unsupported)?;
+            let wf: f64 = sol
+                .u
+                .iter()
+                .zip(&rhs.fbar)
+                .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
+                .sum();
+            let nc: f64 = sol.lambda.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
+            *g = ja + wf + nc;
+        }
+        Ok((grad, cost))
     }
 
     /// `dJ/da_i` of a functional from the state and one direction's derivatives.
@@ -476,6 +630,19 @@ impl<'a> Sensitivity<'a> {
     }
 
     fn dual_value(&self, f: &Functional, dd: &[D], dir: &Direction) -> Result<D, String> {
+        let mut leaves = Vec::new();
+        collect_leaves(f, &mut leaves);
+        if leaves
+            .iter()
+            .any(|l| matches!(l, Functional::PressureNorm(..)))
+        {
+            return Err("the derivative of `pressure_norm` is not implemented yet".into());
+        }
+        Ok(self.eval_tree(f, &|l| self.leaf_dual(l, dd, dir)))
+    }
+
+    /// A leaf functional's value and derivative in one direction.
+    fn leaf_dual(&self, f: &Functional, dd: &[D], dir: &Direction) -> D {
         let state = self.state;
         let p = &state.problem;
         let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
@@ -485,7 +652,7 @@ impl<'a> Sensitivity<'a> {
                 .sum()
         };
         let f_state: Vec<Vec<f64>> = p.subdomains.iter().map(|m| m.f.clone()).collect();
-        Ok(match f {
+        match f {
             Functional::Geometry(g) => g.eval(&Point {
                 coords: [D::from(0.0); 3],
                 design: dd,
@@ -517,19 +684,35 @@ impl<'a> Sensitivity<'a> {
                 }
                 v
             }
-            Functional::PressureNorm(..) => {
-                return Err("the derivative of `pressure_norm` is not implemented yet".into());
-            }
             Functional::Area(b) | Functional::Volume(b) => body_area(&self.scene.bodies[*b], dd),
             Functional::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
                 let (s, l) = p.bodies[body].copies(node)[0];
                 D::new(state.u[s][2 * l + comp], dir.u[s][2 * l + comp])
             }
-            Functional::Initial(inner) => D::from(self.dual_value(inner, dd, dir)?.re),
-            Functional::Neg(a) => -self.dual_value(a, dd, dir)?,
+            _ => D::from(f64::NAN),
+        }
+    }
+
+    /// The value of a leaf at the state (no derivative).
+    fn leaf_value(&self, l: &Functional) -> f64 {
+        let design = self.scene.design_init();
+        super::Eval {
+            scene: self.scene,
+            design: &design,
+            state: self.state,
+            initial: None,
+        }
+        .value(l)
+    }
+
+    /// Evaluates the arithmetic around the leaves in dual numbers.
+    fn eval_tree(&self, f: &Functional, leaf: &dyn Fn(&Functional) -> D) -> D {
+        match f {
+            Functional::Initial(inner) => D::from(self.eval_tree(inner, leaf).re),
+            Functional::Neg(a) => -self.eval_tree(a, leaf),
             Functional::Arith(op, a, b) => {
-                let (a, b) = (self.dual_value(a, dd, dir)?, self.dual_value(b, dd, dir)?);
+                let (a, b) = (self.eval_tree(a, leaf), self.eval_tree(b, leaf));
                 match op {
                     Arith::Add => a + b,
                     Arith::Sub => a - b,
@@ -551,9 +734,9 @@ impl<'a> Sensitivity<'a> {
                     }
                 }
             }
-            Functional::Pow(a, q) => self.dual_value(a, dd, dir)?.powf(*q),
+            Functional::Pow(a, q) => self.eval_tree(a, leaf).powf(*q),
             Functional::Func(func, a) => {
-                let a = self.dual_value(a, dd, dir)?;
+                let a = self.eval_tree(a, leaf);
                 match func {
                     Func::Sqrt => a.sqrt(),
                     Func::Abs => num_traits_abs(a),
@@ -564,7 +747,8 @@ impl<'a> Sensitivity<'a> {
                     Func::Tan => a.tan(),
                 }
             }
-        })
+            l => leaf(l),
+        }
     }
 }
 
@@ -641,6 +825,59 @@ pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, S
             _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
         },
         functionals: functionals.into_iter().map(|(n, _, _)| n).collect(),
+        values,
+        design: scene.design.iter().map(|d| d.name.clone()).collect(),
+        gradient,
+        solves: 1,
+        hessian_applications: state.info.hessian_applications + hessian,
+        seconds: t0.elapsed().as_secs_f64(),
+        state_hessian_applications: state.info.hessian_applications,
+        state_seconds,
+        active_set_changed: Vec::new(),
+    })
+}
+
+/// The adjoint gradient of the objective and constraints (as `g <= 0`): one dual
+/// solve per functional, whatever the number of design variables.
+pub fn adjoint(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
+    let t0 = Instant::now();
+    let design = scene.design_init();
+    let state = crate::state::solve(scene, &design, &mut |_| {})?;
+    let state_seconds = t0.elapsed().as_secs_f64();
+    let sens = Sensitivity::new(scene, &state)?;
+    let mut names = Vec::new();
+    let mut rows: Vec<Functional> = Vec::new();
+    if let Some(o) = &scene.objective {
+        names.push(format!("minimize {}", o.text));
+        rows.push(o.functional.clone());
+    }
+    for c in &scene.constraints {
+        names.push(c.text.clone());
+        // g <= 0 form as one functional, so that one adjoint solve serves it.
+        let (a, b) = if c.upper {
+            (c.lhs.clone(), c.rhs.clone())
+        } else {
+            (c.rhs.clone(), c.lhs.clone())
+        };
+        rows.push(Functional::Arith(Arith::Sub, Box::new(a), Box::new(b)));
+    }
+    let eval = super::Eval {
+        scene,
+        design: &design,
+        state: &state,
+        initial: None,
+    };
+    let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
+    let mut gradient = Vec::new();
+    let mut hessian = 0;
+    for f in &rows {
+        let (g, cost) = sens.adjoint(f, tolerance)?;
+        hessian += cost;
+        gradient.push(g);
+    }
+    Ok(super::Gradient {
+        method: "adjoint".to_string(),
+        functionals: names,
         values,
         design: scene.design.iter().map(|d| d.name.clone()).collect(),
         gradient,
