@@ -86,3 +86,60 @@ pub fn scaling_row(
         converged: state.converged(),
     })
 }
+
+/// scont2d with `m` Bezier coefficients as design variables (initial shape: a
+/// flat face 0.01 above the base, so every m starts from the same geometry).
+pub fn scont_with(m: usize) -> String {
+    format!(
+        "scene scont_m{m} {{ dim = 2 }}
+material soft {{ E = 1000, nu = 0.3 }}
+design a[{m}] {{ init = 0.01, lower = 0, upper = 0.1 }}
+body base {{ material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 48 x 16, subdomains = 6 x 2 }}
+body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, bottom = 1 + bezier(a, x - 1), mesh = 16 x 16, subdomains = 2 x 2 }}
+fix base.bottom
+fix punch.top {{ ux }}
+traction punch.top = (0, -5)
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+minimize compliance
+subject to area(punch) <= initial(area(punch))
+"
+    )
+}
+
+/// One row of the gradient-cost table.
+#[derive(Debug, Clone, Serialize)]
+pub struct GradientCost {
+    pub m: usize,
+    pub method: String,
+    pub hessian: usize,
+    pub seconds: f64,
+    pub state_hessian: usize,
+    pub state_seconds: f64,
+}
+
+/// Gradient cost beyond the state solve, for the three methods.
+pub fn gradient_costs(m: usize, tolerance: f64) -> Result<Vec<GradientCost>, SolveError> {
+    let src = scont_with(m);
+    let mut scene = compile(&src, &CheckOptions::default()).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    scene.solver.tolerance = tolerance;
+    let runs = [
+        crate::sens::semi_analytic(&scene, tolerance)?,
+        crate::sens::adjoint(&scene, tolerance)?,
+        crate::sens::finite_difference(&scene, 1e-5, crate::lang::scene::Scheme::Forward)?,
+    ];
+    Ok(runs
+        .into_iter()
+        .map(|g| GradientCost {
+            m,
+            method: g.method,
+            hessian: g
+                .hessian_applications
+                .saturating_sub(g.state_hessian_applications),
+            seconds: (g.seconds - g.state_seconds).max(0.0),
+            state_hessian: g.state_hessian_applications,
+            state_seconds: g.state_seconds,
+        })
+        .collect())
+}

@@ -69,7 +69,7 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
-        /// Which benchmark (`scaling`).
+        /// Which benchmark (`scaling`, `sensitivity`).
         which: String,
         /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
         #[arg(long = "hh")]
@@ -169,8 +169,13 @@ fn main() -> ExitCode {
             tolerance,
             threads,
         } => {
+            if which == "sensitivity" {
+                return bench_sensitivity(*tolerance, *threads);
+            }
             if which != "scaling" {
-                errln!("error: unknown benchmark `{which}`; the benchmarks are: scaling");
+                errln!(
+                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, sensitivity"
+                );
                 return ExitCode::from(EXIT_IO);
             }
             let Some((mx, my)) = max_cuts.split_once('x').and_then(|(a, b)| {
@@ -468,6 +473,39 @@ fn sensitivity_command(
         }) {
             errln!("error: cannot write {}: {e}", dir.display());
             return ExitCode::from(EXIT_IO);
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso bench sensitivity`: gradient cost relative to one state solve, m = 6, 24, 96.
+fn bench_sensitivity(tolerance: f64, threads: Option<usize>) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    outln!(
+        "threads {}, tolerance {tolerance:e}",
+        pool.current_num_threads()
+    );
+    outln!("| m | method | Hessian beyond the state | ratio | seconds beyond the state | ratio |");
+    outln!("|---|---|---|---|---|---|");
+    for m in [6, 24, 96] {
+        match pool.install(|| cso::bench::gradient_costs(m, tolerance)) {
+            Ok(rows) => {
+                for r in rows {
+                    outln!(
+                        "| {} | {} | {} | {:.2} | {:.3} | {:.2} |",
+                        r.m,
+                        r.method,
+                        r.hessian,
+                        r.hessian as f64 / r.state_hessian.max(1) as f64,
+                        r.seconds,
+                        r.seconds / r.state_seconds.max(1e-9)
+                    );
+                }
+            }
+            Err(e) => errln!("error at m = {m}: {e}"),
         }
     }
     ExitCode::SUCCESS

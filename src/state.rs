@@ -461,6 +461,20 @@ pub fn dual_solve(
             }
         })
         .collect();
+    if n_equality == m {
+        // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
+        // Im P = ker G~, so the constraint holds without an outer loop.
+        let (lhat, info) = projected_cg(dual, &b, settings);
+        let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
+        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
+        return Ok(DualSolution {
+            lambda,
+            u,
+            alpha,
+            info,
+            b_norm: norm(&b),
+        });
+    }
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
     let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
@@ -493,6 +507,63 @@ pub fn dual_solve(
         info,
         b_norm: norm(&b),
     })
+}
+
+/// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`.
+///
+/// # Reference
+/// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
+/// exact in Im P, so plain CG is the inner solver and no outer loop is needed).
+fn projected_cg(dual: &Dual, b: &[f64], settings: &SmalbeSettings) -> (Vec<f64>, QpInfo) {
+    let m = b.len();
+    let a = ProjectedF::new(dual, 1.0);
+    let bnorm = norm(b);
+    let mut x = vec![0.0; m];
+    let mut info = QpInfo {
+        status: Status::Converged,
+        outer_iterations: 0,
+        inner_iterations: 0,
+        hessian_applications: 0,
+        projected_gradient: 0.0,
+        feasibility: 0.0,
+        history: Vec::new(),
+        norm_estimate: f64::NAN,
+    };
+    if bnorm == 0.0 {
+        return (x, info);
+    }
+    let mut r = b.to_vec();
+    let mut p = r.clone();
+    let mut ap = vec![0.0; m];
+    let mut rr: f64 = r.iter().map(|v| v * v).sum();
+    while rr.sqrt() > settings.tolerance * bnorm {
+        if info.hessian_applications >= settings.max_hessian {
+            info.status = Status::MaxIterations;
+            break;
+        }
+        crate::qp::Operator::apply(&a, &p, &mut ap);
+        info.hessian_applications += 1;
+        info.inner_iterations += 1;
+        let pap: f64 = p.iter().zip(&ap).map(|(x, y)| x * y).sum();
+        if pap <= 0.0 || !pap.is_finite() {
+            info.status = Status::Breakdown(format!("p^T A p = {pap:e} in projected CG"));
+            break;
+        }
+        let alpha = rr / pap;
+        for k in 0..m {
+            x[k] += alpha * p[k];
+            r[k] -= alpha * ap[k];
+        }
+        let rr_new: f64 = r.iter().map(|v| v * v).sum();
+        let beta = rr_new / rr;
+        rr = rr_new;
+        for k in 0..m {
+            p[k] = r[k] + beta * p[k];
+        }
+        info.history.push(rr.sqrt() / bnorm);
+    }
+    info.projected_gradient = rr.sqrt();
+    (x, info)
 }
 
 /// `alpha` from the rows that hold at the solution (equalities and active
