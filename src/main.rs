@@ -59,9 +59,13 @@ enum Command {
         /// `forward` or `central` (default: the scene's `sensitivity { scheme }`).
         #[arg(long)]
         scheme: Option<String>,
-        /// Write sensitivity.json into this folder.
+        /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
         #[arg(short, long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Chart speed against accuracy: finite differences over h = 1e-1 .. 1e-10 and
+        /// tolerances 1e-4 .. 1e-10, the exact methods over tolerances.
+        #[arg(long)]
+        study: bool,
         /// Threads over subdomains (default: all cores).
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
@@ -205,11 +209,15 @@ fn main() -> ExitCode {
             scheme,
             out,
             threads,
+            study,
         } => {
             let scene = match load(file, &opts) {
                 Ok(s) => s,
                 Err(code) => return ExitCode::from(code),
             };
+            if *study {
+                return study_command(&scene, out.as_deref(), *threads);
+            }
             sensitivity_command(
                 &scene,
                 method.as_deref(),
@@ -434,6 +442,11 @@ fn sensitivity_command(
         }
     };
     outln!("{} gradient of `{}`", g.method, scene.name);
+    outln!(
+        "  contact nodes: {} strong (carrying force), {} weak (closed, no force)",
+        g.strong,
+        g.weak
+    );
     for (k, name) in g.functionals.iter().enumerate() {
         outln!("  {name}   (value {})", cso::lang::diag::num(g.values[k]));
         for (i, d) in g.design.iter().enumerate() {
@@ -507,6 +520,66 @@ fn bench_sensitivity(tolerance: f64, threads: Option<usize>) -> ExitCode {
             }
             Err(e) => errln!("error at m = {m}: {e}"),
         }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso sensitivity --study`: the speed-against-accuracy chart.
+fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<usize>) -> ExitCode {
+    if scene.design.is_empty() || scene.objective.is_none() {
+        errln!("error: a study needs design variables and an objective");
+        return ExitCode::from(EXIT_SCENE);
+    }
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    outln!("| method | tolerance | h | seconds | Hessian | error | active set changed |");
+    outln!("|---|---|---|---|---|---|---|");
+    let result = pool.install(|| {
+        cso::sens::study::study(scene, &mut |r| {
+            outln!(
+                "| {} | {:.0e} | {} | {:.4} | {} | {:.2e} | {} |",
+                r.method,
+                r.tolerance,
+                r.step.map_or("-".to_string(), |h| format!("{h:.0e}")),
+                r.seconds,
+                r.hessian_applications,
+                r.error,
+                if r.active_set_changed { "yes" } else { "" }
+            );
+        })
+    });
+    let study = match result {
+        Ok(s) => s,
+        Err(e) => {
+            errln!("error: {e}");
+            return ExitCode::from(EXIT_SCENE);
+        }
+    };
+    outln!(
+        "reference: adjoint at tolerance 1e-12; Richardson-extrapolated central differences agree to {:.1e}",
+        study.richardson_agreement
+    );
+    if let Some(dir) = out {
+        let json = serde_json::to_string_pretty(&study).unwrap_or_default();
+        let svg = match study.svg() {
+            Ok(s) => s,
+            Err(e) => {
+                errln!("error: cannot draw the chart: {e}");
+                return ExitCode::from(EXIT_IO);
+            }
+        };
+        let written = std::fs::create_dir_all(dir).and_then(|_| {
+            cso::io::atomic::write_atomic(&dir.join("study.json"), json.as_bytes())?;
+            cso::io::atomic::write_atomic(&dir.join("study.csv"), study.csv().as_bytes())?;
+            cso::io::atomic::write_atomic(&dir.join("study.svg"), svg.as_bytes())
+        });
+        if let Err(e) = written {
+            errln!("error: cannot write {}: {e}", dir.display());
+            return ExitCode::from(EXIT_IO);
+        }
+        outln!("study written to {}", dir.display());
     }
     ExitCode::SUCCESS
 }

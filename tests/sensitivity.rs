@@ -136,6 +136,7 @@ minimize energy + 0.1 * compliance
 subject to contact_force(seat) <= 10
 subject to centre.uy >= -0.02
 subject to area(punch) <= 1.1
+subject to pressure_norm(seat, 4) <= 100
 ";
 
 #[test]
@@ -149,10 +150,10 @@ fn semi_analytic_agrees_with_differences_on_two_blocks_for_every_functional_kind
         "{:?}",
         fd.active_set_changed
     );
-    assert_eq!(exact.functionals.len(), 4);
+    assert_eq!(exact.functionals.len(), 5);
     // Non-matching meshes: no contact node sits at a segment end.
     assert_eq!(exact.method, "semi_analytic");
-    for k in 0..4 {
+    for k in 0..5 {
         let scale = fd.gradient[k]
             .iter()
             .fold(0.0f64, |a, b| a.max(b.abs()))
@@ -278,4 +279,61 @@ minimize compliance
         Err(e) => assert!(e.to_string().contains("weak contacts"), "{e}"),
         Ok(g) => panic!("a gradient was reported: {:?}", g.gradient),
     }
+}
+
+#[test]
+fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_extremes() {
+    let src = TWO_BLOCKS_DESIGN
+        .replace(
+            "mesh = 27 x 8, subdomains = 3 x 2",
+            "mesh = 9 x 4, subdomains = 3 x 1",
+        )
+        .replace(
+            "mesh = 8 x 8, subdomains = 2 x 2",
+            "mesh = 4 x 4, subdomains = 1 x 1",
+        )
+        .replace("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
+        .replace("1 + w", "2")
+        .replace("/w", "/1");
+    let s = compile(&src, &options()).expect("checks");
+    let study = cso::sens::study::study(&s, &mut |_| {}).expect("runs");
+    assert!(
+        study.richardson_agreement < 1e-6,
+        "{}",
+        study.richardson_agreement
+    );
+    let exact_tight: Vec<_> = study
+        .runs
+        .iter()
+        .filter(|r| r.step.is_none() && r.tolerance == 1e-10)
+        .collect();
+    assert_eq!(exact_tight.len(), 2);
+    assert!(
+        exact_tight.iter().all(|r| r.error < 1e-7),
+        "{exact_tight:?}"
+    );
+    let fd = |h: f64| {
+        study
+            .runs
+            .iter()
+            .find(|r| {
+                r.method == "finite_difference forward" && r.tolerance == 1e-10 && r.step == Some(h)
+            })
+            .map(|r| r.error)
+            .unwrap_or(f64::NAN)
+    };
+    // Truncation error at large h, solver error over h at tiny h: the best step
+    // lies strictly inside the range (here a contact node close to releasing makes
+    // the truncation constant large, so the best h is small).
+    let best = (2..=9)
+        .map(|k| fd(10f64.powi(-k)))
+        .fold(f64::INFINITY, f64::min);
+    assert!(
+        best < fd(1e-1) && best < fd(1e-10),
+        "best {best:e}, h=1e-1 {:e}, h=1e-10 {:e}",
+        fd(1e-1),
+        fd(1e-10)
+    );
+    assert_eq!(study.csv().lines().count(), study.runs.len() + 1);
+    assert!(study.svg().expect("draws").starts_with("<svg"));
 }

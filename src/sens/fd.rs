@@ -28,6 +28,9 @@ pub struct Gradient {
     pub state_seconds: f64,
     /// Design variables whose perturbed solves changed the contact active set.
     pub active_set_changed: Vec<String>,
+    /// Strong (force > 0) and weak (closed, no force) contact nodes at the design.
+    pub strong: usize,
+    pub weak: usize,
 }
 
 fn active_set(state: &State) -> Vec<bool> {
@@ -127,5 +130,10 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
         state_hessian_applications: base.info.hessian_applications,
         state_seconds,
         active_set_changed: changed,
+        strong: base_active.iter().filter(|a| **a).count(),
+        weak: super::semi::classify(&base)
+            .iter()
+            .filter(|c| **c == super::semi::Class::Weak)
+            .count(),
     })
 }

@@ -571,10 +571,23 @@ impl<'a> Sensitivity<'a> {
                         }
                     }
                 }
-                Functional::PressureNorm(..) => {
-                    return Err(SolveError::Unsupported(
-                        "the derivative of `pressure_norm` is not implemented yet".into(),
-                    ));
+                Functional::PressureNorm(c, q) => {
+                    // d/dF_i (sum |F|^q A^(1-q))^(1/q) = S^(1/q-1) |F_i|^(q-1) sgn A_i^(1-q)
+                    let design = self.scene.design_init();
+                    let nodes = self.pressure_terms(*c, &seeded(&design, usize::MAX), None);
+                    let sum: f64 = nodes
+                        .iter()
+                        .map(|(_, f, a)| f.re.abs().powf(*q) * a.re.powf(1.0 - q))
+                        .sum();
+                    if sum > 0.0 {
+                        for (r, f, a) in &nodes {
+                            let dfi = sum.powf(1.0 / q - 1.0)
+                                * f.re.abs().powf(q - 1.0)
+                                * f.re.signum()
+                                * a.re.powf(1.0 - q);
+                            jl[*r] += w * dfi / p.rows[*r].scale;
+                        }
+                    }
                 }
                 _ => {}
             }
@@ -630,14 +643,6 @@ impl<'a> Sensitivity<'a> {
     }
 
     fn dual_value(&self, f: &Functional, dd: &[D], dir: &Direction) -> Result<D, String> {
-        let mut leaves = Vec::new();
-        collect_leaves(f, &mut leaves);
-        if leaves
-            .iter()
-            .any(|l| matches!(l, Functional::PressureNorm(..)))
-        {
-            return Err("the derivative of `pressure_norm` is not implemented yet".into());
-        }
         Ok(self.eval_tree(f, &|l| self.leaf_dual(l, dd, dir)))
     }
 
@@ -684,6 +689,15 @@ impl<'a> Sensitivity<'a> {
                 }
                 v
             }
+            Functional::PressureNorm(c, q) => {
+                let nodes = self.pressure_terms(*c, dd, Some(dir));
+                let sum: D = nodes
+                    .iter()
+                    .filter(|(_, _, a)| a.re > 0.0)
+                    .map(|(_, f, a)| num_traits_abs(*f).powf(*q) * a.powf(1.0 - q))
+                    .sum();
+                sum.powf(1.0 / q)
+            }
             Functional::Area(b) | Functional::Volume(b) => body_area(&self.scene.bodies[*b], dd),
             Functional::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
@@ -692,6 +706,37 @@ impl<'a> Sensitivity<'a> {
             }
             _ => D::from(f64::NAN),
         }
+    }
+
+    /// Per node of contact `c`: (row, normal force, tributary area), in dual
+    /// numbers (force derivative from `dir`, area derivative from the design).
+    fn pressure_terms(&self, c: usize, dd: &[D], dir: Option<&Direction>) -> Vec<(usize, D, D)> {
+        let state = self.state;
+        let p = &state.problem;
+        let design = self.scene.design_init();
+        let pos = grid_positions(self.scene, dd);
+        let sec = &self.scene.contacts[c].secondary;
+        let mut area: std::collections::HashMap<usize, D> = std::collections::HashMap::new();
+        for (a, b, _, _) in selected_edges(p, sec, &design) {
+            let (xa, xb) = (pos[sec.body][a], pos[sec.body][b]);
+            let len =
+                ((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1])).sqrt();
+            let half = len * (self.scene.thickness / 2.0);
+            *area.entry(a).or_insert(D::from(0.0)) += half;
+            *area.entry(b).or_insert(D::from(0.0)) += half;
+        }
+        p.rows
+            .iter()
+            .enumerate()
+            .filter_map(|(r, row)| match row.kind {
+                RowKind::Contact { contact, node, .. } if contact == c => {
+                    let (dl, ds) = dir.map_or((0.0, 0.0), |d| (d.lambda[r], d.scale[r]));
+                    let force = D::new(state.lambda[r], dl) / D::new(row.scale, ds);
+                    Some((r, force, area.get(&node).copied().unwrap_or(D::from(0.0))))
+                }
+                _ => None,
+            })
+            .collect()
     }
 
     /// The value of a leaf at the state (no derivative).
@@ -834,6 +879,8 @@ pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, S
         state_hessian_applications: state.info.hessian_applications,
         state_seconds,
         active_set_changed: Vec::new(),
+        strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
+        weak: sens.weak(),
     })
 }
 
@@ -887,5 +934,7 @@ pub fn adjoint(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveEr
         state_hessian_applications: state.info.hessian_applications,
         state_seconds,
         active_set_changed: Vec::new(),
+        strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
+        weak: sens.weak(),
     })
 }

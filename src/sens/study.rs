@@ -1,0 +1,196 @@
+//! Speed against accuracy: the error of every gradient method against the time it
+//! takes, for finite differences over steps `h` and solver tolerances, and for the
+//! exact methods over tolerances.
+//!
+//! Reference: the adjoint gradient at tolerance 1e-12, confirmed by
+//! Richardson-extrapolated central differences `(4 D(h/2) - D(h)) / 3` at the same
+//! tolerance (their agreement is reported). The error of a run is
+//! `max_i |g_i - g_ref_i| / max_i |g_ref_i|` over the objective's gradient.
+
+use super::{adjoint, finite_difference, semi_analytic, Gradient};
+use crate::lang::scene::{Scene, Scheme};
+use crate::state::SolveError;
+use serde::Serialize;
+
+/// One run of one method.
+#[derive(Debug, Clone, Serialize)]
+pub struct StudyRun {
+    pub method: String,
+    pub tolerance: f64,
+    /// Finite-difference step (None for the exact methods).
+    pub step: Option<f64>,
+    pub seconds: f64,
+    pub hessian_applications: usize,
+    pub error: f64,
+    pub active_set_changed: bool,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Study {
+    pub scene: String,
+    pub reference: Vec<f64>,
+    /// `max |Richardson - reference| / max |reference|`.
+    pub richardson_agreement: f64,
+    pub runs: Vec<StudyRun>,
+}
+
+fn error(g: &Gradient, reference: &[f64]) -> f64 {
+    let scale = reference
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(f64::MIN_POSITIVE);
+    g.gradient.first().map_or(f64::NAN, |row| {
+        row.iter()
+            .zip(reference)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max)
+            / scale
+    })
+}
+
+/// Runs the study; `progress` is told each run as it finishes.
+pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study, SolveError> {
+    let mut tight = scene.clone();
+    tight.solver.tolerance = 1e-12;
+    tight.solver.max_iterations = tight.solver.max_iterations.max(100_000);
+    let reference = adjoint(&tight, 1e-12)?
+        .gradient
+        .first()
+        .cloned()
+        .unwrap_or_default();
+    let h = 1e-4;
+    let d1 = finite_difference(&tight, h, Scheme::Central)?;
+    let d2 = finite_difference(&tight, h / 2.0, Scheme::Central)?;
+    let rich: Vec<f64> = d1.gradient[0]
+        .iter()
+        .zip(&d2.gradient[0])
+        .map(|(a, b)| (4.0 * b - a) / 3.0)
+        .collect();
+    let scale = reference
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(f64::MIN_POSITIVE);
+    let richardson_agreement = rich
+        .iter()
+        .zip(&reference)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max)
+        / scale;
+    let mut runs = Vec::new();
+    for tol in [1e-4, 1e-6, 1e-8, 1e-10] {
+        let mut s = scene.clone();
+        s.solver.tolerance = tol;
+        s.solver.max_iterations = s.solver.max_iterations.max(100_000);
+        let exact = [
+            ("semi_analytic", semi_analytic(&s, tol)?),
+            ("adjoint", adjoint(&s, tol)?),
+        ];
+        for (name, g) in exact {
+            let run = StudyRun {
+                method: name.to_string(),
+                tolerance: tol,
+                step: None,
+                seconds: g.seconds,
+                hessian_applications: g.hessian_applications,
+                error: error(&g, &reference),
+                active_set_changed: false,
+            };
+            progress(&run);
+            runs.push(run);
+        }
+        for k in 1..=10 {
+            let step = 10f64.powi(-k);
+            for (name, scheme) in [("forward", Scheme::Forward), ("central", Scheme::Central)] {
+                let g = finite_difference(&s, step, scheme)?;
+                let run = StudyRun {
+                    method: format!("finite_difference {name}"),
+                    tolerance: tol,
+                    step: Some(step),
+                    seconds: g.seconds,
+                    hessian_applications: g.hessian_applications,
+                    error: error(&g, &reference),
+                    active_set_changed: !g.active_set_changed.is_empty(),
+                };
+                progress(&run);
+                runs.push(run);
+            }
+        }
+    }
+    Ok(Study {
+        scene: scene.name.clone(),
+        reference,
+        richardson_agreement,
+        runs,
+    })
+}
+
+impl Study {
+    /// The runs as CSV.
+    pub fn csv(&self) -> String {
+        let mut out = String::from(
+            "method,tolerance,step,seconds,hessian_applications,error,active_set_changed\n",
+        );
+        for r in &self.runs {
+            out.push_str(&format!(
+                "{},{:e},{},{:e},{},{:e},{}\n",
+                r.method,
+                r.tolerance,
+                r.step.map_or(String::new(), |h| format!("{h:e}")),
+                r.seconds,
+                r.hessian_applications,
+                r.error,
+                r.active_set_changed
+            ));
+        }
+        out
+    }
+
+    /// Error against wall time on log-log axes, one series per method and
+    /// tolerance; runs whose perturbed solves changed the active set separately.
+    /// (Hessian applications, which repeat exactly, are in the CSV and JSON.)
+    pub fn svg(&self) -> Result<String, crate::io::plot::PlotError> {
+        let mut keys: Vec<String> = Vec::new();
+        let mut xs: Vec<Vec<f64>> = Vec::new();
+        let mut ys: Vec<Vec<f64>> = Vec::new();
+        for r in &self.runs {
+            let key = if r.active_set_changed {
+                "finite differences, active set changed".to_string()
+            } else if r.method.starts_with("finite") {
+                r.method.replace("finite_difference", "finite differences,")
+            } else {
+                format!("{} (tolerance 1e-4 .. 1e-10)", r.method)
+            };
+            let i = match keys.iter().position(|k| *k == key) {
+                Some(i) => i,
+                None => {
+                    keys.push(key);
+                    xs.push(Vec::new());
+                    ys.push(Vec::new());
+                    keys.len() - 1
+                }
+            };
+            xs[i].push(r.seconds.max(1e-6));
+            ys[i].push(r.error.max(1e-16));
+        }
+        // Points of a series in order of time, so its line reads left to right.
+        for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
+            let mut pts: Vec<(f64, f64)> = x.iter().copied().zip(y.iter().copied()).collect();
+            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
+            *x = pts.iter().map(|p| p.0).collect();
+            *y = pts.iter().map(|p| p.1).collect();
+        }
+        let series: Vec<crate::io::plot::Series> = keys
+            .iter()
+            .zip(xs.iter().zip(&ys))
+            .map(|(k, (x, y))| crate::io::plot::Series { name: k, x, y })
+            .collect();
+        crate::io::plot::line_chart(
+            &format!("{}: gradient error against cost", self.scene),
+            "seconds (state solve included)",
+            "relative error of d(objective)/da",
+            &series,
+            true,
+            true,
+        )
+    }
+}
