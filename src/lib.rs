@@ -13,6 +13,7 @@ pub mod fem;
 pub mod io;
 pub mod lang;
 pub mod model;
+pub mod opt;
 pub mod qp;
 pub mod sens;
 pub mod state;

@@ -70,6 +70,17 @@ enum Command {
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
     },
+    /// Optimize the design variables: MMA on `minimize` / `subject to` with exact gradients.
+    Optimize {
+        /// The `.cso` file.
+        file: PathBuf,
+        /// Write history.json, the best design's report, VTU and plots into this folder.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
@@ -226,6 +237,13 @@ fn main() -> ExitCode {
                 out.as_deref(),
                 *threads,
             )
+        }
+        Command::Optimize { file, out, threads } => {
+            let scene = match load(file, &opts) {
+                Ok(s) => s,
+                Err(code) => return ExitCode::from(code),
+            };
+            optimize_command(&scene, out.as_deref(), *threads)
         }
         Command::Compile { file, json } => match load(file, &opts) {
             Ok(scene) => {
@@ -582,4 +600,151 @@ fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<u
         outln!("study written to {}", dir.display());
     }
     ExitCode::SUCCESS
+}
+
+/// `cso optimize`: MMA iterations with a progress line, then the best design.
+fn optimize_command(
+    scene: &cso::lang::Scene,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let bar = indicatif::ProgressBar::new(scene.optimize.max_iterations as u64);
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+    );
+    let result = pool.install(|| {
+        cso::opt::optimize(scene, &mut |it| {
+            let worst = it
+                .constraints
+                .iter()
+                .copied()
+                .fold(f64::NEG_INFINITY, f64::max);
+            bar.set_message(format!(
+                "objective {:.6e} worst constraint {:.2e} step {:.1e} KKT {:.1e}",
+                it.objective, worst, it.step, it.kkt
+            ));
+            bar.inc(1);
+            true
+        })
+    });
+    bar.finish_and_clear();
+    let run = match result {
+        Ok(r) => r,
+        Err(e) => {
+            errln!("error: {e}");
+            return ExitCode::from(EXIT_SCENE);
+        }
+    };
+    outln!(
+        "{:>4} {:>14} {:>12} {:>10} {:>10}",
+        "iter",
+        "objective",
+        "worst g",
+        "step",
+        "KKT"
+    );
+    for it in &run.history {
+        let worst = it
+            .constraints
+            .iter()
+            .copied()
+            .fold(f64::NEG_INFINITY, f64::max);
+        outln!(
+            "{:>4} {:>14.6e} {:>12.3e} {:>10.2e} {:>10.2e}",
+            it.iteration,
+            it.objective,
+            worst,
+            it.step,
+            it.kkt
+        );
+    }
+    outln!("stopped: {:?}", run.termination);
+    if let Some(b) = run.best {
+        let it = &run.history[b];
+        outln!(
+            "best feasible design (iteration {}): objective {}",
+            it.iteration,
+            cso::lang::diag::num(it.objective)
+        );
+        for (d, v) in scene.design.iter().zip(&it.design) {
+            outln!("  {:<8} {}", d.name, cso::lang::diag::num(*v));
+        }
+    } else {
+        outln!("no feasible design was found");
+    }
+    if let Some(dir) = out {
+        if let Err(e) = write_optimization(dir, scene, &run) {
+            errln!("error: cannot write {}: {e}", dir.display());
+            return ExitCode::from(EXIT_IO);
+        }
+        outln!("results written to {}", dir.display());
+    }
+    ExitCode::SUCCESS
+}
+
+/// history.json, objective/constraint plots, and the best design's full report.
+fn write_optimization(
+    dir: &Path,
+    scene: &cso::lang::Scene,
+    run: &cso::opt::Optimization,
+) -> std::io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let json = serde_json::to_string_pretty(run).map_err(std::io::Error::other)?;
+    cso::io::atomic::write_atomic(&dir.join("history.json"), json.as_bytes())?;
+    let iters: Vec<f64> = run.history.iter().map(|h| h.iteration as f64).collect();
+    let obj: Vec<f64> = run.history.iter().map(|h| h.objective).collect();
+    let svg = cso::io::plot::line_chart(
+        &format!("{}: objective", scene.name),
+        "iteration",
+        "objective",
+        &[cso::io::plot::Series {
+            name: "objective",
+            x: &iters,
+            y: &obj,
+        }],
+        false,
+        false,
+    )
+    .map_err(std::io::Error::other)?;
+    cso::io::atomic::write_atomic(&dir.join("objective.svg"), svg.as_bytes())?;
+    let ncons = run.history.first().map_or(0, |h| h.constraints.len());
+    let cons: Vec<Vec<f64>> = (0..ncons)
+        .map(|k| run.history.iter().map(|h| h.constraints[k]).collect())
+        .collect();
+    let names: Vec<String> = run.names.iter().skip(1).cloned().collect();
+    let series: Vec<cso::io::plot::Series> = cons
+        .iter()
+        .zip(&names)
+        .map(|(y, n)| cso::io::plot::Series {
+            name: n,
+            x: &iters,
+            y,
+        })
+        .collect();
+    let svg = cso::io::plot::line_chart(
+        &format!("{}: constraints (g <= 0)", scene.name),
+        "iteration",
+        "g",
+        &series,
+        false,
+        false,
+    )
+    .map_err(std::io::Error::other)?;
+    cso::io::atomic::write_atomic(&dir.join("constraints.svg"), svg.as_bytes())?;
+    if let Some(b) = run.best {
+        let mut best = scene.clone();
+        for (d, v) in best.design.iter_mut().zip(&run.history[b].design) {
+            d.init = *v;
+        }
+        let state = cso::state::solve(&best, &best.design_init(), &mut |_| {})
+            .map_err(std::io::Error::other)?;
+        let report = cso::io::report::Report::new(&best, &state);
+        cso::io::report::write_all(dir, &best, &state, &report)?;
+    }
+    Ok(())
 }

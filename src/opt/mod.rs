@@ -1,0 +1,246 @@
+//! Shape optimization: the design problem of the scene (`minimize`, `subject to`,
+//! bounds) solved by MMA with the exact gradients of [`crate::sens`].
+//!
+//! `initial(...)` is frozen at the starting design. Every iterate is a full state
+//! solve plus a gradient; a design whose geometry cannot be lowered or solved
+//! is stepped back towards the last good one, and the best feasible design found
+//! is always kept.
+
+pub mod mma;
+
+use crate::lang::expr::Formula;
+use crate::lang::scene::{Functional, Scene, SensitivityMethod};
+use crate::sens::{Eval, Gradient};
+use crate::state::SolveError;
+use mma::{kkt_residual, Mma, MmaSettings};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Why the optimizer stopped.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "snake_case", tag = "reason", content = "detail")]
+pub enum Termination {
+    /// The KKT residual of the design problem fell below the tolerance.
+    Kkt,
+    /// The design moved less than the tolerance (relative to its range).
+    SmallStep,
+    MaxIterations,
+    /// A design could not be solved even after stepping back; the cause.
+    Failure(String),
+    /// Stopped from outside (Ctrl-C).
+    Interrupted,
+}
+
+/// One iterate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Iterate {
+    pub iteration: usize,
+    pub design: Vec<f64>,
+    pub objective: f64,
+    /// Constraint values as `g <= 0`.
+    pub constraints: Vec<f64>,
+    pub gradient_norm: f64,
+    pub kkt: f64,
+    pub step: f64,
+    pub hessian_applications: usize,
+    pub seconds: f64,
+}
+
+/// The run: every iterate, the best feasible design, why it stopped.
+#[derive(Debug, Clone, Serialize)]
+pub struct Optimization {
+    pub scene: String,
+    pub names: Vec<String>,
+    pub history: Vec<Iterate>,
+    /// Index into `history` of the best feasible iterate (lowest objective with
+    /// every constraint within tolerance), if any.
+    pub best: Option<usize>,
+    pub termination: Termination,
+}
+
+/// Replaces `initial(e)` by the value of `e` at the starting design.
+fn freeze(f: &Functional, eval: &Eval) -> Functional {
+    match f {
+        Functional::Initial(inner) => Functional::Geometry(Formula::Const(eval.value(inner))),
+        Functional::Neg(a) => Functional::Neg(Box::new(freeze(a, eval))),
+        Functional::Arith(op, a, b) => {
+            Functional::Arith(*op, Box::new(freeze(a, eval)), Box::new(freeze(b, eval)))
+        }
+        Functional::Pow(a, p) => Functional::Pow(Box::new(freeze(a, eval)), *p),
+        Functional::Func(func, a) => Functional::Func(*func, Box::new(freeze(a, eval))),
+        other => other.clone(),
+    }
+}
+
+fn with_design(scene: &Scene, x: &[f64]) -> Scene {
+    let mut s = scene.clone();
+    for (d, v) in s.design.iter_mut().zip(x) {
+        d.init = *v;
+    }
+    s
+}
+
+fn gradient(scene: &Scene) -> Result<Gradient, SolveError> {
+    match scene.sensitivity.method {
+        SensitivityMethod::FiniteDifference => {
+            crate::sens::finite_difference(scene, scene.sensitivity.step, scene.sensitivity.scheme)
+        }
+        SensitivityMethod::Adjoint => crate::sens::adjoint(scene, scene.solver.tolerance),
+        SensitivityMethod::SemiAnalytic => {
+            crate::sens::semi_analytic(scene, scene.solver.tolerance)
+        }
+    }
+}
+
+/// Runs MMA on the scene's design problem. `observer` sees every iterate and may
+/// return `false` to stop (the best design is kept).
+pub fn optimize(
+    scene: &Scene,
+    observer: &mut dyn FnMut(&Iterate) -> bool,
+) -> Result<Optimization, SolveError> {
+    let Some(objective) = &scene.objective else {
+        return Err(SolveError::Unsupported(
+            "the scene has no `minimize` objective".into(),
+        ));
+    };
+    if scene.design.is_empty() {
+        return Err(SolveError::Unsupported(
+            "the scene has no design variables".into(),
+        ));
+    }
+    let x0 = scene.design_init();
+    let start = crate::state::solve(scene, &x0, &mut |_| {})?;
+    let eval = Eval {
+        scene,
+        design: &x0,
+        state: &start,
+        initial: None,
+    };
+    let mut frozen = scene.clone();
+    frozen.objective = Some(crate::lang::scene::Objective {
+        functional: freeze(&objective.functional, &eval),
+        text: objective.text.clone(),
+    });
+    for c in &mut frozen.constraints {
+        c.lhs = freeze(&c.lhs, &eval);
+        c.rhs = freeze(&c.rhs, &eval);
+    }
+    let lower: Vec<f64> = scene.design.iter().map(|d| d.lower).collect();
+    let upper: Vec<f64> = scene.design.iter().map(|d| d.upper).collect();
+    let tol = scene.optimize.tolerance;
+    let mut mma = Mma::new(lower.clone(), upper.clone(), MmaSettings::default());
+    let mut x = x0.clone();
+    let mut history: Vec<Iterate> = Vec::new();
+    let mut best: Option<usize> = None;
+    let mut names = Vec::new();
+    let mut f_scale = 1.0;
+    let mut last_multipliers: Vec<f64> = Vec::new();
+    let t0 = Instant::now();
+    let mut termination = Termination::MaxIterations;
+    for k in 0..scene.optimize.max_iterations.max(1) {
+        let t = Instant::now();
+        let current = with_design(&frozen, &x);
+        let g = match gradient(&current) {
+            Ok(g) => g,
+            Err(e) if k > 0 => {
+                // Step back halfway towards the last good design, a few times.
+                let prev = history
+                    .last()
+                    .map(|h| h.design.clone())
+                    .unwrap_or_else(|| x0.clone());
+                let mut recovered = None;
+                let mut trial = x.clone();
+                for _ in 0..4 {
+                    trial = trial
+                        .iter()
+                        .zip(&prev)
+                        .map(|(a, b)| 0.5 * (a + b))
+                        .collect();
+                    if let Ok(g) = gradient(&with_design(&frozen, &trial)) {
+                        recovered = Some(g);
+                        break;
+                    }
+                }
+                match recovered {
+                    Some(g) => {
+                        x = trial;
+                        g
+                    }
+                    None => {
+                        termination =
+                            Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
+                        break;
+                    }
+                }
+            }
+            Err(e) => return Err(e),
+        };
+        if k == 0 {
+            names = g.functionals.clone();
+            f_scale = 1.0 / g.values[0].abs().max(1e-300);
+        }
+        let f0 = g.values[0];
+        let cons: Vec<f64> = g.values[1..].to_vec();
+        let df0: Vec<f64> = g.gradient[0].iter().map(|v| v * f_scale).collect();
+        let dg: Vec<Vec<f64>> = g.gradient[1..].to_vec();
+        let kkt = if last_multipliers.len() == cons.len() {
+            kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &last_multipliers)
+        } else {
+            f64::INFINITY
+        };
+        let feasible = cons.iter().all(|c| *c <= tol.max(1e-9));
+        let step = mma.step(&x, &df0, &cons, &dg);
+        let step_size = step
+            .x
+            .iter()
+            .zip(&x)
+            .zip(lower.iter().zip(&upper))
+            .map(|((a, b), (lo, hi))| (a - b).abs() / (hi - lo).max(1e-300))
+            .fold(0.0, f64::max);
+        // The KKT residual with this iterate's multipliers (of the subproblem at x).
+        let kkt_now =
+            kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
+        let it = Iterate {
+            iteration: k,
+            design: x.clone(),
+            objective: f0,
+            constraints: cons.clone(),
+            gradient_norm: g.gradient[0].iter().map(|v| v * v).sum::<f64>().sqrt(),
+            kkt: kkt_now,
+            step: step_size,
+            hessian_applications: g.hessian_applications,
+            seconds: t.elapsed().as_secs_f64(),
+        };
+        let keep_going = observer(&it);
+        history.push(it);
+        if feasible && best.is_none_or(|b| f0 < history[b].objective) {
+            best = Some(history.len() - 1);
+        }
+        if !f0.is_finite() {
+            termination = Termination::Failure("the objective is not finite".into());
+            break;
+        }
+        if !keep_going {
+            termination = Termination::Interrupted;
+            break;
+        }
+        if feasible && kkt_now <= tol {
+            termination = Termination::Kkt;
+            break;
+        }
+        if step_size <= tol {
+            termination = Termination::SmallStep;
+            break;
+        }
+        last_multipliers = step.multipliers;
+        x = step.x;
+    }
+    let _ = t0;
+    Ok(Optimization {
+        scene: scene.name.clone(),
+        names,
+        history,
+        best,
+        termination,
+    })
+}
