@@ -5,6 +5,7 @@ mod diagnostics;
 mod examples;
 mod front_end;
 mod fuzz;
+mod optimize;
 mod reference;
 mod sensitivity;
 mod state;

@@ -262,7 +262,7 @@ mod tests {
         let mut mma = Mma::new(lower, upper, MmaSettings::default());
         let mut x = vec![1.0];
         for _ in 0..40 {
-            x = mma.step(&x, &[1.0 / x[0].powi(2) * -1.0], &[], &[]).x;
+            x = mma.step(&x, &[-1.0 / x[0].powi(2)], &[], &[]).x;
         }
         assert!((x[0] - 2.0).abs() < 1e-9, "{x:?}");
     }

@@ -1,0 +1,105 @@
+//! Shape optimization: convergence on scont2d, a known optimum, robustness.
+
+use crate::{options, root};
+use cso::lang::compile;
+use cso::opt::{optimize, Termination};
+
+#[test]
+fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
+    let s = compile(&src, &options()).expect("checks");
+    let run = optimize(&s, &mut |_| true).expect("runs");
+    assert_eq!(run.termination, Termination::Kkt, "{:?}", run.termination);
+    let first = &run.history[0];
+    let best = &run.history[run.best.expect("a feasible design")];
+    assert!(
+        best.objective < 0.9 * first.objective,
+        "{} -> {}",
+        first.objective,
+        best.objective
+    );
+    // Area constraint held (g <= 0 within tolerance) and active at the optimum.
+    assert!(
+        best.constraints[0] <= 1e-6 && best.constraints[0] > -1e-4,
+        "{:?}",
+        best.constraints
+    );
+    assert!(best.kkt < 1e-5, "{}", best.kkt);
+    // The scene is symmetric about x = 1.5, so is the optimal face.
+    let a = &best.design;
+    for i in 0..3 {
+        assert!((a[i] - a[5 - i]).abs() < 1e-6, "{a:?}");
+    }
+    // The objective never increased by more than round-off along the way.
+    for w in run.history.windows(2) {
+        assert!(
+            w[1].objective <= w[0].objective * (1.0 + 1e-9),
+            "{} -> {}",
+            w[0].objective,
+            w[1].objective
+        );
+    }
+    insta::assert_snapshot!(
+        "optimize_scont2d",
+        run.history
+            .iter()
+            .map(|h| format!(
+                "{:>2} objective {:.4e} area {:+.1e} design [{}]",
+                h.iteration,
+                h.objective,
+                if h.constraints[0].abs() < 1e-6 {
+                    0.0
+                } else {
+                    h.constraints[0]
+                },
+                h.design
+                    .iter()
+                    .map(|v| format!("{:.4}", v))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+}
+
+#[test]
+fn a_monotone_objective_drives_the_design_to_its_bound() {
+    // Lifting the punch's flat bottom (h) shrinks its area; minimizing the area
+    // must end at h = upper, whatever the mechanics.
+    let src = "scene lift { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design h { init = 0.05, lower = 0, upper = 0.3 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 12 x 4, subdomains = 2 x 1 }
+body punch { material = soft, x = 1 .. 2, y = 1 .. 2, bottom = 1 + h, mesh = 4 x 4 }
+fix base.bottom
+fix punch.top
+minimize area(punch)
+optimize { max_iterations = 40, tolerance = 1e-8 }
+";
+    let s = compile(src, &options()).expect("checks");
+    let run = optimize(&s, &mut |_| true).expect("runs");
+    let best = &run.history[run.best.expect("feasible")];
+    assert!(
+        (best.design[0] - 0.3).abs() < 1e-6,
+        "{:?} ({:?})",
+        best.design,
+        run.termination
+    );
+    assert!((best.objective - 0.7).abs() < 1e-6, "{}", best.objective);
+}
+
+#[test]
+fn stopping_from_outside_keeps_the_best_design() {
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
+    let s = compile(&src, &options()).expect("checks");
+    let mut seen = 0;
+    let run = optimize(&s, &mut |_| {
+        seen += 1;
+        seen < 2
+    })
+    .expect("runs");
+    assert_eq!(run.termination, Termination::Interrupted);
+    assert_eq!(run.history.len(), 2);
+    assert!(run.best.is_some());
+}
