@@ -18,6 +18,7 @@ use faer::{Mat, Side};
 use rayon::prelude::*;
 use std::fmt;
 use std::sync::atomic::Ordering;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Wall time of each phase, seconds.
@@ -76,6 +77,10 @@ pub struct State {
     pub f_applications: usize,
     /// `||b||` of the homogenized dual problem (the scale of its residuals).
     pub b_norm: f64,
+    /// Subdomain factorizations reused from a previous state.
+    pub reused: usize,
+    /// Whether the dual solve started from a previous state's multipliers.
+    pub warm_started: bool,
 }
 
 /// Why a state solve could not run or finish.
@@ -286,24 +291,60 @@ fn norm(v: &[f64]) -> f64 {
 
 /// Lowers the scene and builds every subdomain's operators (assembly, kernel,
 /// factorization), in parallel over subdomains. Returns the lowering time too.
-pub fn setup(scene: &Scene, design: &[f64]) -> Result<(Problem, Vec<Subdomain>, f64), SolveError> {
+pub fn setup(
+    scene: &Scene,
+    design: &[f64],
+) -> Result<(Problem, Vec<Arc<Subdomain>>, f64), SolveError> {
+    setup_reusing(scene, design, None).map(|(p, s, t, _)| (p, s, t))
+}
+
+/// [`setup`], reusing the factorizations of `previous` for every subdomain whose
+/// mesh (node positions, material, thickness) did not change: only subdomains
+/// whose nodes moved are re-assembled and re-factorized. Returns how many were
+/// reused.
+pub fn setup_reusing(
+    scene: &Scene,
+    design: &[f64],
+    previous: Option<&State>,
+) -> Result<(Problem, Vec<Arc<Subdomain>>, f64, usize), SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
     let lower_time = t0.elapsed().as_secs_f64();
-    let subs: Vec<Result<Subdomain, SolveError>> = problem
+    let same = |s: usize| -> Option<Arc<Subdomain>> {
+        let prev = previous?;
+        let (a, b) = (prev.problem.subdomains.get(s)?, &problem.subdomains[s]);
+        (a.coords == b.coords
+            && a.young == b.young
+            && a.poisson == b.poisson
+            && a.thickness == b.thickness)
+            .then(|| prev.dual.subs[s].clone())
+    };
+    let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem
         .subdomains
         .par_iter()
-        .map(|m| {
+        .enumerate()
+        .map(|(s, m)| {
+            if let Some(old) = same(s) {
+                return Ok((old, true));
+            }
             let body = &problem.bodies[m.body];
-            Subdomain::new(m, body.h().0).map_err(|error| SolveError::Subdomain {
-                body: body.name.clone(),
-                block: m.block,
-                error,
-            })
+            Subdomain::new(m, body.h().0)
+                .map(|sub| (Arc::new(sub), false))
+                .map_err(|error| SolveError::Subdomain {
+                    body: body.name.clone(),
+                    block: m.block,
+                    error,
+                })
         })
         .collect();
-    let subs: Vec<Subdomain> = subs.into_iter().collect::<Result<_, _>>()?;
-    Ok((problem, subs, lower_time))
+    let subs: Vec<(Arc<Subdomain>, bool)> = subs.into_iter().collect::<Result<_, _>>()?;
+    let reused = subs.iter().filter(|(_, r)| *r).count();
+    Ok((
+        problem,
+        subs.into_iter().map(|(s, _)| s).collect(),
+        lower_time,
+        reused,
+    ))
 }
 
 /// Sizes of the TFETI operators of a scene, as `cso compile` prints them.
@@ -334,6 +375,20 @@ pub fn solve(
     design: &[f64],
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
+    solve_reusing(scene, design, None, false, false, observer)
+}
+
+/// [`solve`] at a new design, reusing what `previous` (a state of the same scene
+/// at a nearby design) allows: the factorizations of subdomains whose nodes did
+/// not move, and its multipliers as the starting point when the rows match.
+pub fn solve_reusing(
+    scene: &Scene,
+    design: &[f64],
+    previous: Option<&State>,
+    factorizations: bool,
+    warm_start: bool,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
     use crate::lang::scene::{Preconditioner, SolverMethod};
     if scene.solver.method == SolverMethod::Feti {
         return Err(SolveError::Unsupported(
@@ -348,16 +403,17 @@ pub fn solve(
     }
     let t0 = Instant::now();
     let mut times = Times::default();
-    let (problem, subs, lower_time) = setup(scene, design)?;
+    let (problem, subs, lower_time, reused) =
+        setup_reusing(scene, design, previous.filter(|_| factorizations))?;
     loads_can_be_carried(&problem)?;
     times.lower = lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - lower_time;
 
     let t = Instant::now();
     let m = problem.rows.len();
-    let dual = Dual::new(std::sync::Arc::new(subs), local_rows(&problem), m).map_err(
-        |CoarseError { free_modes }| SolveError::FreeRigidModes(name_modes(&problem, &free_modes)),
-    )?;
+    let dual = Dual::new(subs, local_rows(&problem), m).map_err(|CoarseError { free_modes }| {
+        SolveError::FreeRigidModes(name_modes(&problem, &free_modes))
+    })?;
     times.coarse = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
@@ -370,7 +426,29 @@ pub fn solve(
         max_outer: 1000,
         ..SmalbeSettings::default()
     };
-    let sol = dual_solve(&dual, &f, &c, problem.n_equality, &settings, observer)?;
+    // Warm start: the previous multipliers, when the rows are the same ones.
+    let warm = previous.filter(|_| warm_start).and_then(|prev| {
+        let same = prev.problem.rows.len() == problem.rows.len()
+            && prev.problem.n_equality == problem.n_equality
+            && prev.problem.rows.iter().zip(&problem.rows).all(|(a, b)| {
+                std::mem::discriminant(&a.kind) == std::mem::discriminant(&b.kind)
+                    && a.entries
+                        .iter()
+                        .map(|e| (e.0, e.1))
+                        .eq(b.entries.iter().map(|e| (e.0, e.1)))
+            });
+        same.then(|| prev.lambda.clone())
+    });
+    let warm_started = warm.is_some();
+    let sol = dual_solve_from(
+        &dual,
+        &f,
+        &c,
+        problem.n_equality,
+        &settings,
+        warm.as_deref(),
+        observer,
+    )?;
     times.solve = t.elapsed().as_secs_f64();
     let DualSolution {
         lambda,
@@ -395,6 +473,8 @@ pub fn solve(
         kkt,
         f_applications,
         b_norm,
+        reused,
+        warm_started,
     })
 }
 
@@ -419,6 +499,19 @@ pub fn dual_solve(
     c: &[f64],
     n_equality: usize,
     settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<DualSolution, SolveError> {
+    dual_solve_from(dual, f, c, n_equality, settings, None, observer)
+}
+
+/// [`dual_solve`] from an initial guess of the multipliers (a warm start).
+pub fn dual_solve_from(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    start: Option<&[f64]>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let m = dual.m;
@@ -487,7 +580,15 @@ pub fn dual_solve(
         1.0
     };
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
-    let mut lhat = vec![0.0; m];
+    // The start, homogenized and projected (SMALBE puts it on the bounds).
+    let mut lhat = match start {
+        Some(l0) if l0.len() == m => {
+            let mut x: Vec<f64> = l0.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
+            dual.project(&mut x);
+            x
+        }
+        _ => vec![0.0; m],
+    };
     let info = smalbe(
         &ProjectedF::new(dual, scale),
         &b,

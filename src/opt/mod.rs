@@ -11,7 +11,7 @@ pub mod mma;
 use crate::lang::expr::Formula;
 use crate::lang::scene::{Functional, Scene, SensitivityMethod};
 use crate::sens::{Eval, Gradient};
-use crate::state::SolveError;
+use crate::state::{SolveError, State};
 use mma::{kkt_residual, Mma, MmaSettings};
 use serde::Serialize;
 use std::time::Instant;
@@ -44,6 +44,9 @@ pub struct Iterate {
     pub step: f64,
     pub hessian_applications: usize,
     pub seconds: f64,
+    /// Subdomain factorizations reused from the previous design.
+    pub reused_factorizations: usize,
+    pub warm_started: bool,
 }
 
 /// The run: every iterate, the best feasible design, why it stopped.
@@ -80,22 +83,70 @@ fn with_design(scene: &Scene, x: &[f64]) -> Scene {
     s
 }
 
-fn gradient(scene: &Scene) -> Result<Gradient, SolveError> {
-    match scene.sensitivity.method {
-        SensitivityMethod::FiniteDifference => {
-            crate::sens::finite_difference(scene, scene.sensitivity.step, scene.sensitivity.scheme)
-        }
-        SensitivityMethod::Adjoint => crate::sens::adjoint(scene, scene.solver.tolerance),
-        SensitivityMethod::SemiAnalytic => {
-            crate::sens::semi_analytic(scene, scene.solver.tolerance)
+/// How the loop reuses work between designs.
+#[derive(Debug, Clone, Copy)]
+pub struct Reuse {
+    /// Keep the factorizations of subdomains whose nodes did not move.
+    pub factorizations: bool,
+    /// Start each dual solve from the previous design's multipliers.
+    pub warm_start: bool,
+}
+
+impl Default for Reuse {
+    fn default() -> Self {
+        Reuse {
+            factorizations: true,
+            warm_start: true,
         }
     }
+}
+
+/// The state at the scene's design (reusing `previous` as allowed) and its gradient.
+fn state_and_gradient(
+    scene: &Scene,
+    previous: Option<&State>,
+    reuse: Reuse,
+) -> Result<(State, Gradient), SolveError> {
+    let t0 = Instant::now();
+    let design = scene.design_init();
+    let state = match previous {
+        Some(prev) => crate::state::solve_reusing(
+            scene,
+            &design,
+            Some(prev),
+            reuse.factorizations,
+            reuse.warm_start,
+            &mut |_| {},
+        )?,
+        _ => crate::state::solve(scene, &design, &mut |_| {})?,
+    };
+    let g = match scene.sensitivity.method {
+        SensitivityMethod::FiniteDifference => {
+            crate::sens::finite_difference(scene, scene.sensitivity.step, scene.sensitivity.scheme)?
+        }
+        SensitivityMethod::Adjoint => {
+            crate::sens::adjoint_at(scene, &state, scene.solver.tolerance, t0)?
+        }
+        SensitivityMethod::SemiAnalytic => {
+            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?
+        }
+    };
+    Ok((state, g))
 }
 
 /// Runs MMA on the scene's design problem. `observer` sees every iterate and may
 /// return `false` to stop (the best design is kept).
 pub fn optimize(
     scene: &Scene,
+    observer: &mut dyn FnMut(&Iterate) -> bool,
+) -> Result<Optimization, SolveError> {
+    optimize_with(scene, Reuse::default(), observer)
+}
+
+/// [`optimize`] with a choice of what is reused between designs.
+pub fn optimize_with(
+    scene: &Scene,
+    reuse: Reuse,
     observer: &mut dyn FnMut(&Iterate) -> bool,
 ) -> Result<Optimization, SolveError> {
     let Some(objective) = &scene.objective else {
@@ -137,11 +188,12 @@ pub fn optimize(
     let mut last_multipliers: Vec<f64> = Vec::new();
     let t0 = Instant::now();
     let mut termination = Termination::MaxIterations;
+    let mut previous: Option<State> = None;
     for k in 0..scene.optimize.max_iterations.max(1) {
         let t = Instant::now();
         let current = with_design(&frozen, &x);
-        let g = match gradient(&current) {
-            Ok(g) => g,
+        let (state, g) = match state_and_gradient(&current, previous.as_ref(), reuse) {
+            Ok(r) => r,
             Err(e) if k > 0 => {
                 // Step back halfway towards the last good design, a few times.
                 let prev = history
@@ -156,8 +208,8 @@ pub fn optimize(
                         .zip(&prev)
                         .map(|(a, b)| 0.5 * (a + b))
                         .collect();
-                    if let Ok(g) = gradient(&with_design(&frozen, &trial)) {
-                        recovered = Some(g);
+                    if let Ok(r) = state_and_gradient(&with_design(&frozen, &trial), None, reuse) {
+                        recovered = Some(r);
                         break;
                     }
                 }
@@ -200,7 +252,11 @@ pub fn optimize(
         // The KKT residual with this iterate's multipliers (of the subproblem at x).
         let kkt_now =
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
+        let (reused, warm) = (state.reused, state.warm_started);
+        previous = Some(state);
         let it = Iterate {
+            reused_factorizations: reused,
+            warm_started: warm,
             iteration: k,
             design: x.clone(),
             objective: f0,

@@ -11,4 +11,4 @@ pub mod study;
 
 pub use fd::{finite_difference, Gradient};
 pub use functional::{body_area, Eval};
-pub use semi::{adjoint, semi_analytic, Sensitivity};
+pub use semi::{adjoint, adjoint_at, semi_analytic, semi_analytic_at, Sensitivity};

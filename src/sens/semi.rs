@@ -811,8 +811,20 @@ pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, S
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = crate::state::solve(scene, &design, &mut |_| {})?;
+    semi_analytic_at(scene, &state, tolerance, t0)
+}
+
+/// [`semi_analytic`] on an already solved state (at the scene's `design_init`);
+/// `t0` is when that state solve started (for the time ratios).
+pub fn semi_analytic_at(
+    scene: &Scene,
+    state: &State,
+    tolerance: f64,
+    t0: Instant,
+) -> Result<super::Gradient, SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
-    let sens = Sensitivity::new(scene, &state)?;
+    let design = scene.design_init();
+    let sens = Sensitivity::new(scene, state)?;
     let mut functionals = Vec::new();
     if let Some(o) = &scene.objective {
         functionals.push((format!("minimize {}", o.text), o.functional.clone(), None));
@@ -890,8 +902,19 @@ pub fn adjoint(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveEr
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = crate::state::solve(scene, &design, &mut |_| {})?;
+    adjoint_at(scene, &state, tolerance, t0)
+}
+
+/// [`adjoint`] on an already solved state (at the scene's `design_init`).
+pub fn adjoint_at(
+    scene: &Scene,
+    state: &State,
+    tolerance: f64,
+    t0: Instant,
+) -> Result<super::Gradient, SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
-    let sens = Sensitivity::new(scene, &state)?;
+    let design = scene.design_init();
+    let sens = Sensitivity::new(scene, state)?;
     let mut names = Vec::new();
     let mut rows: Vec<Functional> = Vec::new();
     if let Some(o) = &scene.objective {

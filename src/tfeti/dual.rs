@@ -59,7 +59,7 @@ pub struct CoarseError {
 /// `F`, `G~`, `P` of one decomposed problem.
 pub struct Dual {
     /// Shared, so that sensitivity problems reuse the state's factorizations.
-    pub subs: Arc<Vec<Subdomain>>,
+    pub subs: Vec<Arc<Subdomain>>,
     pub local: Vec<LocalRows>,
     /// Number of multipliers.
     pub m: usize,
@@ -78,7 +78,7 @@ impl Dual {
     /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
     /// some subdomain is not touched by any row (G G^T singular).
     pub fn new(
-        subs: Arc<Vec<Subdomain>>,
+        subs: Vec<Arc<Subdomain>>,
         local: Vec<LocalRows>,
         m: usize,
     ) -> Result<Self, CoarseError> {
