@@ -298,6 +298,10 @@ pub fn setup(
     setup_reusing(scene, design, None).map(|(p, s, t, _)| (p, s, t))
 }
 
+/// A lowered problem with its subdomains' operators, the lowering time (s) and
+/// how many factorizations were reused.
+pub type Setup = (Problem, Vec<Arc<Subdomain>>, f64, usize);
+
 /// [`setup`], reusing the factorizations of `previous` for every subdomain whose
 /// mesh (node positions, material, thickness) did not change: only subdomains
 /// whose nodes moved are re-assembled and re-factorized. Returns how many were
@@ -306,7 +310,7 @@ pub fn setup_reusing(
     scene: &Scene,
     design: &[f64],
     previous: Option<&State>,
-) -> Result<(Problem, Vec<Arc<Subdomain>>, f64, usize), SolveError> {
+) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
     let lower_time = t0.elapsed().as_secs_f64();

@@ -839,7 +839,7 @@ pub fn semi_analytic_at(
     let eval = super::Eval {
         scene,
         design: &design,
-        state: &state,
+        state,
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
@@ -934,7 +934,7 @@ pub fn adjoint_at(
     let eval = super::Eval {
         scene,
         design: &design,
-        state: &state,
+        state,
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
