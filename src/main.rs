@@ -617,8 +617,32 @@ fn optimize_command(
         indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
             .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
+    // Ctrl-C: finish the current design, then stop with the best one written.
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    {
+        let stop = stop.clone();
+        // Without a handler (one is already set) Ctrl-C simply ends the process.
+        let _ = ctrlc::set_handler(move || stop.store(true, std::sync::atomic::Ordering::SeqCst));
+    }
+    // Every design as a .vtu per body, listed in one .pvd per body (ParaView series).
+    let mut series: Vec<Vec<(f64, String)>> = vec![Vec::new(); scene.bodies.len()];
+    let mut write_error: Option<std::io::Error> = None;
     let result = pool.install(|| {
-        cso::opt::optimize(scene, &mut |it| {
+        cso::opt::optimize(scene, &mut |it, state| {
+            if let Some(dir) = out {
+                let designs = dir.join("designs");
+                for (b, body) in scene.bodies.iter().enumerate() {
+                    let name = format!("{}_{:03}.vtu", body.name, it.iteration);
+                    let vtu = cso::io::report::body_fields(state, b).vtu;
+                    let written = std::fs::create_dir_all(&designs).and_then(|_| {
+                        cso::io::atomic::write_atomic(&designs.join(&name), vtu.as_bytes())
+                    });
+                    match written {
+                        Ok(()) => series[b].push((it.iteration as f64, format!("designs/{name}"))),
+                        Err(e) => write_error = Some(e),
+                    }
+                }
+            }
             let worst = it
                 .constraints
                 .iter()
@@ -629,7 +653,7 @@ fn optimize_command(
                 it.objective, worst, it.step, it.kkt
             ));
             bar.inc(1);
-            true
+            !stop.load(std::sync::atomic::Ordering::SeqCst)
         })
     });
     bar.finish_and_clear();
@@ -640,6 +664,22 @@ fn optimize_command(
             return ExitCode::from(EXIT_SCENE);
         }
     };
+    if let Some(e) = write_error {
+        errln!("error: cannot write the design series: {e}");
+        return ExitCode::from(EXIT_IO);
+    }
+    if let Some(dir) = out {
+        for (b, body) in scene.bodies.iter().enumerate() {
+            let entries: Vec<(f64, &str)> =
+                series[b].iter().map(|(t, f)| (*t, f.as_str())).collect();
+            let pvd = cso::io::vtu::pvd_string(&entries);
+            let path = dir.join(format!("{}.pvd", body.name));
+            if let Err(e) = cso::io::atomic::write_atomic(&path, pvd.as_bytes()) {
+                errln!("error: cannot write {}: {e}", path.display());
+                return ExitCode::from(EXIT_IO);
+            }
+        }
+    }
     outln!(
         "{:>4} {:>14} {:>12} {:>10} {:>10}",
         "iter",

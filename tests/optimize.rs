@@ -8,7 +8,7 @@ use cso::opt::{optimize, Termination};
 fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
     let s = compile(&src, &options()).expect("checks");
-    let run = optimize(&s, &mut |_| true).expect("runs");
+    let run = optimize(&s, &mut |_, _| true).expect("runs");
     assert_eq!(run.termination, Termination::Kkt, "{:?}", run.termination);
     let first = &run.history[0];
     let best = &run.history[run.best.expect("a feasible design")];
@@ -78,7 +78,7 @@ minimize area(punch)
 optimize { max_iterations = 40, tolerance = 1e-8 }
 ";
     let s = compile(src, &options()).expect("checks");
-    let run = optimize(&s, &mut |_| true).expect("runs");
+    let run = optimize(&s, &mut |_, _| true).expect("runs");
     let best = &run.history[run.best.expect("feasible")];
     assert!(
         (best.design[0] - 0.3).abs() < 1e-6,
@@ -94,7 +94,7 @@ fn stopping_from_outside_keeps_the_best_design() {
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
     let s = compile(&src, &options()).expect("checks");
     let mut seen = 0;
-    let run = optimize(&s, &mut |_| {
+    let run = optimize(&s, &mut |_, _| {
         seen += 1;
         seen < 2
     })
@@ -117,8 +117,8 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
         factorizations: true,
         warm_start: false,
     };
-    let a = optimize_with(&s, cold, &mut |_| true).expect("runs");
-    let b = optimize_with(&s, partial, &mut |_| true).expect("runs");
+    let a = optimize_with(&s, cold, &mut |_, _| true).expect("runs");
+    let b = optimize_with(&s, partial, &mut |_, _| true).expect("runs");
     assert_eq!(a.history.len(), b.history.len());
     for (x, y) in a.history.iter().zip(&b.history) {
         // Reused factorizations are bit-for-bit the ones a fresh factorization makes.
@@ -136,7 +136,7 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
     );
     assert!(a.history.iter().all(|h| h.reused_factorizations == 0));
     // A warm start reaches the same designs to the solver's tolerance.
-    let c = optimize_with(&s, Reuse::default(), &mut |_| true).expect("runs");
+    let c = optimize_with(&s, Reuse::default(), &mut |_, _| true).expect("runs");
     let (xa, xc) = (
         &a.history[a.best.expect("best")].design,
         &c.history[c.best.expect("best")].design,

@@ -327,6 +327,100 @@ fn row_values(state: &State) -> Vec<f64> {
     bu
 }
 
+/// One body's fields at a solved state, and its `.vtu` text.
+pub struct BodyFields {
+    pub disp: Vec<[f64; 3]>,
+    pub cells: Vec<Vec<usize>>,
+    pub von_mises: Vec<f64>,
+    pub vtu: String,
+}
+
+/// Displacement, stress, von Mises, subdomain id and contact pressure of body `b`.
+pub fn body_fields(state: &State, b: usize) -> BodyFields {
+    let p = &state.problem;
+    let body = &p.bodies[b];
+    let n = body.coords.len();
+    let disp: Vec<[f64; 3]> = (0..n)
+        .map(|k| {
+            let u = state.node_displacement(b, k);
+            [u[0], u[1], 0.0]
+        })
+        .collect();
+    let points: Vec<[f64; 3]> = body.coords.iter().map(|c| [c[0], c[1], 0.0]).collect();
+    let mut cells = Vec::new();
+    let mut subdomain = Vec::new();
+    let mut stress = Vec::new();
+    let mut von_mises = Vec::new();
+    let first = body.first_subdomain;
+    for s in first..first + body.sx * body.sy {
+        let m = &p.subdomains[s];
+        let d = plane_strain(m.young, m.poisson);
+        for e in &m.elements {
+            cells.push(e.iter().map(|&l| m.grid[l]).collect::<Vec<usize>>());
+            subdomain.push(s as i64);
+            let x = [
+                m.coords[e[0]],
+                m.coords[e[1]],
+                m.coords[e[2]],
+                m.coords[e[3]],
+            ];
+            let mut ue = [0.0; 8];
+            for k in 0..4 {
+                ue[2 * k] = state.u[s][2 * e[k]];
+                ue[2 * k + 1] = state.u[s][2 * e[k] + 1];
+            }
+            let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
+            let sig: Vec<f64> = (0..3)
+                .map(|r| (0..3).map(|c| d[r][c] * eps[c]).sum())
+                .collect();
+            let szz = m.poisson * (sig[0] + sig[1]);
+            let vm = (0.5
+                * ((sig[0] - sig[1]).powi(2) + (sig[1] - szz).powi(2) + (szz - sig[0]).powi(2))
+                + 3.0 * sig[2] * sig[2])
+                .sqrt();
+            stress.push([sig[0], sig[1], sig[2]]);
+            von_mises.push(vm);
+        }
+    }
+    let mut pressure = vec![0.0; n];
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact {
+            body: cb,
+            node,
+            area,
+            ..
+        } = row.kind
+        {
+            if cb == b && area > 0.0 {
+                pressure[node] += state.lambda[i] / row.scale / area;
+            }
+        }
+    }
+    let mesh = VtuMesh {
+        points: &points,
+        cells: &cells,
+        cell_type: CellType::Quad,
+    };
+    let vtu = vtu_string(
+        &mesh,
+        &[
+            ("displacement", Field::Vector(&disp)),
+            ("contact pressure", Field::Scalar(&pressure)),
+        ],
+        &[
+            ("stress (xx, yy, xy)", Field::Vector(&stress)),
+            ("von Mises", Field::Scalar(&von_mises)),
+            ("subdomain", Field::Int(&subdomain)),
+        ],
+    );
+    BodyFields {
+        disp,
+        cells,
+        von_mises,
+        vtu,
+    }
+}
+
 /// Writes `report.json`, `BODY.vtu` per body, `contact_NAME.svg` per contact and
 /// `deformed.svg`, each atomically.
 pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
@@ -356,82 +450,12 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
     // Deformed shape magnified so the largest displacement is 5% of the scene.
     let magnify = if umax > 0.0 { 0.05 * size / umax } else { 0.0 };
     for (b, body) in p.bodies.iter().enumerate() {
-        let n = body.coords.len();
-        let disp: Vec<[f64; 3]> = (0..n)
-            .map(|k| {
-                let u = state.node_displacement(b, k);
-                [u[0], u[1], 0.0]
-            })
-            .collect();
-        let points: Vec<[f64; 3]> = body.coords.iter().map(|c| [c[0], c[1], 0.0]).collect();
-        let mut cells = Vec::new();
-        let mut subdomain = Vec::new();
-        let mut stress = Vec::new();
-        let mut von_mises = Vec::new();
-        let first = body.first_subdomain;
-        for s in first..first + body.sx * body.sy {
-            let m = &p.subdomains[s];
-            let d = plane_strain(m.young, m.poisson);
-            for e in &m.elements {
-                cells.push(e.iter().map(|&l| m.grid[l]).collect::<Vec<usize>>());
-                subdomain.push(s as i64);
-                let x = [
-                    m.coords[e[0]],
-                    m.coords[e[1]],
-                    m.coords[e[2]],
-                    m.coords[e[3]],
-                ];
-                let mut ue = [0.0; 8];
-                for k in 0..4 {
-                    ue[2 * k] = state.u[s][2 * e[k]];
-                    ue[2 * k + 1] = state.u[s][2 * e[k] + 1];
-                }
-                let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
-                let sig: Vec<f64> = (0..3)
-                    .map(|r| (0..3).map(|c| d[r][c] * eps[c]).sum())
-                    .collect();
-                let szz = m.poisson * (sig[0] + sig[1]);
-                let vm = (0.5
-                    * ((sig[0] - sig[1]).powi(2)
-                        + (sig[1] - szz).powi(2)
-                        + (szz - sig[0]).powi(2))
-                    + 3.0 * sig[2] * sig[2])
-                    .sqrt();
-                stress.push([sig[0], sig[1], sig[2]]);
-                von_mises.push(vm);
-            }
-        }
-        let mut pressure = vec![0.0; n];
-        for (i, row) in p.rows.iter().enumerate() {
-            if let RowKind::Contact {
-                body: cb,
-                node,
-                area,
-                ..
-            } = row.kind
-            {
-                if cb == b && area > 0.0 {
-                    pressure[node] += state.lambda[i] / row.scale / area;
-                }
-            }
-        }
-        let mesh = VtuMesh {
-            points: &points,
-            cells: &cells,
-            cell_type: CellType::Quad,
-        };
-        let vtu = vtu_string(
-            &mesh,
-            &[
-                ("displacement", Field::Vector(&disp)),
-                ("contact pressure", Field::Scalar(&pressure)),
-            ],
-            &[
-                ("stress (xx, yy, xy)", Field::Vector(&stress)),
-                ("von Mises", Field::Scalar(&von_mises)),
-                ("subdomain", Field::Int(&subdomain)),
-            ],
-        );
+        let BodyFields {
+            disp,
+            cells,
+            von_mises,
+            vtu,
+        } = body_fields(state, b);
         write_atomic(&dir.join(format!("{}.vtu", body.name)), vtu.as_bytes())?;
         let base = all_points.len();
         for (k, c) in body.coords.iter().enumerate() {

@@ -134,11 +134,11 @@ fn state_and_gradient(
     Ok((state, g))
 }
 
-/// Runs MMA on the scene's design problem. `observer` sees every iterate and may
-/// return `false` to stop (the best design is kept).
+/// Runs MMA on the scene's design problem. `observer` sees every iterate with its
+/// solved state and may return `false` to stop (the best design is kept).
 pub fn optimize(
     scene: &Scene,
-    observer: &mut dyn FnMut(&Iterate) -> bool,
+    observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, SolveError> {
     optimize_with(scene, Reuse::default(), observer)
 }
@@ -147,7 +147,7 @@ pub fn optimize(
 pub fn optimize_with(
     scene: &Scene,
     reuse: Reuse,
-    observer: &mut dyn FnMut(&Iterate) -> bool,
+    observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, SolveError> {
     let Some(objective) = &scene.objective else {
         return Err(SolveError::Unsupported(
@@ -253,7 +253,6 @@ pub fn optimize_with(
         let kkt_now =
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
         let (reused, warm) = (state.reused, state.warm_started);
-        previous = Some(state);
         let it = Iterate {
             reused_factorizations: reused,
             warm_started: warm,
@@ -267,7 +266,8 @@ pub fn optimize_with(
             hessian_applications: g.hessian_applications,
             seconds: t.elapsed().as_secs_f64(),
         };
-        let keep_going = observer(&it);
+        let keep_going = observer(&it, &state);
+        previous = Some(state);
         history.push(it);
         if feasible && best.is_none_or(|b| f0 < history[b].objective) {
             best = Some(history.len() - 1);
