@@ -143,3 +143,49 @@ pub fn gradient_costs(m: usize, tolerance: f64) -> Result<Vec<GradientCost>, Sol
         })
         .collect())
 }
+
+/// Per design iteration on scont2d: Hessian applications and seconds of the state
+/// solve + gradient, cold (full refactorization, cold dual start) against partial
+/// refactorization and warm start, and one cold full solve for reference.
+pub fn optimization_reuse() -> Result<Vec<(String, Vec<(usize, f64, usize)>)>, SolveError> {
+    use crate::opt::{optimize_with, Reuse};
+    let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
+    let scene = compile(&src, &CheckOptions::default()).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    let mut out = Vec::new();
+    for (name, reuse) in [
+        (
+            "cold (full refactorization, cold start)",
+            Reuse {
+                factorizations: false,
+                warm_start: false,
+            },
+        ),
+        (
+            "partial refactorization",
+            Reuse {
+                factorizations: true,
+                warm_start: false,
+            },
+        ),
+        (
+            "warm start",
+            Reuse {
+                factorizations: false,
+                warm_start: true,
+            },
+        ),
+        ("partial refactorization + warm start", Reuse::default()),
+    ] {
+        let run = optimize_with(&scene, reuse, &mut |_, _| true)?;
+        out.push((
+            name.to_string(),
+            run.history
+                .iter()
+                .map(|h| (h.hessian_applications, h.seconds, h.reused_factorizations))
+                .collect(),
+        ));
+    }
+    Ok(out)
+}

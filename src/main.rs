@@ -84,7 +84,7 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
-        /// Which benchmark (`scaling`, `sensitivity`).
+        /// Which benchmark (`scaling`, `sensitivity`, `optimize`).
         which: String,
         /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
         #[arg(long = "hh")]
@@ -186,6 +186,29 @@ fn main() -> ExitCode {
         } => {
             if which == "sensitivity" {
                 return bench_sensitivity(*tolerance, *threads);
+            }
+            if which == "optimize" {
+                return match cso::bench::optimization_reuse() {
+                    Ok(rows) => {
+                        outln!("| reuse | iterations | Hessian per iteration | seconds per iteration | factorizations reused per iteration |");
+                        outln!("|---|---|---|---|---|");
+                        for (name, its) in rows {
+                            let n = its.len().max(1) as f64;
+                            outln!(
+                                "| {name} | {} | {:.1} | {:.4} | {:.1} |",
+                                its.len(),
+                                its.iter().map(|i| i.0 as f64).sum::<f64>() / n,
+                                its.iter().map(|i| i.1).sum::<f64>() / n,
+                                its.iter().map(|i| i.2 as f64).sum::<f64>() / n
+                            );
+                        }
+                        ExitCode::SUCCESS
+                    }
+                    Err(e) => {
+                        errln!("error: {e}");
+                        ExitCode::from(EXIT_SCENE)
+                    }
+                };
             }
             if which != "scaling" {
                 errln!(
