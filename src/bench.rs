@@ -144,10 +144,14 @@ pub fn gradient_costs(m: usize, tolerance: f64) -> Result<Vec<GradientCost>, Sol
         .collect())
 }
 
+/// Per configuration: its name and, per iteration, (Hessian applications,
+/// seconds, factorizations reused).
+pub type ReuseTable = Vec<(String, Vec<(usize, f64, usize)>)>;
+
 /// Per design iteration on scont2d: Hessian applications and seconds of the state
 /// solve + gradient, cold (full refactorization, cold dual start) against partial
-/// refactorization and warm start, and one cold full solve for reference.
-pub fn optimization_reuse() -> Result<Vec<(String, Vec<(usize, f64, usize)>)>, SolveError> {
+/// refactorization and warm start.
+pub fn optimization_reuse() -> Result<ReuseTable, SolveError> {
     use crate::opt::{optimize_with, Reuse};
     let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
     let scene = compile(&src, &CheckOptions::default()).map_err(|d| {
