@@ -799,6 +799,61 @@ fn write_optimization(
     )
     .map_err(std::io::Error::other)?;
     cso::io::atomic::write_atomic(&dir.join("constraints.svg"), svg.as_bytes())?;
+    // The shape of every curved, design-dependent face at the first, middle and last iterates.
+    let picks: Vec<usize> = {
+        let n = run.history.len();
+        let mut v = vec![0, n / 2, n.saturating_sub(1)];
+        v.dedup();
+        v
+    };
+    for body in &scene.bodies {
+        for (face, formula) in [("bottom", &body.bottom), ("top", &body.top)] {
+            let Some(f) = formula.as_ref().filter(|f| f.uses_design()) else {
+                continue;
+            };
+            let xs: Vec<Vec<f64>> = picks
+                .iter()
+                .map(|&k| {
+                    let d = &run.history[k].design;
+                    let (lo, hi) = (
+                        body.extent[0].0.eval_f64([0.0; 3], d),
+                        body.extent[0].1.eval_f64([0.0; 3], d),
+                    );
+                    (0..=100)
+                        .map(|i| lo + (hi - lo) * i as f64 / 100.0)
+                        .collect()
+                })
+                .collect();
+            let ys: Vec<Vec<f64>> = picks
+                .iter()
+                .zip(&xs)
+                .map(|(&k, x)| {
+                    x.iter()
+                        .map(|&xi| f.eval_f64([xi, 0.0, 0.0], &run.history[k].design))
+                        .collect()
+                })
+                .collect();
+            let labels: Vec<String> = picks.iter().map(|k| format!("iteration {k}")).collect();
+            let series: Vec<cso::io::plot::Series> = labels
+                .iter()
+                .zip(xs.iter().zip(&ys))
+                .map(|(n, (x, y))| cso::io::plot::Series { name: n, x, y })
+                .collect();
+            let svg = cso::io::plot::line_chart(
+                &format!("{}: {face} face of `{}`", scene.name, body.name),
+                "x (m)",
+                "height (m)",
+                &series,
+                false,
+                false,
+            )
+            .map_err(std::io::Error::other)?;
+            cso::io::atomic::write_atomic(
+                &dir.join(format!("shape_{}_{face}.svg", body.name)),
+                svg.as_bytes(),
+            )?;
+        }
+    }
     if let Some(b) = run.best {
         let mut best = scene.clone();
         for (d, v) in best.design.iter_mut().zip(&run.history[b].design) {
