@@ -823,6 +823,19 @@ fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
 }
 
 impl State {
+    /// `B u` per row (normalized rows, like `c`).
+    pub fn row_values(&self) -> Vec<f64> {
+        let mut bu = vec![0.0; self.lambda.len()];
+        for (s, lr) in self.dual.local.iter().enumerate() {
+            let mut y = vec![0.0; lr.rows.len()];
+            lr.gather(&self.u[s], &mut y);
+            for (k, &row) in lr.rows.iter().enumerate() {
+                bu[row] += y[k];
+            }
+        }
+        bu
+    }
+
     /// Has the dual solve converged?
     pub fn converged(&self) -> bool {
         self.info.status == Status::Converged

@@ -135,7 +135,7 @@ impl Report {
                     .fold(0.0, f64::max),
             })
             .collect();
-        let bu = row_values(state);
+        let bu = state.row_values();
         let mut contacts: Vec<ContactReport> = scene
             .contacts
             .iter()
@@ -312,19 +312,6 @@ pub fn bucket(x: f64) -> String {
     }
     let e = x.log10().ceil() as i32;
     format!("< 1e{e}")
-}
-
-/// `B u` per row.
-fn row_values(state: &State) -> Vec<f64> {
-    let mut bu = vec![0.0; state.lambda.len()];
-    for (s, lr) in state.dual.local.iter().enumerate() {
-        let mut y = vec![0.0; lr.rows.len()];
-        lr.gather(&state.u[s], &mut y);
-        for (k, &row) in lr.rows.iter().enumerate() {
-            bu[row] += y[k];
-        }
-    }
-    bu
 }
 
 /// One body's fields at a solved state, and its `.vtu` text.

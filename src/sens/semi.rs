@@ -95,7 +95,7 @@ pub fn classify(state: &State) -> Vec<Class> {
     let lmax = state.lambda[p.n_equality..]
         .iter()
         .fold(0.0f64, |a, b| a.max(b.abs()));
-    let bu = row_values(state);
+    let bu = state.row_values();
     let cmax = p.rows.iter().map(|r| r.c.abs()).fold(0.0, f64::max);
     let umax = bu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
     let gap_tol = 1e-7 * (cmax + umax).max(f64::MIN_POSITIVE);
@@ -112,18 +112,6 @@ pub fn classify(state: &State) -> Vec<Class> {
             }
         })
         .collect()
-}
-
-fn row_values(state: &State) -> Vec<f64> {
-    let mut bu = vec![0.0; state.lambda.len()];
-    for (s, lr) in state.dual.local.iter().enumerate() {
-        let mut y = vec![0.0; lr.rows.len()];
-        lr.gather(&state.u[s], &mut y);
-        for (k, &row) in lr.rows.iter().enumerate() {
-            bu[row] += y[k];
-        }
-    }
-    bu
 }
 
 /// The design seeded in direction `i` (dual parts `e_i`).
