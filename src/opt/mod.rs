@@ -186,7 +186,6 @@ pub fn optimize_with(
     let mut names = Vec::new();
     let mut f_scale = 1.0;
     let mut last_multipliers: Vec<f64> = Vec::new();
-    let t0 = Instant::now();
     let mut termination = Termination::MaxIterations;
     let mut previous: Option<State> = None;
     for k in 0..scene.optimize.max_iterations.max(1) {
@@ -291,7 +290,6 @@ pub fn optimize_with(
         last_multipliers = step.multipliers;
         x = step.x;
     }
-    let _ = t0;
     Ok(Optimization {
         scene: scene.name.clone(),
         names,

@@ -483,7 +483,7 @@ impl<'a> Checker<'a> {
                 }
             }
         }
-        for (axis, key) in ["x", "y", "z"].iter().enumerate().take(d) {
+        for key in ["x", "y", "z"].iter().take(d) {
             let mut ext = (Formula::Const(0.0), Formula::Const(1.0));
             if let Some((a, b)) = f.get(key).and_then(|fl| self.range_of(fl)) {
                 let what = format!("the extent `{key}`");
@@ -512,7 +512,6 @@ impl<'a> Checker<'a> {
                     ext = (lo, hi);
                 }
             }
-            let _ = axis;
             body.extent.push(ext);
         }
         for (key, slot) in [("bottom", 0), ("top", 1)] {

@@ -100,7 +100,7 @@ impl<'a> Checker<'a> {
             ExprKind::Binary(op, a, b) => self.binary(*op, a, b, e.span),
             ExprKind::Call { func, args } => self.call(func, args, e.span),
             ExprKind::Index { base, index } => self.indexed(base, index),
-            ExprKind::Member { base, name } => {
+            ExprKind::Member { name, .. } => {
                 let mut d = Diagnostic::new(
                     "cso::wrong-value",
                     format!("`{}` is not a number here", self.text(e.span)),
@@ -116,7 +116,6 @@ impl<'a> Checker<'a> {
                 ) {
                     d = d.help("a face selection is not a number");
                 }
-                let _ = base;
                 self.error(d);
                 None
             }
