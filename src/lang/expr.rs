@@ -27,6 +27,19 @@ pub enum Func {
 }
 
 impl Func {
+    /// The function's value, in any number type (dual numbers carry the derivative).
+    pub fn apply<T: Scalar>(self, a: T) -> T {
+        match self {
+            Func::Sqrt => a.sqrt(),
+            Func::Abs => a.abs(),
+            Func::Exp => a.exp(),
+            Func::Ln => a.ln(),
+            Func::Sin => a.sin(),
+            Func::Cos => a.cos(),
+            Func::Tan => a.tan(),
+        }
+    }
+
     pub fn from_name(name: &str) -> Option<Func> {
         Some(match name {
             "sqrt" => Func::Sqrt,
@@ -121,18 +134,7 @@ impl Formula {
                     exp => base.powd(exp.eval(at)),
                 }
             }
-            Formula::Func(f, a) => {
-                let a = a.eval(at);
-                match f {
-                    Func::Sqrt => a.sqrt(),
-                    Func::Abs => a.abs(),
-                    Func::Exp => a.exp(),
-                    Func::Ln => a.ln(),
-                    Func::Sin => a.sin(),
-                    Func::Cos => a.cos(),
-                    Func::Tan => a.tan(),
-                }
-            }
+            Formula::Func(f, a) => f.apply(a.eval(at)),
             Formula::Bezier(coeffs, t) => bezier(coeffs, t.eval(at), at),
         }
     }

@@ -1,6 +1,6 @@
 //! Values of the functionals of `minimize` / `subject to` on a solved state.
 
-use crate::lang::expr::{Arith, Func, Scalar};
+use crate::lang::expr::{Arith, Scalar};
 use crate::lang::scene::{Body, Dimension, Functional, Scene};
 use crate::model::RowKind;
 use crate::state::State;
@@ -84,18 +84,7 @@ impl Eval<'_> {
                 }
             }
             Functional::Pow(a, p) => self.value(a).powf(*p),
-            Functional::Func(func, a) => {
-                let a = self.value(a);
-                match func {
-                    Func::Sqrt => a.sqrt(),
-                    Func::Abs => a.abs(),
-                    Func::Exp => a.exp(),
-                    Func::Ln => a.ln(),
-                    Func::Sin => a.sin(),
-                    Func::Cos => a.cos(),
-                    Func::Tan => a.tan(),
-                }
-            }
+            Functional::Func(func, a) => func.apply(self.value(a)),
         }
     }
 

@@ -14,7 +14,7 @@
 
 use super::functional::body_area;
 use crate::fem::quad::{plane_strain, quad_gauss, quad_stiffness};
-use crate::lang::expr::{Arith, Func, Point};
+use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Condition, Face, Functional, Obstacle, Scene};
 use crate::model::loads::selected_edges;
 use crate::model::{ContactPrimary, RowKind};
@@ -768,18 +768,7 @@ impl<'a> Sensitivity<'a> {
                 }
             }
             Functional::Pow(a, q) => self.eval_tree(a, leaf).powf(*q),
-            Functional::Func(func, a) => {
-                let a = self.eval_tree(a, leaf);
-                match func {
-                    Func::Sqrt => a.sqrt(),
-                    Func::Abs => num_traits_abs(a),
-                    Func::Exp => a.exp(),
-                    Func::Ln => a.ln(),
-                    Func::Sin => a.sin(),
-                    Func::Cos => a.cos(),
-                    Func::Tan => a.tan(),
-                }
-            }
+            Functional::Func(func, a) => func.apply(self.eval_tree(a, leaf)),
             l => leaf(l),
         }
     }
