@@ -425,12 +425,10 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         .map(|b| b.max_abs_u)
         .fold(0.0, f64::max);
     let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for b in &p.bodies {
-        for c in &b.coords {
-            for a in 0..2 {
-                lo[a] = lo[a].min(c[a]);
-                hi[a] = hi[a].max(c[a]);
-            }
+    for (blo, bhi) in p.bodies.iter().map(|b| b.bounding_box()) {
+        for a in 0..2 {
+            lo[a] = lo[a].min(blo[a]);
+            hi[a] = hi[a].max(bhi[a]);
         }
     }
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);

@@ -45,13 +45,7 @@ pub(crate) fn selected_nodes(problem: &Problem, sel: &Selection, design: &[f64])
     let Some(filter) = &sel.filter else {
         return nodes;
     };
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for c in &body.coords {
-        for a in 0..2 {
-            lo[a] = lo[a].min(c[a]);
-            hi[a] = hi[a].max(c[a]);
-        }
-    }
+    let (lo, hi) = body.bounding_box();
     let tol = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
     nodes
         .into_iter()

@@ -56,6 +56,18 @@ impl BodyMesh {
         out
     }
 
+    /// Lower and upper corners of the body's nodes.
+    pub fn bounding_box(&self) -> ([f64; 2], [f64; 2]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+        for c in &self.coords {
+            for a in 0..2 {
+                lo[a] = lo[a].min(c[a]);
+                hi[a] = hi[a].max(c[a]);
+            }
+        }
+        (lo, hi)
+    }
+
     /// The grid node nearest to a point.
     pub fn nearest(&self, p: &[f64]) -> usize {
         let mut best = (f64::INFINITY, 0);

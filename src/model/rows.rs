@@ -282,13 +282,7 @@ fn ties(
 
 /// The default search distance: a tenth of the secondary body's diagonal.
 fn default_search(problem: &Problem, body: usize) -> f64 {
-    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
-    for c in &problem.bodies[body].coords {
-        for a in 0..2 {
-            lo[a] = lo[a].min(c[a]);
-            hi[a] = hi[a].max(c[a]);
-        }
-    }
+    let (lo, hi) = problem.bodies[body].bounding_box();
     0.1 * ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt()
 }
 
