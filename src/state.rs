@@ -524,8 +524,8 @@ pub fn dual_solve_from(
     let mut e = vec![0.0; dual.kernel_dim()];
     for (s, sub) in dual.subs.iter().enumerate() {
         let f = f[s];
-        for j in 0..3 {
-            e[3 * s + j] = sub.r_col(j).iter().zip(f).map(|(a, b)| a * b).sum();
+        for j in 0..sub.kdim {
+            e[dual.offset[s] + j] = sub.r_col(j).iter().zip(f).map(|(a, b)| a * b).sum();
         }
         let mut x = f.to_vec();
         sub.apply_pinv(&mut x);
@@ -716,18 +716,20 @@ fn reconstruct(
         if !active[row] {
             continue;
         }
-        let cols: Vec<(usize, [f64; 3])> = own
+        let cols: Vec<(usize, Vec<f64>)> = own
             .iter()
-            .map(|&(s, k)| (s, [gcol(s, k, 0), gcol(s, k, 1), gcol(s, k, 2)]))
+            .map(|&(s, k)| (s, (0..dual.subs[s].kdim).map(|j| gcol(s, k, j)).collect()))
             .collect();
-        for &(s, gs) in &cols {
-            for i in 0..3 {
-                rhs[3 * s + i] += gs[i] * r[row];
+        for (s, gs) in &cols {
+            let os = dual.offset[*s];
+            for (i, gi) in gs.iter().enumerate() {
+                rhs[os + i] += gi * r[row];
             }
-            for &(t, gt) in &cols {
-                for i in 0..3 {
-                    for j in 0..3 {
-                        gg[(3 * s + i, 3 * t + j)] += gs[i] * gt[j];
+            for (t, gt) in &cols {
+                let ot = dual.offset[*t];
+                for (i, gi) in gs.iter().enumerate() {
+                    for (j, gj) in gt.iter().enumerate() {
+                        gg[(os + i, ot + j)] += gi * gj;
                     }
                 }
             }
@@ -756,8 +758,8 @@ fn reconstruct(
             lr.scatter_t(lambda, &mut btl);
             let mut x: Vec<f64> = f[s].iter().zip(&btl).map(|(f, b)| f - b).collect();
             sub.apply_pinv(&mut x);
-            for j in 0..3 {
-                let a = alpha[3 * s + j];
+            for j in 0..sub.kdim {
+                let a = alpha[dual.offset[s] + j];
                 for (xi, ri) in x.iter_mut().zip(sub.r_col(j)) {
                     *xi += a * ri;
                 }

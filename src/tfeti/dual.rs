@@ -63,9 +63,11 @@ pub struct Dual {
     pub local: Vec<LocalRows>,
     /// Number of multipliers.
     pub m: usize,
-    /// Per subdomain `G_s = R_s^T B_s^T`: 3 x (local rows), row-major.
+    /// Per subdomain `G_s = R_s^T B_s^T`: kdim x (local rows), row-major.
     g: Vec<Vec<f64>>,
-    /// Lower Cholesky factor of `G G^T` (3N x 3N): `G~ = L^-1 G`.
+    /// Where each subdomain's kernel starts in the coarse space (`N + 1` entries).
+    pub offset: Vec<usize>,
+    /// Lower Cholesky factor of `G G^T`: `G~ = L^-1 G`.
     l: Mat<f64>,
     work: Vec<Mutex<Work>>,
     /// Work space of the projector: kernel-sized and multiplier-sized.
@@ -83,19 +85,21 @@ impl Dual {
         m: usize,
     ) -> Result<Self, CoarseError> {
         let mut g = Vec::with_capacity(subs.len());
+        let mut offset = vec![0];
         for (s, sub) in subs.iter().enumerate() {
+            offset.push(offset[s] + sub.kdim);
             let lr = &local[s];
             let nr = lr.rows.len();
-            let mut gs = vec![0.0; 3 * nr];
+            let mut gs = vec![0.0; sub.kdim * nr];
             for &(r, d, v) in &lr.entries {
-                for j in 0..3 {
+                for j in 0..sub.kdim {
                     gs[j * nr + r] += v * sub.r_col(j)[d];
                 }
             }
             g.push(gs);
         }
         // G G^T, block (s, t) from the rows s and t share.
-        let n3 = 3 * subs.len();
+        let n3 = offset[subs.len()];
         let mut owners: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m];
         for (s, lr) in local.iter().enumerate() {
             for (k, &row) in lr.rows.iter().enumerate() {
@@ -108,9 +112,10 @@ impl Dual {
                 let ns = local[s].rows.len();
                 for &(t, kt) in own {
                     let nt = local[t].rows.len();
-                    for i in 0..3 {
-                        for j in 0..3 {
-                            ggt[(3 * s + i, 3 * t + j)] += g[s][i * ns + ks] * g[t][j * nt + kt];
+                    for i in 0..subs[s].kdim {
+                        for j in 0..subs[t].kdim {
+                            ggt[(offset[s] + i, offset[t] + j)] +=
+                                g[s][i * ns + ks] * g[t][j * nt + kt];
                         }
                     }
                 }
@@ -120,9 +125,13 @@ impl Dual {
             .map(|i| ggt[(i, i)])
             .fold(0.0f64, f64::max)
             .max(1e-300);
+        let mode = |i: usize| {
+            let s = offset.partition_point(|&o| o <= i) - 1;
+            (s, i - offset[s])
+        };
         let free: Vec<(usize, usize)> = (0..n3)
             .filter(|&i| ggt[(i, i)] <= 1e-12 * scale)
-            .map(|i| (i / 3, i % 3))
+            .map(mode)
             .collect();
         if !free.is_empty() {
             return Err(CoarseError { free_modes: free });
@@ -131,14 +140,14 @@ impl Dual {
             Ok(llt) => llt.L().to_owned(),
             Err(_) => {
                 return Err(CoarseError {
-                    free_modes: null_modes(&ggt),
+                    free_modes: null_modes(&ggt).into_iter().map(mode).collect(),
                 })
             }
         };
         let min_pivot = (0..n3).map(|i| l[(i, i)]).fold(f64::INFINITY, f64::min);
         if min_pivot * min_pivot <= 1e-12 * scale {
             return Err(CoarseError {
-                free_modes: null_modes(&ggt),
+                free_modes: null_modes(&ggt).into_iter().map(mode).collect(),
             });
         }
         let work = subs
@@ -157,6 +166,7 @@ impl Dual {
             local,
             m,
             g,
+            offset,
             l,
             work,
             proj,
@@ -164,9 +174,9 @@ impl Dual {
         })
     }
 
-    /// Kernel dimension in all (3 per subdomain).
+    /// Kernel dimension in all (3 per subdomain in TFETI).
     pub fn kernel_dim(&self) -> usize {
-        3 * self.subs.len()
+        self.offset[self.subs.len()]
     }
 
     /// `y = F x`, subdomains in parallel, summed in a fixed order (deterministic).
@@ -194,12 +204,13 @@ impl Dual {
         }
     }
 
-    /// `z = G x` (3N entries, not orthonormalized).
+    /// `z = G x` (kernel-sized, not orthonormalized).
     pub fn apply_g_raw(&self, x: &[f64], z: &mut [f64]) {
         for (s, lr) in self.local.iter().enumerate() {
             let nr = lr.rows.len();
-            for j in 0..3 {
-                z[3 * s + j] = (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
+            for j in 0..self.subs[s].kdim {
+                z[self.offset[s] + j] =
+                    (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
             }
         }
     }
@@ -210,8 +221,8 @@ impl Dual {
         for (s, lr) in self.local.iter().enumerate() {
             let nr = lr.rows.len();
             for k in 0..nr {
-                x[lr.rows[k]] += (0..3)
-                    .map(|j| self.g[s][j * nr + k] * z[3 * s + j])
+                x[lr.rows[k]] += (0..self.subs[s].kdim)
+                    .map(|j| self.g[s][j * nr + k] * z[self.offset[s] + j])
                     .sum::<f64>();
             }
         }
@@ -254,9 +265,9 @@ impl Dual {
     }
 }
 
-/// Names the rigid modes in the null space of `G G^T` (eigenvectors of its
+/// The kernel modes in the null space of `G G^T` (eigenvectors of its
 /// smallest eigenvalues), by their largest entries.
-fn null_modes(ggt: &Mat<f64>) -> Vec<(usize, usize)> {
+fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
     let n = ggt.nrows();
     let Ok(evd) = ggt.self_adjoint_eigen(Side::Lower) else {
         return Vec::new();
@@ -270,7 +281,7 @@ fn null_modes(ggt: &Mat<f64>) -> Vec<(usize, usize)> {
             let k = (0..n)
                 .max_by(|&a, &b| u[(a, i)].abs().total_cmp(&u[(b, i)].abs()))
                 .unwrap_or(0);
-            out.push((k / 3, k % 3));
+            out.push(k);
         }
     }
     out

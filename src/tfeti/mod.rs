@@ -1,4 +1,5 @@
 //! Total FETI: per-subdomain operators and the dual problem.
 
 pub mod dual;
+pub mod floating;
 pub mod subdomain;

@@ -18,7 +18,7 @@ use crate::model::SubdomainMesh;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LltRef, SymbolicCholesky,
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
     SymmetricOrdering,
 };
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
@@ -63,6 +63,23 @@ pub enum SubdomainError {
     Inverted { element: usize },
     /// `K_rr` is not positive definite (a mesh or material problem).
     NotPositive(String),
+    /// Classical FETI: the pivot tolerance did not find the kernel.
+    Kernel(super::floating::KernelError),
+}
+
+impl std::fmt::Display for SubdomainError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            SubdomainError::Inverted { element } => {
+                write!(
+                    f,
+                    "element {element} is inverted (its Jacobian is not positive)"
+                )
+            }
+            SubdomainError::NotPositive(s) => write!(f, "the stiffness is not positive: {s}"),
+            SubdomainError::Kernel(e) => write!(f, "{e}"),
+        }
+    }
 }
 
 /// Work space of one subdomain's solves (one per subdomain, so that threads
@@ -72,19 +89,40 @@ struct Work {
     x: Vec<f64>,
 }
 
+/// How `K_s^+` was obtained.
+enum Factor {
+    /// TFETI: the dofs left after fixing `fixed`, Cholesky of `K_rr`.
+    Fixed {
+        fixed: [usize; 3],
+        /// Reduced index of each dof (`usize::MAX` for fixed ones).
+        reduced: Vec<usize>,
+        symbolic: SymbolicCholesky<usize>,
+        l_values: Vec<f64>,
+    },
+    /// Classical FETI: `L D L^T` of `S K^ S` (`S` the Jacobi scaling, `K^` with
+    /// its Dirichlet dofs eliminated) with zero pivots replaced (see
+    /// [`super::floating`]).
+    Regularized {
+        scaling: Vec<f64>,
+        symbolic: SymbolicCholesky<usize>,
+        l_values: Vec<f64>,
+    },
+}
+
 /// A subdomain's stiffness, kernel and generalized inverse.
 pub struct Subdomain {
     /// Dofs (2 per node).
     pub n: usize,
+    /// The stiffness of the subdomain as meshed (Dirichlet dofs included).
     pub k: UpperCsc,
-    /// Orthonormal kernel basis, column-major `n x 3`.
+    /// Orthonormal kernel basis, column-major `n x kdim`.
     pub r: Vec<f64>,
-    /// The fixed dofs.
-    pub fixed: [usize; 3],
-    /// Reduced index of each dof (`usize::MAX` for fixed ones).
-    reduced: Vec<usize>,
-    symbolic: SymbolicCholesky<usize>,
-    l_values: Vec<f64>,
+    /// Kernel dimension: 3 in TFETI; what pivot detection found in FETI.
+    pub kdim: usize,
+    /// Classical FETI only: dofs eliminated by Dirichlet conditions, sorted,
+    /// and what kernel detection saw.
+    pub feti: Option<super::floating::Detection>,
+    factor: Factor,
     work: Mutex<Work>,
     /// Nonzeros of the Cholesky factor.
     pub factor_nnz: usize,
@@ -94,7 +132,7 @@ impl std::fmt::Debug for Subdomain {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Subdomain")
             .field("n", &self.n)
-            .field("fixed", &self.fixed)
+            .field("kdim", &self.kdim)
             .finish()
     }
 }
@@ -177,19 +215,60 @@ pub fn kernel(coords: &[[f64; 2]]) -> Vec<f64> {
         r[2 * n + 2 * i] = -(c[1] - yc);
         r[2 * n + 2 * i + 1] = c[0] - xc;
     }
-    for j in 0..3 {
+    orthonormalize(&mut r, n, 3);
+    r
+}
+
+/// Modified Gram-Schmidt on the `k` columns of `r` (column-major, `n` rows).
+pub(super) fn orthonormalize(r: &mut [f64], n: usize, k: usize) {
+    for j in 0..k {
         for i in 0..j {
-            let dot: f64 = (0..n).map(|k| r[j * n + k] * r[i * n + k]).sum();
-            for k in 0..n {
-                r[j * n + k] -= dot * r[i * n + k];
+            let dot: f64 = (0..n).map(|t| r[j * n + t] * r[i * n + t]).sum();
+            for t in 0..n {
+                r[j * n + t] -= dot * r[i * n + t];
             }
         }
-        let norm = (0..n).map(|k| r[j * n + k].powi(2)).sum::<f64>().sqrt();
-        for k in 0..n {
-            r[j * n + k] /= norm;
+        let norm = (0..n).map(|t| r[j * n + t].powi(2)).sum::<f64>().sqrt();
+        if norm > 0.0 {
+            for t in 0..n {
+                r[j * n + t] /= norm;
+            }
         }
     }
-    r
+}
+
+/// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
+pub(super) fn ldlt_solve(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    buf: &mut MemBuffer,
+) {
+    let n = x.len();
+    let ldlt = LdltRef::<usize, f64>::new(symbolic, l_values);
+    ldlt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, 1),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}
+
+/// `x <- L^-T L^-1 x` with a faer sparse Cholesky factor.
+pub(super) fn llt_solve(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    buf: &mut MemBuffer,
+) {
+    let n = x.len();
+    let llt = LltRef::<usize, f64>::new(symbolic, l_values);
+    llt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, 1),
+        Par::Seq,
+        MemStack::new(buf),
+    );
 }
 
 impl Subdomain {
@@ -260,16 +339,52 @@ impl Subdomain {
             n,
             k,
             r,
-            fixed,
-            reduced,
-            symbolic,
-            l_values,
+            kdim: 3,
+            feti: None,
+            factor: Factor::Fixed {
+                fixed,
+                reduced,
+                symbolic,
+                l_values,
+            },
             work: Mutex::new(Work {
                 buf,
                 x: vec![0.0; nr],
             }),
             factor_nnz,
         })
+    }
+
+    /// A subdomain from parts built elsewhere (classical FETI).
+    pub(super) fn regularized(
+        k: UpperCsc,
+        r: Vec<f64>,
+        detection: super::floating::Detection,
+        scaling: Vec<f64>,
+        symbolic: SymbolicCholesky<usize>,
+        l_values: Vec<f64>,
+        buf: MemBuffer,
+    ) -> Self {
+        let n = k.n;
+        let kdim = r.len() / n.max(1);
+        let factor_nnz = l_values.len();
+        Subdomain {
+            n,
+            k,
+            r,
+            kdim,
+            feti: Some(detection),
+            factor: Factor::Regularized {
+                scaling,
+                symbolic,
+                l_values,
+            },
+            work: Mutex::new(Work {
+                buf,
+                x: vec![0.0; n],
+            }),
+            factor_nnz,
+        }
     }
 
     /// `x <- K^+ x`.
@@ -279,37 +394,60 @@ impl Subdomain {
             Err(p) => p.into_inner(),
         };
         let work = &mut *guard;
-        for (d, &r) in self.reduced.iter().enumerate() {
-            if r != usize::MAX {
-                work.x[r] = x[d];
+        match &self.factor {
+            Factor::Fixed {
+                reduced,
+                symbolic,
+                l_values,
+                ..
+            } => {
+                for (d, &r) in reduced.iter().enumerate() {
+                    if r != usize::MAX {
+                        work.x[r] = x[d];
+                    }
+                }
+                llt_solve(symbolic, l_values, &mut work.x, &mut work.buf);
+                for (d, &r) in reduced.iter().enumerate() {
+                    x[d] = if r == usize::MAX { 0.0 } else { work.x[r] };
+                }
             }
-        }
-        let nr = work.x.len();
-        let llt = LltRef::<usize, f64>::new(&self.symbolic, &self.l_values);
-        llt.solve_in_place_with_conj(
-            Conj::No,
-            MatMut::from_column_major_slice_mut(&mut work.x, nr, 1),
-            Par::Seq,
-            MemStack::new(&mut work.buf),
-        );
-        for (d, &r) in self.reduced.iter().enumerate() {
-            x[d] = if r == usize::MAX { 0.0 } else { work.x[r] };
+            Factor::Regularized {
+                scaling,
+                symbolic,
+                l_values,
+            } => {
+                for ((w, xi), si) in work.x.iter_mut().zip(x.iter()).zip(scaling) {
+                    *w = xi * si;
+                }
+                ldlt_solve(symbolic, l_values, &mut work.x, &mut work.buf);
+                for ((xi, w), si) in x.iter_mut().zip(&work.x).zip(scaling) {
+                    *xi = w * si;
+                }
+            }
         }
     }
 
-    /// Kernel column `j` (0..3).
+    /// The TFETI fixing dofs (None for a classical FETI subdomain).
+    pub fn fixed(&self) -> Option<[usize; 3]> {
+        match &self.factor {
+            Factor::Fixed { fixed, .. } => Some(*fixed),
+            Factor::Regularized { .. } => None,
+        }
+    }
+
+    /// Kernel column `j` (0..kdim).
     pub fn r_col(&self, j: usize) -> &[f64] {
         &self.r[j * self.n..(j + 1) * self.n]
     }
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::model::SubdomainMesh;
 
     /// A 3 x 2 element block with a curved bottom.
-    fn block() -> SubdomainMesh {
+    pub(crate) fn block() -> SubdomainMesh {
         let (hx, hy) = (3usize, 2usize);
         let mut coords = Vec::new();
         for j in 0..=hy {
@@ -340,7 +478,7 @@ mod tests {
         }
     }
 
-    fn rand_vec(n: usize, seed: u64) -> Vec<f64> {
+    pub(crate) fn rand_vec(n: usize, seed: u64) -> Vec<f64> {
         let mut s = seed;
         (0..n)
             .map(|_| {
