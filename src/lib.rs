@@ -10,6 +10,7 @@
 
 pub mod bench;
 pub mod fem;
+pub mod feti;
 pub mod io;
 pub mod lang;
 pub mod model;

@@ -9,6 +9,7 @@
 //! Homogenized with `l~ = G~^T e~` (G~ orthonormal rows), solved for `l^ = l - l~`
 //! with Hessian `P F P`, linear term `P (d - F l~)`, bounds `l^_I >= -l~_I`.
 
+use crate::feti::{DualSystem, Elimination};
 use crate::lang::scene::Scene;
 use crate::model::{lower, LowerError, Problem, RowKind};
 use crate::qp::{estimate_norm, smalbe, QpInfo, SmalbeSettings, Status};
@@ -17,7 +18,6 @@ use crate::tfeti::subdomain::{Subdomain, SubdomainError};
 use faer::{Mat, Side};
 use rayon::prelude::*;
 use std::fmt;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -64,7 +64,13 @@ impl Kkt {
 /// A solved state.
 pub struct State {
     pub problem: Problem,
+    /// The subdomains with every row of `problem` (in classical FETI, not the
+    /// dual that was solved: see [`crate::feti`]).
     pub dual: Dual,
+    /// Classical FETI: the dofs held by Dirichlet conditions.
+    pub elimination: Option<Arc<Elimination>>,
+    /// Multipliers of the dual problem solved (FETI: without eliminated rows).
+    pub multipliers: usize,
     /// Displacements per subdomain (interleaved).
     pub u: Vec<Vec<f64>>,
     /// Multipliers of the normalized rows.
@@ -134,12 +140,21 @@ impl std::error::Error for SolveError {}
 
 const MODES: [&str; 3] = ["translation in x", "translation in y", "rotation"];
 
-fn name_modes(problem: &Problem, modes: &[(usize, usize)]) -> Vec<String> {
+fn name_modes(problem: &Problem, subs: &[Arc<Subdomain>], modes: &[(usize, usize)]) -> Vec<String> {
     let mut out: Vec<String> = modes
         .iter()
         .map(|&(s, m)| {
             let sub = &problem.subdomains[s];
-            format!("body `{}` ({}) ", problem.bodies[sub.body].name, MODES[m])
+            let name = &problem.bodies[sub.body].name;
+            match subs[s].feti {
+                None => format!("body `{name}` ({}) ", MODES[m]),
+                Some(_) => format!(
+                    "body `{name}` (kernel mode {} of subdomain ({}, {})) ",
+                    m + 1,
+                    sub.block.0,
+                    sub.block.1
+                ),
+            }
         })
         .collect();
     out.sort();
@@ -290,17 +305,38 @@ fn norm(v: &[f64]) -> f64 {
 }
 
 /// Lowers the scene and builds every subdomain's operators (assembly, kernel,
-/// factorization), in parallel over subdomains. Returns the lowering time too.
-pub fn setup(
-    scene: &Scene,
-    design: &[f64],
-) -> Result<(Problem, Vec<Arc<Subdomain>>, f64), SolveError> {
-    setup_reusing(scene, design, None).map(|(p, s, t, _)| (p, s, t))
+/// factorization), in parallel over subdomains.
+pub fn setup(scene: &Scene, design: &[f64]) -> Result<Setup, SolveError> {
+    setup_reusing(scene, design, None)
 }
 
-/// A lowered problem with its subdomains' operators, the lowering time (s) and
-/// how many factorizations were reused.
-pub type Setup = (Problem, Vec<Arc<Subdomain>>, f64, usize);
+/// A lowered problem with its subdomains' operators.
+pub struct Setup {
+    pub problem: Problem,
+    pub subs: Vec<Arc<Subdomain>>,
+    /// Classical FETI: the dofs held by Dirichlet conditions (None in TFETI).
+    pub elimination: Option<Arc<Elimination>>,
+    /// Seconds spent lowering.
+    pub lower_time: f64,
+    /// Factorizations reused from a previous state.
+    pub reused: usize,
+}
+
+impl Setup {
+    /// The dual problem of the state: all rows, TFETI or classical FETI.
+    pub fn dual_system(&self) -> Result<DualSystem, SolveError> {
+        let rows: Vec<&crate::model::Row> = self.problem.rows.iter().collect();
+        DualSystem::new(
+            self.subs.clone(),
+            &rows,
+            self.problem.n_equality,
+            self.elimination.clone(),
+        )
+        .map_err(|CoarseError { free_modes }| {
+            SolveError::FreeRigidModes(name_modes(&self.problem, &self.subs, &free_modes))
+        })
+    }
+}
 
 /// [`setup`], reusing the factorizations of `previous` for every subdomain whose
 /// mesh (node positions, material, thickness) did not change: only subdomains
@@ -314,14 +350,24 @@ pub fn setup_reusing(
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
     let lower_time = t0.elapsed().as_secs_f64();
+    let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
+    let elimination = feti.then(|| Arc::new(Elimination::new(&problem)));
+    let held = |s: usize| elimination.as_ref().map(|e| e.dofs(s));
     let same = |s: usize| -> Option<Arc<Subdomain>> {
         let prev = previous?;
         let (a, b) = (prev.problem.subdomains.get(s)?, &problem.subdomains[s]);
-        (a.coords == b.coords
+        let old = &prev.dual.subs[s];
+        let same_kind = match (&old.feti, held(s)) {
+            (None, None) => true,
+            (Some(d), Some(e)) => d.eliminated == e && d.eps == scene.solver.eps,
+            _ => false,
+        };
+        (same_kind
+            && a.coords == b.coords
             && a.young == b.young
             && a.poisson == b.poisson
             && a.thickness == b.thickness)
-            .then(|| prev.dual.subs[s].clone())
+            .then(|| old.clone())
     };
     let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem
         .subdomains
@@ -332,23 +378,27 @@ pub fn setup_reusing(
                 return Ok((old, true));
             }
             let body = &problem.bodies[m.body];
-            Subdomain::new(m, body.h().0)
-                .map(|sub| (Arc::new(sub), false))
-                .map_err(|error| SolveError::Subdomain {
-                    body: body.name.clone(),
-                    block: m.block,
-                    error,
-                })
+            match held(s) {
+                None => Subdomain::new(m, body.h().0),
+                Some(dofs) => Subdomain::feti(m, &dofs, scene.solver.eps),
+            }
+            .map(|sub| (Arc::new(sub), false))
+            .map_err(|error| SolveError::Subdomain {
+                body: body.name.clone(),
+                block: m.block,
+                error,
+            })
         })
         .collect();
     let subs: Vec<(Arc<Subdomain>, bool)> = subs.into_iter().collect::<Result<_, _>>()?;
     let reused = subs.iter().filter(|(_, r)| *r).count();
-    Ok((
+    Ok(Setup {
         problem,
-        subs.into_iter().map(|(s, _)| s).collect(),
+        subs: subs.into_iter().map(|(s, _)| s).collect(),
+        elimination,
         lower_time,
         reused,
-    ))
+    })
 }
 
 /// Sizes of the TFETI operators of a scene, as `cso compile` prints them.
@@ -361,15 +411,23 @@ pub struct OperatorSizes {
     pub factor_nonzeros: usize,
 }
 
-/// Lowers and factorizes (no solve) to report the operators' sizes.
+/// Lowers and factorizes (no solve) to report the operators' sizes: in
+/// classical FETI, without the held dofs and the rows eliminated with them.
 pub fn operator_sizes(scene: &Scene, design: &[f64]) -> Result<OperatorSizes, SolveError> {
-    let (problem, subs, _) = setup(scene, design)?;
+    let setup = setup(scene, design)?;
+    let system = setup.dual_system()?;
+    let problem = &setup.problem;
+    let held = setup.elimination.as_ref().map_or(0, |e| e.count());
+    let mut by_kind = crate::model::RowCounts::default();
+    for i in system.kept_rows() {
+        by_kind.add(&problem.rows[i].kind);
+    }
     Ok(OperatorSizes {
-        primal: problem.primal_dofs(),
-        multipliers: problem.rows.len(),
-        by_kind: problem.row_counts(),
-        kernel: 3 * subs.len(),
-        factor_nonzeros: subs.iter().map(|s| s.factor_nnz).sum(),
+        primal: problem.primal_dofs() - held,
+        multipliers: system.multipliers(),
+        by_kind,
+        kernel: system.dual().kernel_dim(),
+        factor_nonzeros: setup.subs.iter().map(|s| s.factor_nnz).sum(),
     })
 }
 
@@ -393,12 +451,7 @@ pub fn solve_reusing(
     warm_start: bool,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    use crate::lang::scene::{Preconditioner, SolverMethod};
-    if scene.solver.method == SolverMethod::Feti {
-        return Err(SolveError::Unsupported(
-            "`solver { method = feti }`: classical FETI is not implemented yet; use `tfeti`".into(),
-        ));
-    }
+    use crate::lang::scene::Preconditioner;
     if scene.solver.preconditioner != Preconditioner::None {
         return Err(SolveError::Unsupported(
             "`solver { preconditioner }`: dual preconditioners are not implemented yet; use `none`"
@@ -407,17 +460,33 @@ pub fn solve_reusing(
     }
     let t0 = Instant::now();
     let mut times = Times::default();
-    let (problem, subs, lower_time, reused) =
-        setup_reusing(scene, design, previous.filter(|_| factorizations))?;
-    loads_can_be_carried(&problem)?;
-    times.lower = lower_time;
-    times.factorize = t0.elapsed().as_secs_f64() - lower_time;
+    let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
+    loads_can_be_carried(&setup.problem)?;
+    times.lower = setup.lower_time;
+    times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
+    let system = setup.dual_system()?;
+    let Setup {
+        problem,
+        subs,
+        elimination,
+        reused,
+        ..
+    } = setup;
+    // The state keeps all rows (FETI's eliminated ones too, with their
+    // recovered multipliers), so reports and checks are the same for both.
     let m = problem.rows.len();
-    let dual = Dual::new(subs, local_rows(&problem), m).map_err(|CoarseError { free_modes }| {
-        SolveError::FreeRigidModes(name_modes(&problem, &free_modes))
-    })?;
+    let dual = match &system {
+        DualSystem::Total(_) => None,
+        DualSystem::Classical { .. } => {
+            Some(Dual::new(subs.clone(), local_rows(&problem), m).map_err(
+                |CoarseError { free_modes }| {
+                    SolveError::FreeRigidModes(name_modes(&problem, &subs, &free_modes))
+                },
+            )?)
+        }
+    };
     times.coarse = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
@@ -444,11 +513,11 @@ pub fn solve_reusing(
         same.then(|| prev.lambda.clone())
     });
     let warm_started = warm.is_some();
-    let sol = dual_solve_from(
-        &dual,
+    let sol = system.solve(
         &f,
         &c,
         problem.n_equality,
+        true,
         &settings,
         warm.as_deref(),
         observer,
@@ -462,13 +531,20 @@ pub fn solve_reusing(
         b_norm,
     } = sol;
     let t = Instant::now();
+    let f_applications = system.f_applications();
+    let multipliers = system.multipliers();
+    let dual = match (dual, system) {
+        (Some(d), _) | (None, DualSystem::Total(d)) => d,
+        (None, DualSystem::Classical { dual, .. }) => dual,
+    };
     let kkt = kkt(&problem, &dual, &u, &lambda);
     times.reconstruct = t.elapsed().as_secs_f64();
     times.total = t0.elapsed().as_secs_f64();
-    let f_applications = dual.f_applications.load(Ordering::Relaxed);
     Ok(State {
         problem,
         dual,
+        elimination,
+        multipliers,
         u,
         lambda,
         alpha,
@@ -825,6 +901,18 @@ fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
 }
 
 impl State {
+    /// Rows by kind in the dual problem solved (in classical FETI, without the
+    /// rows eliminated with the Dirichlet dofs).
+    pub fn solved_row_counts(&self) -> crate::model::RowCounts {
+        let mut c = crate::model::RowCounts::default();
+        for row in &self.problem.rows {
+            if self.elimination.as_ref().is_none_or(|e| e.keeps(row)) {
+                c.add(&row.kind);
+            }
+        }
+        c
+    }
+
     /// `B u` per row (normalized rows, like `c`).
     pub fn row_values(&self) -> Vec<f64> {
         let mut bu = vec![0.0; self.lambda.len()];

@@ -30,6 +30,8 @@ use std::path::Path;
 
 #[derive(Debug, Clone, Serialize)]
 pub struct Sizes {
+    /// `tfeti`, or `feti` (classical: Dirichlet dofs eliminated, not rows).
+    pub method: String,
     pub primal: usize,
     pub dual: usize,
     pub multipliers: RowCounts,
@@ -103,9 +105,13 @@ impl Report {
     pub fn new(scene: &Scene, state: &State) -> Report {
         let p = &state.problem;
         let sizes = Sizes {
-            primal: p.primal_dofs(),
-            dual: p.rows.len(),
-            multipliers: p.row_counts(),
+            method: match &state.elimination {
+                None => "tfeti".into(),
+                Some(_) => "feti".into(),
+            },
+            primal: p.primal_dofs() - state.elimination.as_ref().map_or(0, |e| e.count()),
+            dual: state.multipliers,
+            multipliers: state.solved_row_counts(),
             kernel: state.dual.kernel_dim(),
             subdomains: p.subdomains.len(),
             factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
@@ -229,7 +235,16 @@ impl Report {
         };
         let s = &self.sizes;
         let m = &s.multipliers;
-        let _ = writeln!(o, "scene {}: solved by TFETI (SMALBE + MPRGP)", self.scene);
+        let method = if s.method == "feti" {
+            "classical FETI"
+        } else {
+            "TFETI"
+        };
+        let _ = writeln!(
+            o,
+            "scene {}: solved by {method} (SMALBE + MPRGP)",
+            self.scene
+        );
         let _ = writeln!(
             o,
             "  primal/dual unknowns {}/{} (gluing {}, supports {}, symmetry {}, ties {}, contact {}), kernel {}, {} subdomains",

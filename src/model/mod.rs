@@ -42,13 +42,7 @@ impl Problem {
     pub fn row_counts(&self) -> RowCounts {
         let mut c = RowCounts::default();
         for r in &self.rows {
-            match r.kind {
-                RowKind::Gluing => c.gluing += 1,
-                RowKind::Dirichlet => c.dirichlet += 1,
-                RowKind::Symmetry => c.symmetry += 1,
-                RowKind::Tie { .. } => c.ties += 1,
-                RowKind::Contact { .. } => c.contact += 1,
-            }
+            c.add(&r.kind);
         }
         c
     }
@@ -62,6 +56,19 @@ pub struct RowCounts {
     pub symmetry: usize,
     pub ties: usize,
     pub contact: usize,
+}
+
+impl RowCounts {
+    /// Counts one more row of this kind.
+    pub fn add(&mut self, kind: &RowKind) {
+        match kind {
+            RowKind::Gluing => self.gluing += 1,
+            RowKind::Dirichlet => self.dirichlet += 1,
+            RowKind::Symmetry => self.symmetry += 1,
+            RowKind::Tie { .. } => self.ties += 1,
+            RowKind::Contact { .. } => self.contact += 1,
+        }
+    }
 }
 
 /// Why a scene cannot be lowered.

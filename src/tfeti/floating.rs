@@ -2,8 +2,9 @@
 //! kernel of what is left found numerically, by zero-pivot detection in a
 //! Cholesky factorization with a tolerance `eps`.
 //!
-//! `K^` is `K_s` with the rows and columns of its Dirichlet dofs replaced by the
-//! identity (the dofs keep their prescribed values, see [`crate::feti`]). It is
+//! `K^` is `K_s` with the rows and columns of its Dirichlet dofs reduced to
+//! their diagonal entry (the dofs keep their prescribed values, see
+//! [`crate::feti`]). It is
 //! scaled to unit diagonal, `K~ = S K^ S` with `S = diag(K^)^-1/2`, so that a
 //! pivot `d_j` is relative to its diagonal, the classical test `d_j <= eps K_jj`.
 //! faer's sparse `L D L^T` replaces each such pivot by `DELTA` as it goes: the
@@ -120,17 +121,10 @@ fn free_rigid_motions(coords: &[[f64; 2]], eliminated: &[usize]) -> usize {
     3 - (0..3).filter(|&i| s[i] > 1e-10).count()
 }
 
-/// `K~ = S K^ S`: Dirichlet rows and columns replaced by the identity, unit
+/// `K~ = S K^ S`: Dirichlet rows and columns reduced to the diagonal, unit
 /// diagonal. Returns it and `S`.
 fn scaled(k: &UpperCsc, eliminated: &[bool]) -> Result<(UpperCsc, Vec<f64>), SubdomainError> {
-    let mut diag = vec![0.0; k.n];
-    for c in 0..k.n {
-        for p in k.col_ptr[c]..k.col_ptr[c + 1] {
-            if k.row_idx[p] == c {
-                diag[c] = k.values[p];
-            }
-        }
-    }
+    let diag = k.diagonal();
     if let Some(d) = diag
         .iter()
         .position(|v| v.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))

@@ -49,6 +49,17 @@ impl UpperCsc {
         }
     }
 
+    /// The diagonal.
+    pub fn diagonal(&self) -> Vec<f64> {
+        let mut diag = vec![0.0; self.n];
+        for (c, d) in diag.iter_mut().enumerate() {
+            if let Some(p) = self.find(c, c) {
+                *d = self.values[p];
+            }
+        }
+        diag
+    }
+
     /// Position of entry (r, c) with r <= c, if in the pattern.
     fn find(&self, r: usize, c: usize) -> Option<usize> {
         let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];

@@ -1,0 +1,367 @@
+//! Classical FETI on the same lowered problem: Dirichlet conditions are
+//! eliminated inside the subdomains instead of being rows of `B`.
+//!
+//! Every dof that a `fix`, `displace` or `symmetry` row holds (and every copy of
+//! its node in neighbouring subdomains) keeps its prescribed value `g`: the
+//! subdomain matrix keeps only its diagonal there ([`Subdomain::feti`]), the
+//! load becomes `f^ = f - K[:, E] g` with `f^_E = K_EE g`, and each row of `B` moves its
+//! entries on eliminated dofs to the right-hand side. Rows left without entries
+//! (the Dirichlet rows, gluing between two held copies) leave the dual problem;
+//! their multipliers, the reactions, are recovered afterwards from equilibrium
+//! at the held dofs, so a FETI state reports the same `lambda` as TFETI.
+//!
+//! The dual problem is then solved by the same code as TFETI's
+//! ([`crate::state::dual_solve_from`]) on fewer multipliers, with the kernels that
+//! pivot detection found. [`DualSystem`] hides which of the two a caller has.
+
+use crate::model::{Problem, Row, RowKind};
+use crate::qp::{QpInfo, SmalbeSettings};
+use crate::state::{dual_solve_from, DualSolution, SolveError};
+use crate::tfeti::dual::{CoarseError, Dual, LocalRows};
+use crate::tfeti::subdomain::Subdomain;
+use std::sync::atomic::Ordering;
+use std::sync::Arc;
+
+/// The dofs held by Dirichlet conditions, per subdomain, with their values.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Elimination {
+    /// Per subdomain, per local dof: the prescribed value of a held dof.
+    pub value: Vec<Vec<Option<f64>>>,
+}
+
+impl Elimination {
+    /// The held dofs of a lowered problem: those of its single-entry `fix`,
+    /// `displace` and `symmetry` rows, in every copy of their nodes.
+    pub fn new(problem: &Problem) -> Self {
+        let mut value: Vec<Vec<Option<f64>>> = problem
+            .subdomains
+            .iter()
+            .map(|m| vec![None; m.coords.len() * problem.dim])
+            .collect();
+        for row in &problem.rows {
+            if !matches!(row.kind, RowKind::Dirichlet | RowKind::Symmetry) {
+                continue;
+            }
+            let [(s, d, b)] = row.entries[..] else {
+                continue;
+            };
+            let g = row.c / b;
+            let m = &problem.subdomains[s];
+            let node = m.grid[d / 2];
+            for (t, l) in problem.bodies[m.body].copies(node) {
+                value[t][2 * l + d % 2] = Some(g);
+            }
+        }
+        Elimination { value }
+    }
+
+    /// Held local dofs of subdomain `s`, sorted.
+    pub fn dofs(&self, s: usize) -> Vec<usize> {
+        (0..self.value[s].len())
+            .filter(|&d| self.value[s][d].is_some())
+            .collect()
+    }
+
+    /// Held dofs in all.
+    pub fn count(&self) -> usize {
+        self.value.iter().flatten().filter(|v| v.is_some()).count()
+    }
+
+    fn held(&self, s: usize, d: usize) -> Option<f64> {
+        self.value[s][d]
+    }
+
+    /// Whether a row keeps an entry on a free dof (stays in the dual problem).
+    pub fn keeps(&self, row: &Row) -> bool {
+        row.entries
+            .iter()
+            .any(|&(s, d, _)| self.held(s, d).is_none())
+    }
+}
+
+/// A list of rows after elimination.
+pub struct Reduced {
+    /// Positions (in the list given) of the rows that stay in the dual problem.
+    kept: Vec<usize>,
+    /// Equalities among `kept` (they come first).
+    n_equality: usize,
+    /// Equality rows that lost every entry: their multipliers are recovered.
+    recovered: Vec<usize>,
+    /// Inequality rows that lost every entry: constant, checked, multiplier 0.
+    constant: Vec<usize>,
+}
+
+fn reduce(elim: &Elimination, rows: &[&Row], n_equality: usize) -> (Reduced, Vec<LocalRows>) {
+    let mut red = Reduced {
+        kept: Vec::new(),
+        n_equality: 0,
+        recovered: Vec::new(),
+        constant: Vec::new(),
+    };
+    let mut local = vec![LocalRows::default(); elim.value.len()];
+    for (i, row) in rows.iter().enumerate() {
+        if !elim.keeps(row) {
+            if i < n_equality {
+                red.recovered.push(i);
+            } else {
+                red.constant.push(i);
+            }
+            continue;
+        }
+        let r = red.kept.len();
+        red.kept.push(i);
+        if i < n_equality {
+            red.n_equality += 1;
+        }
+        for &(s, d, v) in row.entries.iter().filter(|e| elim.held(e.0, e.1).is_none()) {
+            let lr = &mut local[s];
+            if lr.rows.last() != Some(&r) {
+                lr.rows.push(r);
+            }
+            let k = lr.rows.len() - 1;
+            lr.entries.push((k, d, v));
+        }
+    }
+    (red, local)
+}
+
+/// The dual problem of a list of rows, TFETI's or classical FETI's.
+pub enum DualSystem {
+    Total(Dual),
+    Classical {
+        dual: Dual,
+        elim: Arc<Elimination>,
+        rows: Vec<Row>,
+        reduced: Reduced,
+    },
+}
+
+impl DualSystem {
+    /// The dual of `rows` (equalities first, `n_equality` of them) on the
+    /// subdomains `subs`; classical FETI when `elim` is given.
+    pub fn new(
+        subs: Vec<Arc<Subdomain>>,
+        rows: &[&Row],
+        n_equality: usize,
+        elim: Option<Arc<Elimination>>,
+    ) -> Result<Self, CoarseError> {
+        match elim {
+            None => {
+                let mut local = vec![LocalRows::default(); subs.len()];
+                for (r, row) in rows.iter().enumerate() {
+                    for &(s, d, v) in &row.entries {
+                        let lr = &mut local[s];
+                        if lr.rows.last() != Some(&r) {
+                            lr.rows.push(r);
+                        }
+                        let k = lr.rows.len() - 1;
+                        lr.entries.push((k, d, v));
+                    }
+                }
+                Ok(DualSystem::Total(Dual::new(subs, local, rows.len())?))
+            }
+            Some(elim) => {
+                let (reduced, local) = reduce(&elim, rows, n_equality);
+                let dual = Dual::new(subs, local, reduced.kept.len())?;
+                Ok(DualSystem::Classical {
+                    dual,
+                    elim,
+                    rows: rows.iter().map(|r| (*r).clone()).collect(),
+                    reduced,
+                })
+            }
+        }
+    }
+
+    /// The dual problem actually solved.
+    pub fn dual(&self) -> &Dual {
+        match self {
+            DualSystem::Total(d) | DualSystem::Classical { dual: d, .. } => d,
+        }
+    }
+
+    /// Positions (in the rows given) of the rows in the dual problem solved.
+    pub fn kept_rows(&self) -> Vec<usize> {
+        match self {
+            DualSystem::Total(d) => (0..d.m).collect(),
+            DualSystem::Classical { reduced, .. } => reduced.kept.clone(),
+        }
+    }
+
+    /// Multipliers of the dual problem solved (FETI: without eliminated rows).
+    pub fn multipliers(&self) -> usize {
+        self.dual().m
+    }
+
+    /// Applications of `F` so far.
+    pub fn f_applications(&self) -> usize {
+        self.dual().f_applications.load(Ordering::Relaxed)
+    }
+
+    /// Solves `min 1/2 u^T K u - f^T u` s.t. the rows (`B u = c` for the
+    /// equalities, `B u <= c` for the rest); `prescribed`: whether held dofs take
+    /// their Dirichlet values (a state) or zero (a derivative or adjoint problem).
+    /// `lambda` of the solution has one entry per row given to [`DualSystem::new`].
+    #[allow(clippy::too_many_arguments)]
+    pub fn solve(
+        &self,
+        f: &[&[f64]],
+        c: &[f64],
+        n_equality: usize,
+        prescribed: bool,
+        settings: &SmalbeSettings,
+        start: Option<&[f64]>,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<DualSolution, SolveError> {
+        let DualSystem::Classical {
+            dual,
+            elim,
+            rows,
+            reduced,
+        } = self
+        else {
+            return dual_solve_from(self.dual(), f, c, n_equality, settings, start, observer);
+        };
+        let g = |s: usize, d: usize| -> Option<f64> {
+            elim.held(s, d).map(|v| if prescribed { v } else { 0.0 })
+        };
+        // Right-hand sides with the held values moved over.
+        let shifted = |i: usize| -> f64 {
+            c[i] - rows[i]
+                .entries
+                .iter()
+                .filter_map(|&(s, d, v)| g(s, d).map(|gv| v * gv))
+                .sum::<f64>()
+        };
+        for &i in &reduced.constant {
+            let room = shifted(i);
+            if room < -1e-12 * (c[i].abs() + 1.0) {
+                return Err(SolveError::Reconstruction(format!(
+                    "a contact row acts only on supported dofs and is violated by {room:e}: the supports push the bodies into each other"
+                )));
+            }
+        }
+        let c_hat: Vec<f64> = reduced.kept.iter().map(|&i| shifted(i)).collect();
+        let f_hat: Vec<Vec<f64>> = dual
+            .subs
+            .iter()
+            .enumerate()
+            .map(|(s, sub)| {
+                let gv: Vec<f64> = (0..sub.n).map(|d| g(s, d).unwrap_or(0.0)).collect();
+                let mut kg = vec![0.0; sub.n];
+                sub.k.mul(&gv, &mut kg);
+                let diag = sub.k.diagonal();
+                (0..sub.n)
+                    .map(|d| match g(s, d) {
+                        Some(v) => diag[d] * v,
+                        None => f[s][d] - kg[d],
+                    })
+                    .collect()
+            })
+            .collect();
+        let f_ref: Vec<&[f64]> = f_hat.iter().map(Vec::as_slice).collect();
+        let start_hat: Option<Vec<f64>> =
+            start.map(|l| reduced.kept.iter().map(|&i| l[i]).collect());
+        let sol = dual_solve_from(
+            dual,
+            &f_ref,
+            &c_hat,
+            reduced.n_equality,
+            settings,
+            start_hat.as_deref(),
+            observer,
+        )?;
+        let mut lambda = vec![0.0; rows.len()];
+        for (k, &i) in reduced.kept.iter().enumerate() {
+            lambda[i] = sol.lambda[k];
+        }
+        recover(dual, rows, &reduced.recovered, f, &sol.u, &mut lambda)?;
+        Ok(DualSolution { lambda, ..sol })
+    }
+}
+
+/// Multipliers of the rows that lost every entry: equilibrium at the held dofs,
+/// `sum_i B_i,d lambda_i = f_d - (K u)_d - (B_kept^T lambda)_d`, solved by peeling
+/// (a held dof touched by one unsolved row determines it; Dirichlet rows and the
+/// gluing chains between copies form trees).
+fn recover(
+    dual: &Dual,
+    rows: &[Row],
+    recovered: &[usize],
+    f: &[&[f64]],
+    u: &[Vec<f64>],
+    lambda: &mut [f64],
+) -> Result<(), SolveError> {
+    if recovered.is_empty() {
+        return Ok(());
+    }
+    let mut is_recovered = vec![false; rows.len()];
+    for &i in recovered {
+        is_recovered[i] = true;
+    }
+    // Residual at every dof: f - K u - B_kept^T lambda.
+    let mut res: Vec<Vec<f64>> = dual
+        .subs
+        .iter()
+        .enumerate()
+        .map(|(s, sub)| {
+            let mut ku = vec![0.0; sub.n];
+            sub.k.mul(&u[s], &mut ku);
+            f[s].iter().zip(&ku).map(|(a, b)| a - b).collect()
+        })
+        .collect();
+    for (i, row) in rows.iter().enumerate() {
+        if !is_recovered[i] {
+            for &(s, d, v) in &row.entries {
+                res[s][d] -= v * lambda[i];
+            }
+        }
+    }
+    // Which unsolved rows touch each held dof.
+    let mut touching: std::collections::HashMap<(usize, usize), Vec<usize>> =
+        std::collections::HashMap::new();
+    for &i in recovered {
+        for &(s, d, _) in &rows[i].entries {
+            touching.entry((s, d)).or_default().push(i);
+        }
+    }
+    let mut solved = vec![false; rows.len()];
+    let mut queue: Vec<(usize, usize)> = touching
+        .iter()
+        .filter(|(_, r)| r.len() == 1)
+        .map(|(k, _)| *k)
+        .collect();
+    queue.sort_unstable();
+    let mut left = recovered.len();
+    while let Some(dof) = queue.pop() {
+        let Some(&i) = touching
+            .get(&dof)
+            .and_then(|r| r.iter().find(|&&i| !solved[i]))
+        else {
+            continue;
+        };
+        let b = rows[i]
+            .entries
+            .iter()
+            .filter(|e| (e.0, e.1) == dof)
+            .map(|e| e.2)
+            .sum::<f64>();
+        lambda[i] = res[dof.0][dof.1] / b;
+        solved[i] = true;
+        left -= 1;
+        for &(s, d, v) in &rows[i].entries {
+            res[s][d] -= v * lambda[i];
+            if let Some(list) = touching.get(&(s, d)) {
+                if list.iter().filter(|&&j| !solved[j]).count() == 1 {
+                    queue.push((s, d));
+                }
+            }
+        }
+    }
+    if left > 0 {
+        return Err(SolveError::Reconstruction(format!(
+            "classical FETI: the multipliers of {left} rows on held dofs form a cycle and cannot be recovered; use `method = tfeti`"
+        )));
+    }
+    Ok(())
+}
