@@ -58,3 +58,37 @@ fn feti_and_tfeti_give_the_same_state_on_every_2d_example() {
         assert!(f.dual.kernel_dim() <= t.dual.kernel_dim(), "{name}");
     }
 }
+
+#[test]
+fn feti_sensitivities_equal_tfeti_sensitivities() {
+    let two_blocks = compile(crate::sensitivity::TWO_BLOCKS_DESIGN, &options()).expect("checks");
+    for (name, scene) in [
+        ("scont2d", example("scont2d")),
+        ("two_blocks design", two_blocks),
+    ] {
+        let mut grads = Vec::new();
+        for method in [SolverMethod::Tfeti, SolverMethod::Feti] {
+            let mut s = scene.clone();
+            s.solver.method = method;
+            s.solver.tolerance = 1e-10;
+            let semi = cso::sens::semi_analytic(&s, 1e-10).expect("semi-analytic");
+            let adj = cso::sens::adjoint(&s, 1e-10).expect("adjoint");
+            grads.push((semi.gradient, adj.gradient));
+        }
+        let (t, f) = (&grads[0], &grads[1]);
+        for (k, row) in t.0.iter().enumerate() {
+            let scale = max_abs(row.iter().copied()).max(1e-12);
+            for i in 0..row.len() {
+                for (what, a, b) in [
+                    ("semi", t.0[k][i], f.0[k][i]),
+                    ("adjoint", t.1[k][i], f.1[k][i]),
+                ] {
+                    assert!(
+                        (a - b).abs() < 1e-6 * scale,
+                        "{name} functional {k} d/da{i} ({what}): TFETI {a} vs FETI {b}"
+                    );
+                }
+            }
+        }
+    }
+}

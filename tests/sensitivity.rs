@@ -120,7 +120,7 @@ fn semi_analytic_gradient_agrees_with_central_differences() {
 
 /// two_blocks with the punch's curvature as a design variable, and functionals of
 /// every kind the semi-analytical method differentiates.
-const TWO_BLOCKS_DESIGN: &str = "scene two_blocks { dim = 2 }
+pub(crate) const TWO_BLOCKS_DESIGN: &str = "scene two_blocks { dim = 2 }
 material soft { E = 1000, nu = 0.3 }
 design c { init = 0.02, lower = 0, upper = 0.05 }
 design w { init = 1, lower = 0.9, upper = 1.1 }

@@ -14,15 +14,14 @@
 
 use super::functional::body_area;
 use crate::fem::quad::{plane_strain, quad_gauss, quad_stiffness};
+use crate::feti::DualSystem;
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Condition, Face, Functional, Obstacle, Scene};
 use crate::model::loads::selected_edges;
 use crate::model::{ContactPrimary, RowKind};
 use crate::qp::SmalbeSettings;
-use crate::state::{dual_solve, SolveError, State};
-use crate::tfeti::dual::{Dual, LocalRows};
+use crate::state::{SolveError, State};
 use num_dual::{Dual64, DualNum};
-use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 type D = Dual64;
@@ -379,7 +378,7 @@ pub struct Sensitivity<'a> {
     /// State rows kept (equalities and strong contacts first, weak after).
     pub kept: Vec<usize>,
     pub n_equality: usize,
-    dual: Dual,
+    dual: DualSystem,
 }
 
 impl<'a> Sensitivity<'a> {
@@ -391,18 +390,13 @@ impl<'a> Sensitivity<'a> {
             .collect();
         let n_equality = kept.len();
         kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
-        let mut local = vec![LocalRows::default(); state.problem.subdomains.len()];
-        for (r, &i) in kept.iter().enumerate() {
-            for &(s, d, v) in &state.problem.rows[i].entries {
-                let lr = &mut local[s];
-                if lr.rows.last() != Some(&r) {
-                    lr.rows.push(r);
-                }
-                let k = lr.rows.len() - 1;
-                lr.entries.push((k, d, v));
-            }
-        }
-        let dual = Dual::new(state.dual.subs.clone(), local, kept.len())
+        let rows: Vec<&crate::model::Row> = kept.iter().map(|&i| &state.problem.rows[i]).collect();
+        let dual = DualSystem::new(
+            state.dual.subs.clone(),
+            &rows,
+            n_equality,
+            state.elimination.clone(),
+        )
             .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
         Ok(Sensitivity {
             scene,
@@ -425,19 +419,21 @@ impl<'a> Sensitivity<'a> {
         let rhs = self.rhs(i);
         let p = &self.state.problem;
         let f: Vec<&[f64]> = rhs.fbar.iter().map(Vec::as_slice).collect();
-        let before = self.dual.f_applications.load(Ordering::Relaxed);
-        let sol = dual_solve(
-            &self.dual,
+        let before = self.dual.f_applications();
+        // Held dofs of classical FETI do not move with the design: zero there.
+        let sol = self.dual.solve(
             &f,
             &rhs.cbar,
             self.n_equality,
+            false,
             &solve_settings(tolerance),
+            None,
             &mut |_| {},
         )?;
         let hessian_applications = sol
             .info
             .hessian_applications
-            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
+            .max(self.dual.f_applications() - before);
         let mut lambda = vec![0.0; p.rows.len()];
         for (k, &r) in self.kept.iter().enumerate() {
             lambda[r] = sol.lambda[k];
@@ -582,19 +578,21 @@ impl<'a> Sensitivity<'a> {
         }
         let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
         let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
-        let before = self.dual.f_applications.load(Ordering::Relaxed);
-        let sol = dual_solve(
-            &self.dual,
+        let before = self.dual.f_applications();
+        // Held dofs of classical FETI do not move with the design: zero there.
+        let sol = self.dual.solve(
             &f_adj,
             &c_adj,
             self.n_equality,
+            false,
             &solve_settings(tolerance),
+            None,
             &mut |_| {},
         )?;
         let cost = sol
             .info
             .hessian_applications
-            .max(self.dual.f_applications.load(Ordering::Relaxed) - before);
+            .max(self.dual.f_applications() - before);
         let mut grad = vec![0.0; m];
         for (i, g) in grad.iter_mut().enumerate() {
             let rhs = self.rhs(i);
