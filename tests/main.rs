@@ -6,6 +6,7 @@ mod examples;
 mod feti;
 mod front_end;
 mod fuzz;
+mod hard;
 mod optimize;
 mod reference;
 mod sensitivity;
