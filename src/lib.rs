@@ -9,6 +9,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod bench;
+pub mod compare;
 pub mod fem;
 pub mod feti;
 pub mod io;

@@ -13,7 +13,9 @@ Examples:
   cso compile examples/hertz2d.cso         print the checked scene
   cso compile examples/hertz2d.cso --json  the same as JSON
   cso --set P=3MN/m compile examples/hertz2d.cso
-                                           override `let P` (checked like the source)";
+                                           override `let P` (checked like the source)
+  cso solve examples/two_blocks.cso -o out solve; report.json, VTU, SVG plots
+  cso compare examples/scont2d.cso         FETI vs Total FETI table";
 
 /// cso: compiler and solver for contact shape optimization (Total FETI).
 #[derive(Parser, Debug)]
@@ -75,6 +77,18 @@ enum Command {
         /// The `.cso` file.
         file: PathBuf,
         /// Write history.json, the best design's report, VTU and plots into this folder.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N")]
+        threads: Option<usize>,
+    },
+    /// FETI vs Total FETI on one scene: unknowns, CG steps of the state and of each
+    /// design variable's sensitivity, times, ratios (the seed's table).
+    Compare {
+        /// The `.cso` file.
+        file: PathBuf,
+        /// Write compare.md and compare.json into this folder.
         #[arg(short, long, value_name = "DIR")]
         out: Option<PathBuf>,
         /// Threads over subdomains (default: all cores).
@@ -260,6 +274,13 @@ fn main() -> ExitCode {
                 out.as_deref(),
                 *threads,
             )
+        }
+        Command::Compare { file, out, threads } => {
+            let scene = match load(file, &opts) {
+                Ok(s) => s,
+                Err(code) => return ExitCode::from(code),
+            };
+            compare_command(&scene, out.as_deref(), *threads)
         }
         Command::Optimize { file, out, threads } => {
             let scene = match load(file, &opts) {
@@ -621,6 +642,53 @@ fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<u
             return ExitCode::from(EXIT_IO);
         }
         outln!("study written to {}", dir.display());
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso compare`: both methods on the scene, the tables on stdout (and files).
+fn compare_command(
+    scene: &cso::lang::Scene,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    bar.set_message("solving the state and sensitivities by FETI and by Total FETI");
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let c = pool.install(|| cso::compare::compare(scene));
+    bar.finish_and_clear();
+    let md = c.markdown(true);
+    outln!("{md}");
+    if let Some(dir) = out {
+        let json = match serde_json::to_string_pretty(&c) {
+            Ok(j) => j,
+            Err(e) => {
+                errln!("error: cannot write JSON: {e}");
+                return ExitCode::from(EXIT_IO);
+            }
+        };
+        let written = std::fs::create_dir_all(dir)
+            .and_then(|_| cso::io::atomic::write_atomic(&dir.join("compare.md"), md.as_bytes()))
+            .and_then(|_| {
+                cso::io::atomic::write_atomic(&dir.join("compare.json"), json.as_bytes())
+            });
+        if let Err(e) = written {
+            errln!("error: cannot write into {}: {e}", dir.display());
+            return ExitCode::from(EXIT_IO);
+        }
+    }
+    // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
+    // means the scene cannot be solved.
+    if c.tfeti.is_err() {
+        return ExitCode::from(EXIT_SCENE);
     }
     ExitCode::SUCCESS
 }

@@ -118,7 +118,7 @@ impl fmt::Display for SolveError {
             SolveError::Unsupported(s) => write!(f, "{s}"),
             SolveError::Lower(e) => write!(f, "{e}"),
             SolveError::Subdomain { body, block, error } => {
-                write!(f, "subdomain ({}, {}) of body `{body}`: {error:?}", block.0, block.1)
+                write!(f, "subdomain ({}, {}) of body `{body}`: {error}", block.0, block.1)
             }
             SolveError::FreeRigidModes(m) => write!(
                 f,

@@ -92,3 +92,28 @@ fn feti_sensitivities_equal_tfeti_sensitivities() {
         }
     }
 }
+
+#[test]
+fn comparison_table_of_scont2d() {
+    let c = cso::compare::compare(&example("scont2d"));
+    let (f, t) = (
+        c.feti.as_ref().expect("FETI"),
+        c.tfeti.as_ref().expect("TFETI"),
+    );
+    // Same primal problem: FETI has exactly the held dofs fewer.
+    assert_eq!(t.primal - f.primal, 126);
+    assert!(c.difference.expect("both solved") < 1e-4);
+    assert_eq!(f.sensitivities.len(), 6);
+    insta::assert_snapshot!(c.markdown(false));
+}
+
+#[test]
+fn comparison_reports_a_wrong_eps_instead_of_a_number() {
+    let mut s = example("two_blocks");
+    s.solver.eps = 0.5;
+    let c = cso::compare::compare(&s);
+    let err = c.feti.as_ref().expect_err("eps = 0.5 takes genuine pivots");
+    assert!(err.contains("eps is too large"), "{err}");
+    assert!(c.tfeti.is_ok() && c.difference.is_none());
+    insta::assert_snapshot!(c.markdown(false));
+}

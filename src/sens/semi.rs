@@ -408,6 +408,11 @@ impl<'a> Sensitivity<'a> {
         })
     }
 
+    /// Multipliers of the sensitivity dual problem (FETI: after elimination).
+    pub fn multipliers(&self) -> usize {
+        self.dual.multipliers()
+    }
+
     /// Number of weak contacts (l = 0 on a closed gap): with any, derivatives
     /// are one-sided (directional), not a gradient.
     pub fn weak(&self) -> usize {

@@ -1,0 +1,305 @@
+//! `cso compare`: the seed's FETI vs Total FETI table for any scene.
+//!
+//! Both methods solve the same discrete problem (same mesh, rows, tolerance,
+//! SMALBE + MPRGP); classical FETI eliminates the Dirichlet dofs and finds the
+//! kernels of floating subdomains by pivot detection with `solver { eps }`,
+//! TFETI keeps every support as a row and knows its kernels a priori. The table
+//! counts what each costs: primal and dual unknowns, Hessian applications (CG
+//! steps) of the state solve and of each design variable's semi-analytical
+//! sensitivity, times; and checks that both give the same displacements.
+
+use crate::lang::scene::{Scene, SolverMethod};
+use crate::sens::Sensitivity;
+use crate::state::{solve, State};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// Cost of one solve.
+#[derive(Debug, Clone, Serialize)]
+pub struct Cost {
+    /// Multipliers of the dual problem solved.
+    pub dual: usize,
+    /// Hessian applications (CG steps).
+    pub hessian_applications: usize,
+    pub seconds: f64,
+}
+
+/// One method's column.
+#[derive(Debug, Clone, Serialize)]
+pub struct Column {
+    pub method: String,
+    pub primal: usize,
+    pub kernel: usize,
+    pub factor_nonzeros: usize,
+    pub state: Cost,
+    /// Worst relative KKT residual of the state.
+    pub kkt: f64,
+    /// One per design variable: the semi-analytical sensitivity solve.
+    pub sensitivities: Vec<Cost>,
+    /// Why the sensitivities could not be computed, if so.
+    pub sensitivity_error: Option<String>,
+}
+
+/// The comparison of a scene.
+#[derive(Debug, Clone, Serialize)]
+pub struct Comparison {
+    pub scene: String,
+    pub tolerance: f64,
+    pub eps: f64,
+    pub design: Vec<String>,
+    pub feti: Result<Column, String>,
+    pub tfeti: Result<Column, String>,
+    /// `max |u_FETI - u_TFETI| / max |u_TFETI|`, when both solved.
+    pub difference: Option<f64>,
+}
+
+fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String> {
+    let mut s = scene.clone();
+    s.solver.method = method;
+    let design = s.design_init();
+    let t = Instant::now();
+    let state = solve(&s, &design, &mut |_| {}).map_err(|e| e.to_string())?;
+    let seconds = t.elapsed().as_secs_f64();
+    if !state.converged() {
+        return Err(format!(
+            "the state solve did not converge ({:?})",
+            state.info.status
+        ));
+    }
+    let held = state.elimination.as_ref().map_or(0, |e| e.count());
+    let mut col = Column {
+        method: match method {
+            SolverMethod::Feti => "FETI".into(),
+            SolverMethod::Tfeti => "Total FETI".into(),
+        },
+        primal: state.problem.primal_dofs() - held,
+        kernel: state.dual.kernel_dim(),
+        factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
+        state: Cost {
+            dual: state.multipliers,
+            hessian_applications: state.info.hessian_applications,
+            seconds,
+        },
+        kkt: state.kkt.worst(),
+        sensitivities: Vec::new(),
+        sensitivity_error: None,
+    };
+    if !s.design.is_empty() {
+        match Sensitivity::new(&s, &state) {
+            Err(e) => col.sensitivity_error = Some(e.to_string()),
+            Ok(sens) => {
+                for i in 0..s.design.len() {
+                    let t = Instant::now();
+                    match sens.direction(i, s.solver.tolerance) {
+                        Ok(d) => col.sensitivities.push(Cost {
+                            dual: sens.multipliers(),
+                            hessian_applications: d.hessian_applications,
+                            seconds: t.elapsed().as_secs_f64(),
+                        }),
+                        Err(e) => {
+                            col.sensitivity_error = Some(e.to_string());
+                            break;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    Ok((col, state))
+}
+
+/// Solves the scene by both methods and measures them.
+pub fn compare(scene: &Scene) -> Comparison {
+    let tfeti = column(scene, SolverMethod::Tfeti);
+    let feti = column(scene, SolverMethod::Feti);
+    let difference = match (&feti, &tfeti) {
+        (Ok((_, f)), Ok((_, t))) => {
+            let umax = t.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+            let du =
+                t.u.iter()
+                    .flatten()
+                    .zip(f.u.iter().flatten())
+                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            Some(if umax > 0.0 { du / umax } else { du })
+        }
+        _ => None,
+    };
+    Comparison {
+        scene: scene.name.clone(),
+        tolerance: scene.solver.tolerance,
+        eps: scene.solver.eps,
+        design: scene.design.iter().map(|d| d.name.clone()).collect(),
+        feti: feti.map(|(c, _)| c),
+        tfeti: tfeti.map(|(c, _)| c),
+        difference,
+    }
+}
+
+/// Two significant digits (counts in snapshots stay put across machines).
+fn round2(n: usize) -> usize {
+    if n < 100 {
+        return n;
+    }
+    let p = 10usize.pow((n as f64).log10().floor() as u32 - 1);
+    (n + p / 2) / p * p
+}
+
+impl Comparison {
+    /// The Markdown tables. `exact`: counts as measured and times; otherwise
+    /// counts to two significant digits and no times (stable output).
+    pub fn markdown(&self, exact: bool) -> String {
+        // CG counts may differ by a step across machines; sizes may not.
+        let count = |n: usize| if exact { n } else { round2(n) };
+        let ratio = |f: usize, t: usize| {
+            if f == 0 {
+                "-".to_string()
+            } else {
+                format!("{:.2}", t as f64 / f as f64)
+            }
+        };
+        let cg_ratio = |f: usize, t: usize| ratio(count(f), count(t));
+        // Residuals: as measured, or their order of magnitude (an upper bound).
+        let small = |v: f64| {
+            if exact || v <= 0.0 {
+                format!("{v:.0e}")
+            } else {
+                format!("<= 1e{}", v.log10().ceil() as i32)
+            }
+        };
+        let mut o = String::new();
+        let _ = writeln!(o, "# FETI vs Total FETI: `{}`\n", self.scene);
+        let _ = writeln!(
+            o,
+            "Dual tolerance {:e}; FETI kernel detection eps = {:e}.\n",
+            self.tolerance, self.eps
+        );
+        let (f, t) = match (&self.feti, &self.tfeti) {
+            (Ok(f), Ok(t)) => (f, t),
+            (f, t) => {
+                for (name, c) in [("FETI", f), ("Total FETI", t)] {
+                    match c {
+                        Err(e) => {
+                            let _ = writeln!(o, "{name} failed: {e}\n");
+                        }
+                        Ok(c) => {
+                            let _ = writeln!(
+                                o,
+                                "{name}: primal/dual {}/{}, CG steps {}, KKT residual {}\n",
+                                c.primal,
+                                c.state.dual,
+                                count(c.state.hessian_applications),
+                                small(c.kkt)
+                            );
+                        }
+                    }
+                }
+                return o;
+            }
+        };
+        let _ = writeln!(o, "| | FETI | Total FETI | Ratio |");
+        let _ = writeln!(o, "|---|---|---|---|");
+        let _ = writeln!(
+            o,
+            "| Primal/Dual var. | {}/{} | {}/{} | {} |",
+            f.primal,
+            f.state.dual,
+            t.primal,
+            t.state.dual,
+            ratio(f.state.dual, t.state.dual)
+        );
+        let _ = writeln!(
+            o,
+            "| Kernel dim. | {} | {} | {} |",
+            f.kernel,
+            t.kernel,
+            ratio(f.kernel, t.kernel)
+        );
+        let _ = writeln!(
+            o,
+            "| CG steps | {} | {} | {} |",
+            count(f.state.hessian_applications),
+            count(t.state.hessian_applications),
+            cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
+        );
+        if exact {
+            let _ = writeln!(
+                o,
+                "| Time [s] | {:.3} | {:.3} | {:.2} |",
+                f.state.seconds,
+                t.state.seconds,
+                t.state.seconds / f.state.seconds.max(1e-9)
+            );
+        }
+        let _ = writeln!(
+            o,
+            "| KKT residual | {} | {} | |",
+            small(f.kkt),
+            small(t.kkt)
+        );
+        if let Some(d) = self.difference {
+            let _ = writeln!(
+                o,
+                "\nmax |u_FETI - u_TFETI| / max |u| {} (the same discrete problem).",
+                if exact {
+                    format!("= {d:.0e}")
+                } else {
+                    small(d)
+                }
+            );
+        }
+        if self.design.is_empty() {
+            return o;
+        }
+        let _ = writeln!(
+            o,
+            "\nSemi-analytical sensitivities, one solve per design variable:\n"
+        );
+        let mut head = String::from("| Alg. | Var. | State |");
+        let mut rule = String::from("|---|---|---|");
+        for d in &self.design {
+            let _ = write!(head, " {d} |");
+            rule.push_str("---|");
+        }
+        let _ = writeln!(o, "{head}\n{rule}");
+        for c in [f, t] {
+            if let Some(e) = &c.sensitivity_error {
+                let _ = writeln!(o, "| {} | failed: {e} | | |", c.method);
+                continue;
+            }
+            let mut dual = format!("| {} | Dual | {} |", c.method, c.state.dual);
+            let mut cg = format!("| | CG | {} |", count(c.state.hessian_applications));
+            for s in &c.sensitivities {
+                let _ = write!(dual, " {} |", s.dual);
+                let _ = write!(cg, " {} |", count(s.hessian_applications));
+            }
+            let _ = writeln!(o, "{dual}\n{cg}");
+        }
+        if f.sensitivities.len() == t.sensitivities.len() && !f.sensitivities.is_empty() {
+            let mut dual = format!("| Ratio | Dual | {} |", ratio(f.state.dual, t.state.dual));
+            let mut cg = format!(
+                "| | CG | {} |",
+                cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
+            );
+            for (a, b) in f.sensitivities.iter().zip(&t.sensitivities) {
+                let _ = write!(dual, " {} |", ratio(a.dual, b.dual));
+                let _ = write!(
+                    cg,
+                    " {} |",
+                    cg_ratio(a.hessian_applications, b.hessian_applications)
+                );
+            }
+            let _ = writeln!(o, "{dual}\n{cg}");
+            if exact {
+                let fs: f64 = f.sensitivities.iter().map(|s| s.seconds).sum();
+                let ts: f64 = t.sensitivities.iter().map(|s| s.seconds).sum();
+                let _ = writeln!(
+                    o,
+                    "\nSensitivity time [s]: FETI {fs:.3}, Total FETI {ts:.3} (ratio {:.2}).",
+                    ts / fs.max(1e-9)
+                );
+            }
+        }
+        o
+    }
+}
