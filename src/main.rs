@@ -623,6 +623,20 @@ fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<u
         "reference: adjoint at tolerance 1e-12; Richardson-extrapolated central differences agree to {:.1e}",
         study.richardson_agreement
     );
+    outln!("\nwhere finite differences are within 1e-4 of the reference (no active-set change):\n");
+    outln!("| scheme | tolerance | trusted h | best h (error) |");
+    outln!("|---|---|---|---|");
+    for t in study.trusted(1e-4) {
+        outln!(
+            "| {} | {:.0e} | {} | {:.0e} ({:.1e}) |",
+            t.method.replace("finite_difference ", ""),
+            t.tolerance,
+            t.range
+                .map_or("none".to_string(), |(a, b)| format!("{a:.0e} .. {b:.0e}")),
+            t.best.0,
+            t.best.1
+        );
+    }
     if let Some(dir) = out {
         let json = serde_json::to_string_pretty(&study).unwrap_or_default();
         let svg = match study.svg() {

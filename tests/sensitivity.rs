@@ -334,6 +334,32 @@ fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_
         fd(1e-1),
         fd(1e-10)
     );
+    // The trusted range of h is strictly inside the steps tried at a tight
+    // tolerance, and no wider at a loose one (the solver's error over h).
+    let trusted = study.trusted(1e-4);
+    let range = |tol: f64, method: &str| {
+        trusted
+            .iter()
+            .find(|t| t.tolerance == tol && t.method == method)
+            .expect("every scheme and tolerance")
+            .range
+    };
+    let width = |r: Option<(f64, f64)>| r.map_or(0.0, |(a, b)| (a / b).log10() + 1.0);
+    let (large, small) = range(1e-10, "finite_difference forward").expect("trusted at 1e-10");
+    assert!(
+        large < 1e-1 && small > 1e-10,
+        "forward: {large:e} .. {small:e}"
+    );
+    let (large, _) = range(1e-10, "finite_difference central").expect("trusted at 1e-10");
+    assert!(large < 1e-1, "central: up to {large:e}");
+    for method in ["finite_difference forward", "finite_difference central"] {
+        assert!(
+            width(range(1e-4, method)) < width(range(1e-10, method)),
+            "{method}: {:?} at 1e-4 vs {:?} at 1e-10",
+            range(1e-4, method),
+            range(1e-10, method)
+        );
+    }
     assert_eq!(study.csv().lines().count(), study.runs.len() + 1);
     assert!(study.svg().expect("draws").starts_with("<svg"));
 }

@@ -124,7 +124,63 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
     })
 }
 
+/// Where finite differences can be trusted, for one scheme and tolerance.
+#[derive(Debug, Clone, Serialize)]
+pub struct Trusted {
+    pub method: String,
+    pub tolerance: f64,
+    /// The step with the smallest error, and that error.
+    pub best: (f64, f64),
+    /// Largest and smallest steps of the contiguous range around the best one
+    /// with error `<= threshold` and no active-set change (None: no step is).
+    pub range: Option<(f64, f64)>,
+}
+
 impl Study {
+    /// Per finite-difference scheme and tolerance, the steps whose gradient is
+    /// within `threshold` (relative) of the reference: too large a step is
+    /// truncation (or an active-set change), too small one is the solver's error
+    /// divided by `h`. Exact methods have no such range to find.
+    pub fn trusted(&self, threshold: f64) -> Vec<Trusted> {
+        let mut keys: Vec<(String, f64)> = Vec::new();
+        for r in &self.runs {
+            let key = (r.method.clone(), r.tolerance);
+            if r.step.is_some() && !keys.contains(&key) {
+                keys.push(key);
+            }
+        }
+        keys.into_iter()
+            .filter_map(|(method, tolerance)| {
+                // Steps from large to small.
+                let mut runs: Vec<&StudyRun> = self
+                    .runs
+                    .iter()
+                    .filter(|r| r.method == method && r.tolerance == tolerance)
+                    .collect();
+                runs.sort_by(|a, b| b.step.unwrap_or(0.0).total_cmp(&a.step.unwrap_or(0.0)));
+                let ok = |r: &StudyRun| r.error <= threshold && !r.active_set_changed;
+                let b = (0..runs.len()).min_by(|&i, &j| runs[i].error.total_cmp(&runs[j].error))?;
+                let range = ok(runs[b]).then(|| {
+                    let mut lo = b;
+                    while lo > 0 && ok(runs[lo - 1]) {
+                        lo -= 1;
+                    }
+                    let mut hi = b;
+                    while hi + 1 < runs.len() && ok(runs[hi + 1]) {
+                        hi += 1;
+                    }
+                    (runs[lo].step.unwrap_or(0.0), runs[hi].step.unwrap_or(0.0))
+                });
+                Some(Trusted {
+                    method,
+                    tolerance,
+                    best: (runs[b].step.unwrap_or(0.0), runs[b].error),
+                    range,
+                })
+            })
+            .collect()
+    }
+
     /// The runs as CSV.
     pub fn csv(&self) -> String {
         let mut out = String::from(
