@@ -303,3 +303,181 @@ impl Comparison {
         o
     }
 }
+
+/// The tolerances of [`eps_sweep`] by default: from far below round-off to
+/// pivots of genuine size.
+pub const EPS_SWEEP: [f64; 17] = [
+    1e-30, 1e-20, 1e-16, 1e-15, 1e-14, 1e-13, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 0.1, 0.2,
+    0.3, 0.5,
+];
+
+/// What classical FETI did at one `eps`.
+#[derive(Debug, Clone, Serialize)]
+pub struct EpsRun {
+    pub eps: f64,
+    /// Kernel dimension in all, when the solve ran.
+    pub kernel: Option<usize>,
+    pub hessian_applications: Option<usize>,
+    /// `max |u_FETI - u_TFETI| / max |u_TFETI|`.
+    pub difference: Option<f64>,
+    pub kkt: Option<f64>,
+    /// `too small`, `too large` (kernel detection refused it) or `failed`.
+    pub refused: Option<String>,
+    /// The message a user sees.
+    pub message: Option<String>,
+}
+
+/// Classical FETI over a sweep of `eps` against TFETI (which needs none).
+#[derive(Debug, Clone, Serialize)]
+pub struct EpsSweep {
+    pub scene: String,
+    pub tfeti_kernel: usize,
+    pub tfeti_hessian_applications: usize,
+    pub runs: Vec<EpsRun>,
+}
+
+/// Solves the scene by TFETI once and by FETI at each `eps`.
+pub fn eps_sweep(scene: &Scene, eps: &[f64]) -> Result<EpsSweep, String> {
+    let mut s = scene.clone();
+    s.solver.method = SolverMethod::Tfeti;
+    let design = s.design_init();
+    let t = solve(&s, &design, &mut |_| {}).map_err(|e| e.to_string())?;
+    let umax = t.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut runs = Vec::new();
+    for &e in eps {
+        s.solver.method = SolverMethod::Feti;
+        s.solver.eps = e;
+        let run = match solve(&s, &design, &mut |_| {}) {
+            Ok(f) => {
+                let du =
+                    t.u.iter()
+                        .flatten()
+                        .zip(f.u.iter().flatten())
+                        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                EpsRun {
+                    eps: e,
+                    kernel: Some(f.dual.kernel_dim()),
+                    hessian_applications: Some(f.info.hessian_applications),
+                    difference: Some(if umax > 0.0 { du / umax } else { du }),
+                    kkt: Some(f.kkt.worst()),
+                    refused: (!f.converged()).then(|| "failed".to_string()),
+                    message: (!f.converged())
+                        .then(|| format!("the dual solve did not converge: {:?}", f.info.status)),
+                }
+            }
+            Err(err) => {
+                let message = err.to_string();
+                let refused = if message.contains("eps is too small") {
+                    "too small"
+                } else if message.contains("eps is too large") {
+                    "too large"
+                } else {
+                    "failed"
+                };
+                EpsRun {
+                    eps: e,
+                    kernel: None,
+                    hessian_applications: None,
+                    difference: None,
+                    kkt: None,
+                    refused: Some(refused.to_string()),
+                    message: Some(message),
+                }
+            }
+        };
+        runs.push(run);
+    }
+    Ok(EpsSweep {
+        scene: scene.name.clone(),
+        tfeti_kernel: t.dual.kernel_dim(),
+        tfeti_hessian_applications: t.info.hessian_applications,
+        runs,
+    })
+}
+
+impl EpsSweep {
+    /// The sweep as a Markdown table.
+    pub fn markdown(&self) -> String {
+        let mut o = String::new();
+        let _ = writeln!(o, "# Classical FETI over eps: `{}`\n", self.scene);
+        let _ = writeln!(
+            o,
+            "Total FETI (no eps): kernel {}, CG steps {}.\n",
+            self.tfeti_kernel, self.tfeti_hessian_applications
+        );
+        let _ = writeln!(
+            o,
+            "| eps | kernel | CG steps | max |u - u_TFETI| / max |u| | KKT | outcome |"
+        );
+        let _ = writeln!(o, "|---|---|---|---|---|---|");
+        let opt = |v: Option<usize>| v.map_or("-".to_string(), |v| v.to_string());
+        let sci = |v: Option<f64>| v.map_or("-".to_string(), |v| format!("{v:.0e}"));
+        for r in &self.runs {
+            let outcome = match r.refused.as_deref() {
+                None => "solved".to_string(),
+                Some("too small") => "refused: eps too small (a zero pivot accepted)".to_string(),
+                Some("too large") => "refused: eps too large (a genuine pivot dropped)".to_string(),
+                Some(_) => format!("failed: {}", r.message.as_deref().unwrap_or("")),
+            };
+            let _ = writeln!(
+                o,
+                "| {:.0e} | {} | {} | {} | {} | {} |",
+                r.eps,
+                opt(r.kernel),
+                opt(r.hessian_applications),
+                sci(r.difference),
+                sci(r.kkt),
+                outcome
+            );
+        }
+        o
+    }
+
+    /// The difference to TFETI against log10 eps; refused runs are drawn at
+    /// 1 (no answer is as wrong as it gets) in their own series.
+    pub fn svg(&self) -> Result<String, crate::io::plot::PlotError> {
+        let pick = |f: &dyn Fn(&EpsRun) -> bool, y: &dyn Fn(&EpsRun) -> f64| {
+            let runs: Vec<&EpsRun> = self.runs.iter().filter(|r| f(r)).collect();
+            (
+                runs.iter().map(|r| r.eps.log10()).collect::<Vec<f64>>(),
+                runs.iter().map(|r| y(r)).collect::<Vec<f64>>(),
+            )
+        };
+        let solved = pick(&|r| r.refused.is_none(), &|r| {
+            r.difference.unwrap_or(f64::NAN).max(1e-16)
+        });
+        let small = pick(&|r| r.refused.as_deref() == Some("too small"), &|_| 1.0);
+        let large = pick(&|r| r.refused.as_deref() == Some("too large"), &|_| 1.0);
+        let failed = pick(&|r| r.refused.as_deref() == Some("failed"), &|_| 1.0);
+        let series = [
+            crate::io::plot::Series {
+                name: "solved: difference to TFETI",
+                x: &solved.0,
+                y: &solved.1,
+            },
+            crate::io::plot::Series {
+                name: "refused: eps too small (drawn at 1)",
+                x: &small.0,
+                y: &small.1,
+            },
+            crate::io::plot::Series {
+                name: "refused: eps too large (drawn at 1)",
+                x: &large.0,
+                y: &large.1,
+            },
+            crate::io::plot::Series {
+                name: "failed otherwise (drawn at 1)",
+                x: &failed.0,
+                y: &failed.1,
+            },
+        ];
+        crate::io::plot::line_chart(
+            &format!("{}: classical FETI over its pivot tolerance", self.scene),
+            "log10 eps (a zero pivot: d_j <= eps K_jj)",
+            "max |u_FETI - u_TFETI| / max |u|",
+            &series,
+            false,
+            true,
+        )
+    }
+}

@@ -88,9 +88,14 @@ enum Command {
     Compare {
         /// The `.cso` file.
         file: PathBuf,
-        /// Write compare.md and compare.json into this folder.
+        /// Write compare.md and compare.json (with --eps-sweep: eps.md, eps.json,
+        /// eps.svg) into this folder.
         #[arg(short, long, value_name = "DIR")]
         out: Option<PathBuf>,
+        /// Instead: classical FETI over a sweep of its pivot tolerance eps
+        /// (1e-30 .. 0.5) against TFETI, which needs none.
+        #[arg(long)]
+        eps_sweep: bool,
         /// Threads over subdomains (default: all cores).
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
@@ -275,11 +280,19 @@ fn main() -> ExitCode {
                 *threads,
             )
         }
-        Command::Compare { file, out, threads } => {
+        Command::Compare {
+            file,
+            out,
+            eps_sweep,
+            threads,
+        } => {
             let scene = match load(file, &opts) {
                 Ok(s) => s,
                 Err(code) => return ExitCode::from(code),
             };
+            if *eps_sweep {
+                return eps_sweep_command(&scene, out.as_deref(), *threads);
+            }
             compare_command(&scene, out.as_deref(), *threads)
         }
         Command::Optimize { file, out, threads } => {
@@ -703,6 +716,59 @@ fn compare_command(
     // means the scene cannot be solved.
     if c.tfeti.is_err() {
         return ExitCode::from(EXIT_SCENE);
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso compare --eps-sweep`: classical FETI over eps, the table and chart.
+fn eps_sweep_command(
+    scene: &cso::lang::Scene,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_message("solving by TFETI and by FETI at each eps");
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let sweep = pool.install(|| cso::compare::eps_sweep(scene, &cso::compare::EPS_SWEEP));
+    bar.finish_and_clear();
+    let sweep = match sweep {
+        Ok(s) => s,
+        Err(e) => {
+            errln!("error: TFETI: {e}");
+            return ExitCode::from(EXIT_SCENE);
+        }
+    };
+    let md = sweep.markdown();
+    outln!("{md}");
+    if let Some(dir) = out {
+        let files = serde_json::to_string_pretty(&sweep)
+            .map_err(|e| e.to_string())
+            .and_then(|json| {
+                sweep
+                    .svg()
+                    .map(|svg| (json, svg))
+                    .map_err(|e| e.to_string())
+            });
+        let (json, svg) = match files {
+            Ok(f) => f,
+            Err(e) => {
+                errln!("error: {e}");
+                return ExitCode::from(EXIT_IO);
+            }
+        };
+        let written = std::fs::create_dir_all(dir).and_then(|_| {
+            cso::io::atomic::write_atomic(&dir.join("eps.md"), md.as_bytes())?;
+            cso::io::atomic::write_atomic(&dir.join("eps.json"), json.as_bytes())?;
+            cso::io::atomic::write_atomic(&dir.join("eps.svg"), svg.as_bytes())
+        });
+        if let Err(e) = written {
+            errln!("error: cannot write into {}: {e}", dir.display());
+            return ExitCode::from(EXIT_IO);
+        }
     }
     ExitCode::SUCCESS
 }

@@ -81,3 +81,32 @@ fn help_shows_examples() {
     assert_eq!(code, 0);
     assert!(out.contains("cso check examples/*.cso"), "{out}");
 }
+
+#[test]
+fn compare_prints_the_table_writes_its_files_and_runs_the_eps_sweep() {
+    let dir = std::env::temp_dir().join(format!("cso-compare-{}", std::process::id()));
+    let scene = root().join("examples/semicoercive2d.cso");
+    let dir_s = dir.to_string_lossy().to_string();
+    let (code, out, err) = cso(&["compare", &scene.to_string_lossy(), "-o", &dir_s]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("| Primal/Dual var. |"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("compare.json")).expect("json"))
+            .expect("valid JSON");
+    assert!(json["feti"]["Ok"]["state"]["hessian_applications"]
+        .as_u64()
+        .is_some());
+    let (code, out, err) = cso(&[
+        "compare",
+        &scene.to_string_lossy(),
+        "--eps-sweep",
+        "-o",
+        &dir_s,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("refused: eps too small") && out.contains("refused: eps too large"));
+    assert!(std::fs::read_to_string(dir.join("eps.svg"))
+        .expect("svg")
+        .starts_with("<svg"));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -117,3 +117,40 @@ fn comparison_reports_a_wrong_eps_instead_of_a_number() {
     assert!(c.tfeti.is_ok() && c.difference.is_none());
     insta::assert_snapshot!(c.markdown(false));
 }
+
+#[test]
+fn feti_over_an_eps_sweep_is_right_or_refused_never_silently_wrong() {
+    for name in ["two_blocks", "semicoercive2d"] {
+        let sweep = cso::compare::eps_sweep(&example(name), &cso::compare::EPS_SWEEP)
+            .expect("TFETI solves");
+        for r in &sweep.runs {
+            match r.refused.as_deref() {
+                None => {
+                    let d = r.difference.expect("solved");
+                    assert!(
+                        d < 1e-4,
+                        "{name} eps {:e}: solved with difference {d:e}",
+                        r.eps
+                    );
+                }
+                Some("too small") | Some("too large") => {
+                    let m = r.message.as_deref().unwrap_or("");
+                    assert!(m.contains("eps is too") && m.contains("tfeti"), "{m}");
+                }
+                Some(other) => panic!("{name} eps {:e}: {other}: {:?}", r.eps, r.message),
+            }
+        }
+        let outcome = |eps: f64| {
+            sweep
+                .runs
+                .iter()
+                .find(|r| r.eps == eps)
+                .and_then(|r| r.refused.clone())
+        };
+        // Below round-off a zero pivot passes; above the genuine pivots one is
+        // dropped; the default is sound.
+        assert_eq!(outcome(1e-20).as_deref(), Some("too small"), "{name}");
+        assert_eq!(outcome(0.5).as_deref(), Some("too large"), "{name}");
+        assert_eq!(outcome(1e-10), None, "{name}");
+    }
+}
