@@ -104,6 +104,13 @@ pub enum SolveError {
     FreeRigidModes(Vec<String>),
     /// The multipliers do not determine the rigid motions of some subdomain.
     Reconstruction(String),
+    /// Rigid motions (subdomain, kernel mode) that no support or active contact
+    /// determines: the state is not unique.
+    Undetermined {
+        modes: Vec<(usize, usize)>,
+        /// How the dual solve stopped, when it did not converge.
+        stopped: Option<String>,
+    },
     /// A body's load points where nothing can hold it (contacts only push).
     Unbalanced {
         body: String,
@@ -126,6 +133,17 @@ impl fmt::Display for SolveError {
                 m.join("; ")
             ),
             SolveError::Reconstruction(s) => write!(f, "{s}"),
+            SolveError::Undetermined { modes, stopped } => {
+                write!(
+                    f,
+                    "{} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)",
+                    modes.len()
+                )?;
+                if let Some(why) = stopped {
+                    write!(f, "; the dual solve stopped before converging ({why})")?;
+                }
+                Ok(())
+            }
             SolveError::Unbalanced { body, load, why } => write!(
                 f,
                 "the load on body `{body}`, ({}, {}) N in all, cannot be carried: {why}",
@@ -513,15 +531,30 @@ pub fn solve_reusing(
         same.then(|| prev.lambda.clone())
     });
     let warm_started = warm.is_some();
-    let sol = system.solve(
-        &f,
-        &c,
-        problem.n_equality,
-        true,
-        &settings,
-        warm.as_deref(),
-        observer,
-    )?;
+    let sol = system
+        .solve(
+            &f,
+            &c,
+            problem.n_equality,
+            true,
+            &settings,
+            warm.as_deref(),
+            observer,
+        )
+        .map_err(|e| match e {
+            SolveError::Undetermined { modes, stopped } => {
+                let names = name_modes(&problem, &subs, &modes).join("; ");
+                SolveError::Reconstruction(match stopped {
+                    None => format!(
+                        "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
+                    ),
+                    Some(why) => format!(
+                        "no equilibrium found: the dual solve stopped before converging ({why}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance"
+                    ),
+                })
+            }
+            e => e,
+        })?;
     times.solve = t.elapsed().as_secs_f64();
     let DualSolution {
         lambda,
@@ -680,7 +713,15 @@ pub fn dual_solve_from(
     );
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
-    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
+    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d).map_err(|e| match e {
+        SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
+            SolveError::Undetermined {
+                modes,
+                stopped: Some(format!("{:?}", info.status)),
+            }
+        }
+        e => e,
+    })?;
     Ok(DualSolution {
         lambda,
         u,
@@ -811,11 +852,23 @@ fn reconstruct(
             }
         }
     }
-    let llt = gg.llt(Side::Lower).map_err(|_| {
-        SolveError::Reconstruction(
-            "the rigid motions are not determined by the supports and the active contacts (a body is held by no active contact)".into(),
-        )
-    })?;
+    // G~G~^T over the active rows must be regular: a round-off pivot means a
+    // rigid motion no active row determines (the state is not unique).
+    let scale = (0..n3).map(|i| gg[(i, i)]).fold(0.0f64, f64::max);
+    let undetermined = || SolveError::Undetermined {
+        modes: crate::tfeti::dual::null_modes(&gg)
+            .into_iter()
+            .map(|i| dual.mode(i))
+            .collect(),
+        stopped: None,
+    };
+    let llt = gg.llt(Side::Lower).map_err(|_| undetermined())?;
+    let min_pivot = (0..n3)
+        .map(|i| llt.L()[(i, i)].powi(2))
+        .fold(f64::INFINITY, f64::min);
+    if n3 > 0 && min_pivot <= 1e-10 * scale {
+        return Err(undetermined());
+    }
     let mut alpha = rhs;
     {
         use faer::linalg::solvers::SolveCore;

@@ -174,6 +174,12 @@ impl Dual {
         })
     }
 
+    /// (subdomain, mode) of coarse index `i`.
+    pub fn mode(&self, i: usize) -> (usize, usize) {
+        let s = self.offset.partition_point(|&o| o <= i) - 1;
+        (s, i - self.offset[s])
+    }
+
     /// Kernel dimension in all (3 per subdomain in TFETI).
     pub fn kernel_dim(&self) -> usize {
         self.offset[self.subs.len()]
@@ -266,8 +272,8 @@ impl Dual {
 }
 
 /// The kernel modes in the null space of `G G^T` (eigenvectors of its
-/// smallest eigenvalues), by their largest entries.
-fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
+/// smallest eigenvalues), by their large entries.
+pub(crate) fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
     let n = ggt.nrows();
     let Ok(evd) = ggt.self_adjoint_eigen(Side::Lower) else {
         return Vec::new();
@@ -278,12 +284,14 @@ fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
     let mut out = Vec::new();
     for i in 0..n {
         if s[i].abs() <= 1e-10 * max {
-            let k = (0..n)
-                .max_by(|&a, &b| u[(a, i)].abs().total_cmp(&u[(b, i)].abs()))
-                .unwrap_or(0);
-            out.push(k);
+            // Every mode with a large part in the null vector (a rotation about
+            // another point is a rotation plus a translation).
+            let big = (0..n).map(|a| u[(a, i)].abs()).fold(0.0f64, f64::max);
+            out.extend((0..n).filter(|&a| u[(a, i)].abs() >= 0.5 * big));
         }
     }
+    out.sort_unstable();
+    out.dedup();
     out
 }
 
