@@ -427,6 +427,8 @@ pub struct OperatorSizes {
     pub by_kind: crate::model::RowCounts,
     pub kernel: usize,
     pub factor_nonzeros: usize,
+    /// Classical FETI: the room eps had.
+    pub kernel_detection: Option<crate::tfeti::floating::Margin>,
 }
 
 /// Lowers and factorizes (no solve) to report the operators' sizes: in
@@ -446,6 +448,7 @@ pub fn operator_sizes(scene: &Scene, design: &[f64]) -> Result<OperatorSizes, So
         by_kind,
         kernel: system.dual().kernel_dim(),
         factor_nonzeros: setup.subs.iter().map(|s| s.factor_nnz).sum(),
+        kernel_detection: crate::tfeti::floating::Margin::of(&setup.subs),
     })
 }
 

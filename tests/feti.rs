@@ -154,3 +154,21 @@ fn feti_over_an_eps_sweep_is_right_or_refused_never_silently_wrong() {
         assert_eq!(outcome(1e-10), None, "{name}");
     }
 }
+
+#[test]
+fn a_feti_solve_reports_like_a_tfeti_one() {
+    let mut s = example("two_blocks");
+    s.solver.method = SolverMethod::Feti;
+    let state = solve(&s, &s.design_init(), &mut |_| {}).expect("solves");
+    let report = cso::io::report::Report::new(&s, &state);
+    assert_eq!(report.sizes.method, "feti");
+    let k = report.sizes.kernel_detection.expect("FETI kernels");
+    assert!(
+        k.kernel_residual < 1e-12 && k.smallest_pivot > 1e-3,
+        "{k:?}"
+    );
+    // Supports are eliminated: no support rows in the dual problem, yet their
+    // reactions are reported (recovered from equilibrium).
+    assert_eq!(report.sizes.multipliers.dirichlet, 0);
+    insta::assert_snapshot!(report.summary(false));
+}

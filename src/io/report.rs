@@ -38,6 +38,8 @@ pub struct Sizes {
     pub kernel: usize,
     pub subdomains: usize,
     pub factor_nonzeros: usize,
+    /// Classical FETI: the room eps had.
+    pub kernel_detection: Option<crate::tfeti::floating::Margin>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -115,6 +117,7 @@ impl Report {
             kernel: state.dual.kernel_dim(),
             subdomains: p.subdomains.len(),
             factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
+            kernel_detection: crate::tfeti::floating::Margin::of(&state.dual.subs),
         };
         let solver = SolverReport {
             status: state.info.status.clone(),
@@ -250,6 +253,9 @@ impl Report {
             "  primal/dual unknowns {}/{} (gluing {}, supports {}, symmetry {}, ties {}, contact {}), kernel {}, {} subdomains",
             s.primal, s.dual, m.gluing, m.dirichlet, m.symmetry, m.ties, m.contact, s.kernel, s.subdomains
         );
+        if let Some(k) = &s.kernel_detection {
+            let _ = writeln!(o, "  {}", k.line(!timings));
+        }
         let v = &self.solver;
         let status = match &v.status {
             Status::Converged => "converged".to_string(),

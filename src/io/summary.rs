@@ -465,9 +465,13 @@ impl fmt::Display for Summary {
                 let _ = writeln!(o, "  subject to {c}");
             }
         }
+        let operators = match self.solver.method {
+            crate::lang::scene::SolverMethod::Feti => "classical FETI operators",
+            crate::lang::scene::SolverMethod::Tfeti => "TFETI operators",
+        };
         if let Some(t) = &self.tfeti {
             let k = &t.by_kind;
-            section(&mut o, "TFETI operators");
+            section(&mut o, operators);
             let _ = writeln!(
                 o,
                 "  primal unknowns {}, multipliers {} (gluing {}, supports {}, symmetry {}, ties {}, contact {})",
@@ -480,8 +484,11 @@ impl fmt::Display for Summary {
                 t.factor_nonzeros,
                 crate::lang::check::bytes(t.factor_nonzeros as f64 * 8.0)
             );
+            if let Some(m) = &t.kernel_detection {
+                let _ = writeln!(o, "  {m}");
+            }
         } else if let Some(n) = &self.tfeti_note {
-            section(&mut o, "TFETI operators");
+            section(&mut o, operators);
             let _ = writeln!(o, "  not built: {n}");
         }
         section(&mut o, "settings");

@@ -62,6 +62,56 @@ pub struct Detection {
     pub residual: f64,
 }
 
+/// How much room `eps` had, over all subdomains of a FETI solve.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Margin {
+    pub eps: f64,
+    /// Largest `||K~ r|| / ||r||` of a kernel vector (unit diagonal).
+    pub kernel_residual: f64,
+    /// Smallest pivot accepted, relative to its diagonal: eps must stay below.
+    pub smallest_pivot: f64,
+}
+
+impl Margin {
+    /// Over the subdomains, if they are all classical FETI ones.
+    pub fn of(subs: &[std::sync::Arc<Subdomain>]) -> Option<Margin> {
+        let mut m = Margin {
+            eps: 0.0,
+            kernel_residual: 0.0,
+            smallest_pivot: f64::INFINITY,
+        };
+        for s in subs {
+            let d = s.feti.as_ref()?;
+            m.eps = d.eps;
+            m.kernel_residual = m.kernel_residual.max(d.residual);
+            m.smallest_pivot = m.smallest_pivot.min(d.smallest_pivot);
+        }
+        Some(m)
+    }
+}
+
+impl Margin {
+    /// One line for summaries; `coarse` gives the residual as a power of ten
+    /// (round-off, which differs between machines).
+    pub fn line(&self, coarse: bool) -> String {
+        let residual = if coarse && self.kernel_residual > 0.0 {
+            format!("1e{}", self.kernel_residual.log10().ceil() as i32)
+        } else {
+            format!("{:.0e}", self.kernel_residual)
+        };
+        format!(
+            "kernels found with eps = {:e} (kernel residuals <= {residual}; smallest accepted pivot {:.1e} of its diagonal)",
+            self.eps, self.smallest_pivot
+        )
+    }
+}
+
+impl fmt::Display for Margin {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.line(false))
+    }
+}
+
 /// Kernel detection went wrong: `eps` does not separate zero pivots from the rest.
 #[derive(Debug, Clone, PartialEq)]
 pub struct KernelError {
