@@ -605,22 +605,12 @@ pub struct DualSolution {
 }
 
 /// Solves `min 1/2 u^T K u - f^T u` s.t. `B_i u = c_i` (rows `i < n_equality`),
-/// `B_i u <= c_i` (the rest) on the TFETI operators of `dual`, by SMALBE on the
-/// homogenized, projected and scaled dual; then reconstructs `u`. The state solve
+/// `B_i u <= c_i` (the rest) on the operators of `dual`, by SMALBE on the
+/// homogenized, projected and scaled dual, from an initial guess of the
+/// multipliers if given (a warm start); then reconstructs `u`. The state solve
 /// and the sensitivity problems (all rows equalities: SMALE) share it, and with
-/// it the subdomains' factorizations.
-pub fn dual_solve(
-    dual: &Dual,
-    f: &[&[f64]],
-    c: &[f64],
-    n_equality: usize,
-    settings: &SmalbeSettings,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> Result<DualSolution, SolveError> {
-    dual_solve_from(dual, f, c, n_equality, settings, None, observer)
-}
-
-/// [`dual_solve`] from an initial guess of the multipliers (a warm start).
+/// it the subdomains' factorizations; [`crate::feti::DualSystem`] calls it for
+/// both TFETI and classical FETI.
 pub fn dual_solve_from(
     dual: &Dual,
     f: &[&[f64]],
