@@ -98,30 +98,26 @@ fn reduce(elim: &Elimination, rows: &[&Row], n_equality: usize) -> (Reduced, Vec
         recovered: Vec::new(),
         constant: Vec::new(),
     };
-    let mut local = vec![LocalRows::default(); elim.value.len()];
     for (i, row) in rows.iter().enumerate() {
-        if !elim.keeps(row) {
+        if elim.keeps(row) {
+            red.kept.push(i);
             if i < n_equality {
-                red.recovered.push(i);
-            } else {
-                red.constant.push(i);
+                red.n_equality += 1;
             }
-            continue;
-        }
-        let r = red.kept.len();
-        red.kept.push(i);
-        if i < n_equality {
-            red.n_equality += 1;
-        }
-        for &(s, d, v) in row.entries.iter().filter(|e| elim.held(e.0, e.1).is_none()) {
-            let lr = &mut local[s];
-            if lr.rows.last() != Some(&r) {
-                lr.rows.push(r);
-            }
-            let k = lr.rows.len() - 1;
-            lr.entries.push((k, d, v));
+        } else if i < n_equality {
+            red.recovered.push(i);
+        } else {
+            red.constant.push(i);
         }
     }
+    let free = |i: &usize| {
+        rows[*i]
+            .entries
+            .iter()
+            .copied()
+            .filter(|e| elim.held(e.0, e.1).is_none())
+    };
+    let local = LocalRows::split(elim.value.len(), red.kept.iter().map(free));
     (red, local)
 }
 
@@ -147,17 +143,8 @@ impl DualSystem {
     ) -> Result<Self, CoarseError> {
         match elim {
             None => {
-                let mut local = vec![LocalRows::default(); subs.len()];
-                for (r, row) in rows.iter().enumerate() {
-                    for &(s, d, v) in &row.entries {
-                        let lr = &mut local[s];
-                        if lr.rows.last() != Some(&r) {
-                            lr.rows.push(r);
-                        }
-                        let k = lr.rows.len() - 1;
-                        lr.entries.push((k, d, v));
-                    }
-                }
+                let local =
+                    LocalRows::split(subs.len(), rows.iter().map(|r| r.entries.iter().copied()));
                 Ok(DualSystem::Total(Dual::new(subs, local, rows.len())?))
             }
             Some(elim) => {

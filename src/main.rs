@@ -683,13 +683,7 @@ fn compare_command(
         Ok(p) => p,
         Err(code) => return code,
     };
-    let bar = indicatif::ProgressBar::new_spinner();
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
-    );
-    bar.set_message("solving the state and sensitivities by FETI and by Total FETI");
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
     let c = pool.install(|| cso::compare::compare(scene));
     bar.finish_and_clear();
     let md = c.markdown(true);
@@ -702,14 +696,12 @@ fn compare_command(
                 return ExitCode::from(EXIT_IO);
             }
         };
-        let written = std::fs::create_dir_all(dir)
-            .and_then(|_| cso::io::atomic::write_atomic(&dir.join("compare.md"), md.as_bytes()))
-            .and_then(|_| {
-                cso::io::atomic::write_atomic(&dir.join("compare.json"), json.as_bytes())
-            });
-        if let Err(e) = written {
-            errln!("error: cannot write into {}: {e}", dir.display());
-            return ExitCode::from(EXIT_IO);
+        let files = [
+            ("compare.md", md.as_bytes()),
+            ("compare.json", json.as_bytes()),
+        ];
+        if let Err(code) = write_files(dir, &files) {
+            return code;
         }
     }
     // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
@@ -730,9 +722,7 @@ fn eps_sweep_command(
         Ok(p) => p,
         Err(code) => return code,
     };
-    let bar = indicatif::ProgressBar::new_spinner();
-    bar.set_message("solving by TFETI and by FETI at each eps");
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    let bar = ticking("solving by TFETI and by FETI at each eps");
     let sweep = pool.install(|| cso::compare::eps_sweep(scene, &cso::compare::EPS_SWEEP));
     bar.finish_and_clear();
     let sweep = match sweep {
@@ -760,17 +750,42 @@ fn eps_sweep_command(
                 return ExitCode::from(EXIT_IO);
             }
         };
-        let written = std::fs::create_dir_all(dir).and_then(|_| {
-            cso::io::atomic::write_atomic(&dir.join("eps.md"), md.as_bytes())?;
-            cso::io::atomic::write_atomic(&dir.join("eps.json"), json.as_bytes())?;
-            cso::io::atomic::write_atomic(&dir.join("eps.svg"), svg.as_bytes())
-        });
-        if let Err(e) = written {
-            errln!("error: cannot write into {}: {e}", dir.display());
-            return ExitCode::from(EXIT_IO);
+        let files = [
+            ("eps.md", md.as_bytes()),
+            ("eps.json", json.as_bytes()),
+            ("eps.svg", svg.as_bytes()),
+        ];
+        if let Err(code) = write_files(dir, &files) {
+            return code;
         }
     }
     ExitCode::SUCCESS
+}
+
+/// A spinner with elapsed time that ticks on its own (for work without progress
+/// callbacks).
+fn ticking(message: &'static str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new_spinner();
+    bar.set_style(
+        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+    );
+    bar.set_message(message);
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    bar
+}
+
+/// Writes files (name, contents) into `dir`, creating it; each atomically.
+fn write_files(dir: &Path, files: &[(&str, &[u8])]) -> Result<(), ExitCode> {
+    let written = std::fs::create_dir_all(dir).and_then(|_| {
+        files
+            .iter()
+            .try_for_each(|(name, bytes)| cso::io::atomic::write_atomic(&dir.join(name), bytes))
+    });
+    written.map_err(|e| {
+        errln!("error: cannot write into {}: {e}", dir.display());
+        ExitCode::from(EXIT_IO)
+    })
 }
 
 /// `cso optimize`: MMA iterations with a progress line, then the best design.

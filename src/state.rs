@@ -304,18 +304,10 @@ fn loads_can_be_carried(problem: &Problem) -> Result<(), SolveError> {
 
 /// Builds the local row lists of every subdomain.
 fn local_rows(problem: &Problem) -> Vec<LocalRows> {
-    let mut local = vec![LocalRows::default(); problem.subdomains.len()];
-    for (r, row) in problem.rows.iter().enumerate() {
-        for &(s, d, v) in &row.entries {
-            let lr = &mut local[s];
-            if lr.rows.last() != Some(&r) {
-                lr.rows.push(r);
-            }
-            let k = lr.rows.len() - 1;
-            lr.entries.push((k, d, v));
-        }
-    }
-    local
+    LocalRows::split(
+        problem.subdomains.len(),
+        problem.rows.iter().map(|r| r.entries.iter().copied()),
+    )
 }
 
 fn norm(v: &[f64]) -> f64 {

@@ -26,6 +26,27 @@ pub struct LocalRows {
 }
 
 impl LocalRows {
+    /// Splits global rows, each given by its entries `(subdomain, local dof,
+    /// coefficient)`, into the local rows of `n` subdomains.
+    pub fn split<R, E>(n: usize, rows: R) -> Vec<LocalRows>
+    where
+        R: IntoIterator<Item = E>,
+        E: IntoIterator<Item = (usize, usize, f64)>,
+    {
+        let mut local = vec![LocalRows::default(); n];
+        for (r, row) in rows.into_iter().enumerate() {
+            for (s, d, v) in row {
+                let lr = &mut local[s];
+                if lr.rows.last() != Some(&r) {
+                    lr.rows.push(r);
+                }
+                let k = lr.rows.len() - 1;
+                lr.entries.push((k, d, v));
+            }
+        }
+        local
+    }
+
     /// `x = B_s^T l` (x has the subdomain's dofs).
     pub fn scatter_t(&self, l: &[f64], x: &mut [f64]) {
         x.iter_mut().for_each(|v| *v = 0.0);
