@@ -109,20 +109,27 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
     Ok((col, state))
 }
 
+/// `max |u_a - u_b| / max |u_b|` (absolute when `u_b = 0`).
+fn difference(a: &State, b: &State) -> f64 {
+    let umax = b.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+    let du =
+        b.u.iter()
+            .flatten()
+            .zip(a.u.iter().flatten())
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    if umax > 0.0 {
+        du / umax
+    } else {
+        du
+    }
+}
+
 /// Solves the scene by both methods and measures them.
 pub fn compare(scene: &Scene) -> Comparison {
     let tfeti = column(scene, SolverMethod::Tfeti);
     let feti = column(scene, SolverMethod::Feti);
     let difference = match (&feti, &tfeti) {
-        (Ok((_, f)), Ok((_, t))) => {
-            let umax = t.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
-            let du =
-                t.u.iter()
-                    .flatten()
-                    .zip(f.u.iter().flatten())
-                    .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
-            Some(if umax > 0.0 { du / umax } else { du })
-        }
+        (Ok((_, f)), Ok((_, t))) => Some(difference(f, t)),
         _ => None,
     };
     Comparison {
@@ -342,23 +349,18 @@ pub fn eps_sweep(scene: &Scene, eps: &[f64]) -> Result<EpsSweep, String> {
     s.solver.method = SolverMethod::Tfeti;
     let design = s.design_init();
     let t = solve(&s, &design, &mut |_| {}).map_err(|e| e.to_string())?;
-    let umax = t.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
     let mut runs = Vec::new();
     for &e in eps {
         s.solver.method = SolverMethod::Feti;
         s.solver.eps = e;
         let run = match solve(&s, &design, &mut |_| {}) {
             Ok(f) => {
-                let du =
-                    t.u.iter()
-                        .flatten()
-                        .zip(f.u.iter().flatten())
-                        .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+                let du = difference(&f, &t);
                 EpsRun {
                     eps: e,
                     kernel: Some(f.dual.kernel_dim()),
                     hessian_applications: Some(f.info.hessian_applications),
-                    difference: Some(if umax > 0.0 { du / umax } else { du }),
+                    difference: Some(du),
                     kkt: Some(f.kkt.worst()),
                     refused: (!f.converged()).then(|| "failed".to_string()),
                     message: (!f.converged())
