@@ -14,6 +14,7 @@
 
 use crate::options;
 use cso::fem::quad::{plane_strain, quad_stiffness};
+use cso::lang::scene::SolverMethod;
 use cso::lang::{compile, Scene};
 use cso::model::{lower, Problem, RowKind};
 use cso::state::{solve, State};
@@ -320,16 +321,18 @@ fn compare(problem: &Problem, g: &Global, u: &[Vec<f64>], lambda: &[f64], r: &Re
     }
 }
 
-/// Lowers and solves a scene both ways at the initial design.
-fn both(src: &str) -> (State, Global, Reference) {
+/// Lowers and solves a scene both ways at the initial design (TFETI or
+/// classical FETI as `method` says).
+fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
     let mut scene = compile_scene(src);
+    scene.solver.method = method;
     scene.solver.tolerance = 1e-10;
     scene.solver.max_iterations = 20_000;
     let design = scene.design_init();
     let problem = lower(&scene, &design).expect("lowers");
     let g = assemble(&problem);
     let r = reference_solve(&problem, &g);
-    let state = solve(&scene, &design, &mut |_| {}).expect("TFETI solves");
+    let state = solve(&scene, &design, &mut |_| {}).expect("FETI/TFETI solves");
     assert!(
         state.converged(),
         "TFETI did not converge: {:?}",
@@ -342,9 +345,21 @@ fn both(src: &str) -> (State, Global, Reference) {
     (state, g, r)
 }
 
+/// Asserts agreement of TFETI and of classical FETI with the reference.
+fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
+    check_method(name, src, SolverMethod::Tfeti, tol_u, tol_mult);
+    check_method(
+        &format!("{name} (FETI)"),
+        src,
+        SolverMethod::Feti,
+        tol_u,
+        tol_mult,
+    );
+}
+
 /// Asserts agreement and returns the differences for the report.
-fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) -> Diff {
-    let (state, g, r) = both(src);
+fn check_method(name: &str, src: &str, method: SolverMethod, tol_u: f64, tol_mult: f64) -> Diff {
+    let (state, g, r) = both(src, method);
     let d = compare(&state.problem, &g, &state.u, &state.lambda, &r);
     eprintln!(
         "{name}: {} dofs, {} rows ({} contact, {} active), PDAS {} iterations, {} Hessian applications: rel. diff u {:.2e} at {:?}, multipliers {:.2e}",
@@ -478,7 +493,7 @@ pressure b.top = 7
 }
 
 #[test]
-fn reference_agrees_with_tfeti_without_contact() {
+fn reference_agrees_with_tfeti_and_feti_without_contact() {
     check("glued", GLUED, 1e-8, 1e-6);
 }
 
@@ -522,23 +537,23 @@ fn lowered_loads_of_the_glued_scene_have_the_right_resultant() {
 }
 
 #[test]
-fn reference_agrees_with_tfeti_on_two_blocks() {
+fn reference_agrees_with_tfeti_and_feti_on_two_blocks() {
     check("two_blocks", TWO_BLOCKS, 1e-6, 1e-5);
 }
 
 #[test]
-fn reference_agrees_with_tfeti_on_a_floating_punch() {
+fn reference_agrees_with_tfeti_and_feti_on_a_floating_punch() {
     check("semicoercive2d", SEMICOERCIVE, 1e-6, 1e-5);
 }
 
 #[test]
-fn reference_agrees_with_tfeti_on_a_rigid_plane() {
+fn reference_agrees_with_tfeti_and_feti_on_a_rigid_plane() {
     check("plane", OBSTACLE, 1e-6, 1e-5);
 }
 
 #[test]
 fn the_comparison_detects_a_wrong_solution() {
-    let (state, g, r) = both(SEMICOERCIVE);
+    let (state, g, r) = both(SEMICOERCIVE, SolverMethod::Tfeti);
     let good = compare(&state.problem, &g, &state.u, &state.lambda, &r);
     assert!(good.u <= 1e-6 && good.active_mismatch.is_empty());
 
@@ -572,7 +587,7 @@ fn the_comparison_detects_a_wrong_solution() {
 /// 80 x 80 mesh is too large). About 2,300 dofs each; run with `--ignored`.
 #[test]
 #[ignore]
-fn reference_agrees_with_tfeti_on_the_full_examples() {
+fn reference_agrees_with_tfeti_and_feti_on_the_full_examples() {
     for name in ["two_blocks", "semicoercive2d", "scont2d", "hertz2d"] {
         let src =
             std::fs::read_to_string(crate::root().join("examples").join(format!("{name}.cso")))
