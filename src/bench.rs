@@ -29,6 +29,31 @@ solver {{ tolerance = {tolerance:e}, max_iterations = 100000 }}
     )
 }
 
+/// The cuts of the base from 2 x 1 up to `max`, doubling both ways.
+pub fn cut_sequence(max: (usize, usize)) -> Vec<(usize, usize)> {
+    let (mut sx, mut sy) = (2, 1);
+    let mut out = vec![(sx, sy)];
+    while sx < max.0 || sy < max.1 {
+        sx = (sx * 2).min(max.0);
+        sy = (sy * 2).min(max.1);
+        out.push((sx, sy));
+    }
+    out
+}
+
+/// The scaled scene, checked.
+pub fn scaled_scene(
+    sx: usize,
+    sy: usize,
+    hh: usize,
+    tolerance: f64,
+) -> Result<crate::lang::Scene, SolveError> {
+    let src = scaled_two_blocks(sx, sy, hh, tolerance);
+    compile(&src, &CheckOptions::default()).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })
+}
+
 /// One row of the scaling table.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScalingRow {
@@ -64,10 +89,7 @@ pub fn scaling_row(
     hh: usize,
     tolerance: f64,
 ) -> Result<ScalingRow, SolveError> {
-    let src = scaled_two_blocks(sx, sy, hh, tolerance);
-    let scene = compile(&src, &CheckOptions::default()).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
+    let scene = scaled_scene(sx, sy, hh, tolerance)?;
     let state = solve(&scene, &[], &mut |_| {})?;
     Ok(ScalingRow {
         hh,

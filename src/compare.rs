@@ -32,6 +32,8 @@ pub struct Column {
     pub primal: usize,
     pub kernel: usize,
     pub factor_nonzeros: usize,
+    /// Seconds to assemble and factorize (FETI: with kernel detection).
+    pub factorize_seconds: f64,
     pub state: Cost,
     /// Worst relative KKT residual of the state.
     pub kkt: f64,
@@ -76,6 +78,7 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
         primal: state.problem.primal_dofs() - held,
         kernel: state.dual.kernel_dim(),
         factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
+        factorize_seconds: state.times.factorize,
         state: Cost {
             dual: state.multipliers,
             hessian_applications: state.info.hessian_applications,
@@ -143,10 +146,11 @@ pub fn compare(scene: &Scene) -> Comparison {
     }
 }
 
-/// Two significant digits (counts in snapshots stay put across machines).
+/// Counts for stable output: to a multiple of 5 below 100, to two significant
+/// digits above (a step more or less from round-off does not show).
 fn round2(n: usize) -> usize {
     if n < 100 {
-        return n;
+        return (n + 2) / 5 * 5;
     }
     let p = 10usize.pow((n as f64).log10().floor() as u32 - 1);
     (n + p / 2) / p * p
@@ -156,7 +160,7 @@ impl Comparison {
     /// The Markdown tables. `exact`: counts as measured and times; otherwise
     /// counts to two significant digits and no times (stable output).
     pub fn markdown(&self, exact: bool) -> String {
-        // CG counts may differ by a step across machines; sizes may not.
+        // CG counts may differ by a step with round-off; sizes may not.
         let count = |n: usize| if exact { n } else { round2(n) };
         let ratio = |f: usize, t: usize| {
             if f == 0 {

@@ -103,7 +103,7 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
-        /// Which benchmark (`scaling`, `sensitivity`, `optimize`).
+        /// Which benchmark (`scaling`, `compare`, `sensitivity`, `optimize`).
         which: String,
         /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
         #[arg(long = "hh")]
@@ -229,9 +229,9 @@ fn main() -> ExitCode {
                     }
                 };
             }
-            if which != "scaling" {
+            if which != "scaling" && which != "compare" {
                 errln!(
-                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, sensitivity"
+                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, compare, sensitivity, optimize"
                 );
                 return ExitCode::from(EXIT_IO);
             }
@@ -244,16 +244,15 @@ fn main() -> ExitCode {
                 errln!("error: --max-cuts expects SXxSY, e.g. 32x16");
                 return ExitCode::from(EXIT_IO);
             };
-            bench_scaling(
-                if hh.is_empty() {
-                    vec![16, 32]
-                } else {
-                    hh.clone()
-                },
-                (mx, my),
-                *tolerance,
-                *threads,
-            )
+            let hh = if hh.is_empty() {
+                vec![16, 32]
+            } else {
+                hh.clone()
+            };
+            if which == "compare" {
+                return bench_compare(hh, (mx, my), *tolerance, *threads);
+            }
+            bench_scaling(hh, (mx, my), *tolerance, *threads)
         }
         Command::Sensitivity {
             file,
@@ -422,8 +421,7 @@ fn bench_scaling(
     outln!("| H/h | cuts | subdomains | primal | dual | outer | inner | Hessian | factorize s | solve s | total s | peak MB | KKT |");
     outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for hh in hhs {
-        let (mut sx, mut sy) = (2, 1);
-        loop {
+        for (sx, sy) in cso::bench::cut_sequence(max) {
             match pool.install(|| cso::bench::scaling_row(sx, sy, hh, tolerance)) {
                 Ok(r) => outln!(
                     "| {} | {}x{} | {} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} |",
@@ -445,11 +443,66 @@ fn bench_scaling(
                 ),
                 Err(e) => errln!("error at {sx}x{sy}: {e}"),
             }
-            if sx >= max.0 && sy >= max.1 {
-                break;
-            }
-            sx = (sx * 2).min(max.0);
-            sy = (sy * 2).min(max.1);
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso bench compare`: FETI and TFETI on the scaled scene, cut finer and finer.
+fn bench_compare(
+    hhs: Vec<usize>,
+    max: (usize, usize),
+    tolerance: f64,
+    threads: Option<usize>,
+) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    outln!(
+        "threads {}, tolerance {tolerance:e}; each cell FETI / TFETI",
+        pool.current_num_threads()
+    );
+    outln!("| H/h | cuts | subdomains | primal | dual | kernel | Hessian | factorize s | total s | u difference |");
+    outln!("|---|---|---|---|---|---|---|---|---|---|");
+    for hh in hhs {
+        for (sx, sy) in cso::bench::cut_sequence(max) {
+            let scene = match cso::bench::scaled_scene(sx, sy, hh, tolerance) {
+                Ok(s) => s,
+                Err(e) => {
+                    errln!("error: {e}");
+                    return ExitCode::from(EXIT_SCENE);
+                }
+            };
+            let c = pool.install(|| cso::compare::compare(&scene));
+            let (f, t) = match (&c.feti, &c.tfeti) {
+                (Ok(f), Ok(t)) => (f, t),
+                (f, t) => {
+                    errln!(
+                        "error at {sx}x{sy}: FETI {:?}, TFETI {:?}",
+                        f.as_ref().err(),
+                        t.as_ref().err()
+                    );
+                    continue;
+                }
+            };
+            outln!(
+                "| {hh} | {sx}x{sy} | {} | {} / {} | {} / {} | {} / {} | {} / {} | {:.3} / {:.3} | {:.3} / {:.3} | {:.0e} |",
+                scene.bodies.iter().map(|b| b.subdomains.iter().product::<usize>()).sum::<usize>(),
+                f.primal,
+                t.primal,
+                f.state.dual,
+                t.state.dual,
+                f.kernel,
+                t.kernel,
+                f.state.hessian_applications,
+                t.state.hessian_applications,
+                f.factorize_seconds,
+                t.factorize_seconds,
+                f.state.seconds,
+                t.state.seconds,
+                c.difference.unwrap_or(f64::NAN)
+            );
         }
     }
     ExitCode::SUCCESS

@@ -36,7 +36,6 @@ use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
     SymmetricOrdering,
 };
-use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Mat, Par, Side};
 use std::fmt;
@@ -201,10 +200,21 @@ fn scaled(k: &UpperCsc, eliminated: &[bool]) -> Result<(UpperCsc, Vec<f64>), Sub
     Ok((out, s))
 }
 
-/// `D` of a supernodal `L D L^T` factor, in the factor's (permuted) order.
+/// `D` of an `L D L^T` factor, in the factor's (permuted) order.
 fn factor_diagonal(symbolic: &SymbolicCholesky<usize>, l_values: &[f64]) -> Option<Vec<f64>> {
-    let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
-        return None;
+    let sn = match symbolic.raw() {
+        SymbolicCholeskyRaw::Supernodal(sn) => sn,
+        SymbolicCholeskyRaw::Simplicial(sm) => {
+            // Columns of L, each holding its diagonal entry (D) somewhere.
+            let (ptr, rows) = (sm.col_ptr(), sm.row_idx());
+            return (0..sm.ncols())
+                .map(|c| {
+                    (ptr[c]..ptr[c + 1])
+                        .find(|&p| rows[p] == c)
+                        .map(|p| l_values[p])
+                })
+                .collect();
+        }
     };
     let (begin, end) = (sn.supernode_begin(), sn.supernode_end());
     let vals = sn.col_ptr_for_val();
@@ -241,10 +251,7 @@ impl Subdomain {
             a.symbolic(),
             Side::Upper,
             SymmetricOrdering::Amd,
-            CholeskySymbolicParams {
-                supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
-                ..Default::default()
-            },
+            CholeskySymbolicParams::default(),
         )
         .map_err(|e| {
             SubdomainError::NotPositive(format!("symbolic factorization failed: {e:?}"))
@@ -272,9 +279,8 @@ impl Subdomain {
                 Default::default(),
             )
             .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
-        let diag = factor_diagonal(&symbolic, &l_values).ok_or_else(|| {
-            SubdomainError::NotPositive("the factor is not supernodal".to_string())
-        })?;
+        let diag = factor_diagonal(&symbolic, &l_values)
+            .ok_or_else(|| SubdomainError::NotPositive("the factor has no diagonal".to_string()))?;
         let forward: Vec<usize> = match symbolic.perm() {
             Some(p) => p.arrays().0.to_vec(),
             None => (0..n).collect(),
