@@ -166,12 +166,9 @@ fn name_modes(problem: &Problem, subs: &[Arc<Subdomain>], modes: &[(usize, usize
             let name = &problem.bodies[sub.body].name;
             match subs[s].feti {
                 None => format!("body `{name}` ({}) ", MODES[m]),
-                Some(_) => format!(
-                    "body `{name}` (kernel mode {} of subdomain ({}, {})) ",
-                    m + 1,
-                    sub.block.0,
-                    sub.block.1
-                ),
+                // FETI's kernel vectors are numerical combinations of rigid
+                // motions: name the body only.
+                Some(_) => format!("body `{name}` (rigid motions) "),
             }
         })
         .collect();
