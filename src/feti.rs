@@ -71,11 +71,42 @@ impl Elimination {
         self.value[s][d]
     }
 
-    /// Whether a row keeps an entry on a free dof (stays in the dual problem).
+    /// Contact rows whose every entry is held: constants, which the supports
+    /// must not violate (no solver could fix that: the scene is infeasible).
+    pub fn check_held_contacts(&self, problem: &Problem) -> Result<(), SolveError> {
+        for row in &problem.rows[problem.n_equality..] {
+            if self.keeps(row) {
+                continue;
+            }
+            let bu: f64 = row
+                .entries
+                .iter()
+                .map(|&(s, d, v)| v * self.held(s, d).unwrap_or(0.0))
+                .sum();
+            let room = row.c - bu;
+            if room < -1e-12 * (row.c.abs() + bu.abs()).max(f64::MIN_POSITIVE) {
+                let body = match row.kind {
+                    RowKind::Contact { body, .. } => problem.bodies[body].name.as_str(),
+                    _ => "?",
+                };
+                return Err(SolveError::Infeasible(format!(
+                    "a contact node of body `{body}` is held by its supports {} m into what it touches: the supports and the contact contradict each other",
+                    crate::lang::diag::num(-room * row.scale)
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Whether a row keeps a non-zero entry on a free dof (stays in the dual
+    /// problem).
     pub fn keeps(&self, row: &Row) -> bool {
-        row.entries
-            .iter()
-            .any(|&(s, d, _)| self.held(s, d).is_none())
+        row.entries.iter().any(|&e| self.free(e))
+    }
+
+    /// A non-zero entry on a free dof.
+    fn free(&self, (s, d, v): (usize, usize, f64)) -> bool {
+        v != 0.0 && self.held(s, d).is_none()
     }
 }
 
@@ -110,13 +141,7 @@ fn reduce(elim: &Elimination, rows: &[&Row], n_equality: usize) -> (Reduced, Vec
             red.constant.push(i);
         }
     }
-    let free = |i: &usize| {
-        rows[*i]
-            .entries
-            .iter()
-            .copied()
-            .filter(|e| elim.held(e.0, e.1).is_none())
-    };
+    let free = |i: &usize| rows[*i].entries.iter().copied().filter(|&e| elim.free(e));
     let local = LocalRows::split(elim.value.len(), red.kept.iter().map(free));
     (red, local)
 }
@@ -223,7 +248,7 @@ impl DualSystem {
         for &i in &reduced.constant {
             let room = shifted(i);
             if room < -1e-12 * (c[i].abs() + 1.0) {
-                return Err(SolveError::Reconstruction(format!(
+                return Err(SolveError::Infeasible(format!(
                     "a contact row acts only on supported dofs and is violated by {room:e}: the supports push the bodies into each other"
                 )));
             }
@@ -270,7 +295,9 @@ impl DualSystem {
 /// Multipliers of the rows that lost every entry: equilibrium at the held dofs,
 /// `sum_i B_i,d lambda_i = f_d - (K u)_d - (B_kept^T lambda)_d`, solved by peeling
 /// (a held dof touched by one unsolved row determines it; Dirichlet rows and the
-/// gluing chains between copies form trees).
+/// gluing chains between copies form trees). Rows left over are redundant (e.g.
+/// a glue tie between two held nodes): their multipliers are not unique, and the
+/// least-squares solution of least norm is taken, as a pseudo-inverse would.
 fn recover(
     dual: &Dual,
     rows: &[Row],
@@ -346,9 +373,46 @@ fn recover(
         }
     }
     if left > 0 {
-        return Err(SolveError::Reconstruction(format!(
-            "classical FETI: the multipliers of {left} rows on held dofs form a cycle and cannot be recovered; use `method = tfeti`"
-        )));
+        redundant(rows, recovered, &solved, &res, lambda)?;
+    }
+    Ok(())
+}
+
+/// The least-norm multipliers of the rows peeling left (redundant constraints).
+fn redundant(
+    rows: &[Row],
+    recovered: &[usize],
+    solved: &[bool],
+    res: &[Vec<f64>],
+    lambda: &mut [f64],
+) -> Result<(), SolveError> {
+    let left: Vec<usize> = recovered.iter().copied().filter(|&i| !solved[i]).collect();
+    let mut dofs: Vec<(usize, usize)> = left
+        .iter()
+        .flat_map(|&i| rows[i].entries.iter().map(|e| (e.0, e.1)))
+        .collect();
+    dofs.sort_unstable();
+    dofs.dedup();
+    let at = |dof: (usize, usize)| dofs.binary_search(&dof).ok();
+    let mut a = faer::Mat::<f64>::zeros(dofs.len(), left.len());
+    for (k, &i) in left.iter().enumerate() {
+        for &(s, d, v) in &rows[i].entries {
+            if let Some(r) = at((s, d)) {
+                a[(r, k)] += v;
+            }
+        }
+    }
+    let b = faer::Mat::<f64>::from_fn(dofs.len(), 1, |r, _| res[dofs[r].0][dofs[r].1]);
+    let svd = a.thin_svd().map_err(|e| {
+        SolveError::Reconstruction(format!(
+            "classical FETI: the reactions of {} redundant rows on held dofs cannot be recovered ({e:?}); use `method = tfeti`",
+            left.len()
+        ))
+    })?;
+    // (What this leaves unbalanced shows in the KKT equilibrium residual.)
+    let x = svd.pseudoinverse() * &b;
+    for (k, &i) in left.iter().enumerate() {
+        lambda[i] = x[(k, 0)];
     }
     Ok(())
 }

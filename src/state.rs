@@ -104,6 +104,8 @@ pub enum SolveError {
     FreeRigidModes(Vec<String>),
     /// The multipliers do not determine the rigid motions of some subdomain.
     Reconstruction(String),
+    /// Constraints that contradict each other (no displacement satisfies them).
+    Infeasible(String),
     /// Rigid motions (subdomain, kernel mode) that no support or active contact
     /// determines: the state is not unique.
     Undetermined {
@@ -132,7 +134,7 @@ impl fmt::Display for SolveError {
                 "the scene does not hold every rigid motion: {}; add a support, a glue or a contact that acts in that direction",
                 m.join("; ")
             ),
-            SolveError::Reconstruction(s) => write!(f, "{s}"),
+            SolveError::Reconstruction(s) | SolveError::Infeasible(s) => write!(f, "{s}"),
             SolveError::Undetermined { modes, stopped } => {
                 write!(
                     f,
@@ -472,6 +474,10 @@ pub fn solve_reusing(
     let mut times = Times::default();
     let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
     loads_can_be_carried(&setup.problem)?;
+    match &setup.elimination {
+        Some(e) => e.check_held_contacts(&setup.problem)?,
+        None => Elimination::new(&setup.problem).check_held_contacts(&setup.problem)?,
+    }
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 

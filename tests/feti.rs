@@ -172,3 +172,58 @@ fn a_feti_solve_reports_like_a_tfeti_one() {
     assert_eq!(report.sizes.multipliers.dirichlet, 0);
     insta::assert_snapshot!(report.summary(false));
 }
+
+/// Two blocks side by side, both fixed at the bottom and glued: the glue ties at
+/// the bottom corner join two held nodes (redundant rows for FETI).
+const SIDE_BY_SIDE: &str = "scene side { dim = 2 }
+material mat { E = 1000, nu = 0.3 }
+body a { material = mat, x = 0 .. 1, y = 0 .. 1, mesh = 4 x 4, subdomains = 2 x 1 }
+body b { material = mat, x = 1 .. 2, y = 0 .. 1, mesh = 4 x 4, subdomains = 2 x 1 }
+fix a.bottom
+fix b.bottom
+glue g { primary = a.right, secondary = b.left }
+traction b.top = (1, -2)
+";
+
+#[test]
+fn redundant_rows_on_held_dofs_get_least_norm_reactions() {
+    let scene = match compile(SIDE_BY_SIDE, &options()) {
+        Ok(s) => s,
+        Err(d) => panic!("{}", cso::lang::diag::render(&d, "side.cso", SIDE_BY_SIDE)),
+    };
+    let t = solve_with(&scene, SolverMethod::Tfeti, 1e-10).expect("TFETI solves");
+    let f = solve_with(&scene, SolverMethod::Feti, 1e-10).expect("FETI solves");
+    let umax = max_abs(t.u.iter().flatten().copied());
+    let du = max_abs(
+        t.u.iter()
+            .flatten()
+            .zip(f.u.iter().flatten())
+            .map(|(a, b)| a - b),
+    );
+    assert!(du < 1e-6 * umax, "max |u_TFETI - u_FETI| = {du:e}");
+    // The reactions are not unique, but they balance: equilibrium holds.
+    assert!(f.kkt.equilibrium < 1e-8, "{:?}", f.kkt);
+}
+
+#[test]
+fn supports_that_push_a_contact_node_through_its_obstacle_are_refused_by_both() {
+    let src = "scene floor { dim = 2 }
+material mat { E = 1000, nu = 0.3 }
+body blk { material = mat, x = 0 .. 1, y = 0 .. 1, mesh = 4 x 4 }
+obstacle ground { point = (0, 0), normal = (0, 1) }
+displace blk.bottom { uy = -0.01 }
+fix blk.top { ux }
+contact c { primary = ground, secondary = blk.bottom }
+";
+    let scene = compile(src, &options()).expect("checks");
+    for method in [SolverMethod::Tfeti, SolverMethod::Feti] {
+        match solve_with(&scene, method, 1e-10) {
+            Err(e @ SolveError::Infeasible(_)) => {
+                let m = e.to_string();
+                assert!(m.contains("`blk`") && m.contains("0.01 m"), "{m}");
+            }
+            Err(e) => panic!("{method:?}: wrong error {e}"),
+            Ok(_) => panic!("{method:?}: an infeasible scene solved"),
+        }
+    }
+}

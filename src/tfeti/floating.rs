@@ -41,8 +41,10 @@ use faer::{Mat, Par, Side};
 use std::fmt;
 
 /// The value a zero pivot is replaced by (of the unit diagonal). Any positive
-/// value gives a generalized inverse; this one is recognizable in the factor.
-const DELTA: f64 = 0.5;
+/// value gives a generalized inverse; this one (the golden ratio's fraction) is
+/// recognizable in the factor, and a genuine pivot equal to it would still be
+/// caught by the checks (its kernel vector is zero).
+const DELTA: f64 = 0.618_033_988_749_894_9;
 
 /// What kernel detection found in one subdomain.
 #[derive(Debug, Clone, PartialEq)]
@@ -65,6 +67,8 @@ pub struct Detection {
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Margin {
     pub eps: f64,
+    /// Zero pivots found in all (the kernel dimension).
+    pub zero_pivots: usize,
     /// Largest `||K~ r|| / ||r||` of a kernel vector (unit diagonal).
     pub kernel_residual: f64,
     /// Smallest pivot accepted, relative to its diagonal: eps must stay below.
@@ -76,12 +80,14 @@ impl Margin {
     pub fn of(subs: &[std::sync::Arc<Subdomain>]) -> Option<Margin> {
         let mut m = Margin {
             eps: 0.0,
+            zero_pivots: 0,
             kernel_residual: 0.0,
             smallest_pivot: f64::INFINITY,
         };
         for s in subs {
             let d = s.feti.as_ref()?;
             m.eps = d.eps;
+            m.zero_pivots += d.zero_pivots.len();
             m.kernel_residual = m.kernel_residual.max(d.residual);
             m.smallest_pivot = m.smallest_pivot.min(d.smallest_pivot);
         }
@@ -93,14 +99,24 @@ impl Margin {
     /// One line for summaries; `coarse` gives the residual as a power of ten
     /// (round-off, which differs between machines).
     pub fn line(&self, coarse: bool) -> String {
-        let residual = if coarse && self.kernel_residual > 0.0 {
-            format!("1e{}", self.kernel_residual.log10().ceil() as i32)
+        let residual = if self.zero_pivots == 0 {
+            "no floating subdomain".to_string()
+        } else if coarse && self.kernel_residual > 0.0 {
+            format!(
+                "kernel residuals <= 1e{}",
+                self.kernel_residual.log10().ceil() as i32
+            )
         } else {
-            format!("{:.0e}", self.kernel_residual)
+            format!("kernel residuals <= {:.0e}", self.kernel_residual)
+        };
+        let pivot = if self.smallest_pivot.is_finite() {
+            format!("{:.1e} of its diagonal", self.smallest_pivot)
+        } else {
+            "none (every dof held)".to_string()
         };
         format!(
-            "kernels found with eps = {:e} (kernel residuals <= {residual}; smallest accepted pivot {:.1e} of its diagonal)",
-            self.eps, self.smallest_pivot
+            "kernels found with eps = {:e} ({residual}; smallest accepted pivot {pivot})",
+            self.eps
         )
     }
 }
@@ -312,7 +328,13 @@ impl Subdomain {
             }
             kt.mul(&z, &mut kr);
             let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            residual = residual.max(norm(&kr) / norm(&z));
+            let rel = norm(&kr) / norm(&z);
+            // A vanishing vector (0/0) is no kernel vector either.
+            residual = if rel.is_nan() {
+                f64::INFINITY
+            } else {
+                residual.max(rel)
+            };
             r.extend(z.iter().zip(&scaling).map(|(a, s)| a * s));
         }
         let kdim = zero_pivots.len();
@@ -393,6 +415,51 @@ mod tests {
             let err = pinv_error(&s, &eliminated);
             assert!(err < 1e-10, "||K K+ K x - K x|| / ||K x|| = {err:e}");
         }
+    }
+
+    /// A floating unit square of `n x n` elements.
+    fn square(n: usize) -> SubdomainMesh {
+        let mut coords = Vec::new();
+        for j in 0..=n {
+            for i in 0..=n {
+                coords.push([i as f64 / n as f64, j as f64 / n as f64]);
+            }
+        }
+        let mut elements = Vec::new();
+        for j in 0..n {
+            for i in 0..n {
+                let a = j * (n + 1) + i;
+                elements.push([a, a + 1, a + n + 2, a + n + 1]);
+            }
+        }
+        let nodes = coords.len();
+        SubdomainMesh {
+            body: 0,
+            block: (0, 0),
+            grid: (0..nodes).collect(),
+            coords,
+            elements,
+            young: 1000.0,
+            poisson: 0.3,
+            thickness: 1.0,
+            f: vec![0.0; 2 * nodes],
+        }
+    }
+
+    #[test]
+    fn large_floating_subdomains_push_zero_pivots_up_and_cost_accuracy() {
+        // The round-off of the rigid modes' pivots grows with the subdomain:
+        // eps = 1e-10, sound on 8 x 8 blocks, accepts one of them at 96 x 96.
+        let mesh = square(96);
+        let err = Subdomain::feti(&mesh, &[], 1e-10).expect_err("a zero pivot above 1e-10");
+        assert!(err.to_string().contains("eps is too small"), "{err}");
+        // With eps above it the kernel is found, but the generalized inverse is
+        // far less accurate than TFETI's with its fixing dofs at the corners.
+        let feti = Subdomain::feti(&mesh, &[], 1e-8).expect("eps = 1e-8 finds it");
+        assert_eq!(feti.kdim, 3);
+        let tfeti = Subdomain::new(&mesh, 96).expect("factorizes");
+        let (ef, et) = (pinv_error(&feti, &[]), pinv_error(&tfeti, &[]));
+        assert!(et < 1e-13 && ef > 30.0 * et, "FETI {ef:e}, TFETI {et:e}");
     }
 
     #[test]
