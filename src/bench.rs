@@ -31,7 +31,7 @@ solver {{ tolerance = {tolerance:e}, max_iterations = 100000 }}
 
 /// The cuts of the base from 2 x 1 up to `max`, doubling both ways.
 pub fn cut_sequence(max: (usize, usize)) -> Vec<(usize, usize)> {
-    let (mut sx, mut sy) = (2, 1);
+    let (mut sx, mut sy) = (2.min(max.0.max(1)), 1);
     let mut out = vec![(sx, sy)];
     while sx < max.0 || sy < max.1 {
         sx = (sx * 2).min(max.0);

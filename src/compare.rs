@@ -251,7 +251,7 @@ impl Comparison {
         if let Some(d) = self.difference {
             let _ = writeln!(
                 o,
-                "\nmax |u_FETI - u_TFETI| / max |u| {} (the same discrete problem).",
+                "\nmax |u_FETI - u_TFETI| / max |u| {} (both solve the same discrete problem).",
                 if exact {
                     format!("= {d:.0e}")
                 } else {
@@ -353,6 +353,12 @@ pub fn eps_sweep(scene: &Scene, eps: &[f64]) -> Result<EpsSweep, String> {
     s.solver.method = SolverMethod::Tfeti;
     let design = s.design_init();
     let t = solve(&s, &design, &mut |_| {}).map_err(|e| e.to_string())?;
+    if !t.converged() {
+        return Err(format!(
+            "the TFETI state solve did not converge ({:?})",
+            t.info.status
+        ));
+    }
     let mut runs = Vec::new();
     for &e in eps {
         s.solver.method = SolverMethod::Feti;

@@ -136,10 +136,14 @@ impl fmt::Display for SolveError {
             ),
             SolveError::Reconstruction(s) | SolveError::Infeasible(s) => write!(f, "{s}"),
             SolveError::Undetermined { modes, stopped } => {
+                let n = if modes.is_empty() {
+                    "some".to_string()
+                } else {
+                    modes.len().to_string()
+                };
                 write!(
                     f,
-                    "{} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)",
-                    modes.len()
+                    "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
                 )?;
                 if let Some(why) = stopped {
                     write!(f, "; the dual solve stopped before converging ({why})")?;
@@ -541,7 +545,10 @@ pub fn solve_reusing(
         )
         .map_err(|e| match e {
             SolveError::Undetermined { modes, stopped } => {
-                let names = name_modes(&problem, &subs, &modes).join("; ");
+                let mut names = name_modes(&problem, &subs, &modes).join("; ");
+                if names.is_empty() {
+                    names = "(the modes could not be identified)".to_string();
+                }
                 SolveError::Reconstruction(match stopped {
                     None => format!(
                         "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
