@@ -478,6 +478,20 @@ pub fn solve_reusing(
     let mut times = Times::default();
     let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
     loads_can_be_carried(&setup.problem)?;
+    if let Some(u) = crate::model::balance::unbalanced_wrench(&setup.problem) {
+        let num = crate::lang::diag::num;
+        return Err(SolveError::Unbalanced {
+            body: setup.problem.bodies[u.body].name.clone(),
+            load: u.force,
+            why: format!(
+                "with its moment, {} N m about ({}, {}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
+                num(u.moment),
+                num(u.centre[0]),
+                num(u.centre[1]),
+                u.misfit
+            ),
+        });
+    }
     match &setup.elimination {
         Some(e) => e.check_held_contacts(&setup.problem)?,
         None => Elimination::new(&setup.problem).check_held_contacts(&setup.problem)?,

@@ -5,6 +5,7 @@
 //! Everything here is per subdomain or per row, so that a distributed backend can
 //! later hand each rank its subdomains and the rows that touch them.
 
+pub mod balance;
 pub(crate) mod loads;
 mod mesh;
 mod rows;

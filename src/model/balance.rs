@@ -1,0 +1,210 @@
+//! Can each body's load be balanced at all? The rows of `B` act on a body as
+//! forces at its nodes; in equilibrium the load's resultant and moment (its
+//! wrench) must be a combination of the rows' wrenches, any sign for
+//! equalities, pushes only (`lambda >= 0`) for contacts. A row shared by two
+//! bodies is counted on each alone, so this is a necessary condition: a scene
+//! that fails it has no equilibrium, and a solver would only iterate on an
+//! unbounded dual (a floating body rolling off its contacts).
+//!
+//! The test is a non-negative least-squares problem in three unknowns' worth of
+//! equations (force x, force y, moment / body size), solved exactly by the
+//! active-set method of Lawson and Hanson (1974).
+
+use super::{Problem, RowKind};
+
+/// The wrench of a body's load that its rows cannot balance, if any: the body,
+/// the load's resultant and moment about the body's centre, and what is left
+/// over relative to the load.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Unbalanced {
+    pub body: usize,
+    pub force: [f64; 2],
+    pub moment: f64,
+    pub centre: [f64; 2],
+    pub misfit: f64,
+}
+
+/// Checks every loaded body; the first that cannot be balanced.
+pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
+    let nb = problem.bodies.len();
+    // Centre and size of each body (bounding box).
+    let boxes: Vec<([f64; 2], f64)> = problem
+        .bodies
+        .iter()
+        .map(|b| {
+            let (lo, hi) = b.bounding_box();
+            let c = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
+            (
+                c,
+                (hi[0] - lo[0]).hypot(hi[1] - lo[1]).max(f64::MIN_POSITIVE),
+            )
+        })
+        .collect();
+    let wrench = |body: usize, x: [f64; 2], d: usize, v: f64| -> [f64; 3] {
+        let (c, size) = boxes[body];
+        let f = if d % 2 == 0 { [v, 0.0] } else { [0.0, v] };
+        let m = (x[0] - c[0]) * f[1] - (x[1] - c[1]) * f[0];
+        [f[0], f[1], m / size]
+    };
+    let mut load = vec![[0.0f64; 3]; nb];
+    let mut size = vec![0.0f64; nb];
+    for m in &problem.subdomains {
+        for (k, &v) in m.f.iter().enumerate() {
+            let w = wrench(m.body, m.coords[k / 2], k, v);
+            for a in 0..3 {
+                load[m.body][a] += w[a];
+            }
+            size[m.body] += v.abs();
+        }
+    }
+    // Columns per body: equalities both ways, contacts one way.
+    let mut columns: Vec<Vec<[f64; 3]>> = vec![Vec::new(); nb];
+    for (i, row) in problem.rows.iter().enumerate() {
+        let mut per = vec![[0.0f64; 3]; nb];
+        let mut touched = vec![false; nb];
+        for &(s, d, v) in &row.entries {
+            let m = &problem.subdomains[s];
+            let w = wrench(m.body, m.coords[d / 2], d, v);
+            for a in 0..3 {
+                per[m.body][a] += w[a];
+            }
+            touched[m.body] = true;
+        }
+        let equality = i < problem.n_equality || !matches!(row.kind, RowKind::Contact { .. });
+        for b in (0..nb).filter(|&b| touched[b]) {
+            let w = per[b];
+            if w.iter().all(|x| x.abs() <= 1e-14) {
+                continue;
+            }
+            columns[b].push(w);
+            if equality {
+                columns[b].push([-w[0], -w[1], -w[2]]);
+            }
+        }
+    }
+    for b in 0..nb {
+        let w = load[b];
+        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        if norm <= 1e-10 * size[b].max(f64::MIN_POSITIVE) {
+            continue;
+        }
+        let misfit = nnls_misfit(&columns[b], w) / norm;
+        if misfit > 1e-6 {
+            let (c, scale) = boxes[b];
+            return Some(Unbalanced {
+                body: b,
+                force: [w[0], w[1]],
+                moment: w[2] * scale,
+                centre: c,
+                misfit,
+            });
+        }
+    }
+    None
+}
+
+/// `min ||A x - b||` over `x >= 0` (the columns of `A` given), by Lawson-Hanson;
+/// returns the residual norm.
+fn nnls_misfit(columns: &[[f64; 3]], b: [f64; 3]) -> f64 {
+    let k = columns.len();
+    let mut x = vec![0.0; k];
+    let mut passive = vec![false; k];
+    let residual = |x: &[f64]| -> [f64; 3] {
+        let mut r = b;
+        for (c, xi) in columns.iter().zip(x) {
+            for a in 0..3 {
+                r[a] -= c[a] * xi;
+            }
+        }
+        r
+    };
+    let dot = |c: &[f64; 3], r: &[f64; 3]| c[0] * r[0] + c[1] * r[1] + c[2] * r[2];
+    let bnorm = dot(&b, &b).sqrt();
+    for _ in 0..(3 * k + 10) {
+        let r = residual(&x);
+        // The most promising column not yet used.
+        let Some((j, gain)) = (0..k)
+            .filter(|&j| !passive[j])
+            .map(|j| (j, dot(&columns[j], &r)))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        else {
+            break;
+        };
+        if gain <= 1e-12 * bnorm * norm3(&columns[j]) {
+            break;
+        }
+        passive[j] = true;
+        // Inner loop: least squares on the passive set, kept feasible.
+        let mut inner = 0;
+        loop {
+            let set: Vec<usize> = (0..k).filter(|&q| passive[q]).collect();
+            let z = least_squares(columns, &set, b);
+            if set.iter().zip(&z).all(|(_, &zi)| zi > 0.0) {
+                for (&q, &zi) in set.iter().zip(&z) {
+                    x[q] = zi;
+                }
+                break;
+            }
+            // Step towards z until a coefficient reaches zero; drop it.
+            let mut alpha = f64::INFINITY;
+            let mut first = set[0];
+            for (&q, &zi) in set.iter().zip(&z) {
+                if zi <= 0.0 {
+                    let a = x[q] / (x[q] - zi);
+                    if a < alpha {
+                        alpha = a;
+                        first = q;
+                    }
+                }
+            }
+            for (&q, &zi) in set.iter().zip(&z) {
+                x[q] += alpha * (zi - x[q]);
+                if q == first || x[q] <= 0.0 {
+                    x[q] = 0.0;
+                    passive[q] = false;
+                }
+            }
+            inner += 1;
+            if inner > k + 3 {
+                break;
+            }
+        }
+    }
+    norm3(&residual(&x))
+}
+
+fn norm3(v: &[f64; 3]) -> f64 {
+    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Least-norm least squares on the columns `set` (few: a pseudo-inverse).
+fn least_squares(columns: &[[f64; 3]], set: &[usize], b: [f64; 3]) -> Vec<f64> {
+    let a = faer::Mat::<f64>::from_fn(3, set.len(), |r, c| columns[set[c]][r]);
+    let rhs = faer::Mat::<f64>::from_fn(3, 1, |r, _| b[r]);
+    match a.thin_svd() {
+        Ok(svd) => {
+            let z = svd.pseudoinverse() * &rhs;
+            (0..set.len()).map(|i| z[(i, 0)]).collect()
+        }
+        Err(_) => vec![0.0; set.len()],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn nnls_finds_cone_members_and_misses_the_rest() {
+        // The cone of (1, 0, 0) and (0, 1, 0): (2, 3, 0) inside, (1, 1, 1) outside
+        // by exactly 1, (-1, 0, 0) outside by 1.
+        let cols = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
+        assert!(nnls_misfit(&cols, [2.0, 3.0, 0.0]) < 1e-14);
+        assert!((nnls_misfit(&cols, [1.0, 1.0, 1.0]) - 1.0).abs() < 1e-14);
+        assert!((nnls_misfit(&cols, [-1.0, 0.0, 0.0]) - 1.0).abs() < 1e-14);
+        // Both signs of a column span its line.
+        let both = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 1.0, 0.0]];
+        assert!(nnls_misfit(&both, [3.0, 3.0, -7.0]) < 1e-13);
+        assert!((nnls_misfit(&both, [1.0, -1.0, 0.0]) - 2f64.sqrt()).abs() < 1e-13);
+    }
+}
