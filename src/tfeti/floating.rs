@@ -362,7 +362,7 @@ impl Subdomain {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::tfeti::subdomain::tests::{block, rand_vec};
+    use crate::tfeti::subdomain::tests::{block, grid, rand_vec};
 
     fn norm(v: &[f64]) -> f64 {
         v.iter().map(|x| x * x).sum::<f64>().sqrt()
@@ -417,40 +417,11 @@ mod tests {
         }
     }
 
-    /// A floating unit square of `n x n` elements.
-    fn square(n: usize) -> SubdomainMesh {
-        let mut coords = Vec::new();
-        for j in 0..=n {
-            for i in 0..=n {
-                coords.push([i as f64 / n as f64, j as f64 / n as f64]);
-            }
-        }
-        let mut elements = Vec::new();
-        for j in 0..n {
-            for i in 0..n {
-                let a = j * (n + 1) + i;
-                elements.push([a, a + 1, a + n + 2, a + n + 1]);
-            }
-        }
-        let nodes = coords.len();
-        SubdomainMesh {
-            body: 0,
-            block: (0, 0),
-            grid: (0..nodes).collect(),
-            coords,
-            elements,
-            young: 1000.0,
-            poisson: 0.3,
-            thickness: 1.0,
-            f: vec![0.0; 2 * nodes],
-        }
-    }
-
     #[test]
     fn large_floating_subdomains_push_zero_pivots_up_and_cost_accuracy() {
         // The round-off of the rigid modes' pivots grows with the subdomain:
         // eps = 1e-10, sound on 8 x 8 blocks, accepts one of them at 96 x 96.
-        let mesh = square(96);
+        let mesh = grid(96, 96, 0.0);
         let err = Subdomain::feti(&mesh, &[], 1e-10).expect_err("a zero pivot above 1e-10");
         assert!(err.to_string().contains("eps is too small"), "{err}");
         // With eps above it the kernel is found, but the generalized inverse is

@@ -457,14 +457,14 @@ pub(crate) mod tests {
     use super::*;
     use crate::model::SubdomainMesh;
 
-    /// A 3 x 2 element block with a curved bottom.
-    pub(crate) fn block() -> SubdomainMesh {
-        let (hx, hy) = (3usize, 2usize);
+    /// An `hx x hy` element block on the unit square, its bottom lifted by
+    /// `curvature * (x - 1/2)^2`.
+    pub(crate) fn grid(hx: usize, hy: usize, curvature: f64) -> SubdomainMesh {
         let mut coords = Vec::new();
         for j in 0..=hy {
             for i in 0..=hx {
                 let x = i as f64 / hx as f64;
-                let bottom = 0.1 * (x - 0.5).powi(2);
+                let bottom = curvature * (x - 0.5).powi(2);
                 coords.push([x, bottom + (1.0 - bottom) * j as f64 / hy as f64]);
             }
         }
@@ -487,6 +487,11 @@ pub(crate) mod tests {
             thickness: 1.0,
             f: vec![0.0; 2 * n],
         }
+    }
+
+    /// A 3 x 2 element block with a curved bottom.
+    pub(crate) fn block() -> SubdomainMesh {
+        grid(3, 2, 0.1)
     }
 
     pub(crate) fn rand_vec(n: usize, seed: u64) -> Vec<f64> {
