@@ -27,6 +27,17 @@ fn max_abs(v: impl Iterator<Item = f64>) -> f64 {
     v.fold(0.0, |m, x| m.max(x.abs()))
 }
 
+/// `(max |u_t - u_f|, max |u_t|)`.
+fn u_difference(t: &State, f: &State) -> (f64, f64) {
+    let du = max_abs(
+        t.u.iter()
+            .flatten()
+            .zip(f.u.iter().flatten())
+            .map(|(a, b)| a - b),
+    );
+    (du, max_abs(t.u.iter().flatten().copied()))
+}
+
 #[test]
 fn feti_and_tfeti_give_the_same_state_on_every_2d_example() {
     for name in ["two_blocks", "semicoercive2d", "scont2d", "hertz2d"] {
@@ -34,13 +45,7 @@ fn feti_and_tfeti_give_the_same_state_on_every_2d_example() {
         let t = solve_with(&scene, SolverMethod::Tfeti, 1e-10).expect("TFETI solves");
         let f = solve_with(&scene, SolverMethod::Feti, 1e-10).expect("FETI solves");
         assert!(t.converged() && f.converged(), "{name}");
-        let umax = max_abs(t.u.iter().flatten().copied());
-        let du = max_abs(
-            t.u.iter()
-                .flatten()
-                .zip(f.u.iter().flatten())
-                .map(|(a, b)| a - b),
-        );
+        let (du, umax) = u_difference(&t, &f);
         assert!(
             du < 1e-6 * umax,
             "{name}: max |u_TFETI - u_FETI| = {du:e}, max |u| = {umax:e}"
@@ -193,13 +198,7 @@ fn redundant_rows_on_held_dofs_get_least_norm_reactions() {
     };
     let t = solve_with(&scene, SolverMethod::Tfeti, 1e-10).expect("TFETI solves");
     let f = solve_with(&scene, SolverMethod::Feti, 1e-10).expect("FETI solves");
-    let umax = max_abs(t.u.iter().flatten().copied());
-    let du = max_abs(
-        t.u.iter()
-            .flatten()
-            .zip(f.u.iter().flatten())
-            .map(|(a, b)| a - b),
-    );
+    let (du, umax) = u_difference(&t, &f);
     assert!(du < 1e-6 * umax, "max |u_TFETI - u_FETI| = {du:e}");
     // The reactions are not unique, but they balance: equilibrium holds.
     assert!(f.kkt.equilibrium < 1e-8, "{:?}", f.kkt);
