@@ -18,6 +18,7 @@ pub mod model;
 pub mod opt;
 pub mod qp;
 pub mod sens;
+pub mod stability;
 pub mod state;
 pub mod tfeti;
 

@@ -103,7 +103,7 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
-        /// Which benchmark (`scaling`, `compare`, `sensitivity`, `optimize`).
+        /// Which benchmark (`scaling`, `compare`, `hard`, `sensitivity`, `optimize`).
         which: String,
         /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
         #[arg(long = "hh")]
@@ -117,6 +117,9 @@ enum Command {
         /// Threads over subdomains (default: all cores).
         #[arg(long, value_name = "N")]
         threads: Option<usize>,
+        /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
     },
     /// Check a scene and print what the compiler understood.
     Compile {
@@ -202,7 +205,11 @@ fn main() -> ExitCode {
             max_cuts,
             tolerance,
             threads,
+            out,
         } => {
+            if which == "hard" {
+                return bench_hard(*tolerance, out.as_deref(), *threads);
+            }
             if which == "sensitivity" {
                 return bench_sensitivity(*tolerance, *threads);
             }
@@ -231,7 +238,7 @@ fn main() -> ExitCode {
             }
             if which != "scaling" && which != "compare" {
                 errln!(
-                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, compare, sensitivity, optimize"
+                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, compare, hard, sensitivity, optimize"
                 );
                 return ExitCode::from(EXIT_IO);
             }
@@ -443,6 +450,52 @@ fn bench_scaling(
                 ),
                 Err(e) => errln!("error at {sx}x{sy}: {e}"),
             }
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso bench hard`: the hard-scene sweeps, tables and charts.
+fn bench_hard(tolerance: f64, out: Option<&Path>, threads: Option<usize>) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    let bar = indicatif::ProgressBar::new_spinner();
+    let sweeps = pool.install(|| {
+        cso::stability::sweeps(tolerance, &mut |what| {
+            bar.set_message(what.to_string());
+            bar.tick();
+        })
+    });
+    bar.finish_and_clear();
+    let mut md = format!("# Hard scenes, dual tolerance {tolerance:e}\n\n");
+    for s in &sweeps {
+        md.push_str(&s.markdown());
+        md.push('\n');
+    }
+    outln!("{md}");
+    if let Some(dir) = out {
+        let json = serde_json::to_string_pretty(&sweeps).unwrap_or_default();
+        let mut files: Vec<(String, Vec<u8>)> = vec![
+            ("hard.md".into(), md.into_bytes()),
+            ("hard.json".into(), json.into_bytes()),
+        ];
+        for (k, s) in sweeps.iter().enumerate() {
+            match s.svg() {
+                Ok(svg) => files.push((format!("hard-{}.svg", k + 1), svg.into_bytes())),
+                Err(e) => {
+                    errln!("error: cannot draw {}: {e}", s.name);
+                    return ExitCode::from(EXIT_IO);
+                }
+            }
+        }
+        let refs: Vec<(&str, &[u8])> = files
+            .iter()
+            .map(|(n, b)| (n.as_str(), b.as_slice()))
+            .collect();
+        if let Err(code) = write_files(dir, &refs) {
+            return code;
         }
     }
     ExitCode::SUCCESS

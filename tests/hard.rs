@@ -15,6 +15,7 @@ use crate::options;
 use cso::io::report::Report;
 use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
+use cso::stability::{cantilever_scene, contrast_scene, indentation_scene, rocking_scene};
 use cso::state::{solve, SolveError, State};
 
 fn scene(src: &str) -> Scene {
@@ -76,31 +77,14 @@ fn probe(s: &Scene, st: &State, name: &str) -> (f64, f64) {
 // ---------------------------------------------------------------------------
 // 1. Material contrast.
 
-/// A curved punch (E_punch) pressed 2 cm into a base (E_base) fixed at its bottom.
-fn contrast(e_punch: &str, e_base: &str) -> String {
-    format!(
-        "scene contrast {{ dim = 2 }}
-material pm {{ E = {e_punch}, nu = 0.3 }}
-material bm {{ E = {e_base}, nu = 0.3 }}
-body base {{ material = bm, x = 0 .. 3, y = 0 .. 1, mesh = 24 x 8, subdomains = 3 x 1 }}
-body punch {{ material = pm, x = 1 .. 2, y = 1 .. 2, bottom = 1 + 0.05 * (2*x - 3)^2,
-  mesh = 10 x 10 }}
-fix base.bottom
-displace punch.top {{ ux = 0, uy = -0.02 }}
-contact seat {{ primary = base.top, secondary = punch.bottom }}
-probe tip {{ body = punch, at = (1.5, 1) }}
-"
-    )
-}
-
 #[test]
 fn hard_material_contrast_1e4_converges_both_ways() {
-    let (s, r) = solve_at(&contrast("1e3", "1e3"), 1e-8);
+    let (s, r) = solve_at(&contrast_scene(1e3, 1e3), 1e-8);
     row("contrast 1 (E = 1e3 both)", &r, "baseline");
     let equal = expect_converged("contrast 1", r, 1e-6, 2000);
     let (_, uy_equal) = probe(&s, &equal, "tip");
 
-    let (s, r) = solve_at(&contrast("1e7", "1e3"), 1e-8);
+    let (s, r) = solve_at(&contrast_scene(1e7, 1e3), 1e-8);
     row("contrast 1e4, stiff punch", &r, "");
     let stiff_punch = expect_converged("stiff punch", r, 1e-6, 2000);
     // The stiff punch hardly deforms: its face follows the imposed 2 cm.
@@ -110,7 +94,7 @@ fn hard_material_contrast_1e4_converges_both_ways() {
         "stiff punch face uy = {uy}"
     );
 
-    let (s, r) = solve_at(&contrast("1e3", "1e7"), 1e-8);
+    let (s, r) = solve_at(&contrast_scene(1e3, 1e7), 1e-8);
     row("contrast 1e4, stiff base", &r, "");
     let stiff_base = expect_converged("stiff base", r, 1e-6, 2000);
     // The stiff base hardly moves: the punch face stays where it is.
@@ -132,44 +116,23 @@ fn hard_material_contrast_1e4_converges_both_ways() {
 // ---------------------------------------------------------------------------
 // 2. Large H/h.
 
-/// A 4 x 1 cantilever, clamped on the left, loaded on top, whose free end meets
-/// a rigid floor 0.1 below it (or no floor with `contact = false`).
-fn cantilever(mesh: &str, subdomains: &str, contact: bool) -> String {
-    let floor = if contact {
-        "obstacle floor { point = (0, -0.1), normal = (0, 1) }
-contact c { primary = floor, secondary = beam.bottom, search = 0.5 }
-"
-    } else {
-        ""
-    };
-    format!(
-        "scene hh {{ dim = 2 }}
-material mat {{ E = 1000, nu = 0.3 }}
-body beam {{ material = mat, x = 0 .. 4, y = 0 .. 1, mesh = {mesh}, subdomains = {subdomains} }}
-fix beam.left
-traction beam.top = (0, -1)
-probe tip {{ body = beam, at = (4, 0) }}
-{floor}"
-    )
-}
-
 #[test]
 fn hard_large_h_over_h_converges_and_cg_cost_grows() {
     let mut cg = Vec::new();
-    for (mesh, hh) in [("16 x 4", 8), ("128 x 32", 64)] {
+    for (mesh, hh) in [((16, 4), 8), ((128, 32), 64)] {
         // Equality rows only: the state solve is projected CG.
-        let (_, r) = solve_at(&cantilever(mesh, "2 x 1", false), 1e-8);
+        let (_, r) = solve_at(&cantilever_scene(mesh, (2, 1), false), 1e-8);
         row(
-            &format!("H/h = {hh} ({mesh}, 2 x 1), no contact"),
+            &format!("H/h = {hh} ({} x {}, 2 x 1), no contact", mesh.0, mesh.1),
             &r,
             "projected CG",
         );
         let st = expect_converged(&format!("H/h = {hh}, no contact"), r, 1e-5, 2000);
         cg.push(st.info.hessian_applications);
         // With the floor: SMALBE + MPRGP.
-        let (s, r) = solve_at(&cantilever(mesh, "2 x 1", true), 1e-8);
+        let (s, r) = solve_at(&cantilever_scene(mesh, (2, 1), true), 1e-8);
         row(
-            &format!("H/h = {hh} ({mesh}, 2 x 1), tip on floor"),
+            &format!("H/h = {hh} ({} x {}, 2 x 1), tip on floor", mesh.0, mesh.1),
             &r,
             "SMALBE",
         );
@@ -191,34 +154,6 @@ fn hard_large_h_over_h_converges_and_cg_cost_grows() {
 // ---------------------------------------------------------------------------
 // 3. Nearly incompressible.
 
-/// A curved punch pushed by a traction onto a base of the same material; the
-/// punch's top is held in x. `n` elements across the punch.
-fn incompressible(nu: f64, n: usize) -> String {
-    rocking(nu, n).replace(
-        "fix punch.top { ux }\ntraction punch.top = (0, -5)",
-        "displace punch.top { ux = 0, uy = -0.01 }",
-    )
-}
-
-/// The punch held by `ux` on its top and pushed by a traction: where a single
-/// contact node carries it, it can rock about a point of its top line.
-fn rocking(nu: f64, n: usize) -> String {
-    format!(
-        "scene inc {{ dim = 2 }}
-material mat {{ E = 1000, nu = {nu} }}
-body base {{ material = mat, x = 0 .. 3, y = 0 .. 1, mesh = {} x {n}, subdomains = 3 x 1 }}
-body punch {{ material = mat, x = 1 .. 2, y = 1 .. 2, bottom = 1 + 0.05 * (2*x - 3)^2,
-  mesh = {n} x {n} }}
-fix base.bottom
-fix punch.top {{ ux }}
-traction punch.top = (0, -5)
-contact seat {{ primary = base.top, secondary = punch.bottom }}
-probe tip {{ body = punch, at = (1.5, 1) }}
-",
-        3 * n
-    )
-}
-
 #[test]
 fn hard_nearly_incompressible_q1_converges_and_locks() {
     // The contact force for a 1 cm indentation, on the coarse and the fine mesh.
@@ -226,7 +161,7 @@ fn hard_nearly_incompressible_q1_converges_and_locks() {
     for nu in [0.3, 0.49, 0.499] {
         let mut pair = Vec::new();
         for n in [8, 16] {
-            let (s, r) = solve_at(&incompressible(nu, n), 1e-8);
+            let (s, r) = solve_at(&indentation_scene(nu, n), 1e-8);
             let f = r
                 .as_ref()
                 .map(|st| Report::new(&s, st).contacts[0].total_force)
@@ -261,7 +196,7 @@ fn hard_nearly_incompressible_q1_converges_and_locks() {
 #[test]
 fn hard_rocking_punch_state_is_refused_as_not_unique() {
     for tol in [1e-6, 1e-8, 1e-10] {
-        let (_, r) = solve_at(&rocking(0.499, 8), tol);
+        let (_, r) = solve_at(&rocking_scene(0.499, 8), tol);
         match r {
             Err(e @ SolveError::Reconstruction(_)) => {
                 let m = e.to_string();
@@ -518,4 +453,31 @@ fn hard_design_perturbation_opens_contacts_and_sensitivities_say_so() {
             semi.functionals[kk]
         );
     }
+}
+
+// ---------------------------------------------------------------------------
+// The sweeps of `cso bench hard`.
+
+#[test]
+fn hard_sweeps_converge_everywhere_and_draw() {
+    let sweeps = cso::stability::sweeps(1e-8, &mut |_| {});
+    assert_eq!(sweeps.len(), 3);
+    for s in &sweeps {
+        for (name, points) in &s.series {
+            for p in points {
+                assert!(p.converged, "{} / {name} at {}: {}", s.name, p.x, p.note);
+                assert!(
+                    p.kkt.is_some_and(|k| k < 1e-6),
+                    "{} / {name}: {:?}",
+                    s.name,
+                    p.kkt
+                );
+            }
+        }
+        assert!(s.svg().expect("draws").starts_with("<svg"));
+        assert!(s.markdown().lines().count() >= 2 + s.series[0].1.len());
+    }
+    // Near incompressibility costs more (the last nu is 0.499, the first 0.3).
+    let nu = &sweeps[2].series[1].1;
+    assert!(nu[4].hessian_applications > nu[0].hessian_applications);
 }
