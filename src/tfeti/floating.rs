@@ -27,15 +27,12 @@
 //! analysis of floating structures*, IJNME 1998.
 
 use super::subdomain::{
-    assemble, kernel, ldlt_solve, orthonormalize, Subdomain, SubdomainError, UpperCsc,
+    assemble, kernel, ldlt_solve, orthonormalize, symbolic_amd, Subdomain, SubdomainError, UpperCsc,
 };
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholesky, SymbolicCholeskyRaw,
-    SymmetricOrdering,
-};
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Mat, Par, Side};
 use std::fmt;
@@ -263,15 +260,7 @@ impl Subdomain {
         let (kt, scaling) = scaled(&k, &is_elim)?;
         let sym = SymbolicSparseColMatRef::new_checked(n, n, &kt.col_ptr, None, &kt.row_idx);
         let a = SparseColMatRef::new(sym, &kt.values);
-        let symbolic = factorize_symbolic_cholesky(
-            a.symbolic(),
-            Side::Upper,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|e| {
-            SubdomainError::NotPositive(format!("symbolic factorization failed: {e:?}"))
-        })?;
+        let symbolic = symbolic_amd(a.symbolic())?;
         let mut l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),

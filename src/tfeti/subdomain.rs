@@ -248,6 +248,20 @@ pub(super) fn orthonormalize(r: &mut [f64], n: usize, k: usize) {
     }
 }
 
+/// The symbolic Cholesky (AMD ordering; faer picks simplicial or supernodal) of
+/// an upper triangle.
+pub(super) fn symbolic_amd(
+    a: SymbolicSparseColMatRef<'_, usize>,
+) -> Result<SymbolicCholesky<usize>, SubdomainError> {
+    factorize_symbolic_cholesky(
+        a,
+        Side::Upper,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams::default(),
+    )
+    .map_err(|e| SubdomainError::NotPositive(format!("symbolic factorization failed: {e:?}")))
+}
+
 /// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
 pub(super) fn ldlt_solve(
     symbolic: &SymbolicCholesky<usize>,
@@ -319,15 +333,7 @@ impl Subdomain {
         }
         let sym = SymbolicSparseColMatRef::new_checked(nr, nr, &col_ptr, None, &row_idx);
         let a = SparseColMatRef::new(sym, &values);
-        let symbolic = factorize_symbolic_cholesky(
-            a.symbolic(),
-            Side::Upper,
-            SymmetricOrdering::Amd,
-            CholeskySymbolicParams::default(),
-        )
-        .map_err(|e| {
-            SubdomainError::NotPositive(format!("symbolic factorization failed: {e:?}"))
-        })?;
+        let symbolic = symbolic_amd(a.symbolic())?;
         let mut l_values = vec![0.0; symbolic.len_val()];
         let req = StackReq::any_of(&[
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
