@@ -785,6 +785,27 @@ fn num_traits_abs(a: D) -> D {
     }
 }
 
+/// The rows of a gradient: the objective, then each constraint as one
+/// functional `g <= 0` (so one adjoint solve serves it), with their names.
+fn gradient_rows(scene: &Scene) -> (Vec<String>, Vec<Functional>) {
+    let mut names = Vec::new();
+    let mut rows = Vec::new();
+    if let Some(o) = &scene.objective {
+        names.push(format!("minimize {}", o.text));
+        rows.push(o.functional.clone());
+    }
+    for c in &scene.constraints {
+        names.push(c.text.clone());
+        let (a, b) = if c.upper {
+            (c.lhs.clone(), c.rhs.clone())
+        } else {
+            (c.rhs.clone(), c.lhs.clone())
+        };
+        rows.push(Functional::Arith(Arith::Sub, Box::new(a), Box::new(b)));
+    }
+    (names, rows)
+}
+
 /// The semi-analytical gradient of the objective and constraints (as `g <= 0`).
 /// `tolerance` is the relative tolerance of the sensitivity (SMALE) solves.
 pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
@@ -805,17 +826,7 @@ pub fn semi_analytic_at(
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
-    let mut functionals = Vec::new();
-    if let Some(o) = &scene.objective {
-        functionals.push((format!("minimize {}", o.text), o.functional.clone(), None));
-    }
-    for c in &scene.constraints {
-        functionals.push((
-            c.text.clone(),
-            c.lhs.clone(),
-            Some((c.rhs.clone(), c.upper)),
-        ));
-    }
+    let (names, rows) = gradient_rows(scene);
     let eval = super::Eval {
         scene,
         design: &design,
@@ -823,7 +834,7 @@ pub fn semi_analytic_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let mut gradient = vec![vec![0.0; design.len()]; functionals.len()];
+    let mut gradient = vec![vec![0.0; design.len()]; rows.len()];
     let mut hessian = 0;
     let mut kinked = Vec::new();
     for i in 0..design.len() {
@@ -832,23 +843,10 @@ pub fn semi_analytic_at(
         if dir.kinks > 0 {
             kinked.push(scene.design[i].name.clone());
         }
-        for (k, (_, lhs, rhs)) in functionals.iter().enumerate() {
-            let dl = sens
-                .derivative(lhs, i, &dir)
+        for (k, f) in rows.iter().enumerate() {
+            gradient[k][i] = sens
+                .derivative(f, i, &dir)
                 .map_err(SolveError::Unsupported)?;
-            gradient[k][i] = match rhs {
-                None => dl,
-                Some((r, upper)) => {
-                    let dr = sens
-                        .derivative(r, i, &dir)
-                        .map_err(SolveError::Unsupported)?;
-                    if *upper {
-                        dl - dr
-                    } else {
-                        dr - dl
-                    }
-                }
-            };
         }
     }
     let weak = sens.weak();
@@ -861,7 +859,7 @@ pub fn semi_analytic_at(
             ),
             _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
         },
-        functionals: functionals.into_iter().map(|(n, _, _)| n).collect(),
+        functionals: names,
         values,
         design: scene.design.iter().map(|d| d.name.clone()).collect(),
         gradient,
@@ -895,22 +893,7 @@ pub fn adjoint_at(
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
-    let mut names = Vec::new();
-    let mut rows: Vec<Functional> = Vec::new();
-    if let Some(o) = &scene.objective {
-        names.push(format!("minimize {}", o.text));
-        rows.push(o.functional.clone());
-    }
-    for c in &scene.constraints {
-        names.push(c.text.clone());
-        // g <= 0 form as one functional, so that one adjoint solve serves it.
-        let (a, b) = if c.upper {
-            (c.lhs.clone(), c.rhs.clone())
-        } else {
-            (c.rhs.clone(), c.lhs.clone())
-        };
-        rows.push(Functional::Arith(Arith::Sub, Box::new(a), Box::new(b)));
-    }
+    let (names, rows) = gradient_rows(scene);
     let eval = super::Eval {
         scene,
         design: &design,
