@@ -410,49 +410,80 @@ fn solve_command(
     }
 }
 
-/// `cso bench scaling`: one Markdown row per decomposition, printed as it finishes.
+/// The scaling benchmarks' frame: one Markdown row per H/h and cut of the scaled
+/// scene, printed as it finishes (`row` gives the cells after H/h and cuts).
+fn bench_table(
+    hhs: Vec<usize>,
+    max: (usize, usize),
+    threads: Option<usize>,
+    title: &str,
+    columns: &[&str],
+    row: &(dyn Fn(usize, usize, usize) -> Result<String, String> + Sync),
+) -> ExitCode {
+    let pool = match thread_pool(threads) {
+        Ok(p) => p,
+        Err(code) => return code,
+    };
+    outln!("threads {}, {title}", pool.current_num_threads());
+    outln!("| H/h | cuts | {} |", columns.join(" | "));
+    outln!("|---|---|{}", "---|".repeat(columns.len()));
+    for hh in hhs {
+        for (sx, sy) in cso::bench::cut_sequence(max) {
+            match pool.install(|| row(sx, sy, hh)) {
+                Ok(cells) => outln!("| {hh} | {sx}x{sy} | {cells} |"),
+                Err(e) => errln!("error at {sx}x{sy}: {e}"),
+            }
+        }
+    }
+    ExitCode::SUCCESS
+}
+
+/// `cso bench scaling`: TFETI on the scaled scene, cut finer and finer.
 fn bench_scaling(
     hhs: Vec<usize>,
     max: (usize, usize),
     tolerance: f64,
     threads: Option<usize>,
 ) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    outln!(
-        "threads {}, tolerance {tolerance:e}",
-        pool.current_num_threads()
-    );
-    outln!("| H/h | cuts | subdomains | primal | dual | outer | inner | Hessian | factorize s | solve s | total s | peak MB | KKT |");
-    outln!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for hh in hhs {
-        for (sx, sy) in cso::bench::cut_sequence(max) {
-            match pool.install(|| cso::bench::scaling_row(sx, sy, hh, tolerance)) {
-                Ok(r) => outln!(
-                    "| {} | {}x{} | {} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} |",
-                    r.hh,
-                    sx,
-                    sy,
-                    r.subdomains,
-                    r.primal,
-                    r.dual,
-                    r.outer,
-                    r.inner,
-                    r.hessian,
-                    if r.converged { "" } else { " (not converged)" },
-                    r.time_factorize,
-                    r.time_solve,
-                    r.time_total,
-                    r.peak_memory.map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
-                    r.kkt
-                ),
-                Err(e) => errln!("error at {sx}x{sy}: {e}"),
-            }
-        }
-    }
-    ExitCode::SUCCESS
+    let columns = [
+        "subdomains",
+        "primal",
+        "dual",
+        "outer",
+        "inner",
+        "Hessian",
+        "factorize s",
+        "solve s",
+        "total s",
+        "peak MB",
+        "KKT",
+    ];
+    bench_table(
+        hhs,
+        max,
+        threads,
+        &format!("tolerance {tolerance:e}"),
+        &columns,
+        &|sx, sy, hh| {
+            let r = cso::bench::scaling_row(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
+            Ok(format!(
+                "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e}",
+                r.subdomains,
+                r.primal,
+                r.dual,
+                r.outer,
+                r.inner,
+                r.hessian,
+                if r.converged { "" } else { " (not converged)" },
+                r.time_factorize,
+                r.time_solve,
+                r.time_total,
+                r.peak_memory
+                    .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
+                r.kkt
+            ))
+        },
+    )
 }
 
 /// `cso bench hard`: the hard-scene sweeps, tables and charts.
@@ -508,40 +539,43 @@ fn bench_compare(
     tolerance: f64,
     threads: Option<usize>,
 ) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    outln!(
-        "threads {}, tolerance {tolerance:e}; each cell FETI / TFETI",
-        pool.current_num_threads()
-    );
-    outln!("| H/h | cuts | subdomains | primal | dual | kernel | Hessian | factorize s | total s | u difference |");
-    outln!("|---|---|---|---|---|---|---|---|---|---|");
-    for hh in hhs {
-        for (sx, sy) in cso::bench::cut_sequence(max) {
-            let scene = match cso::bench::scaled_scene(sx, sy, hh, tolerance) {
-                Ok(s) => s,
-                Err(e) => {
-                    errln!("error: {e}");
-                    return ExitCode::from(EXIT_SCENE);
-                }
-            };
-            let c = pool.install(|| cso::compare::compare(&scene));
+    let columns = [
+        "subdomains",
+        "primal",
+        "dual",
+        "kernel",
+        "Hessian",
+        "factorize s",
+        "total s",
+        "u difference",
+    ];
+    bench_table(
+        hhs,
+        max,
+        threads,
+        &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
+        &columns,
+        &|sx, sy, hh| {
+            let scene =
+                cso::bench::scaled_scene(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
+            let c = cso::compare::compare(&scene);
             let (f, t) = match (&c.feti, &c.tfeti) {
                 (Ok(f), Ok(t)) => (f, t),
                 (f, t) => {
-                    errln!(
-                        "error at {sx}x{sy}: FETI {:?}, TFETI {:?}",
+                    return Err(format!(
+                        "FETI {:?}, TFETI {:?}",
                         f.as_ref().err(),
                         t.as_ref().err()
-                    );
-                    continue;
+                    ))
                 }
             };
-            outln!(
-                "| {hh} | {sx}x{sy} | {} | {} / {} | {} / {} | {} / {} | {} / {} | {:.3} / {:.3} | {:.3} / {:.3} | {:.0e} |",
-                scene.bodies.iter().map(|b| b.subdomains.iter().product::<usize>()).sum::<usize>(),
+            Ok(format!(
+                "{} | {} / {} | {} / {} | {} / {} | {} / {} | {:.3} / {:.3} | {:.3} / {:.3} | {:.0e}",
+                scene
+                    .bodies
+                    .iter()
+                    .map(|b| b.subdomains.iter().product::<usize>())
+                    .sum::<usize>(),
                 f.primal,
                 t.primal,
                 f.state.dual,
@@ -555,10 +589,9 @@ fn bench_compare(
                 f.state.seconds,
                 t.state.seconds,
                 c.difference.unwrap_or(f64::NAN)
-            );
-        }
-    }
-    ExitCode::SUCCESS
+            ))
+        },
+    )
 }
 
 /// A thread pool of `threads` threads (all cores when None).

@@ -113,16 +113,20 @@ fn owner(problem: &Problem, body: usize, node: usize) -> (usize, usize) {
     problem.bodies[body].copies(node)[0]
 }
 
+/// What a selection keeps, or the error that it keeps nothing.
+fn non_empty<T>(items: Vec<T>, sel: &Selection) -> Result<Vec<T>, LowerError> {
+    if items.is_empty() {
+        return Err(LowerError::EmptySelection(sel.text.clone()));
+    }
+    Ok(items)
+}
+
 fn nodes_or_error(
     problem: &Problem,
     sel: &Selection,
     design: &[f64],
 ) -> Result<Vec<usize>, LowerError> {
-    let nodes = selected_nodes(problem, sel, design);
-    if nodes.is_empty() {
-        return Err(LowerError::EmptySelection(sel.text.clone()));
-    }
-    Ok(nodes)
+    non_empty(selected_nodes(problem, sel, design), sel)
 }
 
 /// `fix`, `displace`, `symmetry`: one row per constrained component of each node;
@@ -184,11 +188,7 @@ fn edges_or_error(
     sel: &Selection,
     design: &[f64],
 ) -> Result<Vec<Edge>, LowerError> {
-    let edges = selected_edges(problem, sel, design);
-    if edges.is_empty() {
-        return Err(LowerError::EmptySelection(sel.text.clone()));
-    }
-    Ok(edges)
+    non_empty(selected_edges(problem, sel, design), sel)
 }
 
 /// A point projected on a face: segment end nodes, shape values, outward normal.
