@@ -798,14 +798,14 @@ fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<u
                 return ExitCode::from(EXIT_IO);
             }
         };
-        let written = std::fs::create_dir_all(dir).and_then(|_| {
-            cso::io::atomic::write_atomic(&dir.join("study.json"), json.as_bytes())?;
-            cso::io::atomic::write_atomic(&dir.join("study.csv"), study.csv().as_bytes())?;
-            cso::io::atomic::write_atomic(&dir.join("study.svg"), svg.as_bytes())
-        });
-        if let Err(e) = written {
-            errln!("error: cannot write {}: {e}", dir.display());
-            return ExitCode::from(EXIT_IO);
+        let csv = study.csv();
+        let files = [
+            ("study.json", json.as_bytes()),
+            ("study.csv", csv.as_bytes()),
+            ("study.svg", svg.as_bytes()),
+        ];
+        if let Err(code) = write_files(dir, &files) {
+            return code;
         }
         outln!("study written to {}", dir.display());
     }
