@@ -77,7 +77,7 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
         },
         primal: state.problem.primal_dofs() - held,
         kernel: state.dual.kernel_dim(),
-        factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
+        factor_nonzeros: state.dual.cluster().factor_nonzeros(),
         factorize_seconds: state.times.factorize,
         state: Cost {
             dual: state.multipliers,

@@ -11,7 +11,6 @@
 pub mod bench;
 pub mod compare;
 pub mod fem;
-pub mod feti;
 pub mod io;
 pub mod lang;
 pub mod model;

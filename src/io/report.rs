@@ -3,7 +3,9 @@
 //!
 //! # `report.json` (all values SI: m, N, Pa, J, s)
 //! - `scene`, `sizes`: primal unknowns and multipliers (the seed's "Primal/Dual
-//!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros;
+//!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros,
+//!   `factorizations` (subdomains factorized `symbolic`ally, `numeric`ally, and
+//!   `reused` whole from a previous design);
 //! - `solver`: status, outer/inner iterations, Hessian applications (`F` products
 //!   inside SMALBE) and all `F` applications, tolerance, `history` (relative
 //!   projected gradient after each outer iteration);
@@ -40,6 +42,8 @@ pub struct Sizes {
     pub factor_nonzeros: usize,
     /// Classical FETI: the room eps had.
     pub kernel_detection: Option<crate::tfeti::floating::Margin>,
+    /// Subdomains factorized symbolically, numerically, and reused whole.
+    pub factorizations: crate::state::Factorizations,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -116,8 +120,9 @@ impl Report {
             multipliers: state.solved_row_counts(),
             kernel: state.dual.kernel_dim(),
             subdomains: p.subdomains.len(),
-            factor_nonzeros: state.dual.subs.iter().map(|s| s.factor_nnz).sum(),
-            kernel_detection: crate::tfeti::floating::Margin::of(&state.dual.subs),
+            factor_nonzeros: state.dual.cluster().factor_nonzeros(),
+            kernel_detection: state.dual.cluster().margin(),
+            factorizations: state.factorizations,
         };
         let solver = SolverReport {
             status: state.info.status.clone(),
@@ -276,6 +281,12 @@ impl Report {
                 o,
                 "  time {:.3} s (lower {:.3}, factorize {:.3}, coarse {:.3}, solve {:.3}, reconstruct {:.3})",
                 t.total, t.lower, t.factorize, t.coarse, t.solve, t.reconstruct
+            );
+            let f = &s.factorizations;
+            let _ = writeln!(
+                o,
+                "  factorizations: {} symbolic, {} numeric, {} subdomains reused",
+                f.symbolic, f.numeric, f.reused
             );
         }
         let k = &self.kkt;

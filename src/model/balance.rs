@@ -190,6 +190,135 @@ fn least_squares(columns: &[[f64; 3]], set: &[usize], b: [f64; 3]) -> Vec<f64> {
     }
 }
 
+/// A body's resultant load that nothing can carry, and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UnbalancedForce {
+    pub body: usize,
+    pub load: [f64; 2],
+    pub why: String,
+}
+
+/// A necessary condition of equilibrium, checked before solving: the resultant
+/// load of each body must be a combination of the forces its rows can exert on
+/// it, with contact rows pushing only. Without it SMALBE would iterate on an
+/// unbounded dual (a floating body pushed along a free translation).
+pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
+    let nb = problem.bodies.len();
+    let mut load = vec![[0.0f64; 2]; nb];
+    let mut size = vec![0.0f64; nb];
+    for m in &problem.subdomains {
+        for (k, v) in m.f.iter().enumerate() {
+            load[m.body][k % 2] += v;
+            size[m.body] += v.abs();
+        }
+    }
+    // Net translation direction of each row on each body it touches.
+    let mut span: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
+    let mut cone: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
+    for (i, row) in problem.rows.iter().enumerate() {
+        let mut per = vec![[0.0f64; 2]; nb];
+        for &(s, d, v) in &row.entries {
+            per[problem.subdomains[s].body][d % 2] += v;
+        }
+        for (b, dir) in per.into_iter().enumerate() {
+            if dir[0].hypot(dir[1]) > 1e-12 {
+                if i < problem.n_equality {
+                    span[b].push(dir);
+                } else {
+                    cone[b].push(dir);
+                }
+            }
+        }
+    }
+    for b in 0..nb {
+        let f = load[b];
+        let fnorm = f[0].hypot(f[1]);
+        if fnorm <= 1e-10 * size[b].max(f64::MIN_POSITIVE) {
+            continue;
+        }
+        let unit = |v: [f64; 2]| {
+            let n = v[0].hypot(v[1]);
+            [v[0] / n, v[1] / n]
+        };
+        let cross = |a: [f64; 2], c: [f64; 2]| a[0] * c[1] - a[1] * c[0];
+        // Rank of the equality directions.
+        let e0 = span[b].iter().copied().map(unit).next();
+        let rank = match e0 {
+            None => 0,
+            Some(e) if span[b].iter().any(|d| cross(e, unit(*d)).abs() > 1e-8) => 2,
+            Some(_) => 1,
+        };
+        match (rank, e0) {
+            (2, _) => {}
+            (1, Some(e)) => {
+                // Along t (perpendicular to what the equalities hold) only contacts act.
+                let t = [-e[1], e[0]];
+                let ft = f[0] * t[0] + f[1] * t[1];
+                if ft.abs() <= 1e-8 * fnorm {
+                    continue;
+                }
+                let can = cone[b].iter().any(|d| {
+                    (d[0] * t[0] + d[1] * t[1]) * ft > 1e-12 * d[0].hypot(d[1]) * ft.abs()
+                });
+                if !can {
+                    return Some(UnbalancedForce {
+                        body: b,
+                        load: f,
+                        why: format!(
+                            "along ({}, {}) only contacts hold it, and no contact can push that way (it is pulled away from them, or it has none)",
+                            crate::lang::diag::num(t[0]),
+                            crate::lang::diag::num(t[1])
+                        ),
+                    });
+                }
+            }
+            _ => {
+                // Only contacts: the load must lie in the cone of their pushes.
+                let theta = f[1].atan2(f[0]);
+                let wrap = |a: f64| {
+                    let mut x = a - theta;
+                    while x <= -std::f64::consts::PI {
+                        x += 2.0 * std::f64::consts::PI;
+                    }
+                    while x > std::f64::consts::PI {
+                        x -= 2.0 * std::f64::consts::PI;
+                    }
+                    x
+                };
+                let deltas: Vec<f64> = cone[b].iter().map(|d| wrap(d[1].atan2(d[0]))).collect();
+                let aligned = deltas.iter().any(|x| x.abs() < 1e-9);
+                let plus = deltas
+                    .iter()
+                    .copied()
+                    .filter(|x| *x > 0.0)
+                    .fold(f64::INFINITY, f64::min);
+                let minus = deltas
+                    .iter()
+                    .copied()
+                    .filter(|x| *x < 0.0)
+                    .fold(f64::NEG_INFINITY, f64::max);
+                if !(aligned
+                    || (plus.is_finite()
+                        && minus.is_finite()
+                        && plus - minus < std::f64::consts::PI - 1e-9))
+                {
+                    let why = if cone[b].is_empty() {
+                        "nothing holds it (no support, glue or contact)".to_string()
+                    } else {
+                        "it is held by contacts only, and they cannot push against this load (a free translation, or the body is pulled away from them)".to_string()
+                    };
+                    return Some(UnbalancedForce {
+                        body: b,
+                        load: f,
+                        why,
+                    });
+                }
+            }
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1,6 +1,7 @@
 //! Structured meshes of bodies, cut into subdomains that each own a copy of their nodes.
 
 use super::LowerError;
+use crate::fem::Element;
 use crate::lang::scene::Scene;
 
 /// One body's structured grid: `(nx + 1) x (ny + 1)` nodes, node `(i, j)` at
@@ -99,6 +100,11 @@ pub struct SubdomainMesh {
     pub body: usize,
     /// Block position among the body's cuts.
     pub block: (usize, usize),
+    /// The element type of every element.
+    pub element: Element,
+    /// Corner nodes of the block (local), counter-clockwise from the first:
+    /// far-apart nodes for fixing the kernel.
+    pub corners: Vec<usize>,
     /// Local nodes, `(hx + 1) x (hy + 1)`, and their body grid node.
     pub coords: Vec<[f64; 2]>,
     pub grid: Vec<usize>,
@@ -165,6 +171,8 @@ pub fn build(
                 subs.push(SubdomainMesh {
                     body: bodies.len(),
                     block: (bx, by),
+                    element: Element::Quad4,
+                    corners: vec![0, hx, n - 1, n - 1 - hx],
                     coords,
                     grid,
                     elements,

@@ -251,7 +251,7 @@ pub fn optimize_with(
         // The KKT residual with this iterate's multipliers (of the subproblem at x).
         let kkt_now =
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
-        let (reused, warm) = (state.reused, state.warm_started);
+        let (reused, warm) = (state.factorizations.reused, state.warm_started);
         let it = Iterate {
             reused_factorizations: reused,
             warm_started: warm,

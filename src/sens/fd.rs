@@ -5,7 +5,7 @@
 
 use super::functional::Eval;
 use crate::lang::scene::{Scene, Scheme};
-use crate::state::{solve, SolveError, State};
+use crate::state::{solve, solve_reusing, SolveError, State};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -63,7 +63,9 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
         let eval_at = |shift: f64| -> Result<(Vec<f64>, bool, usize), SolveError> {
             let mut d = design.clone();
             d[i] += shift;
-            let st = solve(scene, &d, &mut |_| {})?;
+            // Subdomains the step does not move keep the base's factorization;
+            // the others refactor on its symbolic one.
+            let st = solve_reusing(scene, &d, Some(&base), true, false, &mut |_| {})?;
             let v: Vec<f64> = Eval {
                 scene,
                 design: &d,

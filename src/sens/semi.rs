@@ -14,13 +14,13 @@
 
 use super::functional::body_area;
 use crate::fem::quad::{plane_strain, quad_gauss, quad_stiffness};
-use crate::feti::DualSystem;
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Condition, Face, Functional, Obstacle, Scene};
 use crate::model::loads::selected_edges;
 use crate::model::{ContactPrimary, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
+use crate::tfeti::classical::DualSystem;
 use num_dual::{Dual64, DualNum};
 use std::time::Instant;
 
@@ -392,7 +392,7 @@ impl<'a> Sensitivity<'a> {
         kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
         let rows: Vec<&crate::model::Row> = kept.iter().map(|&i| &state.problem.rows[i]).collect();
         let dual = DualSystem::new(
-            state.dual.subs.clone(),
+            state.dual.cluster(),
             &rows,
             n_equality,
             state.elimination.clone(),
@@ -540,9 +540,7 @@ impl<'a> Sensitivity<'a> {
                     }
                 }
                 Functional::Energy => {
-                    for (s, sub) in state.dual.subs.iter().enumerate() {
-                        let mut ku = vec![0.0; sub.n];
-                        sub.k.mul(&state.u[s], &mut ku);
+                    for (s, ku) in state.dual.cluster().apply_k(&state.u).iter().enumerate() {
                         for (k, v) in ku.iter().enumerate() {
                             ju[s][k] += w * v;
                         }
@@ -660,9 +658,7 @@ impl<'a> Sensitivity<'a> {
             Functional::Energy => {
                 // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
                 let mut kuu = 0.0;
-                for (s, sub) in state.dual.subs.iter().enumerate() {
-                    let mut ku = vec![0.0; sub.n];
-                    sub.k.mul(&state.u[s], &mut ku);
+                for (s, ku) in state.dual.cluster().apply_k(&state.u).iter().enumerate() {
                     kuu += ku.iter().zip(&dir.u[s]).map(|(a, b)| a * b).sum::<f64>();
                 }
                 D::new(state.energy(), 0.5 * dir.ukpu + kuu)

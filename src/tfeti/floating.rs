@@ -26,16 +26,15 @@
 //! large-scale singular system of linear equations: application to the
 //! analysis of floating structures*, IJNME 1998.
 
-use super::subdomain::{
-    assemble, kernel, ldlt_solve, orthonormalize, symbolic_amd, Subdomain, SubdomainError, UpperCsc,
-};
-use crate::model::SubdomainMesh;
+use super::kernel::{orthonormalize, rigid_modes};
+use super::sparse::{ldlt_solve, symbolic_amd, UpperCsc};
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::ldlt::factor::LdltRegularization;
 use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::sparse::SparseColMatRef;
 use faer::{Mat, Par, Side};
 use std::fmt;
+use std::sync::Arc;
 
 /// The value a zero pivot is replaced by (of the unit diagonal). Any positive
 /// value gives a generalized inverse; this one (the golden ratio's fraction) is
@@ -73,16 +72,16 @@ pub struct Margin {
 }
 
 impl Margin {
-    /// Over the subdomains, if they are all classical FETI ones.
-    pub fn of(subs: &[std::sync::Arc<Subdomain>]) -> Option<Margin> {
+    /// Over the subdomains' detections, if they are all classical FETI ones.
+    pub fn of<'a>(detections: impl IntoIterator<Item = Option<&'a Detection>>) -> Option<Margin> {
         let mut m = Margin {
             eps: 0.0,
             zero_pivots: 0,
             kernel_residual: 0.0,
             smallest_pivot: f64::INFINITY,
         };
-        for s in subs {
-            let d = s.feti.as_ref()?;
+        for d in detections {
+            let d = d?;
             m.eps = d.eps;
             m.zero_pivots += d.zero_pivots.len();
             m.kernel_residual = m.kernel_residual.max(d.residual);
@@ -165,33 +164,34 @@ impl fmt::Display for KernelError {
     }
 }
 
-/// Rigid motions left free by the eliminated dofs: `3 - rank(R[E, :])`.
-fn free_rigid_motions(coords: &[[f64; 2]], eliminated: &[usize]) -> usize {
-    let r = kernel(coords);
-    let n = 2 * coords.len();
-    let gram = Mat::<f64>::from_fn(3, 3, |i, j| {
+/// Rigid motions left free by the eliminated dofs: `modes - rank(R[E, :])`.
+fn free_rigid_motions(coords: &[f64], dim: usize, eliminated: &[usize]) -> usize {
+    let r = rigid_modes(coords, dim);
+    let n = coords.len();
+    let k = r.len() / n.max(1);
+    let gram = Mat::<f64>::from_fn(k, k, |i, j| {
         eliminated
             .iter()
             .map(|&d| r[i * n + d] * r[j * n + d])
             .sum()
     });
     let Ok(evd) = gram.self_adjoint_eigen(Side::Lower) else {
-        return 3;
+        return k;
     };
     let s = evd.S();
     // The columns of R are orthonormal, so the eigenvalues are at most 1.
-    3 - (0..3).filter(|&i| s[i] > 1e-10).count()
+    k - (0..k).filter(|&i| s[i] > 1e-10).count()
 }
 
 /// `K~ = S K^ S`: Dirichlet rows and columns reduced to the diagonal, unit
 /// diagonal. Returns it and `S`.
-fn scaled(k: &UpperCsc, eliminated: &[bool]) -> Result<(UpperCsc, Vec<f64>), SubdomainError> {
+fn scaled(k: &UpperCsc, eliminated: &[bool]) -> Result<(UpperCsc, Vec<f64>), DetectError> {
     let diag = k.diagonal();
     if let Some(d) = diag
         .iter()
         .position(|v| v.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater))
     {
-        return Err(SubdomainError::NotPositive(format!(
+        return Err(DetectError::NotPositive(format!(
             "diagonal entry {d} of K is {}",
             diag[d]
         )));
@@ -242,210 +242,139 @@ fn factor_diagonal(symbolic: &SymbolicCholesky<usize>, l_values: &[f64]) -> Opti
     Some(diag)
 }
 
-impl Subdomain {
-    /// A classical FETI subdomain: `eliminated` (local dofs held by Dirichlet
-    /// conditions) removed from `K_s`, the kernel of the rest found by pivot
-    /// detection with tolerance `eps`, and checked (see the module docs).
-    pub fn feti(
-        mesh: &SubdomainMesh,
-        eliminated: &[usize],
-        eps: f64,
-    ) -> Result<Self, SubdomainError> {
-        let k = assemble(mesh)?;
-        let n = k.n;
-        let mut is_elim = vec![false; n];
-        for &d in eliminated {
-            is_elim[d] = true;
-        }
-        let (kt, scaling) = scaled(&k, &is_elim)?;
-        let sym = SymbolicSparseColMatRef::new_checked(n, n, &kt.col_ptr, None, &kt.row_idx);
-        let a = SparseColMatRef::new(sym, &kt.values);
-        let symbolic = symbolic_amd(a.symbolic())?;
-        let mut l_values = vec![0.0; symbolic.len_val()];
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ]);
-        let mut buf = MemBuffer::new(req);
-        // Every pivot is expected positive: one at or below eps is a zero pivot.
-        let signs = vec![1i8; n];
-        symbolic
-            .factorize_numeric_ldlt(
-                &mut l_values,
-                a,
-                Side::Upper,
-                LdltRegularization {
-                    dynamic_regularization_signs: Some(&signs),
-                    dynamic_regularization_delta: DELTA,
-                    dynamic_regularization_epsilon: eps,
-                },
-                Par::Seq,
-                MemStack::new(&mut buf),
-                Default::default(),
-            )
-            .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
-        let diag = factor_diagonal(&symbolic, &l_values)
-            .ok_or_else(|| SubdomainError::NotPositive("the factor has no diagonal".to_string()))?;
-        let forward: Vec<usize> = match symbolic.perm() {
-            Some(p) => p.arrays().0.to_vec(),
-            None => (0..n).collect(),
-        };
-        let mut zero_pivots = Vec::new();
-        let mut smallest_pivot = f64::INFINITY;
-        for (p, &d) in diag.iter().enumerate() {
-            let dof = forward[p];
-            if d == DELTA {
-                zero_pivots.push(dof);
-            } else if !is_elim[dof] {
-                smallest_pivot = smallest_pivot.min(d);
-            }
-        }
-        zero_pivots.sort_unstable();
-        // Kernel vectors r~_j = e_j - K~_reg^-1 K~ e_j, checked, then unscaled.
-        let mut r = Vec::with_capacity(zero_pivots.len() * n);
-        let mut residual: f64 = 0.0;
-        let mut e = vec![0.0; n];
-        let mut z = vec![0.0; n];
-        let mut kr = vec![0.0; n];
-        for &j in &zero_pivots {
-            e.iter_mut().for_each(|v| *v = 0.0);
-            e[j] = 1.0;
-            kt.mul(&e, &mut z);
-            ldlt_solve(&symbolic, &l_values, &mut z, &mut buf);
-            for (zi, ei) in z.iter_mut().zip(&e) {
-                *zi = ei - *zi;
-            }
-            kt.mul(&z, &mut kr);
-            let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
-            let rel = norm(&kr) / norm(&z);
-            // A vanishing vector (0/0) is no kernel vector either.
-            residual = if rel.is_nan() {
-                f64::INFINITY
-            } else {
-                residual.max(rel)
-            };
-            r.extend(z.iter().zip(&scaling).map(|(a, s)| a * s));
-        }
-        let kdim = zero_pivots.len();
-        orthonormalize(&mut r, n, kdim);
-        let mut elim: Vec<usize> = eliminated.to_vec();
-        elim.sort_unstable();
-        elim.dedup();
-        let detection = Detection {
-            eps,
-            expected: free_rigid_motions(&mesh.coords, &elim),
-            eliminated: elim,
-            zero_pivots,
-            smallest_pivot,
-            residual,
-        };
-        if detection.zero_pivots.len() != detection.expected || residual > RESIDUAL_TOLERANCE {
-            return Err(SubdomainError::Kernel(KernelError { detection }));
-        }
-        Ok(Subdomain::regularized(
-            k, r, detection, scaling, symbolic, l_values, buf,
-        ))
-    }
+/// Why kernel detection could not run or did not find the kernel.
+#[derive(Debug, Clone, PartialEq)]
+pub enum DetectError {
+    /// A non-positive diagonal entry or a failed factorization.
+    NotPositive(String),
+    /// `eps` did not separate zero pivots from the rest.
+    Kernel(KernelError),
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::tfeti::subdomain::tests::{block, grid, rand_vec};
+/// A classical FETI factorization: `L D L^T` of the scaled `K~` with zero pivots
+/// replaced, and the kernel it found.
+pub struct Regularized {
+    /// Jacobi scaling `S` (`K~ = S K^ S`).
+    pub scaling: Vec<f64>,
+    pub symbolic: Arc<SymbolicCholesky<usize>>,
+    pub l_values: Vec<f64>,
+    /// Orthonormal kernel basis, column-major.
+    pub r: Vec<f64>,
+    pub detection: Detection,
+    /// Work space sized for the factor's solves.
+    pub buf: MemBuffer,
+}
 
-    fn norm(v: &[f64]) -> f64 {
-        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+/// Factorizes `K_s` with the dofs `eliminated` (held by Dirichlet conditions)
+/// reduced to their diagonal, finds the kernel of the rest by pivot detection
+/// with tolerance `eps`, and checks it (see the module docs). `symbolic` is a
+/// previous factorization of the same pattern, reused when given.
+pub fn detect(
+    k: &UpperCsc,
+    coords: &[f64],
+    dim: usize,
+    eliminated: &[usize],
+    eps: f64,
+    symbolic: Option<Arc<SymbolicCholesky<usize>>>,
+) -> Result<Regularized, DetectError> {
+    let n = k.n;
+    let mut is_elim = vec![false; n];
+    for &d in eliminated {
+        is_elim[d] = true;
     }
-
-    /// `||K^ K^+ K^ x - K^ x|| / ||K^ x||` over random `x` (free dofs only).
-    fn pinv_error(s: &Subdomain, eliminated: &[usize]) -> f64 {
-        let mut worst: f64 = 0.0;
-        for seed in 1..4 {
-            let mut x = rand_vec(s.n, seed);
-            for &d in eliminated {
-                x[d] = 0.0;
-            }
-            let mut kx = vec![0.0; s.n];
-            s.k.mul(&x, &mut kx);
-            for &d in eliminated {
-                kx[d] = 0.0;
-            }
-            let mut y = kx.clone();
-            s.apply_pinv(&mut y);
-            let mut kykx = vec![0.0; s.n];
-            s.k.mul(&y, &mut kykx);
-            for &d in eliminated {
-                kykx[d] = 0.0;
-            }
-            let diff: Vec<f64> = kykx.iter().zip(&kx).map(|(a, b)| a - b).collect();
-            worst = worst.max(norm(&diff) / norm(&kx));
+    let (kt, scaling) = scaled(k, &is_elim)?;
+    let a = SparseColMatRef::new(kt.symbolic(), &kt.values);
+    let symbolic = match symbolic {
+        Some(s) => s,
+        None => Arc::new(symbolic_amd(a.symbolic()).map_err(DetectError::NotPositive)?),
+    };
+    let mut l_values = vec![0.0; symbolic.len_val()];
+    let req = StackReq::any_of(&[
+        symbolic.factorize_numeric_ldlt_scratch::<f64>(Par::Seq, Default::default()),
+        symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+    ]);
+    let mut buf = MemBuffer::new(req);
+    // Every pivot is expected positive: one at or below eps is a zero pivot.
+    let signs = vec![1i8; n];
+    symbolic
+        .factorize_numeric_ldlt(
+            &mut l_values,
+            a,
+            Side::Upper,
+            LdltRegularization {
+                dynamic_regularization_signs: Some(&signs),
+                dynamic_regularization_delta: DELTA,
+                dynamic_regularization_epsilon: eps,
+            },
+            Par::Seq,
+            MemStack::new(&mut buf),
+            Default::default(),
+        )
+        .map_err(|e| DetectError::NotPositive(format!("{e:?}")))?;
+    let diag = factor_diagonal(&symbolic, &l_values)
+        .ok_or_else(|| DetectError::NotPositive("the factor has no diagonal".to_string()))?;
+    let forward: Vec<usize> = match symbolic.perm() {
+        Some(p) => p.arrays().0.to_vec(),
+        None => (0..n).collect(),
+    };
+    let mut zero_pivots = Vec::new();
+    let mut smallest_pivot = f64::INFINITY;
+    for (p, &d) in diag.iter().enumerate() {
+        let dof = forward[p];
+        if d == DELTA {
+            zero_pivots.push(dof);
+        } else if !is_elim[dof] {
+            smallest_pivot = smallest_pivot.min(d);
         }
-        worst
     }
-
-    #[test]
-    fn detected_kernels_match_the_free_rigid_motions() {
-        let mesh = block();
-        // floating; one node held (rotation free); the bottom held (none free)
-        let bottom: Vec<usize> = (0..4).flat_map(|i| [2 * i, 2 * i + 1]).collect();
-        for (eliminated, dim) in [(vec![], 3), (vec![0, 1], 1), (bottom, 0)] {
-            let s = Subdomain::feti(&mesh, &eliminated, 1e-10).expect("sound eps");
-            assert_eq!(s.kdim, dim, "eliminated {eliminated:?}");
-            let kmax = s.k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-            let mut y = vec![0.0; s.n];
-            for j in 0..s.kdim {
-                s.k.mul(s.r_col(j), &mut y);
-                for &d in &eliminated {
-                    y[d] = 0.0;
-                    assert_eq!(s.r_col(j)[d], 0.0);
-                }
-                assert!(norm(&y) < 1e-10 * kmax, "K r_{j} = {:e}", norm(&y));
-            }
-            let err = pinv_error(&s, &eliminated);
-            assert!(err < 1e-10, "||K K+ K x - K x|| / ||K x|| = {err:e}");
+    zero_pivots.sort_unstable();
+    // Kernel vectors r~_j = e_j - K~_reg^-1 K~ e_j, checked, then unscaled.
+    let mut r = Vec::with_capacity(zero_pivots.len() * n);
+    let mut residual: f64 = 0.0;
+    let mut e = vec![0.0; n];
+    let mut z = vec![0.0; n];
+    let mut kr = vec![0.0; n];
+    for &j in &zero_pivots {
+        e.iter_mut().for_each(|v| *v = 0.0);
+        e[j] = 1.0;
+        kt.mul(&e, &mut z);
+        ldlt_solve(&symbolic, &l_values, &mut z, &mut buf);
+        for (zi, ei) in z.iter_mut().zip(&e) {
+            *zi = ei - *zi;
         }
-    }
-
-    #[test]
-    fn large_floating_subdomains_push_zero_pivots_up_and_cost_accuracy() {
-        // The round-off of the rigid modes' pivots grows with the subdomain:
-        // eps = 1e-10, sound on 8 x 8 blocks, accepts one of them at 96 x 96.
-        let mesh = grid(96, 96, 0.0);
-        let err = Subdomain::feti(&mesh, &[], 1e-10).expect_err("a zero pivot above 1e-10");
-        assert!(err.to_string().contains("eps is too small"), "{err}");
-        // With eps above it the kernel is found, but the generalized inverse is
-        // far less accurate than TFETI's with its fixing dofs at the corners.
-        let feti = Subdomain::feti(&mesh, &[], 1e-8).expect("eps = 1e-8 finds it");
-        assert_eq!(feti.kdim, 3);
-        let tfeti = Subdomain::new(&mesh, 96).expect("factorizes");
-        let (ef, et) = (pinv_error(&feti, &[]), pinv_error(&tfeti, &[]));
-        assert!(et < 1e-13 && ef > 30.0 * et, "FETI {ef:e}, TFETI {et:e}");
-    }
-
-    #[test]
-    fn a_too_large_eps_is_reported_not_used() {
-        let mesh = block();
-        let err = Subdomain::feti(&mesh, &[], 0.5).expect_err("eps = 0.5 takes real pivots");
-        let SubdomainError::Kernel(k) = &err else {
-            panic!("{err:?}")
+        kt.mul(&z, &mut kr);
+        let norm = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        let rel = norm(&kr) / norm(&z);
+        // A vanishing vector (0/0) is no kernel vector either.
+        residual = if rel.is_nan() {
+            f64::INFINITY
+        } else {
+            residual.max(rel)
         };
-        assert!(k.detection.zero_pivots.len() > 3, "{:?}", k.detection);
-        assert!(k.detection.residual > RESIDUAL_TOLERANCE);
-        assert!(err.to_string().contains("eps is too large"), "{err}");
+        r.extend(z.iter().zip(&scaling).map(|(a, s)| a * s));
     }
-
-    #[test]
-    fn a_too_small_eps_is_reported_not_used() {
-        let mesh = block();
-        // Below round-off, a zero pivot that came out positive is accepted.
-        let mut found = None;
-        for eps in [1e-30, 1e-60, 1e-120, 1e-300] {
-            if let Err(e) = Subdomain::feti(&mesh, &[], eps) {
-                found = Some(e);
-                break;
-            }
-        }
-        let err = found.expect("some tiny eps misses a zero pivot");
-        assert!(err.to_string().contains("eps is too small"), "{err}");
+    let kdim = zero_pivots.len();
+    orthonormalize(&mut r, n, kdim);
+    let mut elim: Vec<usize> = eliminated.to_vec();
+    elim.sort_unstable();
+    elim.dedup();
+    let detection = Detection {
+        eps,
+        expected: free_rigid_motions(coords, dim, &elim),
+        eliminated: elim,
+        zero_pivots,
+        smallest_pivot,
+        residual,
+    };
+    if detection.zero_pivots.len() != detection.expected || residual > RESIDUAL_TOLERANCE {
+        return Err(DetectError::Kernel(KernelError { detection }));
     }
+    Ok(Regularized {
+        scaling,
+        symbolic,
+        l_values,
+        r,
+        detection,
+        buf,
+    })
 }

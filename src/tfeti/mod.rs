@@ -1,5 +1,24 @@
-//! Total FETI: per-subdomain operators and the dual problem.
+//! Total FETI end to end, and classical FETI beside it: per-subdomain operators
+//! behind one interface ([`subdomain`]), the subdomains this process owns and
+//! the loops over them ([`cluster`]), the coarse space and projector and `F`
+//! ([`dual`]), the dual solve ([`solve`]), the reconstruction of the primal
+//! solution ([`reconstruct`]) and its KKT check ([`kkt`]). Classical FETI
+//! ([`classical`], kernels by pivot detection in [`floating`]) is the same dual
+//! machinery with other kernels and Dirichlet dofs eliminated.
+//!
+//! Nothing here asks whether the scene is 2D or 3D: elements come from
+//! [`crate::fem::Element`], rigid modes and fixing dofs by dimension from
+//! [`kernel`].
 
+pub mod classical;
+pub mod cluster;
 pub mod dual;
+pub mod error;
 pub mod floating;
+pub mod kernel;
+pub mod kkt;
+pub mod reconstruct;
+pub mod rows;
+pub mod solve;
+pub mod sparse;
 pub mod subdomain;

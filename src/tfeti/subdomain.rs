@@ -1,71 +1,34 @@
-//! One subdomain's operators: stiffness `K_s`, a-priori kernel `R_s`, and the
-//! generalized inverse `K_s^+` by fixing exactly `dim ker K_s` dofs and a sparse
-//! Cholesky factorization (faer, AMD ordering) of the rest.
+//! One subdomain behind one interface: what it can do (apply `K_s`, `K_s^+`,
+//! give its kernel `R_s`, refactor with new values, report its sizes), nothing
+//! reached through its fields. Everything else in `tfeti/` goes through
+//! [`super::cluster::Cluster`], which owns the subdomains of this process.
 //!
-//! Every subdomain is floating in TFETI (supports are rows of `B`), so `K_s` is
-//! singular with the rigid motions as kernel. Fixing the three dofs `ux, uy` of
-//! node A and `uy` of node B (A, B the two bottom corners, `x_B != x_A`) leaves an
-//! SPD `K_rr`, and `K^+ = [K_rr^-1 0; 0 0]` is a generalized inverse
-//! (`K K^+ K = K`). Fixing more dofs would not be.
+//! TFETI: every subdomain floats (supports are rows of `B`), so `K_s` is singular
+//! with the rigid motions as kernel, known a priori ([`super::kernel`]). Fixing
+//! exactly `dim ker K_s` dofs at far-apart corners leaves an SPD `K_rr`, and
+//! `K^+ = [K_rr^-1 0; 0 0]` is a generalized inverse (`K K^+ K = K`).
+//! Classical FETI: the Dirichlet dofs are eliminated and the kernel of what is
+//! left is found numerically ([`super::floating`]).
+//!
+//! The symbolic factorization depends on the pattern only: a subdomain rebuilt
+//! at a new design (optimization, finite differences) reuses it and refactors
+//! numerically.
 //!
 //! # Reference
 //! Brzobohatý et al., *Cholesky decomposition with fixing nodes to stable
 //! computation of a generalized inverse of the stiffness matrix of a floating
 //! structure*, IJNME 2011.
 
-use crate::fem::quad::{plane_strain, quad_stiffness};
+use super::floating::{detect, DetectError, Detection, KernelError};
+use super::kernel::{fixing_dofs, rigid_modes};
+use super::sparse::{ldlt_solve, llt_solve, symbolic_amd, UpperCsc};
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
-use faer::sparse::linalg::cholesky::{
-    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
-};
-use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
-use std::sync::Mutex;
-
-/// Upper triangle of a symmetric sparse matrix in compressed columns.
-#[derive(Debug, Clone, Default)]
-pub struct UpperCsc {
-    pub n: usize,
-    pub col_ptr: Vec<usize>,
-    pub row_idx: Vec<usize>,
-    pub values: Vec<f64>,
-}
-
-impl UpperCsc {
-    /// `y = A x` for the symmetric matrix whose upper triangle this is.
-    pub fn mul(&self, x: &[f64], y: &mut [f64]) {
-        y.iter_mut().for_each(|v| *v = 0.0);
-        for c in 0..self.n {
-            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
-                let (r, v) = (self.row_idx[k], self.values[k]);
-                y[r] += v * x[c];
-                if r != c {
-                    y[c] += v * x[r];
-                }
-            }
-        }
-    }
-
-    /// The diagonal.
-    pub fn diagonal(&self) -> Vec<f64> {
-        let mut diag = vec![0.0; self.n];
-        for (c, d) in diag.iter_mut().enumerate() {
-            if let Some(p) = self.find(c, c) {
-                *d = self.values[p];
-            }
-        }
-        diag
-    }
-
-    /// Position of entry (r, c) with r <= c, if in the pattern.
-    fn find(&self, r: usize, c: usize) -> Option<usize> {
-        let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
-        rows.binary_search(&r).ok().map(|k| self.col_ptr[c] + k)
-    }
-}
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use faer::sparse::SparseColMatRef;
+use faer::{Par, Side};
+use std::sync::{Arc, Mutex};
 
 /// Why a subdomain's operators could not be built.
 #[derive(Debug, Clone, PartialEq)]
@@ -75,7 +38,7 @@ pub enum SubdomainError {
     /// `K_rr` is not positive definite (a mesh or material problem).
     NotPositive(String),
     /// Classical FETI: the pivot tolerance did not find the kernel.
-    Kernel(super::floating::KernelError),
+    Kernel(KernelError),
 }
 
 impl std::fmt::Display for SubdomainError {
@@ -93,6 +56,25 @@ impl std::fmt::Display for SubdomainError {
     }
 }
 
+impl From<DetectError> for SubdomainError {
+    fn from(e: DetectError) -> Self {
+        match e {
+            DetectError::NotPositive(s) => SubdomainError::NotPositive(s),
+            DetectError::Kernel(k) => SubdomainError::Kernel(k),
+        }
+    }
+}
+
+/// Which generalized inverse a subdomain uses.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Kind {
+    /// TFETI: kernel a priori, `K^+` by fixing dofs.
+    Total,
+    /// Classical FETI: these dofs held by Dirichlet conditions (sorted), the
+    /// kernel by pivot detection with tolerance `eps`.
+    Classical { eliminated: Vec<usize>, eps: f64 },
+}
+
 /// Work space of one subdomain's solves (one per subdomain, so that threads
 /// over subdomains never share it).
 struct Work {
@@ -104,39 +86,46 @@ struct Work {
 enum Factor {
     /// TFETI: the dofs left after fixing `fixed`, Cholesky of `K_rr`.
     Fixed {
-        fixed: [usize; 3],
+        fixed: Vec<usize>,
         /// Reduced index of each dof (`usize::MAX` for fixed ones).
         reduced: Vec<usize>,
-        symbolic: SymbolicCholesky<usize>,
+        symbolic: Arc<SymbolicCholesky<usize>>,
         l_values: Vec<f64>,
     },
     /// Classical FETI: `L D L^T` of `S K^ S` (`S` the Jacobi scaling, `K^` with
-    /// its Dirichlet dofs eliminated) with zero pivots replaced (see
-    /// [`super::floating`]).
+    /// its Dirichlet dofs eliminated) with zero pivots replaced.
     Regularized {
         scaling: Vec<f64>,
-        symbolic: SymbolicCholesky<usize>,
+        symbolic: Arc<SymbolicCholesky<usize>>,
         l_values: Vec<f64>,
     },
 }
 
+impl Factor {
+    fn symbolic(&self) -> &Arc<SymbolicCholesky<usize>> {
+        match self {
+            Factor::Fixed { symbolic, .. } | Factor::Regularized { symbolic, .. } => symbolic,
+        }
+    }
+}
+
 /// A subdomain's stiffness, kernel and generalized inverse.
 pub struct Subdomain {
-    /// Dofs (2 per node).
-    pub n: usize,
+    /// Dofs (`dim` per node).
+    n: usize,
+    dim: usize,
+    kind: Kind,
     /// The stiffness of the subdomain as meshed (Dirichlet dofs included).
-    pub k: UpperCsc,
+    k: UpperCsc,
     /// Orthonormal kernel basis, column-major `n x kdim`.
-    pub r: Vec<f64>,
-    /// Kernel dimension: 3 in TFETI; what pivot detection found in FETI.
-    pub kdim: usize,
-    /// Classical FETI only: dofs eliminated by Dirichlet conditions, sorted,
-    /// and what kernel detection saw.
-    pub feti: Option<super::floating::Detection>,
+    r: Vec<f64>,
+    kdim: usize,
+    /// Classical FETI: what kernel detection saw.
+    detection: Option<Detection>,
     factor: Factor,
+    /// Whether the symbolic factorization came from an earlier build.
+    symbolic_reused: bool,
     work: Mutex<Work>,
-    /// Nonzeros of the Cholesky factor.
-    pub factor_nnz: usize,
 }
 
 impl std::fmt::Debug for Subdomain {
@@ -148,63 +137,29 @@ impl std::fmt::Debug for Subdomain {
     }
 }
 
-/// Pattern of the upper triangle from element connectivity (2 dofs per node).
-fn pattern(nodes: usize, elements: &[[usize; 4]]) -> UpperCsc {
-    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes];
-    for e in elements {
-        for &a in e {
-            adj[a].extend_from_slice(e);
+/// Assembles `K_s` (upper triangle) from the mesh's elements.
+fn assemble(mesh: &SubdomainMesh) -> Result<UpperCsc, SubdomainError> {
+    let el = mesh.element;
+    let (dim, per) = (el.dim(), el.nodes());
+    let nd = dim * per;
+    let coords = mesh.coords.as_flattened();
+    let elements = mesh.elements.as_flattened();
+    let mut k = UpperCsc::pattern(coords.len() / dim, elements, per, dim);
+    let mut x = vec![0.0; nd];
+    for (ei, e) in elements.chunks_exact(per).enumerate() {
+        for (a, &node) in e.iter().enumerate() {
+            x[dim * a..dim * (a + 1)].copy_from_slice(&coords[dim * node..dim * (node + 1)]);
         }
-    }
-    let n = 2 * nodes;
-    let mut col_ptr = Vec::with_capacity(n + 1);
-    let mut row_idx = Vec::new();
-    col_ptr.push(0);
-    for (node, list) in adj.iter_mut().enumerate() {
-        list.sort_unstable();
-        list.dedup();
-        for comp in 0..2 {
-            let c = 2 * node + comp;
-            for &m in list.iter() {
-                for a in 0..2 {
-                    let r = 2 * m + a;
-                    if r <= c {
-                        row_idx.push(r);
-                    }
-                }
-            }
-            col_ptr.push(row_idx.len());
-        }
-    }
-    let values = vec![0.0; row_idx.len()];
-    UpperCsc {
-        n,
-        col_ptr,
-        row_idx,
-        values,
-    }
-}
-
-/// Assembles `K_s` (upper triangle).
-pub fn assemble(mesh: &SubdomainMesh) -> Result<UpperCsc, SubdomainError> {
-    let mut k = pattern(mesh.coords.len(), &mesh.elements);
-    let d = plane_strain(mesh.young, mesh.poisson);
-    for (ei, e) in mesh.elements.iter().enumerate() {
-        let x = [
-            mesh.coords[e[0]],
-            mesh.coords[e[1]],
-            mesh.coords[e[2]],
-            mesh.coords[e[3]],
-        ];
-        let ke = quad_stiffness(&x, &d, mesh.thickness)
+        let ke = el
+            .stiffness(&x, mesh.young, mesh.poisson, mesh.thickness)
             .ok_or(SubdomainError::Inverted { element: ei })?;
-        for a in 0..8 {
-            let ra = 2 * e[a / 2] + a % 2;
-            for b in 0..8 {
-                let cb = 2 * e[b / 2] + b % 2;
+        for a in 0..nd {
+            let ra = dim * e[a / dim] + a % dim;
+            for b in 0..nd {
+                let cb = dim * e[b / dim] + b % dim;
                 if ra <= cb {
                     if let Some(p) = k.find(ra, cb) {
-                        k.values[p] += ke[a][b];
+                        k.values[p] += ke[a * nd + b];
                     }
                 }
             }
@@ -213,195 +168,201 @@ pub fn assemble(mesh: &SubdomainMesh) -> Result<UpperCsc, SubdomainError> {
     Ok(k)
 }
 
-/// The rigid motions of a 2D subdomain, orthonormalized (modified Gram-Schmidt).
-pub fn kernel(coords: &[[f64; 2]]) -> Vec<f64> {
-    let n = 2 * coords.len();
-    let m = coords.len() as f64;
-    let xc = coords.iter().map(|c| c[0]).sum::<f64>() / m;
-    let yc = coords.iter().map(|c| c[1]).sum::<f64>() / m;
-    let mut r = vec![0.0; 3 * n];
-    for (i, c) in coords.iter().enumerate() {
-        r[2 * i] = 1.0;
-        r[n + 2 * i + 1] = 1.0;
-        r[2 * n + 2 * i] = -(c[1] - yc);
-        r[2 * n + 2 * i + 1] = c[0] - xc;
-    }
-    orthonormalize(&mut r, n, 3);
-    r
-}
-
-/// Modified Gram-Schmidt on the `k` columns of `r` (column-major, `n` rows).
-pub(super) fn orthonormalize(r: &mut [f64], n: usize, k: usize) {
-    for j in 0..k {
-        for i in 0..j {
-            let dot: f64 = (0..n).map(|t| r[j * n + t] * r[i * n + t]).sum();
-            for t in 0..n {
-                r[j * n + t] -= dot * r[i * n + t];
-            }
-        }
-        let norm = (0..n).map(|t| r[j * n + t].powi(2)).sum::<f64>().sqrt();
-        if norm > 0.0 {
-            for t in 0..n {
-                r[j * n + t] /= norm;
-            }
-        }
-    }
-}
-
-/// The symbolic Cholesky (AMD ordering; faer picks simplicial or supernodal) of
-/// an upper triangle.
-pub(super) fn symbolic_amd(
-    a: SymbolicSparseColMatRef<'_, usize>,
-) -> Result<SymbolicCholesky<usize>, SubdomainError> {
-    factorize_symbolic_cholesky(
-        a,
-        Side::Upper,
-        SymmetricOrdering::Amd,
-        CholeskySymbolicParams::default(),
-    )
-    .map_err(|e| SubdomainError::NotPositive(format!("symbolic factorization failed: {e:?}")))
-}
-
-/// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
-pub(super) fn ldlt_solve(
-    symbolic: &SymbolicCholesky<usize>,
-    l_values: &[f64],
-    x: &mut [f64],
-    buf: &mut MemBuffer,
-) {
-    let n = x.len();
-    let ldlt = LdltRef::<usize, f64>::new(symbolic, l_values);
-    ldlt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(x, n, 1),
-        Par::Seq,
-        MemStack::new(buf),
-    );
-}
-
-/// `x <- L^-T L^-1 x` with a faer sparse Cholesky factor.
-pub(super) fn llt_solve(
-    symbolic: &SymbolicCholesky<usize>,
-    l_values: &[f64],
-    x: &mut [f64],
-    buf: &mut MemBuffer,
-) {
-    let n = x.len();
-    let llt = LltRef::<usize, f64>::new(symbolic, l_values);
-    llt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(x, n, 1),
-        Par::Seq,
-        MemStack::new(buf),
-    );
-}
-
 impl Subdomain {
-    /// Assembles, chooses the fixed dofs and factorizes.
-    pub fn new(mesh: &SubdomainMesh, hx: usize) -> Result<Self, SubdomainError> {
-        let k = assemble(mesh)?;
-        let r = kernel(&mesh.coords);
-        // Nodes A, B: the bottom corners of the block (local 0 and hx).
-        let fixed = [0, 1, 2 * hx + 1];
-        let n = k.n;
-        let mut reduced = vec![usize::MAX; n];
-        let mut next = 0;
-        for (d, slot) in reduced.iter_mut().enumerate() {
-            if !fixed.contains(&d) {
-                *slot = next;
-                next += 1;
-            }
-        }
-        // K_rr: the upper triangle without the fixed rows and columns.
-        let nr = next;
-        let mut col_ptr = Vec::with_capacity(nr + 1);
-        let mut row_idx = Vec::with_capacity(k.row_idx.len());
-        let mut values = Vec::with_capacity(k.values.len());
-        col_ptr.push(0);
-        for c in 0..n {
-            if reduced[c] == usize::MAX {
-                continue;
-            }
-            for p in k.col_ptr[c]..k.col_ptr[c + 1] {
-                let rr = reduced[k.row_idx[p]];
-                if rr != usize::MAX {
-                    row_idx.push(rr);
-                    values.push(k.values[p]);
-                }
-            }
-            col_ptr.push(row_idx.len());
-        }
-        let sym = SymbolicSparseColMatRef::new_checked(nr, nr, &col_ptr, None, &row_idx);
-        let a = SparseColMatRef::new(sym, &values);
-        let symbolic = symbolic_amd(a.symbolic())?;
-        let mut l_values = vec![0.0; symbolic.len_val()];
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ]);
-        let mut buf = MemBuffer::new(req);
-        symbolic
-            .factorize_numeric_llt(
-                &mut l_values,
-                a,
-                Side::Upper,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut buf),
-                Default::default(),
-            )
-            .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
-        let factor_nnz = l_values.len();
-        Ok(Subdomain {
-            n,
-            k,
-            r,
-            kdim: 3,
-            feti: None,
-            factor: Factor::Fixed {
-                fixed,
-                reduced,
-                symbolic,
-                l_values,
-            },
-            work: Mutex::new(Work {
-                buf,
-                x: vec![0.0; nr],
-            }),
-            factor_nnz,
-        })
+    /// A TFETI subdomain: assembles, fixes the kernel's dofs and factorizes.
+    pub fn total(mesh: &SubdomainMesh) -> Result<Self, SubdomainError> {
+        Self::build(mesh, Kind::Total, None)
     }
 
-    /// A subdomain from parts built elsewhere (classical FETI).
-    pub(super) fn regularized(
-        k: UpperCsc,
-        r: Vec<f64>,
-        detection: super::floating::Detection,
-        scaling: Vec<f64>,
-        symbolic: SymbolicCholesky<usize>,
-        l_values: Vec<f64>,
-        buf: MemBuffer,
-    ) -> Self {
+    /// A classical FETI subdomain: `eliminated` (local dofs held by Dirichlet
+    /// conditions) removed from `K_s`, the kernel of the rest found by pivot
+    /// detection with tolerance `eps`, and checked.
+    pub fn classical(
+        mesh: &SubdomainMesh,
+        eliminated: &[usize],
+        eps: f64,
+    ) -> Result<Self, SubdomainError> {
+        let mut eliminated = eliminated.to_vec();
+        eliminated.sort_unstable();
+        eliminated.dedup();
+        Self::build(mesh, Kind::Classical { eliminated, eps }, None)
+    }
+
+    /// The same kind of subdomain on a new mesh of the same pattern (a new
+    /// design): reassembled and refactored numerically, the symbolic
+    /// factorization reused when the pattern (and the fixing dofs) did not change.
+    pub fn rebuilt(&self, mesh: &SubdomainMesh) -> Result<Self, SubdomainError> {
+        Self::build(mesh, self.kind.clone(), Some(self))
+    }
+
+    fn build(
+        mesh: &SubdomainMesh,
+        kind: Kind,
+        previous: Option<&Subdomain>,
+    ) -> Result<Self, SubdomainError> {
+        let k = assemble(mesh)?;
+        let dim = mesh.element.dim();
+        let coords = mesh.coords.as_flattened();
         let n = k.n;
-        let kdim = r.len() / n.max(1);
-        let factor_nnz = l_values.len();
-        Subdomain {
-            n,
-            k,
-            r,
-            kdim,
-            feti: Some(detection),
-            factor: Factor::Regularized {
-                scaling,
-                symbolic,
-                l_values,
-            },
-            work: Mutex::new(Work {
-                buf,
-                x: vec![0.0; n],
-            }),
-            factor_nnz,
+        let same_pattern = previous.is_some_and(|p| p.kind == kind && p.k.same_pattern(&k));
+        match &kind {
+            Kind::Total => {
+                let r = rigid_modes(coords, dim);
+                let fixed = fixing_dofs(coords, dim, &mesh.corners);
+                let old = previous
+                    .filter(|_| same_pattern)
+                    .and_then(|p| match &p.factor {
+                        Factor::Fixed {
+                            fixed: f, symbolic, ..
+                        } if *f == fixed => Some(symbolic.clone()),
+                        _ => None,
+                    });
+                let mut reduced = vec![usize::MAX; n];
+                let mut next = 0;
+                for (d, slot) in reduced.iter_mut().enumerate() {
+                    if fixed.binary_search(&d).is_err() {
+                        *slot = next;
+                        next += 1;
+                    }
+                }
+                // K_rr: the upper triangle without the fixed rows and columns.
+                let krr = k.without(&reduced, next);
+                let a = SparseColMatRef::new(krr.symbolic(), &krr.values);
+                let symbolic_reused = old.is_some();
+                let symbolic = match old {
+                    Some(s) => s,
+                    None => {
+                        Arc::new(symbolic_amd(a.symbolic()).map_err(SubdomainError::NotPositive)?)
+                    }
+                };
+                let mut l_values = vec![0.0; symbolic.len_val()];
+                let req = StackReq::any_of(&[
+                    symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+                    symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+                ]);
+                let mut buf = MemBuffer::new(req);
+                symbolic
+                    .factorize_numeric_llt(
+                        &mut l_values,
+                        a,
+                        Side::Upper,
+                        LltRegularization::default(),
+                        Par::Seq,
+                        MemStack::new(&mut buf),
+                        Default::default(),
+                    )
+                    .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
+                let kdim = r.len() / n.max(1);
+                Ok(Subdomain {
+                    n,
+                    dim,
+                    kind,
+                    k,
+                    r,
+                    kdim,
+                    detection: None,
+                    factor: Factor::Fixed {
+                        fixed,
+                        reduced,
+                        symbolic,
+                        l_values,
+                    },
+                    symbolic_reused,
+                    work: Mutex::new(Work {
+                        buf,
+                        x: vec![0.0; next],
+                    }),
+                })
+            }
+            Kind::Classical { eliminated, eps } => {
+                let old = previous
+                    .filter(|_| same_pattern)
+                    .map(|p| p.factor.symbolic().clone());
+                let symbolic_reused = old.is_some();
+                let reg = detect(&k, coords, dim, eliminated, *eps, old)?;
+                let kdim = reg.r.len() / n.max(1);
+                Ok(Subdomain {
+                    n,
+                    dim,
+                    kind: kind.clone(),
+                    k,
+                    r: reg.r,
+                    kdim,
+                    detection: Some(reg.detection),
+                    factor: Factor::Regularized {
+                        scaling: reg.scaling,
+                        symbolic: reg.symbolic,
+                        l_values: reg.l_values,
+                    },
+                    symbolic_reused,
+                    work: Mutex::new(Work {
+                        buf: reg.buf,
+                        x: vec![0.0; n],
+                    }),
+                })
+            }
         }
+    }
+
+    /// Primal dofs.
+    pub fn dofs(&self) -> usize {
+        self.n
+    }
+
+    /// Components per node.
+    pub fn dim(&self) -> usize {
+        self.dim
+    }
+
+    /// TFETI or classical FETI, with what classical FETI eliminated.
+    pub fn kind(&self) -> &Kind {
+        &self.kind
+    }
+
+    /// Kernel dimension: the rigid motions in TFETI; what pivot detection
+    /// found in FETI.
+    pub fn kernel_dim(&self) -> usize {
+        self.kdim
+    }
+
+    /// Kernel column `j` (0..kernel_dim), orthonormal.
+    pub fn kernel_column(&self, j: usize) -> &[f64] {
+        &self.r[j * self.n..(j + 1) * self.n]
+    }
+
+    /// `y = K_s x` (the stiffness as meshed, held dofs included).
+    pub fn apply_k(&self, x: &[f64], y: &mut [f64]) {
+        self.k.mul(x, y);
+    }
+
+    /// The diagonal of `K_s`.
+    pub fn diagonal(&self) -> Vec<f64> {
+        self.k.diagonal()
+    }
+
+    /// Classical FETI: what kernel detection saw.
+    pub fn detection(&self) -> Option<&Detection> {
+        self.detection.as_ref()
+    }
+
+    /// The TFETI fixing dofs (None for a classical FETI subdomain).
+    pub fn fixed(&self) -> Option<&[usize]> {
+        match &self.factor {
+            Factor::Fixed { fixed, .. } => Some(fixed),
+            Factor::Regularized { .. } => None,
+        }
+    }
+
+    /// Nonzeros of the Cholesky factor.
+    pub fn factor_nonzeros(&self) -> usize {
+        match &self.factor {
+            Factor::Fixed { l_values, .. } | Factor::Regularized { l_values, .. } => l_values.len(),
+        }
+    }
+
+    /// Whether the symbolic factorization was reused from an earlier build.
+    pub fn symbolic_reused(&self) -> bool {
+        self.symbolic_reused
     }
 
     /// `x <- K^+ x`.
@@ -443,19 +404,6 @@ impl Subdomain {
             }
         }
     }
-
-    /// The TFETI fixing dofs (None for a classical FETI subdomain).
-    pub fn fixed(&self) -> Option<[usize; 3]> {
-        match &self.factor {
-            Factor::Fixed { fixed, .. } => Some(*fixed),
-            Factor::Regularized { .. } => None,
-        }
-    }
-
-    /// Kernel column `j` (0..kdim).
-    pub fn r_col(&self, j: usize) -> &[f64] {
-        &self.r[j * self.n..(j + 1) * self.n]
-    }
 }
 
 #[cfg(test)]
@@ -485,6 +433,8 @@ pub(crate) mod tests {
         SubdomainMesh {
             body: 0,
             block: (0, 0),
+            element: crate::fem::Element::Quad4,
+            corners: vec![0, hx, n - 1, n - 1 - hx],
             grid: (0..n).collect(),
             coords,
             elements,
@@ -515,15 +465,20 @@ pub(crate) mod tests {
     #[test]
     fn kernel_is_orthonormal_and_in_the_null_space() {
         let mesh = block();
-        let s = Subdomain::new(&mesh, 3).unwrap();
+        let s = Subdomain::total(&mesh).unwrap();
         let mut y = vec![0.0; s.n];
         let kmax = s.k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for j in 0..3 {
-            s.k.mul(s.r_col(j), &mut y);
+            s.k.mul(s.kernel_column(j), &mut y);
             let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
             assert!(norm < 1e-12 * kmax, "K R_{j} = {norm}");
             for i in 0..3 {
-                let dot: f64 = s.r_col(i).iter().zip(s.r_col(j)).map(|(a, b)| a * b).sum();
+                let dot: f64 = s
+                    .kernel_column(i)
+                    .iter()
+                    .zip(s.kernel_column(j))
+                    .map(|(a, b)| a * b)
+                    .sum();
                 assert!((dot - if i == j { 1.0 } else { 0.0 }).abs() < 1e-12);
             }
         }
@@ -532,7 +487,7 @@ pub(crate) mod tests {
     #[test]
     fn fixing_dofs_gives_a_generalized_inverse() {
         let mesh = block();
-        let s = Subdomain::new(&mesh, 3).unwrap();
+        let s = Subdomain::total(&mesh).unwrap();
         for seed in 1..4 {
             let x = rand_vec(s.n, seed);
             let mut kx = vec![0.0; s.n];
@@ -554,5 +509,103 @@ pub(crate) mod tests {
                 err / norm
             );
         }
+    }
+
+    // Classical FETI subdomains (kernel by pivot detection).
+
+    fn norm(v: &[f64]) -> f64 {
+        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    }
+
+    /// `||K^ K^+ K^ x - K^ x|| / ||K^ x||` over random `x` (free dofs only).
+    fn pinv_error(s: &Subdomain, eliminated: &[usize]) -> f64 {
+        let mut worst: f64 = 0.0;
+        for seed in 1..4 {
+            let mut x = rand_vec(s.n, seed);
+            for &d in eliminated {
+                x[d] = 0.0;
+            }
+            let mut kx = vec![0.0; s.n];
+            s.k.mul(&x, &mut kx);
+            for &d in eliminated {
+                kx[d] = 0.0;
+            }
+            let mut y = kx.clone();
+            s.apply_pinv(&mut y);
+            let mut kykx = vec![0.0; s.n];
+            s.k.mul(&y, &mut kykx);
+            for &d in eliminated {
+                kykx[d] = 0.0;
+            }
+            let diff: Vec<f64> = kykx.iter().zip(&kx).map(|(a, b)| a - b).collect();
+            worst = worst.max(norm(&diff) / norm(&kx));
+        }
+        worst
+    }
+
+    #[test]
+    fn detected_kernels_match_the_free_rigid_motions() {
+        let mesh = block();
+        // floating; one node held (rotation free); the bottom held (none free)
+        let bottom: Vec<usize> = (0..4).flat_map(|i| [2 * i, 2 * i + 1]).collect();
+        for (eliminated, dim) in [(vec![], 3), (vec![0, 1], 1), (bottom, 0)] {
+            let s = Subdomain::classical(&mesh, &eliminated, 1e-10).expect("sound eps");
+            assert_eq!(s.kdim, dim, "eliminated {eliminated:?}");
+            let kmax = s.k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let mut y = vec![0.0; s.n];
+            for j in 0..s.kdim {
+                s.k.mul(s.kernel_column(j), &mut y);
+                for &d in &eliminated {
+                    y[d] = 0.0;
+                    assert_eq!(s.kernel_column(j)[d], 0.0);
+                }
+                assert!(norm(&y) < 1e-10 * kmax, "K r_{j} = {:e}", norm(&y));
+            }
+            let err = pinv_error(&s, &eliminated);
+            assert!(err < 1e-10, "||K K+ K x - K x|| / ||K x|| = {err:e}");
+        }
+    }
+
+    #[test]
+    fn large_floating_subdomains_push_zero_pivots_up_and_cost_accuracy() {
+        // The round-off of the rigid modes' pivots grows with the subdomain:
+        // eps = 1e-10, sound on 8 x 8 blocks, accepts one of them at 96 x 96.
+        let mesh = grid(96, 96, 0.0);
+        let err = Subdomain::classical(&mesh, &[], 1e-10).expect_err("a zero pivot above 1e-10");
+        assert!(err.to_string().contains("eps is too small"), "{err}");
+        // With eps above it the kernel is found, but the generalized inverse is
+        // far less accurate than TFETI's with its fixing dofs at the corners.
+        let feti = Subdomain::classical(&mesh, &[], 1e-8).expect("eps = 1e-8 finds it");
+        assert_eq!(feti.kdim, 3);
+        let tfeti = Subdomain::total(&mesh).expect("factorizes");
+        let (ef, et) = (pinv_error(&feti, &[]), pinv_error(&tfeti, &[]));
+        assert!(et < 1e-13 && ef > 30.0 * et, "FETI {ef:e}, TFETI {et:e}");
+    }
+
+    #[test]
+    fn a_too_large_eps_is_reported_not_used() {
+        let mesh = block();
+        let err = Subdomain::classical(&mesh, &[], 0.5).expect_err("eps = 0.5 takes real pivots");
+        let SubdomainError::Kernel(k) = &err else {
+            panic!("{err:?}")
+        };
+        assert!(k.detection.zero_pivots.len() > 3, "{:?}", k.detection);
+        assert!(k.detection.residual > crate::tfeti::floating::RESIDUAL_TOLERANCE);
+        assert!(err.to_string().contains("eps is too large"), "{err}");
+    }
+
+    #[test]
+    fn a_too_small_eps_is_reported_not_used() {
+        let mesh = block();
+        // Below round-off, a zero pivot that came out positive is accepted.
+        let mut found = None;
+        for eps in [1e-30, 1e-60, 1e-120, 1e-300] {
+            if let Err(e) = Subdomain::classical(&mesh, &[], eps) {
+                found = Some(e);
+                break;
+            }
+        }
+        let err = found.expect("some tiny eps misses a zero pivot");
+        assert!(err.to_string().contains("eps is too small"), "{err}");
     }
 }

@@ -11,15 +11,16 @@
 //! at the held dofs, so a FETI state reports the same `lambda` as TFETI.
 //!
 //! The dual problem is then solved by the same code as TFETI's
-//! ([`crate::state::dual_solve_from`]) on fewer multipliers, with the kernels that
-//! pivot detection found. [`DualSystem`] hides which of the two a caller has.
+//! ([`super::solve::dual_solve_from`]) on fewer multipliers, with the kernels
+//! that pivot detection found. [`DualSystem`] hides which of the two a caller has.
 
+use super::cluster::Cluster;
+use super::dual::Dual;
+use super::error::{CoarseError, SolveError};
+use super::rows::LocalRows;
+use super::solve::{dual_solve_from, DualSolution};
 use crate::model::{Problem, Row, RowKind};
 use crate::qp::{QpInfo, SmalbeSettings};
-use crate::state::{dual_solve_from, DualSolution, SolveError};
-use crate::tfeti::dual::{CoarseError, Dual, LocalRows};
-use crate::tfeti::subdomain::Subdomain;
-use std::sync::atomic::Ordering;
 use std::sync::Arc;
 
 /// The dofs held by Dirichlet conditions, per subdomain, with their values.
@@ -159,22 +160,27 @@ pub enum DualSystem {
 
 impl DualSystem {
     /// The dual of `rows` (equalities first, `n_equality` of them) on the
-    /// subdomains `subs`; classical FETI when `elim` is given.
+    /// subdomains of `cluster` (whose own rows are ignored); classical FETI when
+    /// `elim` is given.
     pub fn new(
-        subs: Vec<Arc<Subdomain>>,
+        cluster: &Cluster,
         rows: &[&Row],
         n_equality: usize,
         elim: Option<Arc<Elimination>>,
     ) -> Result<Self, CoarseError> {
         match elim {
             None => {
-                let local =
-                    LocalRows::split(subs.len(), rows.iter().map(|r| r.entries.iter().copied()));
-                Ok(DualSystem::Total(Dual::new(subs, local, rows.len())?))
+                let local = LocalRows::split(
+                    cluster.len(),
+                    rows.iter().map(|r| r.entries.iter().copied()),
+                );
+                Ok(DualSystem::Total(Dual::new(
+                    cluster.with_local_rows(local, rows.len()),
+                )?))
             }
             Some(elim) => {
                 let (reduced, local) = reduce(&elim, rows, n_equality);
-                let dual = Dual::new(subs, local, reduced.kept.len())?;
+                let dual = Dual::new(cluster.with_local_rows(local, reduced.kept.len()))?;
                 Ok(DualSystem::Classical {
                     dual,
                     elim,
@@ -195,19 +201,19 @@ impl DualSystem {
     /// Positions (in the rows given) of the rows in the dual problem solved.
     pub fn kept_rows(&self) -> Vec<usize> {
         match self {
-            DualSystem::Total(d) => (0..d.m).collect(),
+            DualSystem::Total(d) => (0..d.multipliers()).collect(),
             DualSystem::Classical { reduced, .. } => reduced.kept.clone(),
         }
     }
 
     /// Multipliers of the dual problem solved (FETI: without eliminated rows).
     pub fn multipliers(&self) -> usize {
-        self.dual().m
+        self.dual().multipliers()
     }
 
     /// Applications of `F` so far.
     pub fn f_applications(&self) -> usize {
-        self.dual().f_applications.load(Ordering::Relaxed)
+        self.dual().f_applications()
     }
 
     /// Solves `min 1/2 u^T K u - f^T u` s.t. the rows (`B u = c` for the
@@ -254,23 +260,19 @@ impl DualSystem {
             }
         }
         let c_hat: Vec<f64> = reduced.kept.iter().map(|&i| shifted(i)).collect();
-        let f_hat: Vec<Vec<f64>> = dual
-            .subs
-            .iter()
-            .enumerate()
-            .map(|(s, sub)| {
-                let gv: Vec<f64> = (0..sub.n).map(|d| g(s, d).unwrap_or(0.0)).collect();
-                let mut kg = vec![0.0; sub.n];
-                sub.k.mul(&gv, &mut kg);
-                let diag = sub.k.diagonal();
-                (0..sub.n)
-                    .map(|d| match g(s, d) {
-                        Some(v) => diag[d] * v,
-                        None => f[s][d] - kg[d],
-                    })
-                    .collect()
-            })
-            .collect();
+        let f_hat: Vec<Vec<f64>> = dual.cluster().map(|s, sub| {
+            let n = sub.dofs();
+            let gv: Vec<f64> = (0..n).map(|d| g(s, d).unwrap_or(0.0)).collect();
+            let mut kg = vec![0.0; n];
+            sub.apply_k(&gv, &mut kg);
+            let diag = sub.diagonal();
+            (0..n)
+                .map(|d| match g(s, d) {
+                    Some(v) => diag[d] * v,
+                    None => f[s][d] - kg[d],
+                })
+                .collect()
+        });
         let f_ref: Vec<&[f64]> = f_hat.iter().map(Vec::as_slice).collect();
         let start_hat: Option<Vec<f64>> =
             start.map(|l| reduced.kept.iter().map(|&i| l[i]).collect());
@@ -315,14 +317,11 @@ fn recover(
     }
     // Residual at every dof: f - K u - B_kept^T lambda.
     let mut res: Vec<Vec<f64>> = dual
-        .subs
+        .cluster()
+        .apply_k(u)
         .iter()
         .enumerate()
-        .map(|(s, sub)| {
-            let mut ku = vec![0.0; sub.n];
-            sub.k.mul(&u[s], &mut ku);
-            f[s].iter().zip(&ku).map(|(a, b)| a - b).collect()
-        })
+        .map(|(s, ku)| f[s].iter().zip(ku).map(|(a, b)| a - b).collect())
         .collect();
     for (i, row) in rows.iter().enumerate() {
         if !is_recovered[i] {

@@ -1,0 +1,87 @@
+//! What can go wrong in a TFETI or classical FETI solve, with the cause in
+//! terms a user can act on (the driver names bodies and modes).
+
+use super::subdomain::SubdomainError;
+use crate::model::LowerError;
+use std::fmt;
+
+/// Why the coarse problem cannot be set up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CoarseError {
+    /// (subdomain, mode) of the rigid motions that no row of `B` holds (in 2D
+    /// mode 0 = x translation, 1 = y translation, 2 = rotation).
+    pub free_modes: Vec<(usize, usize)>,
+}
+
+/// Why a state solve could not run or finish.
+#[derive(Debug, Clone, PartialEq)]
+pub enum SolveError {
+    /// A setting the solver does not implement yet (never silently ignored).
+    Unsupported(String),
+    Lower(LowerError),
+    Subdomain {
+        body: String,
+        block: (usize, usize),
+        error: SubdomainError,
+    },
+    /// Rigid motions that no support, glue or contact holds.
+    FreeRigidModes(Vec<String>),
+    /// The multipliers do not determine the rigid motions of some subdomain.
+    Reconstruction(String),
+    /// Constraints that contradict each other (no displacement satisfies them).
+    Infeasible(String),
+    /// Rigid motions (subdomain, kernel mode) that no support or active contact
+    /// determines: the state is not unique.
+    Undetermined {
+        modes: Vec<(usize, usize)>,
+        /// How the dual solve stopped, when it did not converge.
+        stopped: Option<String>,
+    },
+    /// A body's load points where nothing can hold it (contacts only push).
+    Unbalanced {
+        body: String,
+        load: [f64; 2],
+        why: String,
+    },
+}
+
+impl fmt::Display for SolveError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SolveError::Unsupported(s) => write!(f, "{s}"),
+            SolveError::Lower(e) => write!(f, "{e}"),
+            SolveError::Subdomain { body, block, error } => {
+                write!(f, "subdomain ({}, {}) of body `{body}`: {error}", block.0, block.1)
+            }
+            SolveError::FreeRigidModes(m) => write!(
+                f,
+                "the scene does not hold every rigid motion: {}; add a support, a glue or a contact that acts in that direction",
+                m.join("; ")
+            ),
+            SolveError::Reconstruction(s) | SolveError::Infeasible(s) => write!(f, "{s}"),
+            SolveError::Undetermined { modes, stopped } => {
+                let n = if modes.is_empty() {
+                    "some".to_string()
+                } else {
+                    modes.len().to_string()
+                };
+                write!(
+                    f,
+                    "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
+                )?;
+                if let Some(why) = stopped {
+                    write!(f, "; the dual solve stopped before converging ({why})")?;
+                }
+                Ok(())
+            }
+            SolveError::Unbalanced { body, load, why } => write!(
+                f,
+                "the load on body `{body}`, ({}, {}) N in all, cannot be carried: {why}",
+                crate::lang::diag::num(load[0]),
+                crate::lang::diag::num(load[1])
+            ),
+        }
+    }
+}
+
+impl std::error::Error for SolveError {}

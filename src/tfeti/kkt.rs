@@ -1,0 +1,87 @@
+//! The KKT conditions of the primal problem checked at the reconstructed
+//! `(u, l)`: equilibrium, equalities, penetration, sign, complementarity, each
+//! relative to a natural scale. A converged dual solve that fails them is a bug
+//! or a scene the dual cannot represent, and the report shows it.
+
+use super::dual::Dual;
+use crate::model::{Problem, RowKind};
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// KKT residuals in primal terms, each relative to a natural scale.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Kkt {
+    /// `||K u - f + B^T l|| / max(||f||, ||B^T l||)`.
+    pub equilibrium: f64,
+    /// `||B_E u - c_E|| / max(||c||, h ||u||)`: gluing, supports, ties.
+    pub equality: f64,
+    /// Largest penetration `max(B_I u - c_I, 0)`, relative like `equality`.
+    pub penetration: f64,
+    /// Largest negative contact multiplier, relative to `max |l|`.
+    pub sign: f64,
+    /// `max |l_i (B_i u - c_i)|` over contact rows, relative to `max |l| * scale`.
+    pub complementarity: f64,
+}
+
+impl Kkt {
+    pub fn worst(&self) -> f64 {
+        [
+            self.equilibrium,
+            self.equality,
+            self.penetration,
+            self.sign,
+            self.complementarity,
+        ]
+        .into_iter()
+        .fold(0.0, f64::max)
+    }
+}
+
+/// KKT residuals of the primal problem at `(u, l)`.
+pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
+    let cluster = dual.cluster();
+    let ku = cluster.apply_k(u);
+    let btl = cluster.apply_bt(lambda);
+    let mut eq_res = 0.0;
+    let (mut f2, mut bt2, mut u2) = (0.0, 0.0, 0.0);
+    for s in 0..cluster.len() {
+        let (ku, btl) = (&ku[s], &btl[s]);
+        let f = &problem.subdomains[s].f;
+        for i in 0..cluster.dofs(s) {
+            eq_res += (ku[i] - f[i] + btl[i]).powi(2);
+            f2 += f[i] * f[i];
+            bt2 += btl[i] * btl[i];
+            u2 += u[s][i] * u[s][i];
+        }
+    }
+    let bu = cluster.apply_b(u);
+    let c_norm = norm(&problem.rows.iter().map(|r| r.c).collect::<Vec<_>>());
+    let scale_u = c_norm
+        .max(1e-3 * u2.sqrt() / (problem.primal_dofs() as f64).sqrt())
+        .max(f64::MIN_POSITIVE);
+    let lmax = lambda
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(f64::MIN_POSITIVE);
+    let mut k = Kkt {
+        equilibrium: eq_res.sqrt() / f2.sqrt().max(bt2.sqrt()).max(f64::MIN_POSITIVE),
+        ..Kkt::default()
+    };
+    let mut eq2 = 0.0;
+    for (i, row) in problem.rows.iter().enumerate() {
+        let gap = bu[i] - row.c;
+        if matches!(row.kind, RowKind::Contact { .. }) {
+            k.penetration = k.penetration.max(gap.max(0.0) / scale_u);
+            k.sign = k.sign.max((-lambda[i]).max(0.0) / lmax);
+            k.complementarity = k
+                .complementarity
+                .max((lambda[i] * gap).abs() / (lmax * scale_u));
+        } else {
+            eq2 += gap * gap;
+        }
+    }
+    k.equality = eq2.sqrt() / scale_u;
+    k
+}

@@ -1,0 +1,190 @@
+//! The dual solve: `min 1/2 l^T F l - l^T d` s.t. `l_I >= 0`, `G l = e`,
+//! homogenized with `l~ = G~^T e~` (G~ orthonormal rows), solved for
+//! `l^ = l - l~` with Hessian `P F P`, linear term `P (d - F l~)`, bounds
+//! `l^_I >= -l~_I`: by SMALBE + MPRGP with inequalities, by projected CG
+//! (SMALE) with equalities only; then the primal solution is reconstructed.
+//!
+//! ```text
+//! F = B K^+ B^T,  d = B K^+ f - c,  G = R^T B^T,  e = R^T f
+//! ```
+
+use super::dual::{Dual, Orthonormal, ProjectedF};
+use super::error::SolveError;
+use super::reconstruct::reconstruct;
+use crate::qp::{estimate_norm, smalbe, QpInfo, SmalbeSettings, Status};
+
+fn norm(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+}
+
+/// A solved dual problem and the primal solution reconstructed from it.
+pub struct DualSolution {
+    pub lambda: Vec<f64>,
+    pub u: Vec<Vec<f64>>,
+    pub alpha: Vec<f64>,
+    pub info: QpInfo,
+    /// `||b||` of the scaled homogenized problem.
+    pub b_norm: f64,
+}
+
+/// Solves `min 1/2 u^T K u - f^T u` s.t. `B_i u = c_i` (rows `i < n_equality`),
+/// `B_i u <= c_i` (the rest) on the operators of `dual`, by SMALBE on the
+/// homogenized, projected and scaled dual, from an initial guess of the
+/// multipliers if given (a warm start); then reconstructs `u`. The state solve
+/// and the sensitivity problems (all rows equalities: SMALE) share it, and with
+/// it the subdomains' factorizations; [`super::classical::DualSystem`] calls it for
+/// both TFETI and classical FETI.
+pub fn dual_solve_from(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    start: Option<&[f64]>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<DualSolution, SolveError> {
+    let m = dual.multipliers();
+    // d = B K^+ f - c, e = R^T f
+    let (mut d, e) = dual.cluster().loads(f);
+    for (di, ci) in d.iter_mut().zip(c) {
+        *di -= ci;
+    }
+    // l~ = G~^T e~ with e~ = L^-1 e.
+    let mut et = e.clone();
+    dual.solve_l(&mut et);
+    let g = Orthonormal(dual);
+    let mut l_tilde = vec![0.0; m];
+    crate::qp::Equality::apply_t(&g, &et, &mut l_tilde);
+    let mut fl = vec![0.0; m];
+    dual.apply_f(&l_tilde, &mut fl);
+    let mut b: Vec<f64> = d.iter().zip(&fl).map(|(a, b)| a - b).collect();
+    dual.project(&mut b);
+    let lower_bounds: Vec<f64> = (0..m)
+        .map(|i| {
+            if i < n_equality {
+                f64::NEG_INFINITY
+            } else {
+                -l_tilde[i]
+            }
+        })
+        .collect();
+    if n_equality == m {
+        // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
+        // Im P = ker G~, so the constraint holds without an outer loop.
+        let (lhat, info) = projected_cg(dual, &b, settings);
+        let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
+        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
+        return Ok(DualSolution {
+            lambda,
+            u,
+            alpha,
+            info,
+            b_norm: norm(&b),
+        });
+    }
+    // ||P F P|| by power iteration from a deterministic start; the dual problem
+    // is solved scaled by it (same minimizer, dimensionless residuals).
+    let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+    dual.project(&mut v);
+    let mut w = vec![0.0; m];
+    let (pfp, _) = estimate_norm(&ProjectedF::new(dual, 1.0), &mut v, &mut w, 10);
+    let scale = if pfp > 0.0 && pfp.is_finite() {
+        1.0 / pfp
+    } else {
+        1.0
+    };
+    let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
+    // The start, homogenized and projected (SMALBE puts it on the bounds).
+    let mut lhat = match start {
+        Some(l0) if l0.len() == m => {
+            let mut x: Vec<f64> = l0.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
+            dual.project(&mut x);
+            x
+        }
+        _ => vec![0.0; m],
+    };
+    let info = smalbe(
+        &ProjectedF::new(dual, scale),
+        &b,
+        &lower_bounds,
+        &g,
+        &mut lhat,
+        settings,
+        observer,
+    );
+    let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
+
+    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d).map_err(|e| match e {
+        SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
+            SolveError::Undetermined {
+                modes,
+                stopped: Some(format!("{:?}", info.status)),
+            }
+        }
+        e => e,
+    })?;
+    Ok(DualSolution {
+        lambda,
+        u,
+        alpha,
+        info,
+        b_norm: norm(&b),
+    })
+}
+
+/// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`.
+///
+/// # Reference
+/// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
+/// exact in Im P, so plain CG is the inner solver and no outer loop is needed).
+fn projected_cg(dual: &Dual, b: &[f64], settings: &SmalbeSettings) -> (Vec<f64>, QpInfo) {
+    let m = b.len();
+    let a = ProjectedF::new(dual, 1.0);
+    let bnorm = norm(b);
+    let mut x = vec![0.0; m];
+    let mut info = QpInfo {
+        status: Status::Converged,
+        outer_iterations: 0,
+        inner_iterations: 0,
+        hessian_applications: 0,
+        projected_gradient: 0.0,
+        feasibility: 0.0,
+        history: Vec::new(),
+        norm_estimate: f64::NAN,
+    };
+    if bnorm == 0.0 {
+        return (x, info);
+    }
+    let mut r = b.to_vec();
+    let mut p = r.clone();
+    let mut ap = vec![0.0; m];
+    let mut rr: f64 = r.iter().map(|v| v * v).sum();
+    while rr.sqrt() > settings.tolerance * bnorm {
+        if info.hessian_applications >= settings.max_hessian {
+            info.status = Status::MaxIterations;
+            break;
+        }
+        crate::qp::Operator::apply(&a, &p, &mut ap);
+        info.hessian_applications += 1;
+        info.inner_iterations += 1;
+        let pap: f64 = p.iter().zip(&ap).map(|(x, y)| x * y).sum();
+        if pap <= 0.0 || !pap.is_finite() {
+            info.status = Status::Breakdown(format!("p^T A p = {pap:e} in projected CG"));
+            break;
+        }
+        let alpha = rr / pap;
+        for k in 0..m {
+            x[k] += alpha * p[k];
+            r[k] -= alpha * ap[k];
+        }
+        let rr_new: f64 = r.iter().map(|v| v * v).sum();
+        let beta = rr_new / rr;
+        rr = rr_new;
+        for k in 0..m {
+            p[k] = r[k] + beta * p[k];
+        }
+        info.history.push(rr.sqrt() / bnorm);
+    }
+    info.projected_gradient = rr.sqrt();
+    (x, info)
+}

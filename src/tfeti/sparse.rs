@@ -1,0 +1,184 @@
+//! Sparse storage of a subdomain's stiffness and the faer sparse Cholesky calls
+//! that TFETI and classical FETI share: the symbolic factorization (once per
+//! pattern) and the solves with a numeric factor.
+
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
+    SymmetricOrdering,
+};
+use faer::sparse::SymbolicSparseColMatRef;
+use faer::{Conj, MatMut, Par, Side};
+
+/// Upper triangle of a symmetric sparse matrix in compressed columns.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct UpperCsc {
+    pub n: usize,
+    pub col_ptr: Vec<usize>,
+    pub row_idx: Vec<usize>,
+    pub values: Vec<f64>,
+}
+
+impl UpperCsc {
+    /// The pattern of a stiffness matrix from element connectivity: `elements`
+    /// is flat, `per_element` nodes each, `dim` dofs per node (interleaved).
+    pub fn pattern(nodes: usize, elements: &[usize], per_element: usize, dim: usize) -> UpperCsc {
+        let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes];
+        for e in elements.chunks_exact(per_element) {
+            for &a in e {
+                adj[a].extend_from_slice(e);
+            }
+        }
+        let n = dim * nodes;
+        let mut col_ptr = Vec::with_capacity(n + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0);
+        for (node, list) in adj.iter_mut().enumerate() {
+            list.sort_unstable();
+            list.dedup();
+            for comp in 0..dim {
+                let c = dim * node + comp;
+                for &m in list.iter() {
+                    for a in 0..dim {
+                        let r = dim * m + a;
+                        if r <= c {
+                            row_idx.push(r);
+                        }
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let values = vec![0.0; row_idx.len()];
+        UpperCsc {
+            n,
+            col_ptr,
+            row_idx,
+            values,
+        }
+    }
+
+    /// `y = A x` for the symmetric matrix whose upper triangle this is.
+    pub fn mul(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let (r, v) = (self.row_idx[k], self.values[k]);
+                y[r] += v * x[c];
+                if r != c {
+                    y[c] += v * x[r];
+                }
+            }
+        }
+    }
+
+    /// The diagonal.
+    pub fn diagonal(&self) -> Vec<f64> {
+        let mut diag = vec![0.0; self.n];
+        for (c, d) in diag.iter_mut().enumerate() {
+            if let Some(p) = self.find(c, c) {
+                *d = self.values[p];
+            }
+        }
+        diag
+    }
+
+    /// Position of entry (r, c) with r <= c, if in the pattern.
+    pub fn find(&self, r: usize, c: usize) -> Option<usize> {
+        let rows = &self.row_idx[self.col_ptr[c]..self.col_ptr[c + 1]];
+        rows.binary_search(&r).ok().map(|k| self.col_ptr[c] + k)
+    }
+
+    /// Largest absolute entry.
+    pub fn max_abs(&self) -> f64 {
+        self.values.iter().fold(0.0f64, |m, v| m.max(v.abs()))
+    }
+
+    /// Whether two matrices have the same sparsity pattern (then one symbolic
+    /// factorization serves both).
+    pub fn same_pattern(&self, other: &UpperCsc) -> bool {
+        self.n == other.n && self.col_ptr == other.col_ptr && self.row_idx == other.row_idx
+    }
+
+    /// The principal submatrix without the rows and columns whose `reduced`
+    /// index is `usize::MAX` (`reduced` numbers the kept ones).
+    pub fn without(&self, reduced: &[usize], kept: usize) -> UpperCsc {
+        let mut col_ptr = Vec::with_capacity(kept + 1);
+        let mut row_idx = Vec::with_capacity(self.row_idx.len());
+        let mut values = Vec::with_capacity(self.values.len());
+        col_ptr.push(0);
+        for c in 0..self.n {
+            if reduced[c] == usize::MAX {
+                continue;
+            }
+            for p in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let rr = reduced[self.row_idx[p]];
+                if rr != usize::MAX {
+                    row_idx.push(rr);
+                    values.push(self.values[p]);
+                }
+            }
+            col_ptr.push(row_idx.len());
+        }
+        UpperCsc {
+            n: kept,
+            col_ptr,
+            row_idx,
+            values,
+        }
+    }
+
+    /// faer's view of the pattern.
+    pub fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
+        // The pattern is built sorted and in bounds by construction.
+        SymbolicSparseColMatRef::new_checked(self.n, self.n, &self.col_ptr, None, &self.row_idx)
+    }
+}
+
+/// The symbolic Cholesky (AMD ordering; faer picks simplicial or supernodal) of
+/// an upper triangle.
+pub fn symbolic_amd(
+    a: SymbolicSparseColMatRef<'_, usize>,
+) -> Result<SymbolicCholesky<usize>, String> {
+    factorize_symbolic_cholesky(
+        a,
+        Side::Upper,
+        SymmetricOrdering::Amd,
+        CholeskySymbolicParams::default(),
+    )
+    .map_err(|e| format!("symbolic factorization failed: {e:?}"))
+}
+
+/// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
+pub fn ldlt_solve(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    buf: &mut MemBuffer,
+) {
+    let n = x.len();
+    let ldlt = LdltRef::<usize, f64>::new(symbolic, l_values);
+    ldlt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, 1),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}
+
+/// `x <- L^-T L^-1 x` with a faer sparse Cholesky factor.
+pub fn llt_solve(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    buf: &mut MemBuffer,
+) {
+    let n = x.len();
+    let llt = LltRef::<usize, f64>::new(symbolic, l_values);
+    llt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, 1),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}
