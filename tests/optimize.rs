@@ -135,6 +135,22 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
             .collect::<Vec<_>>()
     );
     assert!(a.history.iter().all(|h| h.reused_factorizations == 0));
+    // Cold: every subdomain factorized from scratch. Partial: the 4 punch
+    // subdomains refactor numerically on their first symbolic factorization.
+    assert!(a
+        .history
+        .iter()
+        .all(|h| (h.symbolic_factorizations, h.numeric_factorizations) == (16, 16)));
+    assert!(
+        b.history[1..]
+            .iter()
+            .all(|h| (h.symbolic_factorizations, h.numeric_factorizations) == (0, 4)),
+        "{:?}",
+        b.history
+            .iter()
+            .map(|h| (h.symbolic_factorizations, h.numeric_factorizations))
+            .collect::<Vec<_>>()
+    );
     // A warm start reaches the same designs to the solver's tolerance.
     let c = optimize_with(&s, Reuse::default(), &mut |_, _| true).expect("runs");
     let (xa, xc) = (

@@ -46,6 +46,10 @@ pub struct Iterate {
     pub seconds: f64,
     /// Subdomain factorizations reused from the previous design.
     pub reused_factorizations: usize,
+    /// Subdomains factorized symbolically (a new pattern) and numerically at
+    /// this design; a moved subdomain refactors on its symbolic factorization.
+    pub symbolic_factorizations: usize,
+    pub numeric_factorizations: usize,
     pub warm_started: bool,
 }
 
@@ -251,9 +255,11 @@ pub fn optimize_with(
         // The KKT residual with this iterate's multipliers (of the subproblem at x).
         let kkt_now =
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
-        let (reused, warm) = (state.factorizations.reused, state.warm_started);
+        let (counts, warm) = (state.factorizations, state.warm_started);
         let it = Iterate {
-            reused_factorizations: reused,
+            reused_factorizations: counts.reused,
+            symbolic_factorizations: counts.symbolic,
+            numeric_factorizations: counts.numeric,
             warm_started: warm,
             iteration: k,
             design: x.clone(),

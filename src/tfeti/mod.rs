@@ -22,3 +22,6 @@ pub mod rows;
 pub mod solve;
 pub mod sparse;
 pub mod subdomain;
+
+#[cfg(test)]
+mod tests;

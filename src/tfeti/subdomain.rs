@@ -608,4 +608,40 @@ pub(crate) mod tests {
         let err = found.expect("some tiny eps misses a zero pivot");
         assert!(err.to_string().contains("eps is too small"), "{err}");
     }
+
+    #[test]
+    fn a_rebuilt_subdomain_refactors_on_the_same_symbolic_factorization() {
+        let (before, after) = (grid(3, 2, 0.0), grid(3, 2, 0.1));
+        for classical in [false, true] {
+            let build = |m: &SubdomainMesh| {
+                if classical {
+                    Subdomain::classical(m, &[0, 1], 1e-10)
+                } else {
+                    Subdomain::total(m)
+                }
+            };
+            let old = build(&before).expect("factorizes");
+            let rebuilt = old.rebuilt(&after).expect("refactorizes");
+            let fresh = build(&after).expect("factorizes");
+            assert!(!old.symbolic_reused() && rebuilt.symbolic_reused());
+            assert_eq!(rebuilt.kind(), fresh.kind());
+            // The new values are used: K^+ is the new mesh's, not the old one's.
+            for seed in 1..3 {
+                let x = rand_vec(fresh.dofs(), seed);
+                let (mut a, mut b, mut c) = (x.clone(), x.clone(), x);
+                rebuilt.apply_pinv(&mut a);
+                fresh.apply_pinv(&mut b);
+                old.apply_pinv(&mut c);
+                let scale = b.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                let diff = |p: &[f64]| {
+                    p.iter()
+                        .zip(&b)
+                        .map(|(u, v)| (u - v).abs())
+                        .fold(0.0, f64::max)
+                };
+                assert!(diff(&a) <= 1e-14 * scale, "classical {classical}");
+                assert!(diff(&c) > 1e-6 * scale, "classical {classical}");
+            }
+        }
+    }
 }

@@ -1,0 +1,241 @@
+//! The dual operators and the dual solve checked against dense linear algebra
+//! of the same small problem: two subdomains glued along a side, one held at
+//! its left side. Nothing here goes through the sparse factor twice: the
+//! references are built from `K` alone (faer dense).
+
+use super::cluster::Cluster;
+use super::dual::Dual;
+use super::rows::LocalRows;
+use super::solve::dual_solve_from;
+use super::subdomain::tests::{grid, rand_vec};
+use super::subdomain::Subdomain;
+use crate::qp::SmalbeSettings;
+use faer::linalg::solvers::DenseSolveCore;
+use faer::prelude::*;
+use faer::Mat;
+use std::sync::Arc;
+
+/// Two 2 x 2 element blocks side by side (the second shifted by 1 in x): rows
+/// glue the second's left nodes to the first's right nodes and hold the first's
+/// left nodes. Returns the cluster and the rows (entries, rhs).
+fn glued_pair() -> (Cluster, Vec<Vec<(usize, usize, f64)>>, Vec<f64>) {
+    let a = grid(2, 2, 0.0);
+    let mut b = grid(2, 2, 0.0);
+    for c in &mut b.coords {
+        c[0] += 1.0;
+    }
+    let subs = vec![
+        Arc::new(Subdomain::total(&a).expect("factorizes")),
+        Arc::new(Subdomain::total(&b).expect("factorizes")),
+    ];
+    let mut rows = Vec::new();
+    let mut c = Vec::new();
+    for j in 0..3 {
+        let (left, right) = (3 * j, 3 * j + 2);
+        for comp in 0..2 {
+            rows.push(vec![(0, 2 * right + comp, 1.0), (1, 2 * left + comp, -1.0)]);
+            c.push(0.0);
+            rows.push(vec![(0, 2 * left + comp, 1.0)]);
+            c.push(if comp == 0 { 1e-3 * j as f64 } else { 0.0 });
+        }
+    }
+    let m = rows.len();
+    let local = LocalRows::split(2, rows.clone());
+    (Cluster::new(subs, local, m), rows, c)
+}
+
+/// Dense `K_s` from products with unit vectors.
+fn dense_k(sub: &Subdomain) -> Mat<f64> {
+    let n = sub.dofs();
+    let mut k = Mat::<f64>::zeros(n, n);
+    let mut e = vec![0.0; n];
+    let mut y = vec![0.0; n];
+    for j in 0..n {
+        e.iter_mut().for_each(|v| *v = 0.0);
+        e[j] = 1.0;
+        sub.apply_k(&e, &mut y);
+        for i in 0..n {
+            k[(i, j)] = y[i];
+        }
+    }
+    k
+}
+
+/// `K^+ = [K_rr^-1 0; 0 0]` with the subdomain's fixing dofs, by a dense solve.
+fn dense_pinv(sub: &Subdomain) -> Mat<f64> {
+    let k = dense_k(sub);
+    let n = sub.dofs();
+    let fixed = sub.fixed().expect("TFETI").to_vec();
+    let free: Vec<usize> = (0..n).filter(|d| !fixed.contains(d)).collect();
+    let krr = Mat::<f64>::from_fn(free.len(), free.len(), |i, j| k[(free[i], free[j])]);
+    let inv = krr.partial_piv_lu().inverse();
+    let mut p = Mat::<f64>::zeros(n, n);
+    for (i, &a) in free.iter().enumerate() {
+        for (j, &b) in free.iter().enumerate() {
+            p[(a, b)] = inv[(i, j)];
+        }
+    }
+    p
+}
+
+/// Dense `B` (rows x all dofs, subdomain 0 first).
+fn dense_b(rows: &[Vec<(usize, usize, f64)>], n0: usize, n: usize) -> Mat<f64> {
+    let mut b = Mat::<f64>::zeros(rows.len(), n);
+    for (i, row) in rows.iter().enumerate() {
+        for &(s, d, v) in row {
+            b[(i, if s == 0 { d } else { n0 + d })] += v;
+        }
+    }
+    b
+}
+
+fn block_diag(a: &Mat<f64>, b: &Mat<f64>) -> Mat<f64> {
+    let (na, nb) = (a.nrows(), b.nrows());
+    Mat::<f64>::from_fn(na + nb, na + nb, |i, j| match (i < na, j < na) {
+        (true, true) => a[(i, j)],
+        (false, false) => b[(i - na, j - na)],
+        _ => 0.0,
+    })
+}
+
+fn max_abs(m: &Mat<f64>) -> f64 {
+    let mut x = 0.0f64;
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            x = x.max(m[(i, j)].abs());
+        }
+    }
+    x
+}
+
+#[test]
+fn f_equals_the_assembled_b_kplus_bt() {
+    let (cluster, rows, _) = glued_pair();
+    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
+    let b = dense_b(&rows, n0, n0 + n1);
+    let kp = block_diag(
+        &dense_pinv(cluster.subdomain(0)),
+        &dense_pinv(cluster.subdomain(1)),
+    );
+    let f_ref = &b * &kp * b.transpose();
+    let m = rows.len();
+    let mut f = Mat::<f64>::zeros(m, m);
+    let mut e = vec![0.0; m];
+    let mut y = vec![0.0; m];
+    for j in 0..m {
+        e.iter_mut().for_each(|v| *v = 0.0);
+        e[j] = 1.0;
+        cluster.apply_f(&e, &mut y);
+        for i in 0..m {
+            f[(i, j)] = y[i];
+        }
+    }
+    let err = max_abs(&(&f - &f_ref)) / max_abs(&f_ref);
+    assert!(err < 1e-10, "||F - B K+ B^T|| / ||F|| = {err:e}");
+}
+
+#[test]
+fn the_projector_is_orthogonal_onto_ker_g() {
+    let (cluster, rows, _) = glued_pair();
+    let m = rows.len();
+    // G = R^T B^T from dense R and B, independent of the cluster's blocks.
+    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
+    let b = dense_b(&rows, n0, n0 + n1);
+    let mut r = Mat::<f64>::zeros(n0 + n1, 6);
+    for (s, off) in [(0, 0), (1, n0)] {
+        let sub = cluster.subdomain(s);
+        for j in 0..3 {
+            for (d, v) in sub.kernel_column(j).iter().enumerate() {
+                r[(off + d, 3 * s + j)] = *v;
+            }
+        }
+    }
+    let g = r.transpose() * b.transpose();
+    let dual = Dual::new(cluster).expect("the rows hold every rigid motion");
+    for seed in 1..4 {
+        let x = rand_vec(m, seed);
+        let mut px = x.clone();
+        dual.project(&mut px);
+        let mut ppx = px.clone();
+        dual.project(&mut ppx);
+        let gpx = &g * Mat::<f64>::from_fn(m, 1, |i, _| px[i]);
+        let xn = x.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(max_abs(&gpx) < 1e-12 * max_abs(&g) * xn, "G P x != 0");
+        let idem = px
+            .iter()
+            .zip(&ppx)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(idem < 1e-13 * xn, "P P x != P x: {idem:e}");
+        // Symmetric: y^T P x = x^T P y.
+        let y = rand_vec(m, seed + 10);
+        let mut py = y.clone();
+        dual.project(&mut py);
+        let (a, c): (f64, f64) = (
+            y.iter().zip(&px).map(|(p, q)| p * q).sum(),
+            x.iter().zip(&py).map(|(p, q)| p * q).sum(),
+        );
+        assert!((a - c).abs() < 1e-13 * xn * xn, "{a} vs {c}");
+    }
+}
+
+#[test]
+fn the_dual_solve_and_reconstruction_equal_a_direct_solve() {
+    let (cluster, rows, c) = glued_pair();
+    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
+    let n = n0 + n1;
+    let m = rows.len();
+    let f0 = vec![0.0; n0];
+    let f1: Vec<f64> = rand_vec(n1, 7).iter().map(|v| 100.0 * v).collect();
+    // Direct: [K B^T; B 0] [u; l] = [f; c].
+    let k = block_diag(
+        &dense_k(cluster.subdomain(0)),
+        &dense_k(cluster.subdomain(1)),
+    );
+    let b = dense_b(&rows, n0, n);
+    let kkt = Mat::<f64>::from_fn(n + m, n + m, |i, j| match (i < n, j < n) {
+        (true, true) => k[(i, j)],
+        (true, false) => b[(j - n, i)],
+        (false, true) => b[(i - n, j)],
+        (false, false) => 0.0,
+    });
+    let rhs = Mat::<f64>::from_fn(n + m, 1, |i, _| {
+        if i < n0 {
+            f0[i]
+        } else if i < n {
+            f1[i - n0]
+        } else {
+            c[i - n]
+        }
+    });
+    let x = kkt.partial_piv_lu().solve(&rhs);
+    let dual = Dual::new(cluster).expect("coarse space");
+    let settings = SmalbeSettings {
+        tolerance: 1e-12,
+        ..SmalbeSettings::default()
+    };
+    let sol =
+        dual_solve_from(&dual, &[&f0, &f1], &c, m, &settings, None, &mut |_| {}).expect("solves");
+    let umax = (0..n).map(|i| x[(i, 0)].abs()).fold(0.0, f64::max);
+    for i in 0..n {
+        let u = if i < n0 {
+            sol.u[0][i]
+        } else {
+            sol.u[1][i - n0]
+        };
+        assert!(
+            (u - x[(i, 0)]).abs() < 1e-8 * umax,
+            "u[{i}] = {u} vs {}",
+            x[(i, 0)]
+        );
+    }
+    let lmax = (0..m).map(|i| x[(n + i, 0)].abs()).fold(0.0, f64::max);
+    for i in 0..m {
+        assert!(
+            (sol.lambda[i] - x[(n + i, 0)]).abs() < 1e-8 * lmax,
+            "lambda[{i}] = {} vs {}",
+            sol.lambda[i],
+            x[(n + i, 0)]
+        );
+    }
+}
