@@ -15,10 +15,13 @@ use faer::prelude::*;
 use faer::Mat;
 use std::sync::Arc;
 
+/// A row of `B`: (subdomain, local dof, coefficient).
+type Row = Vec<(usize, usize, f64)>;
+
 /// Two 2 x 2 element blocks side by side (the second shifted by 1 in x): rows
 /// glue the second's left nodes to the first's right nodes and hold the first's
 /// left nodes. Returns the cluster and the rows (entries, rhs).
-fn glued_pair() -> (Cluster, Vec<Vec<(usize, usize, f64)>>, Vec<f64>) {
+fn glued_pair() -> (Cluster, Vec<Row>, Vec<f64>) {
     let a = grid(2, 2, 0.0);
     let mut b = grid(2, 2, 0.0);
     for c in &mut b.coords {
@@ -79,7 +82,7 @@ fn dense_pinv(sub: &Subdomain) -> Mat<f64> {
 }
 
 /// Dense `B` (rows x all dofs, subdomain 0 first).
-fn dense_b(rows: &[Vec<(usize, usize, f64)>], n0: usize, n: usize) -> Mat<f64> {
+fn dense_b(rows: &[Row], n0: usize, n: usize) -> Mat<f64> {
     let mut b = Mat::<f64>::zeros(rows.len(), n);
     for (i, row) in rows.iter().enumerate() {
         for &(s, d, v) in row {
