@@ -4,7 +4,7 @@
 //!
 //! `K^` is `K_s` with the rows and columns of its Dirichlet dofs reduced to
 //! their diagonal entry (the dofs keep their prescribed values, see
-//! [`crate::feti`]). It is
+//! [`super::classical`]). It is
 //! scaled to unit diagonal, `K~ = S K^ S` with `S = diag(K^)^-1/2`, so that a
 //! pivot `d_j` is relative to its diagonal, the classical test `d_j <= eps K_jj`.
 //! faer's sparse `L D L^T` replaces each such pivot by `DELTA` as it goes: the
