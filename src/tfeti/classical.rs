@@ -3,7 +3,7 @@
 //!
 //! Every dof that a `fix`, `displace` or `symmetry` row holds (and every copy of
 //! its node in neighbouring subdomains) keeps its prescribed value `g`: the
-//! subdomain matrix keeps only its diagonal there ([`Subdomain::feti`]), the
+//! subdomain matrix keeps only its diagonal there ([`super::subdomain::Subdomain::classical`]), the
 //! load becomes `f^ = f - K[:, E] g` with `f^_E = K_EE g`, and each row of `B` moves its
 //! entries on eliminated dofs to the right-hand side. Rows left without entries
 //! (the Dirichlet rows, gluing between two held copies) leave the dual problem;
