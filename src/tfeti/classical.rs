@@ -48,9 +48,10 @@ impl Elimination {
             };
             let g = row.c / b;
             let m = &problem.subdomains[s];
-            let node = m.grid[d / 2];
+            let dim = problem.dim;
+            let node = m.grid[d / dim];
             for (t, l) in problem.bodies[m.body].copies(node) {
-                value[t][2 * l + d % 2] = Some(g);
+                value[t][dim * l + d % dim] = Some(g);
             }
         }
         Elimination { value }
