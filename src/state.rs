@@ -14,7 +14,7 @@ use crate::tfeti::kkt::kkt;
 pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::DualSolution;
-use crate::tfeti::subdomain::{Kind, Subdomain};
+use crate::tfeti::subdomain::{Geometry, Kind, Subdomain};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -183,13 +183,14 @@ pub fn setup_reusing(
         .par_iter()
         .enumerate()
         .map(|(s, m)| {
+            let g = Geometry::of(m);
             let built = match earlier(s) {
                 Some((old, true)) => return Ok((old, true)),
-                Some((old, false)) => old.rebuilt(m),
+                Some((old, false)) => old.rebuilt(&g),
                 None => match kind(s) {
-                    Kind::Total => Subdomain::total(m),
+                    Kind::Total => Subdomain::total(&g),
                     Kind::Classical { eliminated, eps } => {
-                        Subdomain::classical(m, &eliminated, eps)
+                        Subdomain::classical(&g, &eliminated, eps)
                     }
                 },
             };

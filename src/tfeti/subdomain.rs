@@ -22,6 +22,7 @@
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
 use super::sparse::{ldlt_solve, llt_solve, symbolic_amd, UpperCsc};
+use crate::fem::Element;
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
@@ -137,13 +138,42 @@ impl std::fmt::Debug for Subdomain {
     }
 }
 
+/// What a subdomain is built from, in any dimension: nodes (`dim` coordinates
+/// each, flat), elements (`nodes` each, flat), material, and far-apart corner
+/// nodes for fixing the kernel.
+#[derive(Debug, Clone, Copy)]
+pub struct Geometry<'a> {
+    pub element: Element,
+    pub coords: &'a [f64],
+    pub elements: &'a [usize],
+    pub corners: &'a [usize],
+    pub young: f64,
+    pub poisson: f64,
+    /// 2D only (plane strain per unit thickness).
+    pub thickness: f64,
+}
+
+impl<'a> Geometry<'a> {
+    /// The geometry of a lowered subdomain mesh.
+    pub fn of(mesh: &'a SubdomainMesh) -> Self {
+        Geometry {
+            element: mesh.element,
+            coords: mesh.coords.as_flattened(),
+            elements: mesh.elements.as_flattened(),
+            corners: &mesh.corners,
+            young: mesh.young,
+            poisson: mesh.poisson,
+            thickness: mesh.thickness,
+        }
+    }
+}
+
 /// Assembles `K_s` (upper triangle) from the mesh's elements.
-fn assemble(mesh: &SubdomainMesh) -> Result<UpperCsc, SubdomainError> {
+fn assemble(mesh: &Geometry) -> Result<UpperCsc, SubdomainError> {
     let el = mesh.element;
     let (dim, per) = (el.dim(), el.nodes());
     let nd = dim * per;
-    let coords = mesh.coords.as_flattened();
-    let elements = mesh.elements.as_flattened();
+    let (coords, elements) = (mesh.coords, mesh.elements);
     let mut k = UpperCsc::pattern(coords.len() / dim, elements, per, dim);
     let mut x = vec![0.0; nd];
     for (ei, e) in elements.chunks_exact(per).enumerate() {
@@ -170,7 +200,7 @@ fn assemble(mesh: &SubdomainMesh) -> Result<UpperCsc, SubdomainError> {
 
 impl Subdomain {
     /// A TFETI subdomain: assembles, fixes the kernel's dofs and factorizes.
-    pub fn total(mesh: &SubdomainMesh) -> Result<Self, SubdomainError> {
+    pub fn total(mesh: &Geometry) -> Result<Self, SubdomainError> {
         Self::build(mesh, Kind::Total, None)
     }
 
@@ -178,7 +208,7 @@ impl Subdomain {
     /// conditions) removed from `K_s`, the kernel of the rest found by pivot
     /// detection with tolerance `eps`, and checked.
     pub fn classical(
-        mesh: &SubdomainMesh,
+        mesh: &Geometry,
         eliminated: &[usize],
         eps: f64,
     ) -> Result<Self, SubdomainError> {
@@ -191,24 +221,24 @@ impl Subdomain {
     /// The same kind of subdomain on a new mesh of the same pattern (a new
     /// design): reassembled and refactored numerically, the symbolic
     /// factorization reused when the pattern (and the fixing dofs) did not change.
-    pub fn rebuilt(&self, mesh: &SubdomainMesh) -> Result<Self, SubdomainError> {
+    pub fn rebuilt(&self, mesh: &Geometry) -> Result<Self, SubdomainError> {
         Self::build(mesh, self.kind.clone(), Some(self))
     }
 
     fn build(
-        mesh: &SubdomainMesh,
+        mesh: &Geometry,
         kind: Kind,
         previous: Option<&Subdomain>,
     ) -> Result<Self, SubdomainError> {
         let k = assemble(mesh)?;
         let dim = mesh.element.dim();
-        let coords = mesh.coords.as_flattened();
+        let coords = mesh.coords;
         let n = k.n;
         let same_pattern = previous.is_some_and(|p| p.kind == kind && p.k.same_pattern(&k));
         match &kind {
             Kind::Total => {
                 let r = rigid_modes(coords, dim);
-                let fixed = fixing_dofs(coords, dim, &mesh.corners);
+                let fixed = fixing_dofs(coords, dim, mesh.corners);
                 let old = previous
                     .filter(|_| same_pattern)
                     .and_then(|p| match &p.factor {
@@ -465,7 +495,7 @@ pub(crate) mod tests {
     #[test]
     fn kernel_is_orthonormal_and_in_the_null_space() {
         let mesh = block();
-        let s = Subdomain::total(&mesh).unwrap();
+        let s = Subdomain::total(&Geometry::of(&mesh)).unwrap();
         let mut y = vec![0.0; s.n];
         let kmax = s.k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for j in 0..3 {
@@ -487,7 +517,7 @@ pub(crate) mod tests {
     #[test]
     fn fixing_dofs_gives_a_generalized_inverse() {
         let mesh = block();
-        let s = Subdomain::total(&mesh).unwrap();
+        let s = Subdomain::total(&Geometry::of(&mesh)).unwrap();
         for seed in 1..4 {
             let x = rand_vec(s.n, seed);
             let mut kx = vec![0.0; s.n];
@@ -549,7 +579,8 @@ pub(crate) mod tests {
         // floating; one node held (rotation free); the bottom held (none free)
         let bottom: Vec<usize> = (0..4).flat_map(|i| [2 * i, 2 * i + 1]).collect();
         for (eliminated, dim) in [(vec![], 3), (vec![0, 1], 1), (bottom, 0)] {
-            let s = Subdomain::classical(&mesh, &eliminated, 1e-10).expect("sound eps");
+            let s =
+                Subdomain::classical(&Geometry::of(&mesh), &eliminated, 1e-10).expect("sound eps");
             assert_eq!(s.kdim, dim, "eliminated {eliminated:?}");
             let kmax = s.k.values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
             let mut y = vec![0.0; s.n];
@@ -571,13 +602,15 @@ pub(crate) mod tests {
         // The round-off of the rigid modes' pivots grows with the subdomain:
         // eps = 1e-10, sound on 8 x 8 blocks, accepts one of them at 96 x 96.
         let mesh = grid(96, 96, 0.0);
-        let err = Subdomain::classical(&mesh, &[], 1e-10).expect_err("a zero pivot above 1e-10");
+        let err = Subdomain::classical(&Geometry::of(&mesh), &[], 1e-10)
+            .expect_err("a zero pivot above 1e-10");
         assert!(err.to_string().contains("eps is too small"), "{err}");
         // With eps above it the kernel is found, but the generalized inverse is
         // far less accurate than TFETI's with its fixing dofs at the corners.
-        let feti = Subdomain::classical(&mesh, &[], 1e-8).expect("eps = 1e-8 finds it");
+        let feti =
+            Subdomain::classical(&Geometry::of(&mesh), &[], 1e-8).expect("eps = 1e-8 finds it");
         assert_eq!(feti.kdim, 3);
-        let tfeti = Subdomain::total(&mesh).expect("factorizes");
+        let tfeti = Subdomain::total(&Geometry::of(&mesh)).expect("factorizes");
         let (ef, et) = (pinv_error(&feti, &[]), pinv_error(&tfeti, &[]));
         assert!(et < 1e-13 && ef > 30.0 * et, "FETI {ef:e}, TFETI {et:e}");
     }
@@ -585,7 +618,8 @@ pub(crate) mod tests {
     #[test]
     fn a_too_large_eps_is_reported_not_used() {
         let mesh = block();
-        let err = Subdomain::classical(&mesh, &[], 0.5).expect_err("eps = 0.5 takes real pivots");
+        let err = Subdomain::classical(&Geometry::of(&mesh), &[], 0.5)
+            .expect_err("eps = 0.5 takes real pivots");
         let SubdomainError::Kernel(k) = &err else {
             panic!("{err:?}")
         };
@@ -600,7 +634,7 @@ pub(crate) mod tests {
         // Below round-off, a zero pivot that came out positive is accepted.
         let mut found = None;
         for eps in [1e-30, 1e-60, 1e-120, 1e-300] {
-            if let Err(e) = Subdomain::classical(&mesh, &[], eps) {
+            if let Err(e) = Subdomain::classical(&Geometry::of(&mesh), &[], eps) {
                 found = Some(e);
                 break;
             }
@@ -615,13 +649,13 @@ pub(crate) mod tests {
         for classical in [false, true] {
             let build = |m: &SubdomainMesh| {
                 if classical {
-                    Subdomain::classical(m, &[0, 1], 1e-10)
+                    Subdomain::classical(&Geometry::of(m), &[0, 1], 1e-10)
                 } else {
-                    Subdomain::total(m)
+                    Subdomain::total(&Geometry::of(m))
                 }
             };
             let old = build(&before).expect("factorizes");
-            let rebuilt = old.rebuilt(&after).expect("refactorizes");
+            let rebuilt = old.rebuilt(&Geometry::of(&after)).expect("refactorizes");
             let fresh = build(&after).expect("factorizes");
             assert!(!old.symbolic_reused() && rebuilt.symbolic_reused());
             assert_eq!(rebuilt.kind(), fresh.kind());
@@ -643,5 +677,91 @@ pub(crate) mod tests {
                 assert!(diff(&c) > 1e-6 * scale, "classical {classical}");
             }
         }
+    }
+
+    /// An `h x h x h` brick of hexahedra on `[0, 2] x [0, 1] x [0, 1.5]`, its top
+    /// lifted by `curvature * x y`: flat coordinates, connectivity, corners.
+    fn brick(h: usize, curvature: f64) -> (Vec<f64>, Vec<usize>, Vec<usize>) {
+        let at = |i: usize, j: usize, k: usize| (k * (h + 1) + j) * (h + 1) + i;
+        let mut coords = Vec::new();
+        for k in 0..=h {
+            for j in 0..=h {
+                for i in 0..=h {
+                    let (x, y) = (2.0 * i as f64 / h as f64, j as f64 / h as f64);
+                    let top = 1.5 + curvature * x * y;
+                    coords.extend([x, y, top * k as f64 / h as f64]);
+                }
+            }
+        }
+        let mut elements = Vec::new();
+        for k in 0..h {
+            for j in 0..h {
+                for i in 0..h {
+                    let (a, b) = (at(i, j, k), at(i, j, k + 1));
+                    elements.extend([a, a + 1, a + h + 2, a + h + 1]);
+                    elements.extend([b, b + 1, b + h + 2, b + h + 1]);
+                }
+            }
+        }
+        (
+            coords,
+            elements,
+            vec![at(0, 0, 0), at(h, 0, 0), at(0, h, h)],
+        )
+    }
+
+    #[test]
+    fn hexahedra_need_no_change_in_the_solver() {
+        // The same subdomain code on a 3D brick: six orthonormal rigid modes in
+        // the kernel of K, and K K^+ K = K with six fixing dofs.
+        let (coords, elements, corners) = brick(3, 0.2);
+        let g = Geometry {
+            element: crate::fem::Element::Hex8,
+            coords: &coords,
+            elements: &elements,
+            corners: &corners,
+            young: 1000.0,
+            poisson: 0.3,
+            thickness: 1.0,
+        };
+        let s = Subdomain::total(&g).expect("factorizes");
+        assert_eq!(
+            (s.kernel_dim(), s.fixed().map(<[usize]>::len)),
+            (6, Some(6))
+        );
+        let kmax = s.k.max_abs();
+        let mut y = vec![0.0; s.dofs()];
+        for j in 0..6 {
+            s.apply_k(s.kernel_column(j), &mut y);
+            let norm = y.iter().map(|v| v * v).sum::<f64>().sqrt();
+            assert!(norm < 1e-11 * kmax, "K R_{j} = {norm:e}");
+        }
+        for seed in 1..3 {
+            let x = rand_vec(s.dofs(), seed);
+            let mut kx = vec![0.0; s.dofs()];
+            s.apply_k(&x, &mut kx);
+            let mut z = kx.clone();
+            s.apply_pinv(&mut z);
+            let mut kz = vec![0.0; s.dofs()];
+            s.apply_k(&z, &mut kz);
+            let err = kz
+                .iter()
+                .zip(&kx)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let norm = kx.iter().map(|v| v * v).sum::<f64>().sqrt();
+            assert!(
+                err < 1e-10 * norm,
+                "||K K+ K x - K x|| / ||K x|| = {:e}",
+                err / norm
+            );
+        }
+        // Classical FETI finds the six numerically, and none with the bottom held.
+        let c = Subdomain::classical(&g, &[], 1e-10).expect("sound eps");
+        assert_eq!(c.kernel_dim(), 6);
+        let bottom: Vec<usize> = (0..16 * 3).collect();
+        let held = Subdomain::classical(&g, &bottom, 1e-10).expect("sound eps");
+        assert_eq!(held.kernel_dim(), 0);
     }
 }

@@ -8,7 +8,7 @@ use super::dual::Dual;
 use super::rows::LocalRows;
 use super::solve::dual_solve_from;
 use super::subdomain::tests::{grid, rand_vec};
-use super::subdomain::Subdomain;
+use super::subdomain::{Geometry, Subdomain};
 use crate::qp::SmalbeSettings;
 use faer::linalg::solvers::DenseSolveCore;
 use faer::prelude::*;
@@ -28,8 +28,8 @@ fn glued_pair() -> (Cluster, Vec<Row>, Vec<f64>) {
         c[0] += 1.0;
     }
     let subs = vec![
-        Arc::new(Subdomain::total(&a).expect("factorizes")),
-        Arc::new(Subdomain::total(&b).expect("factorizes")),
+        Arc::new(Subdomain::total(&Geometry::of(&a)).expect("factorizes")),
+        Arc::new(Subdomain::total(&Geometry::of(&b)).expect("factorizes")),
     ];
     let mut rows = Vec::new();
     let mut c = Vec::new();
