@@ -125,7 +125,7 @@ pub fn hex_stiffness<T: Scalar>(x: &Hex<T>, d: &[[f64; 6]; 6]) -> Option<Vec<T>>
         }
         let bn: Vec<[[T; 3]; 6]> = g.iter().map(|gk| b_node(*gk)).collect();
         // DB: 6 x 24
-        let mut db = vec![[zero; 24]; 6];
+        let mut db = [[zero; 24]; 6];
         for r in 0..6 {
             for n in 0..8 {
                 for c in 0..3 {
