@@ -3,6 +3,7 @@
 mod cli;
 mod diagnostics;
 mod examples;
+mod export;
 mod feti;
 mod front_end;
 mod fuzz;

@@ -1,6 +1,7 @@
 //! What cso shows a person: summaries and (later) reports, VTU and SVG.
 
 pub mod atomic;
+pub mod export;
 pub mod plot;
 pub mod report;
 pub mod summary;

@@ -365,6 +365,11 @@ impl Subdomain {
         self.k.mul(x, y);
     }
 
+    /// `K_s` itself (upper triangle), for export.
+    pub fn stiffness(&self) -> &UpperCsc {
+        &self.k
+    }
+
     /// The diagonal of `K_s`.
     pub fn diagonal(&self) -> Vec<f64> {
         self.k.diagonal()

@@ -1,0 +1,70 @@
+//! `cso export`: the compiled QP read back by real readers (scipy.io.mmread;
+//! petsc4py when installed) and solved there by an independent active-set
+//! method, against `cso solve`.
+
+use crate::{options, root};
+use cso::io::export::{export, write_dir, Format};
+use cso::lang::compile;
+
+#[test]
+fn exported_qp_solved_elsewhere_equals_cso_solve() {
+    let src = std::fs::read_to_string(root().join("examples/two_blocks.cso")).expect("example");
+    let mut scene = compile(&src, &options()).expect("checks");
+    scene.solver.tolerance = 1e-11;
+    let design = scene.design_init();
+    let state = cso::state::solve(&scene, &design, &mut |_| {}).expect("solves");
+    let dir = std::env::temp_dir().join(format!("cso-export-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for (format, sub) in [(Format::Mm, "mm"), (Format::Petsc, "petsc")] {
+        let files = export(&scene, &design, format).expect("exports");
+        let names: Vec<&str> = files.iter().map(|f| f.0.as_str()).collect();
+        assert!(names.contains(&"manifest.json"), "{names:?}");
+        write_dir(&dir.join(sub), &files, false).expect("writes");
+        // A second export into the same, now non-empty, directory is refused.
+        let again = write_dir(&dir.join(sub), &files, false).expect_err("not empty");
+        assert!(again.to_string().contains("--force"), "{again}");
+    }
+    let u: Vec<f64> = state.u.iter().flatten().copied().collect();
+    let reference = serde_json::json!({ "u": u, "lambda": state.lambda });
+    std::fs::write(dir.join("reference.json"), reference.to_string()).expect("writes");
+    let script = root().join("tests/scripts/export_roundtrip.py");
+    // CI points CSO_PYTHON at the interpreter that has scipy and petsc4py.
+    let python = std::env::var("CSO_PYTHON").unwrap_or_else(|_| "python3".to_string());
+    let run = std::process::Command::new(&python)
+        .arg(&script)
+        .arg(&dir)
+        .output();
+    let out = match run {
+        Ok(o) if o.status.code() == Some(77) => {
+            eprintln!("SKIPPED: the export round trip needs python3 with scipy");
+            return;
+        }
+        Ok(o) if o.status.success() => {
+            eprintln!(
+                "export round trip ({python}): {}",
+                String::from_utf8_lossy(&o.stdout).trim()
+            );
+            o
+        }
+        Ok(o) => panic!(
+            "the round-trip script failed:\n{}",
+            String::from_utf8_lossy(&o.stderr)
+        ),
+        Err(e) => {
+            eprintln!("SKIPPED: python3 not found ({e})");
+            return;
+        }
+    };
+    let got: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("the script prints JSON");
+    let mm = got["mm"].as_f64().expect("MatrixMarket difference");
+    assert!(
+        mm < 1e-8,
+        "MatrixMarket QP solved by scipy differs by {mm:e}"
+    );
+    match got["petsc"].as_f64() {
+        Some(p) => assert!(p < 1e-8, "PETSc QP solved by scipy differs by {p:e}"),
+        None => eprintln!("SKIPPED: petsc4py is not installed; the PETSc files were not read back"),
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
