@@ -214,7 +214,7 @@ fn main() -> ExitCode {
                 return bench_sensitivity(*tolerance, *threads);
             }
             if which == "optimize" {
-                return match cso::bench::optimization_reuse() {
+                return match cso::studies::bench::optimization_reuse() {
                     Ok(rows) => {
                         outln!("| reuse | iterations | Hessian per iteration | seconds per iteration | factorizations reused per iteration |");
                         outln!("|---|---|---|---|---|");
@@ -428,7 +428,7 @@ fn bench_table(
     outln!("| H/h | cuts | {} |", columns.join(" | "));
     outln!("|---|---|{}", "---|".repeat(columns.len()));
     for hh in hhs {
-        for (sx, sy) in cso::bench::cut_sequence(max) {
+        for (sx, sy) in cso::studies::bench::cut_sequence(max) {
             match pool.install(|| row(sx, sy, hh)) {
                 Ok(cells) => outln!("| {hh} | {sx}x{sy} | {cells} |"),
                 Err(e) => errln!("error at {sx}x{sy}: {e}"),
@@ -465,7 +465,8 @@ fn bench_scaling(
         &format!("tolerance {tolerance:e}"),
         &columns,
         &|sx, sy, hh| {
-            let r = cso::bench::scaling_row(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
+            let r = cso::studies::bench::scaling_row(sx, sy, hh, tolerance)
+                .map_err(|e| e.to_string())?;
             Ok(format!(
                 "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e}",
                 r.subdomains,
@@ -494,7 +495,7 @@ fn bench_hard(tolerance: f64, out: Option<&Path>, threads: Option<usize>) -> Exi
     };
     let bar = indicatif::ProgressBar::new_spinner();
     let sweeps = pool.install(|| {
-        cso::stability::sweeps(tolerance, &mut |what| {
+        cso::studies::stability::sweeps(tolerance, &mut |what| {
             bar.set_message(what.to_string());
             bar.tick();
         })
@@ -556,9 +557,9 @@ fn bench_compare(
         &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
         &columns,
         &|sx, sy, hh| {
-            let scene =
-                cso::bench::scaled_scene(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
-            let c = cso::compare::compare(&scene);
+            let scene = cso::studies::bench::scaled_scene(sx, sy, hh, tolerance)
+                .map_err(|e| e.to_string())?;
+            let c = cso::studies::compare::compare(&scene);
             let (f, t) = match (&c.feti, &c.tfeti) {
                 (Ok(f), Ok(t)) => (f, t),
                 (f, t) => {
@@ -718,7 +719,7 @@ fn bench_sensitivity(tolerance: f64, threads: Option<usize>) -> ExitCode {
     outln!("| m | method | Hessian beyond the state | ratio | seconds beyond the state | ratio |");
     outln!("|---|---|---|---|---|---|");
     for m in [6, 24, 96] {
-        match pool.install(|| cso::bench::gradient_costs(m, tolerance)) {
+        match pool.install(|| cso::studies::bench::gradient_costs(m, tolerance)) {
             Ok(rows) => {
                 for r in rows {
                     outln!(
@@ -751,7 +752,7 @@ fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<u
     outln!("| method | tolerance | h | seconds | Hessian | error | active set changed |");
     outln!("|---|---|---|---|---|---|---|");
     let result = pool.install(|| {
-        cso::sens::study::study(scene, &mut |r| {
+        cso::studies::sensitivity::study(scene, &mut |r| {
             outln!(
                 "| {} | {:.0e} | {} | {:.4} | {} | {:.2e} | {} |",
                 r.method,
@@ -823,7 +824,7 @@ fn compare_command(
         Err(code) => return code,
     };
     let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
-    let c = pool.install(|| cso::compare::compare(scene));
+    let c = pool.install(|| cso::studies::compare::compare(scene));
     bar.finish_and_clear();
     let md = c.markdown(true);
     outln!("{md}");
@@ -862,7 +863,8 @@ fn eps_sweep_command(
         Err(code) => return code,
     };
     let bar = ticking("solving by TFETI and by FETI at each eps");
-    let sweep = pool.install(|| cso::compare::eps_sweep(scene, &cso::compare::EPS_SWEEP));
+    let sweep =
+        pool.install(|| cso::studies::compare::eps_sweep(scene, &cso::studies::compare::EPS_SWEEP));
     bar.finish_and_clear();
     let sweep = match sweep {
         Ok(s) => s,

@@ -7,7 +7,6 @@
 pub mod fd;
 pub mod functional;
 pub mod semi;
-pub mod study;
 
 pub use fd::{finite_difference, Gradient};
 pub use functional::{body_area, Eval};
