@@ -8,8 +8,6 @@
 // Index loops mirror the formulas they implement (k[a][b], g[s][j * n + k]).
 #![allow(clippy::needless_range_loop)]
 
-pub mod bench;
-pub mod compare;
 pub mod fem;
 pub mod io;
 pub mod lang;
@@ -17,8 +15,8 @@ pub mod model;
 pub mod opt;
 pub mod qp;
 pub mod sens;
-pub mod stability;
 pub mod state;
+pub mod studies;
 pub mod tfeti;
 
 /// Memory a scene may use on this machine: 80% of physical memory (Linux

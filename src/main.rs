@@ -1,11 +1,18 @@
 //! The `cso` command: a thin shell over the library.
 
 use clap::{Parser, Subcommand};
-use cso::io::summary::{plural, summarize, summarize_with_operators};
-use cso::lang::{compile, diag, CheckOptions};
+use cso::io::atomic::write_files;
+use cso::io::{files, tables};
+use cso::lang::scene::{Scheme, SensitivityMethod};
+use cso::lang::{compile, diag, CheckOptions, Scene};
+use cso::studies::bench::{self, parse_cuts, Benchmark};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::fmt::Display;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 const EXAMPLES: &str = "\
 Examples:
@@ -52,15 +59,15 @@ enum Command {
     Sensitivity {
         /// The `.cso` file.
         file: PathBuf,
-        /// `semi_analytic`, `adjoint` or `finite_difference` (default: the scene's `sensitivity { method }`).
-        #[arg(long)]
-        method: Option<String>,
+        /// Gradient method (default: the scene's `sensitivity { method }`).
+        #[arg(long, value_enum)]
+        method: Option<SensitivityMethod>,
         /// Finite-difference step (default: the scene's `sensitivity { step }`).
         #[arg(long)]
         step: Option<f64>,
-        /// `forward` or `central` (default: the scene's `sensitivity { scheme }`).
-        #[arg(long)]
-        scheme: Option<String>,
+        /// Finite-difference scheme (default: the scene's `sensitivity { scheme }`).
+        #[arg(long, value_enum)]
+        scheme: Option<Scheme>,
         /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
         #[arg(short, long, value_name = "DIR")]
         out: Option<PathBuf>,
@@ -103,14 +110,15 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench {
-        /// Which benchmark (`scaling`, `compare`, `hard`, `sensitivity`, `optimize`).
-        which: String,
-        /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
-        #[arg(long = "hh")]
+        /// Which benchmark.
+        #[arg(value_enum)]
+        which: Benchmark,
+        /// Elements per subdomain side, H/h (repeatable).
+        #[arg(long = "hh", default_values_t = [16, 32])]
         hh: Vec<usize>,
-        /// Largest cut of the base, `SXxSY` (default 32x16).
-        #[arg(long, default_value = "32x16")]
-        max_cuts: String,
+        /// Largest cut of the base, `SXxSY`.
+        #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
+        max_cuts: (usize, usize),
         /// Relative tolerance of the dual solve.
         #[arg(long, default_value_t = 1e-6)]
         tolerance: f64,
@@ -158,108 +166,35 @@ macro_rules! errln {
 const EXIT_SCENE: u8 = 1;
 const EXIT_IO: u8 = 2;
 
+/// A command's outcome: `Err` carries the exit code, its message already printed.
+type Outcome = Result<(), u8>;
+
+/// Prints `error: {msg}` and gives the exit code to return.
+fn fail(code: u8, msg: impl Display) -> u8 {
+    errln!("error: {msg}");
+    code
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let opts = CheckOptions {
         overrides: cli.set.clone(),
         memory_limit: Some(cso::machine_memory_limit()),
     };
-    match &cli.command {
+    let outcome = match cli.command {
         Command::Check { files } => {
-            let mut worst = 0;
-            for file in files {
-                let code = match load(file, &opts) {
-                    Ok(scene) => {
-                        let s = summarize(&scene);
-                        outln!(
-                            "ok {}: scene `{}` ({}), {}, {}, {} primal unknowns",
-                            file.display(),
-                            scene.name,
-                            if s.dim == cso::lang::scene::Dimension::Two {
-                                "2D"
-                            } else {
-                                "3D"
-                            },
-                            plural(s.totals.bodies, "body", "bodies"),
-                            plural(s.totals.subdomains, "subdomain", "subdomains"),
-                            s.totals.primal_dofs
-                        );
-                        0
-                    }
-                    Err(code) => code,
-                };
-                worst = worst.max(code);
-            }
-            ExitCode::from(worst)
+            let codes = files.iter().map(|file| match load(file, &opts) {
+                Ok(scene) => {
+                    outln!("{}", cso::io::summary::check_line(file, &scene));
+                    0
+                }
+                Err(code) => code,
+            });
+            return ExitCode::from(codes.fold(0, u8::max));
         }
+        Command::Compile { file, json } => load(&file, &opts).and_then(|s| compile_cmd(&s, json)),
         Command::Solve { file, out, threads } => {
-            let scene = match load(file, &opts) {
-                Ok(s) => s,
-                Err(code) => return ExitCode::from(code),
-            };
-            solve_command(&scene, file, out.as_deref(), *threads)
-        }
-        Command::Bench {
-            which,
-            hh,
-            max_cuts,
-            tolerance,
-            threads,
-            out,
-        } => {
-            if which == "hard" {
-                return bench_hard(*tolerance, out.as_deref(), *threads);
-            }
-            if which == "sensitivity" {
-                return bench_sensitivity(*tolerance, *threads);
-            }
-            if which == "optimize" {
-                return match cso::bench::optimization_reuse() {
-                    Ok(rows) => {
-                        outln!("| reuse | iterations | Hessian per iteration | seconds per iteration | factorizations reused per iteration |");
-                        outln!("|---|---|---|---|---|");
-                        for (name, its) in rows {
-                            let n = its.len().max(1) as f64;
-                            outln!(
-                                "| {name} | {} | {:.1} | {:.4} | {:.1} |",
-                                its.len(),
-                                its.iter().map(|i| i.0 as f64).sum::<f64>() / n,
-                                its.iter().map(|i| i.1).sum::<f64>() / n,
-                                its.iter().map(|i| i.2 as f64).sum::<f64>() / n
-                            );
-                        }
-                        ExitCode::SUCCESS
-                    }
-                    Err(e) => {
-                        errln!("error: {e}");
-                        ExitCode::from(EXIT_SCENE)
-                    }
-                };
-            }
-            if which != "scaling" && which != "compare" {
-                errln!(
-                    "error: unknown benchmark `{which}`; the benchmarks are: scaling, compare, hard, sensitivity, optimize"
-                );
-                return ExitCode::from(EXIT_IO);
-            }
-            let Some((mx, my)) = max_cuts.split_once('x').and_then(|(a, b)| {
-                Some((
-                    a.trim().parse::<usize>().ok()?,
-                    b.trim().parse::<usize>().ok()?,
-                ))
-            }) else {
-                errln!("error: --max-cuts expects SXxSY, e.g. 32x16");
-                return ExitCode::from(EXIT_IO);
-            };
-            let hh = if hh.is_empty() {
-                vec![16, 32]
-            } else {
-                hh.clone()
-            };
-            if which == "compare" {
-                return bench_compare(hh, (mx, my), *tolerance, *threads);
-            }
-            bench_scaling(hh, (mx, my), *tolerance, *threads)
+            load(&file, &opts).and_then(|s| solve(&s, &file, out.as_deref(), threads))
         }
         Command::Sensitivity {
             file,
@@ -267,904 +202,327 @@ fn main() -> ExitCode {
             step,
             scheme,
             out,
-            threads,
             study,
-        } => {
-            let scene = match load(file, &opts) {
-                Ok(s) => s,
-                Err(code) => return ExitCode::from(code),
-            };
-            if *study {
-                return study_command(&scene, out.as_deref(), *threads);
+            threads,
+        } => load(&file, &opts).and_then(|s| {
+            if study {
+                sensitivity_study(&s, out.as_deref(), threads)
+            } else {
+                let method = method.unwrap_or(s.sensitivity.method);
+                let scheme = scheme.unwrap_or(s.sensitivity.scheme);
+                let h = step.unwrap_or(s.sensitivity.step);
+                sensitivity(&s, method, h, scheme, out.as_deref(), threads)
             }
-            sensitivity_command(
-                &scene,
-                method.as_deref(),
-                *step,
-                scheme.as_deref(),
-                out.as_deref(),
-                *threads,
-            )
+        }),
+        Command::Optimize { file, out, threads } => {
+            load(&file, &opts).and_then(|s| optimize(&s, out.as_deref(), threads))
         }
         Command::Compare {
             file,
             out,
             eps_sweep,
             threads,
-        } => {
-            let scene = match load(file, &opts) {
-                Ok(s) => s,
-                Err(code) => return ExitCode::from(code),
-            };
-            if *eps_sweep {
-                return eps_sweep_command(&scene, out.as_deref(), *threads);
+        } => load(&file, &opts).and_then(|s| {
+            if eps_sweep {
+                compare_eps(&s, out.as_deref(), threads)
+            } else {
+                compare(&s, out.as_deref(), threads)
             }
-            compare_command(&scene, out.as_deref(), *threads)
-        }
-        Command::Optimize { file, out, threads } => {
-            let scene = match load(file, &opts) {
-                Ok(s) => s,
-                Err(code) => return ExitCode::from(code),
-            };
-            optimize_command(&scene, out.as_deref(), *threads)
-        }
-        Command::Compile { file, json } => match load(file, &opts) {
-            Ok(scene) => {
-                let summary = summarize_with_operators(&scene);
-                if *json {
-                    match serde_json::to_string_pretty(&summary) {
-                        Ok(s) => outln!("{s}"),
-                        Err(e) => {
-                            errln!("error: cannot write JSON: {e}");
-                            return ExitCode::from(EXIT_IO);
-                        }
-                    }
-                } else {
-                    out!("{summary}");
-                }
-                ExitCode::SUCCESS
-            }
-            Err(code) => ExitCode::from(code),
-        },
+        }),
+        Command::Bench {
+            which,
+            hh,
+            max_cuts,
+            tolerance,
+            threads,
+            out,
+        } => run_bench(which, &hh, max_cuts, tolerance, out.as_deref(), threads),
+    };
+    match outcome {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(code) => ExitCode::from(code),
     }
 }
 
 /// Reads and checks one file; prints diagnostics and returns the exit code on failure.
-fn load(path: &Path, opts: &CheckOptions) -> Result<cso::lang::Scene, u8> {
-    let src = match std::fs::read_to_string(path) {
-        Ok(s) => s,
-        Err(e) => {
-            errln!("error: cannot read {}: {e}", path.display());
-            return Err(EXIT_IO);
-        }
-    };
+fn load(path: &Path, opts: &CheckOptions) -> Result<Scene, u8> {
+    let src = std::fs::read_to_string(path)
+        .map_err(|e| fail(EXIT_IO, format!("cannot read {}: {e}", path.display())))?;
     compile(&src, opts).map_err(|diags| {
         let name = path.display().to_string();
         err!("{}", diag::render(&diags, &name, &src));
         let n = diags.len();
-        errln!(
-            "error: {} has {n} error{}",
-            name,
-            if n == 1 { "" } else { "s" }
-        );
-        EXIT_SCENE
+        let s = if n == 1 { "" } else { "s" };
+        fail(EXIT_SCENE, format!("{name} has {n} error{s}"))
     })
 }
 
-/// `cso solve`: the state solve with a progress line, the summary, and the files.
-fn solve_command(
-    scene: &cso::lang::Scene,
-    file: &Path,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let bar = indicatif::ProgressBar::new_spinner();
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
-    );
-    let design = scene.design_init();
-    let result = pool.install(|| {
-        cso::state::solve(scene, &design, &mut |info| {
-            bar.set_message(format!(
-                "outer {} inner {} Hessian applications {} |g^P|/|b| {:.1e}",
-                info.outer_iterations,
-                info.inner_iterations,
-                info.hessian_applications,
-                info.history.last().copied().unwrap_or(f64::NAN)
-            ));
-            bar.tick();
-        })
-    });
-    bar.finish_and_clear();
-    match result {
-        Ok(state) => {
-            let report = cso::io::report::Report::new(scene, &state);
-            out!("{}", report.summary_text());
-            if let Some(dir) = out {
-                if let Err(e) = cso::io::report::write_all(dir, scene, &state, &report) {
-                    errln!("error: cannot write results to {}: {e}", dir.display());
-                    return ExitCode::from(EXIT_IO);
-                }
-                outln!("results written to {}", dir.display());
-            }
-            if state.converged() {
-                ExitCode::SUCCESS
-            } else {
-                errln!(
-                    "error: {} did not converge: {:?}",
-                    file.display(),
-                    state.info.status
-                );
-                ExitCode::from(EXIT_SCENE)
-            }
-        }
-        Err(e) => {
-            errln!("error: {}: {e}", file.display());
-            ExitCode::from(EXIT_SCENE)
-        }
-    }
-}
-
-/// The scaling benchmarks' frame: one Markdown row per H/h and cut of the scaled
-/// scene, printed as it finishes (`row` gives the cells after H/h and cuts).
-fn bench_table(
-    hhs: Vec<usize>,
-    max: (usize, usize),
-    threads: Option<usize>,
-    title: &str,
-    columns: &[&str],
-    row: &(dyn Fn(usize, usize, usize) -> Result<String, String> + Sync),
-) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    outln!("threads {}, {title}", pool.current_num_threads());
-    outln!("| H/h | cuts | {} |", columns.join(" | "));
-    outln!("|---|---|{}", "---|".repeat(columns.len()));
-    for hh in hhs {
-        for (sx, sy) in cso::bench::cut_sequence(max) {
-            match pool.install(|| row(sx, sy, hh)) {
-                Ok(cells) => outln!("| {hh} | {sx}x{sy} | {cells} |"),
-                Err(e) => errln!("error at {sx}x{sy}: {e}"),
-            }
-        }
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso bench scaling`: TFETI on the scaled scene, cut finer and finer.
-fn bench_scaling(
-    hhs: Vec<usize>,
-    max: (usize, usize),
-    tolerance: f64,
-    threads: Option<usize>,
-) -> ExitCode {
-    let columns = [
-        "subdomains",
-        "primal",
-        "dual",
-        "outer",
-        "inner",
-        "Hessian",
-        "factorize s",
-        "solve s",
-        "total s",
-        "peak MB",
-        "KKT",
-    ];
-    bench_table(
-        hhs,
-        max,
-        threads,
-        &format!("tolerance {tolerance:e}"),
-        &columns,
-        &|sx, sy, hh| {
-            let r = cso::bench::scaling_row(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
-            Ok(format!(
-                "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e}",
-                r.subdomains,
-                r.primal,
-                r.dual,
-                r.outer,
-                r.inner,
-                r.hessian,
-                if r.converged { "" } else { " (not converged)" },
-                r.time_factorize,
-                r.time_solve,
-                r.time_total,
-                r.peak_memory
-                    .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
-                r.kkt
-            ))
-        },
-    )
-}
-
-/// `cso bench hard`: the hard-scene sweeps, tables and charts.
-fn bench_hard(tolerance: f64, out: Option<&Path>, threads: Option<usize>) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let bar = indicatif::ProgressBar::new_spinner();
-    let sweeps = pool.install(|| {
-        cso::stability::sweeps(tolerance, &mut |what| {
-            bar.set_message(what.to_string());
-            bar.tick();
-        })
-    });
-    bar.finish_and_clear();
-    let mut md = format!("# Hard scenes, dual tolerance {tolerance:e}\n\n");
-    for s in &sweeps {
-        md.push_str(&s.markdown());
-        md.push('\n');
-    }
-    outln!("{md}");
-    if let Some(dir) = out {
-        let json = serde_json::to_string_pretty(&sweeps).unwrap_or_default();
-        let mut files: Vec<(String, Vec<u8>)> = vec![
-            ("hard.md".into(), md.into_bytes()),
-            ("hard.json".into(), json.into_bytes()),
-        ];
-        for (k, s) in sweeps.iter().enumerate() {
-            match s.svg() {
-                Ok(svg) => files.push((format!("hard-{}.svg", k + 1), svg.into_bytes())),
-                Err(e) => {
-                    errln!("error: cannot draw {}: {e}", s.name);
-                    return ExitCode::from(EXIT_IO);
-                }
-            }
-        }
-        let refs: Vec<(&str, &[u8])> = files
-            .iter()
-            .map(|(n, b)| (n.as_str(), b.as_slice()))
-            .collect();
-        if let Err(code) = write_files(dir, &refs) {
-            return code;
-        }
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso bench compare`: FETI and TFETI on the scaled scene, cut finer and finer.
-fn bench_compare(
-    hhs: Vec<usize>,
-    max: (usize, usize),
-    tolerance: f64,
-    threads: Option<usize>,
-) -> ExitCode {
-    let columns = [
-        "subdomains",
-        "primal",
-        "dual",
-        "kernel",
-        "Hessian",
-        "factorize s",
-        "total s",
-        "u difference",
-    ];
-    bench_table(
-        hhs,
-        max,
-        threads,
-        &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
-        &columns,
-        &|sx, sy, hh| {
-            let scene =
-                cso::bench::scaled_scene(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
-            let c = cso::compare::compare(&scene);
-            let (f, t) = match (&c.feti, &c.tfeti) {
-                (Ok(f), Ok(t)) => (f, t),
-                (f, t) => {
-                    return Err(format!(
-                        "FETI {:?}, TFETI {:?}",
-                        f.as_ref().err(),
-                        t.as_ref().err()
-                    ))
-                }
-            };
-            Ok(format!(
-                "{} | {} / {} | {} / {} | {} / {} | {} / {} | {:.3} / {:.3} | {:.3} / {:.3} | {:.0e}",
-                scene
-                    .bodies
-                    .iter()
-                    .map(|b| b.subdomains.iter().product::<usize>())
-                    .sum::<usize>(),
-                f.primal,
-                t.primal,
-                f.state.dual,
-                t.state.dual,
-                f.kernel,
-                t.kernel,
-                f.state.hessian_applications,
-                t.state.hessian_applications,
-                f.factorize_seconds,
-                t.factorize_seconds,
-                f.state.seconds,
-                t.state.seconds,
-                c.difference.unwrap_or(f64::NAN)
-            ))
-        },
-    )
-}
-
 /// A thread pool of `threads` threads (all cores when None).
-fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, ExitCode> {
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, u8> {
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads.unwrap_or(0))
         .build()
-        .map_err(|e| {
-            errln!("error: cannot start threads: {e}");
-            ExitCode::from(EXIT_IO)
-        })
+        .map_err(|e| fail(EXIT_IO, format!("cannot start threads: {e}")))
 }
 
-/// `cso sensitivity`: a table of dJ/da_i for the objective and each constraint.
-fn sensitivity_command(
-    scene: &cso::lang::Scene,
-    method: Option<&str>,
-    step: Option<f64>,
-    scheme: Option<&str>,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> ExitCode {
-    use cso::lang::scene::{Scheme, SensitivityMethod};
-    let method = match method {
-        None => scene.sensitivity.method,
-        Some("semi_analytic") => SensitivityMethod::SemiAnalytic,
-        Some("adjoint") => SensitivityMethod::Adjoint,
-        Some("finite_difference") => SensitivityMethod::FiniteDifference,
-        Some(m) => {
-            errln!("error: unknown method `{m}`; the methods are semi_analytic, adjoint, finite_difference");
-            return ExitCode::from(EXIT_IO);
-        }
-    };
-    let scheme = match scheme {
-        None => scene.sensitivity.scheme,
-        Some("forward") => Scheme::Forward,
-        Some("central") => Scheme::Central,
-        Some(s) => {
-            errln!("error: unknown scheme `{s}`; the schemes are forward, central");
-            return ExitCode::from(EXIT_IO);
-        }
-    };
-    if scene.design.is_empty() {
-        errln!("error: the scene has no design variables (`design NAME {{ init, lower, upper }}`)");
-        return ExitCode::from(EXIT_SCENE);
-    }
-    let h = step.unwrap_or(scene.sensitivity.step);
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let result = pool.install(|| match method {
-        SensitivityMethod::FiniteDifference => cso::sens::finite_difference(scene, h, scheme),
-        SensitivityMethod::Adjoint => cso::sens::adjoint(scene, scene.solver.tolerance),
-        SensitivityMethod::SemiAnalytic => cso::sens::semi_analytic(scene, scene.solver.tolerance),
-    });
-    let g = match result {
-        Ok(g) => g,
-        Err(e) => {
-            errln!("error: {e}");
-            return ExitCode::from(EXIT_SCENE);
-        }
-    };
-    outln!("{} gradient of `{}`", g.method, scene.name);
-    outln!(
-        "  contact nodes: {} strong (carrying force), {} weak (closed, no force)",
-        g.strong,
-        g.weak
-    );
-    for (k, name) in g.functionals.iter().enumerate() {
-        outln!("  {name}   (value {})", cso::lang::diag::num(g.values[k]));
-        for (i, d) in g.design.iter().enumerate() {
-            outln!("    d/d{:<8} {:>14.6e}", d, g.gradient[k][i]);
-        }
-    }
-    let extra_h = g
-        .hessian_applications
-        .saturating_sub(g.state_hessian_applications);
-    let extra_t = (g.seconds - g.state_seconds).max(0.0);
-    outln!(
-        "  cost: state solve {} Hessian applications, {:.3} s; the gradient beyond it {} ({:.2}x), {:.3} s ({:.2}x); {} full state solves in all",
-        g.state_hessian_applications,
-        g.state_seconds,
-        extra_h,
-        extra_h as f64 / g.state_hessian_applications.max(1) as f64,
-        extra_t,
-        extra_t / g.state_seconds.max(1e-9),
-        g.solves
-    );
-    if !g.active_set_changed.is_empty() {
-        outln!(
-            "  warning: the contact active set changed when perturbing {}; those columns are not derivatives",
-            g.active_set_changed.join(", ")
-        );
-    }
-    if let Some(dir) = out {
-        let json = match serde_json::to_string_pretty(&g) {
-            Ok(j) => j,
-            Err(e) => {
-                errln!("error: cannot write JSON: {e}");
-                return ExitCode::from(EXIT_IO);
-            }
-        };
-        if let Err(e) = std::fs::create_dir_all(dir).and_then(|_| {
-            cso::io::atomic::write_atomic(&dir.join("sensitivity.json"), json.as_bytes())
-        }) {
-            errln!("error: cannot write {}: {e}", dir.display());
-            return ExitCode::from(EXIT_IO);
-        }
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso bench sensitivity`: gradient cost relative to one state solve, m = 6, 24, 96.
-fn bench_sensitivity(tolerance: f64, threads: Option<usize>) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    outln!(
-        "threads {}, tolerance {tolerance:e}",
-        pool.current_num_threads()
-    );
-    outln!("| m | method | Hessian beyond the state | ratio | seconds beyond the state | ratio |");
-    outln!("|---|---|---|---|---|---|");
-    for m in [6, 24, 96] {
-        match pool.install(|| cso::bench::gradient_costs(m, tolerance)) {
-            Ok(rows) => {
-                for r in rows {
-                    outln!(
-                        "| {} | {} | {} | {:.2} | {:.3} | {:.2} |",
-                        r.m,
-                        r.method,
-                        r.hessian,
-                        r.hessian as f64 / r.state_hessian.max(1) as f64,
-                        r.seconds,
-                        r.seconds / r.state_seconds.max(1e-9)
-                    );
-                }
-            }
-            Err(e) => errln!("error at m = {m}: {e}"),
-        }
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso sensitivity --study`: the speed-against-accuracy chart.
-fn study_command(scene: &cso::lang::Scene, out: Option<&Path>, threads: Option<usize>) -> ExitCode {
-    if scene.design.is_empty() || scene.objective.is_none() {
-        errln!("error: a study needs design variables and an objective");
-        return ExitCode::from(EXIT_SCENE);
-    }
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    outln!("| method | tolerance | h | seconds | Hessian | error | active set changed |");
-    outln!("|---|---|---|---|---|---|---|");
-    let result = pool.install(|| {
-        cso::sens::study::study(scene, &mut |r| {
-            outln!(
-                "| {} | {:.0e} | {} | {:.4} | {} | {:.2e} | {} |",
-                r.method,
-                r.tolerance,
-                r.step.map_or("-".to_string(), |h| format!("{h:.0e}")),
-                r.seconds,
-                r.hessian_applications,
-                r.error,
-                if r.active_set_changed { "yes" } else { "" }
-            );
-        })
-    });
-    let study = match result {
-        Ok(s) => s,
-        Err(e) => {
-            errln!("error: {e}");
-            return ExitCode::from(EXIT_SCENE);
-        }
-    };
-    outln!(
-        "reference: adjoint at tolerance 1e-12; Richardson-extrapolated central differences agree to {:.1e}",
-        study.richardson_agreement
-    );
-    outln!("\nwhere finite differences are within 1e-4 of the reference (no active-set change):\n");
-    outln!("| scheme | tolerance | trusted h | best h (error) |");
-    outln!("|---|---|---|---|");
-    for t in study.trusted(1e-4) {
-        outln!(
-            "| {} | {:.0e} | {} | {:.0e} ({:.1e}) |",
-            t.method.replace("finite_difference ", ""),
-            t.tolerance,
-            t.range
-                .map_or("none".to_string(), |(a, b)| format!("{a:.0e} .. {b:.0e}")),
-            t.best.0,
-            t.best.1
-        );
-    }
-    if let Some(dir) = out {
-        let json = serde_json::to_string_pretty(&study).unwrap_or_default();
-        let svg = match study.svg() {
-            Ok(s) => s,
-            Err(e) => {
-                errln!("error: cannot draw the chart: {e}");
-                return ExitCode::from(EXIT_IO);
-            }
-        };
-        let csv = study.csv();
-        let files = [
-            ("study.json", json.as_bytes()),
-            ("study.csv", csv.as_bytes()),
-            ("study.svg", svg.as_bytes()),
-        ];
-        if let Err(code) = write_files(dir, &files) {
-            return code;
-        }
-        outln!("study written to {}", dir.display());
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso compare`: both methods on the scene, the tables on stdout (and files).
-fn compare_command(
-    scene: &cso::lang::Scene,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
-    let c = pool.install(|| cso::compare::compare(scene));
-    bar.finish_and_clear();
-    let md = c.markdown(true);
-    outln!("{md}");
-    if let Some(dir) = out {
-        let json = match serde_json::to_string_pretty(&c) {
-            Ok(j) => j,
-            Err(e) => {
-                errln!("error: cannot write JSON: {e}");
-                return ExitCode::from(EXIT_IO);
-            }
-        };
-        let files = [
-            ("compare.md", md.as_bytes()),
-            ("compare.json", json.as_bytes()),
-        ];
-        if let Err(code) = write_files(dir, &files) {
-            return code;
-        }
-    }
-    // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
-    // means the scene cannot be solved.
-    if c.tfeti.is_err() {
-        return ExitCode::from(EXIT_SCENE);
-    }
-    ExitCode::SUCCESS
-}
-
-/// `cso compare --eps-sweep`: classical FETI over eps, the table and chart.
-fn eps_sweep_command(
-    scene: &cso::lang::Scene,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let bar = ticking("solving by TFETI and by FETI at each eps");
-    let sweep = pool.install(|| cso::compare::eps_sweep(scene, &cso::compare::EPS_SWEEP));
-    bar.finish_and_clear();
-    let sweep = match sweep {
-        Ok(s) => s,
-        Err(e) => {
-            errln!("error: TFETI: {e}");
-            return ExitCode::from(EXIT_SCENE);
-        }
-    };
-    let md = sweep.markdown();
-    outln!("{md}");
-    if let Some(dir) = out {
-        let files = serde_json::to_string_pretty(&sweep)
-            .map_err(|e| e.to_string())
-            .and_then(|json| {
-                sweep
-                    .svg()
-                    .map(|svg| (json, svg))
-                    .map_err(|e| e.to_string())
-            });
-        let (json, svg) = match files {
-            Ok(f) => f,
-            Err(e) => {
-                errln!("error: {e}");
-                return ExitCode::from(EXIT_IO);
-            }
-        };
-        let files = [
-            ("eps.md", md.as_bytes()),
-            ("eps.json", json.as_bytes()),
-            ("eps.svg", svg.as_bytes()),
-        ];
-        if let Err(code) = write_files(dir, &files) {
-            return code;
-        }
-    }
-    ExitCode::SUCCESS
-}
-
-/// A spinner with elapsed time that ticks on its own (for work without progress
-/// callbacks).
-fn ticking(message: &'static str) -> indicatif::ProgressBar {
-    let bar = indicatif::ProgressBar::new_spinner();
+/// A spinner with elapsed time and a message, for the solver's progress.
+fn spinner() -> ProgressBar {
+    let bar = ProgressBar::new_spinner();
     bar.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
     );
+    bar
+}
+
+/// A spinner that ticks on its own (for work without progress callbacks).
+fn ticking(message: &'static str) -> ProgressBar {
+    let bar = spinner();
     bar.set_message(message);
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
     bar
 }
 
-/// Writes files (name, contents) into `dir`, creating it; each atomically.
-fn write_files(dir: &Path, files: &[(&str, &[u8])]) -> Result<(), ExitCode> {
-    let written = std::fs::create_dir_all(dir).and_then(|_| {
-        files
-            .iter()
-            .try_for_each(|(name, bytes)| cso::io::atomic::write_atomic(&dir.join(name), bytes))
-    });
-    written.map_err(|e| {
-        errln!("error: cannot write into {}: {e}", dir.display());
-        ExitCode::from(EXIT_IO)
-    })
+/// With `-o DIR`: builds a command's files (an error is the message) and writes
+/// them into `dir`.
+fn write_into(dir: Option<&Path>, files: impl FnOnce() -> Result<files::Files, String>) -> Outcome {
+    let Some(dir) = dir else { return Ok(()) };
+    let files = files().map_err(|e| fail(EXIT_IO, e))?;
+    write_files(dir, &files)
+        .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))
 }
 
-/// `cso optimize`: MMA iterations with a progress line, then the best design.
-fn optimize_command(
-    scene: &cso::lang::Scene,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> ExitCode {
-    let pool = match thread_pool(threads) {
-        Ok(p) => p,
-        Err(code) => return code,
-    };
-    let bar = indicatif::ProgressBar::new(scene.optimize.max_iterations as u64);
-    bar.set_style(
-        indicatif::ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-    );
-    // Ctrl-C: finish the current design, then stop with the best one written.
-    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    {
-        let stop = stop.clone();
-        // Without a handler (one is already set) Ctrl-C simply ends the process.
-        let _ = ctrlc::set_handler(move || stop.store(true, std::sync::atomic::Ordering::SeqCst));
+/// `cso compile`: what the compiler understood, as text or JSON.
+fn compile_cmd(scene: &Scene, json: bool) -> Outcome {
+    let summary = cso::io::summary::summarize_with_operators(scene);
+    if json {
+        let s = serde_json::to_string_pretty(&summary)
+            .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+        outln!("{s}");
+    } else {
+        out!("{summary}");
     }
-    // Every design as a .vtu per body, listed in one .pvd per body (ParaView series).
-    let mut series: Vec<Vec<(f64, String)>> = vec![Vec::new(); scene.bodies.len()];
-    let mut write_error: Option<std::io::Error> = None;
+    Ok(())
+}
+
+/// `cso solve`: the state solve with a progress line, the summary, and the files.
+fn solve(scene: &Scene, file: &Path, out: Option<&Path>, threads: Option<usize>) -> Outcome {
+    let pool = thread_pool(threads)?;
+    let bar = spinner();
     let result = pool.install(|| {
-        cso::opt::optimize(scene, &mut |it, state| {
-            if let Some(dir) = out {
-                let designs = dir.join("designs");
-                for (b, body) in scene.bodies.iter().enumerate() {
-                    let name = format!("{}_{:03}.vtu", body.name, it.iteration);
-                    let vtu = cso::io::report::body_fields(state, b).vtu;
-                    let written = std::fs::create_dir_all(&designs).and_then(|_| {
-                        cso::io::atomic::write_atomic(&designs.join(&name), vtu.as_bytes())
-                    });
-                    match written {
-                        Ok(()) => series[b].push((it.iteration as f64, format!("designs/{name}"))),
-                        Err(e) => write_error = Some(e),
-                    }
-                }
-            }
-            let worst = it
-                .constraints
-                .iter()
-                .copied()
-                .fold(f64::NEG_INFINITY, f64::max);
-            bar.set_message(format!(
-                "objective {:.6e} worst constraint {:.2e} step {:.1e} KKT {:.1e}",
-                it.objective, worst, it.step, it.kkt
-            ));
-            bar.inc(1);
-            !stop.load(std::sync::atomic::Ordering::SeqCst)
+        cso::state::solve(scene, &scene.design_init(), &mut |info| {
+            bar.set_message(tables::solve_progress(info));
+            bar.tick();
         })
     });
     bar.finish_and_clear();
-    let run = match result {
-        Ok(r) => r,
-        Err(e) => {
-            errln!("error: {e}");
-            return ExitCode::from(EXIT_SCENE);
-        }
-    };
-    if let Some(e) = write_error {
-        errln!("error: cannot write the design series: {e}");
-        return ExitCode::from(EXIT_IO);
-    }
+    let state = result.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", file.display())))?;
+    let report = cso::io::report::Report::new(scene, &state);
+    out!("{}", report.summary_text());
     if let Some(dir) = out {
-        for (b, body) in scene.bodies.iter().enumerate() {
-            let entries: Vec<(f64, &str)> =
-                series[b].iter().map(|(t, f)| (*t, f.as_str())).collect();
-            let pvd = cso::io::vtu::pvd_string(&entries);
-            let path = dir.join(format!("{}.pvd", body.name));
-            if let Err(e) = cso::io::atomic::write_atomic(&path, pvd.as_bytes()) {
-                errln!("error: cannot write {}: {e}", path.display());
-                return ExitCode::from(EXIT_IO);
-            }
-        }
-    }
-    outln!(
-        "{:>4} {:>14} {:>12} {:>10} {:>10}",
-        "iter",
-        "objective",
-        "worst g",
-        "step",
-        "KKT"
-    );
-    for it in &run.history {
-        let worst = it
-            .constraints
-            .iter()
-            .copied()
-            .fold(f64::NEG_INFINITY, f64::max);
-        outln!(
-            "{:>4} {:>14.6e} {:>12.3e} {:>10.2e} {:>10.2e}",
-            it.iteration,
-            it.objective,
-            worst,
-            it.step,
-            it.kkt
-        );
-    }
-    outln!("stopped: {:?}", run.termination);
-    if let Some(b) = run.best {
-        let it = &run.history[b];
-        outln!(
-            "best feasible design (iteration {}): objective {}",
-            it.iteration,
-            cso::lang::diag::num(it.objective)
-        );
-        for (d, v) in scene.design.iter().zip(&it.design) {
-            outln!("  {:<8} {}", d.name, cso::lang::diag::num(*v));
-        }
-    } else {
-        outln!("no feasible design was found");
-    }
-    if let Some(dir) = out {
-        if let Err(e) = write_optimization(dir, scene, &run) {
-            errln!("error: cannot write {}: {e}", dir.display());
-            return ExitCode::from(EXIT_IO);
-        }
+        cso::io::report::write_all(dir, scene, &state, &report).map_err(|e| {
+            fail(
+                EXIT_IO,
+                format!("cannot write results to {}: {e}", dir.display()),
+            )
+        })?;
         outln!("results written to {}", dir.display());
     }
-    ExitCode::SUCCESS
-}
-
-/// history.json, objective/constraint plots, and the best design's full report.
-fn write_optimization(
-    dir: &Path,
-    scene: &cso::lang::Scene,
-    run: &cso::opt::Optimization,
-) -> std::io::Result<()> {
-    std::fs::create_dir_all(dir)?;
-    let json = serde_json::to_string_pretty(run).map_err(std::io::Error::other)?;
-    cso::io::atomic::write_atomic(&dir.join("history.json"), json.as_bytes())?;
-    let iters: Vec<f64> = run.history.iter().map(|h| h.iteration as f64).collect();
-    let obj: Vec<f64> = run.history.iter().map(|h| h.objective).collect();
-    let svg = cso::io::plot::line_chart(
-        &format!("{}: objective", scene.name),
-        "iteration",
-        "objective",
-        &[cso::io::plot::Series {
-            name: "objective",
-            x: &iters,
-            y: &obj,
-        }],
-        false,
-        false,
-    )
-    .map_err(std::io::Error::other)?;
-    cso::io::atomic::write_atomic(&dir.join("objective.svg"), svg.as_bytes())?;
-    let ncons = run.history.first().map_or(0, |h| h.constraints.len());
-    let cons: Vec<Vec<f64>> = (0..ncons)
-        .map(|k| run.history.iter().map(|h| h.constraints[k]).collect())
-        .collect();
-    let names: Vec<String> = run.names.iter().skip(1).cloned().collect();
-    let series: Vec<cso::io::plot::Series> = cons
-        .iter()
-        .zip(&names)
-        .map(|(y, n)| cso::io::plot::Series {
-            name: n,
-            x: &iters,
-            y,
-        })
-        .collect();
-    let svg = cso::io::plot::line_chart(
-        &format!("{}: constraints (g <= 0)", scene.name),
-        "iteration",
-        "g",
-        &series,
-        false,
-        false,
-    )
-    .map_err(std::io::Error::other)?;
-    cso::io::atomic::write_atomic(&dir.join("constraints.svg"), svg.as_bytes())?;
-    // The shape of every curved, design-dependent face at the first, middle and last iterates.
-    let picks: Vec<usize> = {
-        let n = run.history.len();
-        let mut v = vec![0, n / 2, n.saturating_sub(1)];
-        v.dedup();
-        v
-    };
-    for body in &scene.bodies {
-        for (face, formula) in [("bottom", &body.bottom), ("top", &body.top)] {
-            let Some(f) = formula.as_ref().filter(|f| f.uses_design()) else {
-                continue;
-            };
-            let xs: Vec<Vec<f64>> = picks
-                .iter()
-                .map(|&k| {
-                    let d = &run.history[k].design;
-                    let (lo, hi) = (
-                        body.extent[0].0.eval_f64([0.0; 3], d),
-                        body.extent[0].1.eval_f64([0.0; 3], d),
-                    );
-                    (0..=100)
-                        .map(|i| lo + (hi - lo) * i as f64 / 100.0)
-                        .collect()
-                })
-                .collect();
-            let ys: Vec<Vec<f64>> = picks
-                .iter()
-                .zip(&xs)
-                .map(|(&k, x)| {
-                    x.iter()
-                        .map(|&xi| f.eval_f64([xi, 0.0, 0.0], &run.history[k].design))
-                        .collect()
-                })
-                .collect();
-            let labels: Vec<String> = picks.iter().map(|k| format!("iteration {k}")).collect();
-            let series: Vec<cso::io::plot::Series> = labels
-                .iter()
-                .zip(xs.iter().zip(&ys))
-                .map(|(n, (x, y))| cso::io::plot::Series { name: n, x, y })
-                .collect();
-            let svg = cso::io::plot::line_chart(
-                &format!("{}: {face} face of `{}`", scene.name, body.name),
-                "x (m)",
-                "height (m)",
-                &series,
-                false,
-                false,
-            )
-            .map_err(std::io::Error::other)?;
-            cso::io::atomic::write_atomic(
-                &dir.join(format!("shape_{}_{face}.svg", body.name)),
-                svg.as_bytes(),
-            )?;
-        }
-    }
-    if let Some(b) = run.best {
-        let mut best = scene.clone();
-        for (d, v) in best.design.iter_mut().zip(&run.history[b].design) {
-            d.init = *v;
-        }
-        let state = cso::state::solve(&best, &best.design_init(), &mut |_| {})
-            .map_err(std::io::Error::other)?;
-        let report = cso::io::report::Report::new(&best, &state);
-        cso::io::report::write_all(dir, &best, &state, &report)?;
+    if !state.converged() {
+        let status = &state.info.status;
+        return Err(fail(
+            EXIT_SCENE,
+            format!("{} did not converge: {status:?}", file.display()),
+        ));
     }
     Ok(())
+}
+
+/// `cso sensitivity`: a table of dJ/da_i for the objective and each constraint.
+fn sensitivity(
+    scene: &Scene,
+    method: SensitivityMethod,
+    h: f64,
+    scheme: Scheme,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> Outcome {
+    if scene.design.is_empty() {
+        let msg = "the scene has no design variables (`design NAME { init, lower, upper }`)";
+        return Err(fail(EXIT_SCENE, msg));
+    }
+    let pool = thread_pool(threads)?;
+    let g = pool
+        .install(|| cso::sens::gradient(scene, method, h, scheme))
+        .map_err(|e| fail(EXIT_SCENE, e))?;
+    outln!("{}", tables::gradient(&scene.name, &g));
+    if let Some(dir) = out {
+        let json = serde_json::to_string_pretty(&g)
+            .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+        write_files(dir, &[("sensitivity.json", json)])
+            .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+    }
+    Ok(())
+}
+
+/// `cso sensitivity --study`: the speed-against-accuracy table and chart.
+fn sensitivity_study(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
+    if scene.design.is_empty() || scene.objective.is_none() {
+        return Err(fail(
+            EXIT_SCENE,
+            "a study needs design variables and an objective",
+        ));
+    }
+    let pool = thread_pool(threads)?;
+    outln!("{}", tables::STUDY_HEADER);
+    let study = pool
+        .install(|| {
+            cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", tables::study_row(r)))
+        })
+        .map_err(|e| fail(EXIT_SCENE, e))?;
+    outln!("{}", tables::study_summary(&study));
+    write_into(out, || files::study(&study))?;
+    if let Some(dir) = out {
+        outln!("study written to {}", dir.display());
+    }
+    Ok(())
+}
+
+/// `cso compare`: both methods on the scene, the tables on stdout (and files).
+fn compare(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
+    let pool = thread_pool(threads)?;
+    let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
+    let c = pool.install(|| cso::studies::compare::compare(scene));
+    bar.finish_and_clear();
+    let md = c.markdown(true);
+    outln!("{md}");
+    write_into(out, || files::comparison(&c, &md))?;
+    // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
+    // means the scene cannot be solved.
+    match c.tfeti {
+        Ok(_) => Ok(()),
+        Err(_) => Err(EXIT_SCENE),
+    }
+}
+
+/// `cso compare --eps-sweep`: classical FETI over eps, the table and chart.
+fn compare_eps(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
+    use cso::studies::compare::{eps_sweep, EPS_SWEEP};
+    let pool = thread_pool(threads)?;
+    let bar = ticking("solving by TFETI and by FETI at each eps");
+    let sweep = pool.install(|| eps_sweep(scene, &EPS_SWEEP));
+    bar.finish_and_clear();
+    let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
+    let md = sweep.markdown();
+    outln!("{md}");
+    write_into(out, || files::eps_sweep(&sweep, &md))
+}
+
+/// `cso optimize`: MMA iterations with a progress line, then the best design.
+fn optimize(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
+    let pool = thread_pool(threads)?;
+    let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    // Ctrl-C: finish the current design, then stop with the best one written.
+    let stop = Arc::new(AtomicBool::new(false));
+    let handler_stop = stop.clone();
+    // Without a handler (one is already set) Ctrl-C simply ends the process.
+    let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
+    let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
+    let result = pool.install(|| {
+        cso::opt::optimize(scene, &mut |it, state| {
+            if let Some(series) = series.as_mut() {
+                series.record(scene, it.iteration, state);
+            }
+            bar.set_message(tables::iterate_progress(it));
+            bar.inc(1);
+            !stop.load(Ordering::SeqCst)
+        })
+    });
+    bar.finish_and_clear();
+    let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
+    if let Some(series) = series {
+        series.finish(scene).map_err(|e| fail(EXIT_IO, e))?;
+    }
+    outln!("{}", tables::optimization(scene, &run));
+    if let Some(dir) = out {
+        cso::io::optimization::write(dir, scene, &run)
+            .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+        outln!("results written to {}", dir.display());
+    }
+    Ok(())
+}
+
+/// `cso bench`: the tables on stdout as their rows finish (and, for `hard`, files).
+fn run_bench(
+    which: Benchmark,
+    hhs: &[usize],
+    max_cuts: (usize, usize),
+    tolerance: f64,
+    out: Option<&Path>,
+    threads: Option<usize>,
+) -> Outcome {
+    let pool = thread_pool(threads)?;
+    let threads = pool.current_num_threads();
+    // A table over H/h and cuts, each row printed as it finishes; a failed row is
+    // reported and the table goes on.
+    type Row<'a> = &'a (dyn Fn(usize, usize, usize) -> Result<String, String> + Sync);
+    let cuts_table = |title: String, columns: &[&str], row: Row| {
+        outln!("{}", tables::cuts_header(threads, &title, columns));
+        bench::over_cuts(hhs, max_cuts, row, &mut |hh, (sx, sy), cells| match cells {
+            Ok(cells) => outln!("{}", tables::cuts_row(hh, (sx, sy), &cells)),
+            Err(e) => errln!("error at {sx}x{sy}: {e}"),
+        });
+        Ok(())
+    };
+    pool.install(|| match which {
+        Benchmark::Scaling => cuts_table(
+            format!("tolerance {tolerance:e}"),
+            &tables::SCALING_COLUMNS,
+            &|sx, sy, hh| {
+                let r = bench::scaling_row(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
+                Ok(tables::scaling_cells(&r))
+            },
+        ),
+        Benchmark::Compare => cuts_table(
+            format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
+            &tables::COMPARE_COLUMNS,
+            &|sx, sy, hh| {
+                Ok(tables::compare_cells(&bench::compare_row(
+                    sx, sy, hh, tolerance,
+                )?))
+            },
+        ),
+        Benchmark::Sensitivity => {
+            outln!("{}", tables::gradient_costs_header(threads, tolerance));
+            for m in bench::GRADIENT_COST_SIZES {
+                match bench::gradient_costs(m, tolerance) {
+                    Ok(rows) => rows
+                        .iter()
+                        .for_each(|r| outln!("{}", tables::gradient_cost_row(r))),
+                    Err(e) => errln!("error at m = {m}: {e}"),
+                }
+            }
+            Ok(())
+        }
+        Benchmark::Optimize => {
+            let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
+            outln!("{}", tables::reuse(&rows));
+            Ok(())
+        }
+        Benchmark::Hard => {
+            let bar = ProgressBar::new_spinner();
+            let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
+                bar.set_message(what.to_string());
+                bar.tick();
+            });
+            bar.finish_and_clear();
+            let md = tables::hard(tolerance, &sweeps);
+            outln!("{md}");
+            write_into(out, || files::hard(&sweeps, &md))
+        }
+    })
 }

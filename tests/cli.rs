@@ -110,3 +110,71 @@ fn compare_prints_the_table_writes_its_files_and_runs_the_eps_sweep() {
         .starts_with("<svg"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn sensitivity_help_lists_the_methods_and_schemes() {
+    let (code, out, err) = cso(&["sensitivity", "--help"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(
+        out.contains("[possible values: semi_analytic, adjoint, finite_difference]"),
+        "{out}"
+    );
+    assert!(out.contains("[possible values: forward, central]"), "{out}");
+}
+
+#[test]
+fn an_invalid_method_exits_with_code_2_and_names_the_valid_ones() {
+    let (code, out, err) = cso(&["sensitivity", "examples/scont2d.cso", "--method", "exact"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(out.is_empty(), "{out}");
+    assert!(err.contains("invalid value 'exact' for '--method"), "{err}");
+    for method in ["semi_analytic", "adjoint", "finite_difference"] {
+        assert!(err.contains(method), "{err}");
+    }
+    // The spellings are those of the language (snake_case), not clap's kebab-case.
+    let (code, _, err) = cso(&[
+        "sensitivity",
+        "examples/scont2d.cso",
+        "--method",
+        "semi-analytic",
+    ]);
+    assert_eq!(code, 2, "{err}");
+}
+
+#[test]
+fn bench_choices_and_cuts_are_checked_before_anything_runs() {
+    let (code, out, _) = cso(&["bench", "--help"]);
+    assert_eq!(code, 0);
+    assert!(
+        out.contains("[possible values: scaling, compare, hard, sensitivity, optimize]"),
+        "{out}"
+    );
+    let (code, _, err) = cso(&["bench", "scaleing"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("scaling"), "{err}");
+    let (code, _, err) = cso(&["bench", "scaling", "--max-cuts", "32"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("expected SXxSY, e.g. 32x16"), "{err}");
+}
+
+#[test]
+fn bench_scaling_prints_one_row_per_hh_and_cut() {
+    let args = [
+        "bench",
+        "scaling",
+        "--hh",
+        "2",
+        "--max-cuts",
+        "2x2",
+        "--threads",
+        "1",
+    ];
+    let (code, out, err) = cso(&args);
+    assert_eq!(code, 0, "{err}");
+    let lines: Vec<&str> = out.lines().collect();
+    assert_eq!(lines[0], "threads 1, tolerance 1e-6", "{out}");
+    assert!(lines[1].starts_with("| H/h | cuts | subdomains |"), "{out}");
+    assert!(lines[3].starts_with("| 2 | 2x1 | 3 |"), "{out}");
+    assert!(lines[4].starts_with("| 2 | 2x2 | 5 |"), "{out}");
+    assert_eq!(lines.len(), 5, "{out}");
+}

@@ -100,7 +100,7 @@ fn feti_sensitivities_equal_tfeti_sensitivities() {
 
 #[test]
 fn comparison_table_of_scont2d() {
-    let c = cso::compare::compare(&example("scont2d"));
+    let c = cso::studies::compare::compare(&example("scont2d"));
     let (f, t) = (
         c.feti.as_ref().expect("FETI"),
         c.tfeti.as_ref().expect("TFETI"),
@@ -116,7 +116,7 @@ fn comparison_table_of_scont2d() {
 fn comparison_reports_a_wrong_eps_instead_of_a_number() {
     let mut s = example("two_blocks");
     s.solver.eps = 0.5;
-    let c = cso::compare::compare(&s);
+    let c = cso::studies::compare::compare(&s);
     let err = c.feti.as_ref().expect_err("eps = 0.5 takes genuine pivots");
     assert!(err.contains("eps is too large"), "{err}");
     assert!(c.tfeti.is_ok() && c.difference.is_none());
@@ -126,8 +126,9 @@ fn comparison_reports_a_wrong_eps_instead_of_a_number() {
 #[test]
 fn feti_over_an_eps_sweep_is_right_or_refused_never_silently_wrong() {
     for name in ["two_blocks", "semicoercive2d"] {
-        let sweep = cso::compare::eps_sweep(&example(name), &cso::compare::EPS_SWEEP)
-            .expect("TFETI solves");
+        let sweep =
+            cso::studies::compare::eps_sweep(&example(name), &cso::studies::compare::EPS_SWEEP)
+                .expect("TFETI solves");
         for r in &sweep.runs {
             match r.refused.as_deref() {
                 None => {

@@ -15,8 +15,8 @@ use crate::options;
 use cso::io::report::Report;
 use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
-use cso::stability::{cantilever_scene, contrast_scene, indentation_scene, rocking_scene};
 use cso::state::{solve, SolveError, State};
+use cso::studies::stability::{cantilever_scene, contrast_scene, indentation_scene, rocking_scene};
 
 fn scene(src: &str) -> Scene {
     match compile(src, &options()) {
@@ -460,7 +460,7 @@ fn hard_design_perturbation_opens_contacts_and_sensitivities_say_so() {
 
 #[test]
 fn hard_sweeps_converge_everywhere_and_draw() {
-    let sweeps = cso::stability::sweeps(1e-8, &mut |_| {});
+    let sweeps = cso::studies::stability::sweeps(1e-8, &mut |_| {});
     assert_eq!(sweeps.len(), 3);
     for s in &sweeps {
         for (name, points) in &s.series {

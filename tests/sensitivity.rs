@@ -296,7 +296,7 @@ fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_
         .replace("1 + w", "2")
         .replace("/w", "/1");
     let s = compile(&src, &options()).expect("checks");
-    let study = cso::sens::study::study(&s, &mut |_| {}).expect("runs");
+    let study = cso::studies::sensitivity::study(&s, &mut |_| {}).expect("runs");
     assert!(
         study.richardson_agreement < 1e-6,
         "{}",

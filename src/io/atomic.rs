@@ -44,6 +44,19 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> io::Result<()> {
     Ok(())
 }
 
+/// Writes a set of files `(name, contents)` into `dir`, creating it, each with
+/// [`write_atomic`]: every output of a command in one call, stopping at the first
+/// failure (the files already written are complete, the rest untouched).
+///
+/// # Errors
+/// Whatever creating `dir` or [`write_atomic`] reports.
+pub fn write_files<N: AsRef<str>, B: AsRef<[u8]>>(dir: &Path, files: &[(N, B)]) -> io::Result<()> {
+    fs::create_dir_all(dir)?;
+    files
+        .iter()
+        .try_for_each(|(name, bytes)| write_atomic(&dir.join(name.as_ref()), bytes.as_ref()))
+}
+
 /// The temporary file's path: same directory as `path`, so the final rename
 /// stays within one file system.
 fn temp_path(path: &Path) -> io::Result<PathBuf> {
@@ -143,6 +156,19 @@ mod tests {
         assert_eq!(err.kind(), io::ErrorKind::InvalidInput);
         assert!(entries(&dir).is_empty());
         fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn write_files_creates_the_directory_and_writes_every_file() {
+        let dir = test_dir("files").join("nested");
+        write_files(&dir, &[("a.md", "table"), ("b.json", "{}")]).unwrap();
+        assert_eq!(fs::read(dir.join("a.md")).unwrap(), b"table");
+        assert_eq!(fs::read(dir.join("b.json")).unwrap(), b"{}");
+        assert_eq!(
+            entries(&dir),
+            vec!["a.md".to_string(), "b.json".to_string()]
+        );
+        fs::remove_dir_all(dir.parent().unwrap()).unwrap();
     }
 
     #[test]

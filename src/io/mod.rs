@@ -1,8 +1,12 @@
-//! What cso shows a person: summaries and (later) reports, VTU and SVG.
+//! What cso shows a person: summaries, reports, tables, VTU and SVG, and the
+//! files each command writes.
 
 pub mod atomic;
 pub mod export;
+pub mod files;
+pub mod optimization;
 pub mod plot;
 pub mod report;
 pub mod summary;
+pub mod tables;
 pub mod vtu;

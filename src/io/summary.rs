@@ -525,6 +525,21 @@ impl fmt::Display for Summary {
 }
 
 /// "1 body", "2 bodies".
+/// The line `cso check` prints for a scene that checks: its name, dimension,
+/// size and primal unknowns.
+pub fn check_line(file: &std::path::Path, scene: &Scene) -> String {
+    let s = summarize(scene);
+    format!(
+        "ok {}: scene `{}` ({}), {}, {}, {} primal unknowns",
+        file.display(),
+        scene.name,
+        if s.dim == Dimension::Two { "2D" } else { "3D" },
+        plural(s.totals.bodies, "body", "bodies"),
+        plural(s.totals.subdomains, "subdomain", "subdomains"),
+        s.totals.primal_dofs
+    )
+}
+
 pub fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }

@@ -6,6 +6,7 @@
 //! everything else is a number.
 
 use super::expr::{Arith, Cond, Formula, Func, Point, Scalar};
+use clap::ValueEnum;
 use serde::Serialize;
 
 /// 2D (plane strain) or 3D.
@@ -439,15 +440,25 @@ pub struct Constraint {
     pub text: String,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// `solver { method }`: `tfeti` (every support a row, kernels known a priori) or
+/// `feti` (Dirichlet dofs eliminated, kernels by pivot detection).
+///
+/// The words that the language and the command line accept for this enum and the
+/// others below are their `ValueEnum` names (snake_case, as serialized), so each
+/// is spelled in one place only. The variants carry no `///` help on purpose: it
+/// would switch clap's `--help` to its long, one-option-per-paragraph layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
 pub enum SolverMethod {
     Tfeti,
     Feti,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// `solver { preconditioner }`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
 pub enum Preconditioner {
     None,
     Lumped,
@@ -481,16 +492,24 @@ impl Default for SolverSettings {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// `sensitivity { method }` and `cso sensitivity --method`: `semi_analytic`
+/// (exact, one solve per design variable on the state's factorization), `adjoint`
+/// (exact, one adjoint solve per functional) or `finite_difference` (the baseline:
+/// full state solves at perturbed designs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
 pub enum SensitivityMethod {
     SemiAnalytic,
     Adjoint,
     FiniteDifference,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// `sensitivity { scheme }` and `cso sensitivity --scheme`: `forward`
+/// (`m + 1` solves, error `O(h)`) or `central` (`2m + 1` solves, error `O(h^2)`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
 pub enum Scheme {
     Forward,
     Central,
@@ -517,8 +536,10 @@ impl Default for SensitivitySettings {
     }
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+/// `optimize { method }`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
 pub enum OptimizeMethod {
     Mma,
 }

@@ -8,6 +8,7 @@ use crate::lang::diag::{num, Diagnostic};
 use crate::lang::expr::Formula;
 use crate::lang::scene::*;
 use crate::lang::units::{Dim, Quantity};
+use clap::ValueEnum;
 
 const FACE_HINT: &str =
     "only `bottom` and `top` may be curved, as a height over the other coordinates";
@@ -1295,18 +1296,10 @@ impl<'a> Checker<'a> {
             opt("eps", ""),
         ];
         let f = self.fields(block, &spec, "`solver`", keyword.span, &|_| None);
-        if let Some(m) = self.choice(
-            f.get("method"),
-            &[("tfeti", SolverMethod::Tfeti), ("feti", SolverMethod::Feti)],
-        ) {
+        if let Some(m) = self.choice(f.get("method")) {
             s.method = m;
         }
-        let pc = [
-            ("none", Preconditioner::None),
-            ("lumped", Preconditioner::Lumped),
-            ("dirichlet", Preconditioner::Dirichlet),
-        ];
-        if let Some(p) = self.choice(f.get("preconditioner"), &pc) {
+        if let Some(p) = self.choice(f.get("preconditioner")) {
             s.preconditioner = p;
         }
         if let Some(t) = self.tolerance(f.get("tolerance")) {
@@ -1331,18 +1324,10 @@ impl<'a> Checker<'a> {
         let mut s = SensitivitySettings::default();
         let spec = [opt("method", ""), opt("step", ""), opt("scheme", "")];
         let f = self.fields(block, &spec, "`sensitivity`", keyword.span, &|_| None);
-        let methods = [
-            ("semi_analytic", SensitivityMethod::SemiAnalytic),
-            ("adjoint", SensitivityMethod::Adjoint),
-            ("finite_difference", SensitivityMethod::FiniteDifference),
-        ];
-        if let Some(m) = self.choice(f.get("method"), &methods) {
+        if let Some(m) = self.choice(f.get("method")) {
             s.method = m;
         }
-        if let Some(m) = self.choice(
-            f.get("scheme"),
-            &[("forward", Scheme::Forward), ("central", Scheme::Central)],
-        ) {
+        if let Some(m) = self.choice(f.get("scheme")) {
             s.scheme = m;
         }
         if let Some(t) = self.tolerance(f.get("step")) {
@@ -1360,7 +1345,7 @@ impl<'a> Checker<'a> {
             opt("tolerance", ""),
         ];
         let f = self.fields(block, &spec, "`optimize`", keyword.span, &|_| None);
-        if let Some(m) = self.choice(f.get("method"), &[("mma", OptimizeMethod::Mma)]) {
+        if let Some(m) = self.choice::<OptimizeMethod>(f.get("method")) {
             s.method = m;
         }
         if let Some(t) = self.tolerance(f.get("tolerance")) {
@@ -1377,14 +1362,18 @@ impl<'a> Checker<'a> {
         s
     }
 
-    /// A field whose value is one of a few words.
-    fn choice<T: Copy>(
+    /// A field whose value is one of a few words: the names of `T`'s variants,
+    /// the same words `cso` accepts on the command line.
+    fn choice<T: ValueEnum + Copy>(
         &mut self,
         field: Option<&'a crate::lang::ast::Field>,
-        options: &[(&str, T)],
     ) -> Option<T> {
         let fl = field?;
-        let names: Vec<&str> = options.iter().map(|(n, _)| *n).collect();
+        let options: Vec<(String, T)> = T::value_variants()
+            .iter()
+            .filter_map(|v| Some((v.to_possible_value()?.get_name().to_string(), *v)))
+            .collect();
+        let names: Vec<&str> = options.iter().map(|(n, _)| n.as_str()).collect();
         let expect = format!("one of {}", quote_list(&names));
         let e = self.expr_of(fl, &expect)?;
         if let ExprKind::Name(n) = &e.kind {

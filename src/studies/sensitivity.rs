@@ -7,8 +7,8 @@
 //! tolerance (their agreement is reported). The error of a run is
 //! `max_i |g_i - g_ref_i| / max_i |g_ref_i|` over the objective's gradient.
 
-use super::{adjoint, finite_difference, semi_analytic, Gradient};
 use crate::lang::scene::{Scene, Scheme};
+use crate::sens::{adjoint, finite_difference, semi_analytic, Gradient};
 use crate::state::SolveError;
 use serde::Serialize;
 

@@ -5,7 +5,50 @@
 
 use crate::lang::{compile, CheckOptions};
 use crate::state::{solve, SolveError};
+use crate::studies::compare::{compare, Column};
+use clap::ValueEnum;
 use serde::Serialize;
+
+/// The benchmarks of `cso bench`: `scaling` (TFETI on the scaled scene),
+/// `compare` (FETI against TFETI on it), `hard` (the hard-scene sweeps of
+/// [`crate::studies::stability`]), `sensitivity` (gradient cost for m = 6, 24,
+/// 96) and `optimize` (reuse between design iterations).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+#[value(rename_all = "snake_case")]
+pub enum Benchmark {
+    Scaling,
+    Compare,
+    Hard,
+    Sensitivity,
+    Optimize,
+}
+
+/// The design sizes `m` of the gradient-cost benchmark.
+pub const GRADIENT_COST_SIZES: [usize; 3] = [6, 24, 96];
+
+/// Parses the largest cut of the base, `SXxSY` (e.g. `32x16`): the value parser
+/// of `cso bench --max-cuts`.
+pub fn parse_cuts(s: &str) -> Result<(usize, usize), String> {
+    s.split_once('x')
+        .and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)))
+        .ok_or_else(|| "expected SXxSY, e.g. 32x16".to_string())
+}
+
+/// Runs `row` for every H/h of `hhs` and every cut of [`cut_sequence`] up to
+/// `max`, in table order, and hands each result to `each` as it finishes (a
+/// benchmark at scale runs for minutes; its rows should show as they come).
+pub fn over_cuts<T>(
+    hhs: &[usize],
+    max: (usize, usize),
+    row: &dyn Fn(usize, usize, usize) -> T,
+    each: &mut dyn FnMut(usize, (usize, usize), T),
+) {
+    for &hh in hhs {
+        for (sx, sy) in cut_sequence(max) {
+            each(hh, (sx, sy), row(sx, sy, hh));
+        }
+    }
+}
 
 /// The `two_blocks` scene with the base cut `sx x sy` and the punch cut
 /// `max(1, sx/4) x max(1, sy/2)`, every subdomain `hh x hh` elements.
@@ -107,6 +150,31 @@ pub fn scaling_row(
         kkt: state.kkt.worst(),
         converged: state.converged(),
     })
+}
+
+/// One row of the FETI against TFETI table at scale.
+#[derive(Debug, Clone, Serialize)]
+pub struct CompareRow {
+    pub subdomains: usize,
+    pub feti: Column,
+    pub tfeti: Column,
+    /// `max |u_FETI - u_TFETI| / max |u_TFETI|`.
+    pub difference: Option<f64>,
+}
+
+/// Solves one scaled scene by FETI and by TFETI; an error when either fails.
+pub fn compare_row(sx: usize, sy: usize, hh: usize, tolerance: f64) -> Result<CompareRow, String> {
+    let scene = scaled_scene(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
+    let c = compare(&scene);
+    match (c.feti, c.tfeti) {
+        (Ok(feti), Ok(tfeti)) => Ok(CompareRow {
+            subdomains: scene.bodies.iter().map(|b| b.subdomain_count()).sum(),
+            feti,
+            tfeti,
+            difference: c.difference,
+        }),
+        (f, t) => Err(format!("FETI {:?}, TFETI {:?}", f.err(), t.err())),
+    }
 }
 
 /// scont2d with `m` Bezier coefficients as design variables (initial shape: a

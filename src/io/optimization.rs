@@ -1,0 +1,212 @@
+//! What `cso optimize -o DIR` writes: every design as it is solved (one `.vtu`
+//! per body under `designs/`, listed in one `.pvd` per body, a ParaView time
+//! series), and after the run `history.json`, the objective, constraint and
+//! shape charts, and the best design's full report.
+//!
+//! The series is written during the run so that an interrupted run (Ctrl-C, a
+//! time limit) still leaves every design it solved; a failed write does not stop
+//! the optimization, it is reported when the run ends.
+
+use super::atomic::write_atomic;
+use super::plot::{line_chart, Series};
+use super::report::{body_fields, write_all, Report};
+use super::vtu::pvd_string;
+use crate::lang::Scene;
+use crate::opt::Optimization;
+use crate::state::State;
+use std::fmt;
+use std::io;
+use std::path::{Path, PathBuf};
+
+/// The designs of a run as they are solved, per body (iteration, file under `dir`).
+pub struct DesignSeries {
+    dir: PathBuf,
+    entries: Vec<Vec<(f64, String)>>,
+    /// The last write that failed, reported by [`DesignSeries::finish`].
+    error: Option<io::Error>,
+}
+
+/// Why the design series is incomplete.
+#[derive(Debug)]
+pub enum SeriesError {
+    /// A design's `.vtu` could not be written.
+    Design(io::Error),
+    /// A body's `.pvd` could not be written.
+    Pvd(PathBuf, io::Error),
+}
+
+impl fmt::Display for SeriesError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SeriesError::Design(e) => write!(f, "cannot write the design series: {e}"),
+            SeriesError::Pvd(path, e) => write!(f, "cannot write {}: {e}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for SeriesError {}
+
+impl DesignSeries {
+    /// An empty series of the scene's bodies, to be written into `dir`.
+    pub fn new(dir: &Path, scene: &Scene) -> DesignSeries {
+        DesignSeries {
+            dir: dir.to_path_buf(),
+            entries: vec![Vec::new(); scene.bodies.len()],
+            error: None,
+        }
+    }
+
+    /// Writes the state of design `iteration` as `designs/BODY_NNN.vtu`.
+    pub fn record(&mut self, scene: &Scene, iteration: usize, state: &State) {
+        let designs = self.dir.join("designs");
+        for (b, body) in scene.bodies.iter().enumerate() {
+            let name = format!("{}_{:03}.vtu", body.name, iteration);
+            let vtu = body_fields(state, b).vtu;
+            let written = std::fs::create_dir_all(&designs)
+                .and_then(|_| write_atomic(&designs.join(&name), vtu.as_bytes()));
+            match written {
+                Ok(()) => self.entries[b].push((iteration as f64, format!("designs/{name}"))),
+                Err(e) => self.error = Some(e),
+            }
+        }
+    }
+
+    /// Writes one `BODY.pvd` per body listing its designs; first reports a
+    /// design that could not be written.
+    pub fn finish(self, scene: &Scene) -> Result<(), SeriesError> {
+        if let Some(e) = self.error {
+            return Err(SeriesError::Design(e));
+        }
+        for (body, series) in scene.bodies.iter().zip(&self.entries) {
+            let entries: Vec<(f64, &str)> = series.iter().map(|(t, f)| (*t, f.as_str())).collect();
+            let path = self.dir.join(format!("{}.pvd", body.name));
+            write_atomic(&path, pvd_string(&entries).as_bytes())
+                .map_err(|e| SeriesError::Pvd(path, e))?;
+        }
+        Ok(())
+    }
+}
+
+/// history.json, the objective and constraint charts, the shape of every
+/// design-dependent face at the first, middle and last iterates, and the best
+/// design's full report (its state solved again: the run keeps no states).
+pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
+    std::fs::create_dir_all(dir)?;
+    let json = serde_json::to_string_pretty(run).map_err(io::Error::other)?;
+    write_atomic(&dir.join("history.json"), json.as_bytes())?;
+    let iters: Vec<f64> = run.history.iter().map(|h| h.iteration as f64).collect();
+    let obj: Vec<f64> = run.history.iter().map(|h| h.objective).collect();
+    let svg = line_chart(
+        &format!("{}: objective", scene.name),
+        "iteration",
+        "objective",
+        &[Series {
+            name: "objective",
+            x: &iters,
+            y: &obj,
+        }],
+        false,
+        false,
+    )
+    .map_err(io::Error::other)?;
+    write_atomic(&dir.join("objective.svg"), svg.as_bytes())?;
+    let ncons = run.history.first().map_or(0, |h| h.constraints.len());
+    let cons: Vec<Vec<f64>> = (0..ncons)
+        .map(|k| run.history.iter().map(|h| h.constraints[k]).collect())
+        .collect();
+    let names: Vec<String> = run.names.iter().skip(1).cloned().collect();
+    let series: Vec<Series> = cons
+        .iter()
+        .zip(&names)
+        .map(|(y, n)| Series {
+            name: n,
+            x: &iters,
+            y,
+        })
+        .collect();
+    let svg = line_chart(
+        &format!("{}: constraints (g <= 0)", scene.name),
+        "iteration",
+        "g",
+        &series,
+        false,
+        false,
+    )
+    .map_err(io::Error::other)?;
+    write_atomic(&dir.join("constraints.svg"), svg.as_bytes())?;
+    write_shapes(dir, scene, run)?;
+    if let Some(b) = run.best {
+        let mut best = scene.clone();
+        for (d, v) in best.design.iter_mut().zip(&run.history[b].design) {
+            d.init = *v;
+        }
+        let state = crate::state::solve(&best, &best.design_init(), &mut |_| {})
+            .map_err(io::Error::other)?;
+        let report = Report::new(&best, &state);
+        write_all(dir, &best, &state, &report)?;
+    }
+    Ok(())
+}
+
+/// `shape_BODY_FACE.svg`: every curved, design-dependent face at the first,
+/// middle and last iterates.
+fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
+    if run.history.is_empty() {
+        return Ok(());
+    }
+    let picks: Vec<usize> = {
+        let n = run.history.len();
+        let mut v = vec![0, n / 2, n.saturating_sub(1)];
+        v.dedup();
+        v
+    };
+    for body in &scene.bodies {
+        for (face, formula) in [("bottom", &body.bottom), ("top", &body.top)] {
+            let Some(f) = formula.as_ref().filter(|f| f.uses_design()) else {
+                continue;
+            };
+            let xs: Vec<Vec<f64>> = picks
+                .iter()
+                .map(|&k| {
+                    let d = &run.history[k].design;
+                    let (lo, hi) = (
+                        body.extent[0].0.eval_f64([0.0; 3], d),
+                        body.extent[0].1.eval_f64([0.0; 3], d),
+                    );
+                    (0..=100)
+                        .map(|i| lo + (hi - lo) * i as f64 / 100.0)
+                        .collect()
+                })
+                .collect();
+            let ys: Vec<Vec<f64>> = picks
+                .iter()
+                .zip(&xs)
+                .map(|(&k, x)| {
+                    x.iter()
+                        .map(|&xi| f.eval_f64([xi, 0.0, 0.0], &run.history[k].design))
+                        .collect()
+                })
+                .collect();
+            let labels: Vec<String> = picks.iter().map(|k| format!("iteration {k}")).collect();
+            let series: Vec<Series> = labels
+                .iter()
+                .zip(xs.iter().zip(&ys))
+                .map(|(n, (x, y))| Series { name: n, x, y })
+                .collect();
+            let svg = line_chart(
+                &format!("{}: {face} face of `{}`", scene.name, body.name),
+                "x (m)",
+                "height (m)",
+                &series,
+                false,
+                false,
+            )
+            .map_err(io::Error::other)?;
+            write_atomic(
+                &dir.join(format!("shape_{}_{face}.svg", body.name)),
+                svg.as_bytes(),
+            )?;
+        }
+    }
+    Ok(())
+}
