@@ -1,6 +1,7 @@
-//! The `cso` command: a thin shell over the library.
+//! The `cso` command: a thin shell over the library. Each command parses its
+//! arguments, calls the library, prints what it returns and gives the exit code.
 
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
 use cso::io::{files, tables};
 use cso::lang::scene::{Scheme, SensitivityMethod};
@@ -36,107 +37,130 @@ struct Cli {
     command: Command,
 }
 
+// The subcommands' help is the variants' doc comments; the argument structs
+// carry none, so that there is one text per command.
 #[derive(Subcommand, Debug)]
 enum Command {
     /// Parse and check scenes; report every error with its place and a fix.
-    Check {
-        /// `.cso` files to check.
-        #[arg(required = true)]
-        files: Vec<PathBuf>,
-    },
+    Check(Check),
     /// Solve the contact state of a 2D scene by Total FETI (SMALBE + MPRGP).
-    Solve {
-        /// The `.cso` file.
-        file: PathBuf,
-        /// Write report.json, one .vtu per body and SVG plots into this folder.
-        #[arg(short, long, value_name = "DIR")]
-        out: Option<PathBuf>,
-        /// Threads over subdomains (default: all cores).
-        #[arg(long, value_name = "N")]
-        threads: Option<usize>,
-    },
+    Solve(Solve),
     /// Gradients of the objective and constraints with respect to the design variables.
-    Sensitivity {
-        /// The `.cso` file.
-        file: PathBuf,
-        /// Gradient method (default: the scene's `sensitivity { method }`).
-        #[arg(long, value_enum)]
-        method: Option<SensitivityMethod>,
-        /// Finite-difference step (default: the scene's `sensitivity { step }`).
-        #[arg(long)]
-        step: Option<f64>,
-        /// Finite-difference scheme (default: the scene's `sensitivity { scheme }`).
-        #[arg(long, value_enum)]
-        scheme: Option<Scheme>,
-        /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
-        #[arg(short, long, value_name = "DIR")]
-        out: Option<PathBuf>,
-        /// Chart speed against accuracy: finite differences over h = 1e-1 .. 1e-10 and
-        /// tolerances 1e-4 .. 1e-10, the exact methods over tolerances.
-        #[arg(long)]
-        study: bool,
-        /// Threads over subdomains (default: all cores).
-        #[arg(long, value_name = "N")]
-        threads: Option<usize>,
-    },
+    Sensitivity(Sensitivity),
     /// Optimize the design variables: MMA on `minimize` / `subject to` with exact gradients.
-    Optimize {
-        /// The `.cso` file.
-        file: PathBuf,
-        /// Write history.json, the best design's report, VTU and plots into this folder.
-        #[arg(short, long, value_name = "DIR")]
-        out: Option<PathBuf>,
-        /// Threads over subdomains (default: all cores).
-        #[arg(long, value_name = "N")]
-        threads: Option<usize>,
-    },
+    Optimize(Optimize),
     /// FETI vs Total FETI on one scene: unknowns, CG steps of the state and of each
     /// design variable's sensitivity, times, ratios (the seed's table).
-    Compare {
-        /// The `.cso` file.
-        file: PathBuf,
-        /// Write compare.md and compare.json (with --eps-sweep: eps.md, eps.json,
-        /// eps.svg) into this folder.
-        #[arg(short, long, value_name = "DIR")]
-        out: Option<PathBuf>,
-        /// Instead: classical FETI over a sweep of its pivot tolerance eps
-        /// (1e-30 .. 0.5) against TFETI, which needs none.
-        #[arg(long)]
-        eps_sweep: bool,
-        /// Threads over subdomains (default: all cores).
-        #[arg(long, value_name = "N")]
-        threads: Option<usize>,
-    },
+    Compare(Compare),
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
-    Bench {
-        /// Which benchmark.
-        #[arg(value_enum)]
-        which: Benchmark,
-        /// Elements per subdomain side, H/h (repeatable).
-        #[arg(long = "hh", default_values_t = [16, 32])]
-        hh: Vec<usize>,
-        /// Largest cut of the base, `SXxSY`.
-        #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
-        max_cuts: (usize, usize),
-        /// Relative tolerance of the dual solve.
-        #[arg(long, default_value_t = 1e-6)]
-        tolerance: f64,
-        /// Threads over subdomains (default: all cores).
-        #[arg(long, value_name = "N")]
-        threads: Option<usize>,
-        /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
-        #[arg(short, long, value_name = "DIR")]
-        out: Option<PathBuf>,
-    },
+    Bench(Bench),
     /// Check a scene and print what the compiler understood.
-    Compile {
-        /// The `.cso` file.
-        file: PathBuf,
-        /// Print JSON instead of text.
-        #[arg(long)]
-        json: bool,
-    },
+    Compile(Compile),
+}
+
+#[derive(Args, Debug)]
+struct Check {
+    /// `.cso` files to check.
+    #[arg(required = true)]
+    files: Vec<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct Solve {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write report.json, one .vtu per body and SVG plots into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Sensitivity {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Gradient method (default: the scene's `sensitivity { method }`).
+    #[arg(long, value_enum)]
+    method: Option<SensitivityMethod>,
+    /// Finite-difference step (default: the scene's `sensitivity { step }`).
+    #[arg(long)]
+    step: Option<f64>,
+    /// Finite-difference scheme (default: the scene's `sensitivity { scheme }`).
+    #[arg(long, value_enum)]
+    scheme: Option<Scheme>,
+    /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Chart speed against accuracy: finite differences over h = 1e-1 .. 1e-10 and
+    /// tolerances 1e-4 .. 1e-10, the exact methods over tolerances.
+    #[arg(long)]
+    study: bool,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Optimize {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write history.json, the best design's report, VTU and plots into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Compare {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write compare.md and compare.json (with --eps-sweep: eps.md, eps.json,
+    /// eps.svg) into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Instead: classical FETI over a sweep of its pivot tolerance eps
+    /// (1e-30 .. 0.5) against TFETI, which needs none.
+    #[arg(long)]
+    eps_sweep: bool,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Bench {
+    /// Which benchmark.
+    #[arg(value_enum)]
+    which: Benchmark,
+    /// Elements per subdomain side, H/h (repeatable).
+    #[arg(long = "hh", default_values_t = [16, 32])]
+    hh: Vec<usize>,
+    /// Largest cut of the base, `SXxSY`.
+    #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
+    max_cuts: (usize, usize),
+    /// Relative tolerance of the dual solve.
+    #[arg(long, default_value_t = 1e-6)]
+    tolerance: f64,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N")]
+    threads: Option<usize>,
+    /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+struct Compile {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    json: bool,
 }
 
 fn parse_set(s: &str) -> Result<(String, String), String> {
@@ -181,62 +205,14 @@ fn main() -> ExitCode {
         overrides: cli.set.clone(),
         memory_limit: Some(cso::machine_memory_limit()),
     };
-    let outcome = match cli.command {
-        Command::Check { files } => {
-            let codes = files.iter().map(|file| match load(file, &opts) {
-                Ok(scene) => {
-                    outln!("{}", cso::io::summary::check_line(file, &scene));
-                    0
-                }
-                Err(code) => code,
-            });
-            return ExitCode::from(codes.fold(0, u8::max));
-        }
-        Command::Compile { file, json } => load(&file, &opts).and_then(|s| compile_cmd(&s, json)),
-        Command::Solve { file, out, threads } => {
-            load(&file, &opts).and_then(|s| solve(&s, &file, out.as_deref(), threads))
-        }
-        Command::Sensitivity {
-            file,
-            method,
-            step,
-            scheme,
-            out,
-            study,
-            threads,
-        } => load(&file, &opts).and_then(|s| {
-            if study {
-                sensitivity_study(&s, out.as_deref(), threads)
-            } else {
-                let method = method.unwrap_or(s.sensitivity.method);
-                let scheme = scheme.unwrap_or(s.sensitivity.scheme);
-                let h = step.unwrap_or(s.sensitivity.step);
-                sensitivity(&s, method, h, scheme, out.as_deref(), threads)
-            }
-        }),
-        Command::Optimize { file, out, threads } => {
-            load(&file, &opts).and_then(|s| optimize(&s, out.as_deref(), threads))
-        }
-        Command::Compare {
-            file,
-            out,
-            eps_sweep,
-            threads,
-        } => load(&file, &opts).and_then(|s| {
-            if eps_sweep {
-                compare_eps(&s, out.as_deref(), threads)
-            } else {
-                compare(&s, out.as_deref(), threads)
-            }
-        }),
-        Command::Bench {
-            which,
-            hh,
-            max_cuts,
-            tolerance,
-            threads,
-            out,
-        } => run_bench(which, &hh, max_cuts, tolerance, out.as_deref(), threads),
+    let outcome = match &cli.command {
+        Command::Check(c) => c.run(&opts),
+        Command::Solve(c) => c.run(&opts),
+        Command::Sensitivity(c) => c.run(&opts),
+        Command::Optimize(c) => c.run(&opts),
+        Command::Compare(c) => c.run(&opts),
+        Command::Bench(c) => c.run(),
+        Command::Compile(c) => c.run(&opts),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -292,237 +268,260 @@ fn write_into(dir: Option<&Path>, files: impl FnOnce() -> Result<files::Files, S
         .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))
 }
 
-/// `cso compile`: what the compiler understood, as text or JSON.
-fn compile_cmd(scene: &Scene, json: bool) -> Outcome {
-    let summary = cso::io::summary::summarize_with_operators(scene);
-    if json {
-        let s = serde_json::to_string_pretty(&summary)
-            .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
-        outln!("{s}");
-    } else {
-        out!("{summary}");
-    }
-    Ok(())
-}
-
-/// `cso solve`: the state solve with a progress line, the summary, and the files.
-fn solve(scene: &Scene, file: &Path, out: Option<&Path>, threads: Option<usize>) -> Outcome {
-    let pool = thread_pool(threads)?;
-    let bar = spinner();
-    let result = pool.install(|| {
-        cso::state::solve(scene, &scene.design_init(), &mut |info| {
-            bar.set_message(tables::solve_progress(info));
-            bar.tick();
-        })
-    });
-    bar.finish_and_clear();
-    let state = result.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", file.display())))?;
-    let report = cso::io::report::Report::new(scene, &state);
-    out!("{}", report.summary_text());
-    if let Some(dir) = out {
-        cso::io::report::write_all(dir, scene, &state, &report).map_err(|e| {
-            fail(
-                EXIT_IO,
-                format!("cannot write results to {}: {e}", dir.display()),
-            )
-        })?;
-        outln!("results written to {}", dir.display());
-    }
-    if !state.converged() {
-        let status = &state.info.status;
-        return Err(fail(
-            EXIT_SCENE,
-            format!("{} did not converge: {status:?}", file.display()),
-        ));
-    }
-    Ok(())
-}
-
-/// `cso sensitivity`: a table of dJ/da_i for the objective and each constraint.
-fn sensitivity(
-    scene: &Scene,
-    method: SensitivityMethod,
-    h: f64,
-    scheme: Scheme,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> Outcome {
-    if scene.design.is_empty() {
-        let msg = "the scene has no design variables (`design NAME { init, lower, upper }`)";
-        return Err(fail(EXIT_SCENE, msg));
-    }
-    let pool = thread_pool(threads)?;
-    let g = pool
-        .install(|| cso::sens::gradient(scene, method, h, scheme))
-        .map_err(|e| fail(EXIT_SCENE, e))?;
-    outln!("{}", tables::gradient(&scene.name, &g));
-    if let Some(dir) = out {
-        let json = serde_json::to_string_pretty(&g)
-            .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
-        write_files(dir, &[("sensitivity.json", json)])
-            .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
-    }
-    Ok(())
-}
-
-/// `cso sensitivity --study`: the speed-against-accuracy table and chart.
-fn sensitivity_study(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
-    if scene.design.is_empty() || scene.objective.is_none() {
-        return Err(fail(
-            EXIT_SCENE,
-            "a study needs design variables and an objective",
-        ));
-    }
-    let pool = thread_pool(threads)?;
-    outln!("{}", tables::STUDY_HEADER);
-    let study = pool
-        .install(|| {
-            cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", tables::study_row(r)))
-        })
-        .map_err(|e| fail(EXIT_SCENE, e))?;
-    outln!("{}", tables::study_summary(&study));
-    write_into(out, || files::study(&study))?;
-    if let Some(dir) = out {
-        outln!("study written to {}", dir.display());
-    }
-    Ok(())
-}
-
-/// `cso compare`: both methods on the scene, the tables on stdout (and files).
-fn compare(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
-    let pool = thread_pool(threads)?;
-    let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
-    let c = pool.install(|| cso::studies::compare::compare(scene));
-    bar.finish_and_clear();
-    let md = c.markdown(true);
-    outln!("{md}");
-    write_into(out, || files::comparison(&c, &md))?;
-    // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
-    // means the scene cannot be solved.
-    match c.tfeti {
-        Ok(_) => Ok(()),
-        Err(_) => Err(EXIT_SCENE),
-    }
-}
-
-/// `cso compare --eps-sweep`: classical FETI over eps, the table and chart.
-fn compare_eps(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
-    use cso::studies::compare::{eps_sweep, EPS_SWEEP};
-    let pool = thread_pool(threads)?;
-    let bar = ticking("solving by TFETI and by FETI at each eps");
-    let sweep = pool.install(|| eps_sweep(scene, &EPS_SWEEP));
-    bar.finish_and_clear();
-    let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
-    let md = sweep.markdown();
-    outln!("{md}");
-    write_into(out, || files::eps_sweep(&sweep, &md))
-}
-
-/// `cso optimize`: MMA iterations with a progress line, then the best design.
-fn optimize(scene: &Scene, out: Option<&Path>, threads: Option<usize>) -> Outcome {
-    let pool = thread_pool(threads)?;
-    let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar()),
-    );
-    // Ctrl-C: finish the current design, then stop with the best one written.
-    let stop = Arc::new(AtomicBool::new(false));
-    let handler_stop = stop.clone();
-    // Without a handler (one is already set) Ctrl-C simply ends the process.
-    let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
-    let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
-    let result = pool.install(|| {
-        cso::opt::optimize(scene, &mut |it, state| {
-            if let Some(series) = series.as_mut() {
-                series.record(scene, it.iteration, state);
+impl Check {
+    /// Every file, in order; the worst exit code of them.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let codes = self.files.iter().map(|file| match load(file, opts) {
+            Ok(scene) => {
+                outln!("{}", cso::io::summary::check_line(file, &scene));
+                0
             }
-            bar.set_message(tables::iterate_progress(it));
-            bar.inc(1);
-            !stop.load(Ordering::SeqCst)
-        })
-    });
-    bar.finish_and_clear();
-    let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
-    if let Some(series) = series {
-        series.finish(scene).map_err(|e| fail(EXIT_IO, e))?;
-    }
-    outln!("{}", tables::optimization(scene, &run));
-    if let Some(dir) = out {
-        cso::io::optimization::write(dir, scene, &run)
-            .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
-        outln!("results written to {}", dir.display());
-    }
-    Ok(())
-}
-
-/// `cso bench`: the tables on stdout as their rows finish (and, for `hard`, files).
-fn run_bench(
-    which: Benchmark,
-    hhs: &[usize],
-    max_cuts: (usize, usize),
-    tolerance: f64,
-    out: Option<&Path>,
-    threads: Option<usize>,
-) -> Outcome {
-    let pool = thread_pool(threads)?;
-    let threads = pool.current_num_threads();
-    // A table over H/h and cuts, each row printed as it finishes; a failed row is
-    // reported and the table goes on.
-    type Row<'a> = &'a (dyn Fn(usize, usize, usize) -> Result<String, String> + Sync);
-    let cuts_table = |title: String, columns: &[&str], row: Row| {
-        outln!("{}", tables::cuts_header(threads, &title, columns));
-        bench::over_cuts(hhs, max_cuts, row, &mut |hh, (sx, sy), cells| match cells {
-            Ok(cells) => outln!("{}", tables::cuts_row(hh, (sx, sy), &cells)),
-            Err(e) => errln!("error at {sx}x{sy}: {e}"),
+            Err(code) => code,
         });
+        match codes.fold(0, u8::max) {
+            0 => Ok(()),
+            worst => Err(worst),
+        }
+    }
+}
+
+impl Compile {
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let summary = cso::io::summary::summarize_with_operators(&load(&self.file, opts)?);
+        if self.json {
+            let s = serde_json::to_string_pretty(&summary)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+            outln!("{s}");
+        } else {
+            out!("{summary}");
+        }
         Ok(())
-    };
-    pool.install(|| match which {
-        Benchmark::Scaling => cuts_table(
-            format!("tolerance {tolerance:e}"),
-            &tables::SCALING_COLUMNS,
-            &|sx, sy, hh| {
-                let r = bench::scaling_row(sx, sy, hh, tolerance).map_err(|e| e.to_string())?;
-                Ok(tables::scaling_cells(&r))
-            },
-        ),
-        Benchmark::Compare => cuts_table(
-            format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
-            &tables::COMPARE_COLUMNS,
-            &|sx, sy, hh| {
-                Ok(tables::compare_cells(&bench::compare_row(
-                    sx, sy, hh, tolerance,
-                )?))
-            },
-        ),
-        Benchmark::Sensitivity => {
-            outln!("{}", tables::gradient_costs_header(threads, tolerance));
-            for m in bench::GRADIENT_COST_SIZES {
-                match bench::gradient_costs(m, tolerance) {
-                    Ok(rows) => rows
-                        .iter()
-                        .for_each(|r| outln!("{}", tables::gradient_cost_row(r))),
-                    Err(e) => errln!("error at m = {m}: {e}"),
-                }
-            }
-            Ok(())
-        }
-        Benchmark::Optimize => {
-            let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
-            outln!("{}", tables::reuse(&rows));
-            Ok(())
-        }
-        Benchmark::Hard => {
-            let bar = ProgressBar::new_spinner();
-            let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
-                bar.set_message(what.to_string());
+    }
+}
+
+impl Solve {
+    /// The state solve with a progress line, the summary, and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let pool = thread_pool(self.threads)?;
+        let bar = spinner();
+        let result = pool.install(|| {
+            cso::state::solve(&scene, &scene.design_init(), &mut |info| {
+                bar.set_message(tables::solve_progress(info));
                 bar.tick();
-            });
-            bar.finish_and_clear();
-            let md = tables::hard(tolerance, &sweeps);
-            outln!("{md}");
-            write_into(out, || files::hard(&sweeps, &md))
+            })
+        });
+        bar.finish_and_clear();
+        let state = result.map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
+        let report = cso::io::report::Report::new(&scene, &state);
+        out!("{}", report.summary_text());
+        if let Some(dir) = &self.out {
+            cso::io::report::write_all(dir, &scene, &state, &report).map_err(|e| {
+                let msg = format!("cannot write results to {}: {e}", dir.display());
+                fail(EXIT_IO, msg)
+            })?;
+            outln!("results written to {}", dir.display());
         }
-    })
+        if !state.converged() {
+            let msg = format!("{file} did not converge: {:?}", state.info.status);
+            return Err(fail(EXIT_SCENE, msg));
+        }
+        Ok(())
+    }
+}
+
+impl Sensitivity {
+    /// A table of dJ/da_i for the objective and each constraint (or the study).
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let scene = load(&self.file, opts)?;
+        if self.study {
+            return self.run_study(&scene);
+        }
+        if scene.design.is_empty() {
+            let msg = "the scene has no design variables (`design NAME { init, lower, upper }`)";
+            return Err(fail(EXIT_SCENE, msg));
+        }
+        let method = self.method.unwrap_or(scene.sensitivity.method);
+        let h = self.step.unwrap_or(scene.sensitivity.step);
+        let scheme = self.scheme.unwrap_or(scene.sensitivity.scheme);
+        let pool = thread_pool(self.threads)?;
+        let g = pool
+            .install(|| cso::sens::gradient(&scene, method, h, scheme))
+            .map_err(|e| fail(EXIT_SCENE, e))?;
+        outln!("{}", tables::gradient(&scene.name, &g));
+        if let Some(dir) = &self.out {
+            let json = serde_json::to_string_pretty(&g)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+            write_files(dir, &[("sensitivity.json", json)])
+                .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+        }
+        Ok(())
+    }
+
+    /// `--study`: the speed-against-accuracy table, rows as they finish, and chart.
+    fn run_study(&self, scene: &Scene) -> Outcome {
+        if scene.design.is_empty() || scene.objective.is_none() {
+            let msg = "a study needs design variables and an objective";
+            return Err(fail(EXIT_SCENE, msg));
+        }
+        let pool = thread_pool(self.threads)?;
+        outln!("{}", tables::STUDY_HEADER);
+        let study = pool
+            .install(|| {
+                cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", tables::study_row(r)))
+            })
+            .map_err(|e| fail(EXIT_SCENE, e))?;
+        outln!("{}", tables::study_summary(&study));
+        write_into(self.out.as_deref(), || files::study(&study))?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
+
+impl Compare {
+    /// Both methods on the scene (or FETI over eps), the tables and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        use cso::studies::compare::{compare, eps_sweep, EPS_SWEEP};
+        let scene = load(&self.file, opts)?;
+        let pool = thread_pool(self.threads)?;
+        if self.eps_sweep {
+            let bar = ticking("solving by TFETI and by FETI at each eps");
+            let sweep = pool.install(|| eps_sweep(&scene, &EPS_SWEEP));
+            bar.finish_and_clear();
+            let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
+            let md = sweep.markdown();
+            outln!("{md}");
+            return write_into(self.out.as_deref(), || files::eps_sweep(&sweep, &md));
+        }
+        let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
+        let c = pool.install(|| compare(&scene));
+        bar.finish_and_clear();
+        let md = c.markdown(true);
+        outln!("{md}");
+        write_into(self.out.as_deref(), || files::comparison(&c, &md))?;
+        // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
+        // means the scene cannot be solved.
+        c.tfeti.map(|_| ()).map_err(|_| EXIT_SCENE)
+    }
+}
+
+impl Optimize {
+    /// MMA iterations with a progress line, then the best design.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let scene = load(&self.file, opts)?;
+        let pool = thread_pool(self.threads)?;
+        let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        // Ctrl-C: finish the current design, then stop with the best one written.
+        // Without a handler (one is already set) Ctrl-C simply ends the process.
+        let stop = Arc::new(AtomicBool::new(false));
+        let handler_stop = stop.clone();
+        let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
+        let out = self.out.as_deref();
+        let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, &scene));
+        let result = pool.install(|| {
+            cso::opt::optimize(&scene, &mut |it, state| {
+                if let Some(series) = series.as_mut() {
+                    series.record(&scene, it.iteration, state);
+                }
+                bar.set_message(tables::iterate_progress(it));
+                bar.inc(1);
+                !stop.load(Ordering::SeqCst)
+            })
+        });
+        bar.finish_and_clear();
+        let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
+        if let Some(series) = series {
+            series.finish(&scene).map_err(|e| fail(EXIT_IO, e))?;
+        }
+        outln!("{}", tables::optimization(&scene, &run));
+        if let Some(dir) = out {
+            cso::io::optimization::write(dir, &scene, &run)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+            outln!("results written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
+
+/// A row of a table over H/h and cuts: the cells after them, or why it failed.
+type CutsRow<'a> = &'a (dyn Fn(usize, usize, usize) -> Result<String, String> + Sync);
+
+impl Bench {
+    /// The tables on stdout as their rows finish (and, for `hard`, the files).
+    fn run(&self) -> Outcome {
+        let pool = thread_pool(self.threads)?;
+        let tolerance = self.tolerance;
+        pool.install(|| match self.which {
+            Benchmark::Scaling => self.cuts_table(
+                pool.current_num_threads(),
+                &format!("tolerance {tolerance:e}"),
+                &tables::SCALING_COLUMNS,
+                &|sx, sy, hh| {
+                    let r = bench::scaling_row(sx, sy, hh, tolerance);
+                    Ok(tables::scaling_cells(&r.map_err(|e| e.to_string())?))
+                },
+            ),
+            Benchmark::Compare => self.cuts_table(
+                pool.current_num_threads(),
+                &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
+                &tables::COMPARE_COLUMNS,
+                &|sx, sy, hh| {
+                    Ok(tables::compare_cells(&bench::compare_row(
+                        sx, sy, hh, tolerance,
+                    )?))
+                },
+            ),
+            Benchmark::Sensitivity => {
+                let threads = pool.current_num_threads();
+                outln!("{}", tables::gradient_costs_header(threads, tolerance));
+                for m in bench::GRADIENT_COST_SIZES {
+                    match bench::gradient_costs(m, tolerance) {
+                        Ok(rows) => rows
+                            .iter()
+                            .for_each(|r| outln!("{}", tables::gradient_cost_row(r))),
+                        Err(e) => errln!("error at m = {m}: {e}"),
+                    }
+                }
+                Ok(())
+            }
+            Benchmark::Optimize => {
+                let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
+                outln!("{}", tables::reuse(&rows));
+                Ok(())
+            }
+            Benchmark::Hard => {
+                let bar = ProgressBar::new_spinner();
+                let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
+                    bar.set_message(what.to_string());
+                    bar.tick();
+                });
+                bar.finish_and_clear();
+                let md = tables::hard(tolerance, &sweeps);
+                outln!("{md}");
+                write_into(self.out.as_deref(), || files::hard(&sweeps, &md))
+            }
+        })
+    }
+
+    /// A table over H/h and cuts, each row printed as it finishes; a failed row
+    /// is reported and the table goes on.
+    fn cuts_table(&self, threads: usize, title: &str, columns: &[&str], row: CutsRow) -> Outcome {
+        outln!("{}", tables::cuts_header(threads, title, columns));
+        bench::over_cuts(
+            &self.hh,
+            self.max_cuts,
+            row,
+            &mut |hh, (sx, sy), cells| match cells {
+                Ok(cells) => outln!("{}", tables::cuts_row(hh, (sx, sy), &cells)),
+                Err(e) => errln!("error at {sx}x{sy}: {e}"),
+            },
+        );
+        Ok(())
+    }
 }
