@@ -3,10 +3,12 @@
 
 use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
-use cso::io::{files, tables};
+use cso::io::atomic::Files;
+use cso::io::tables;
 use cso::lang::scene::{Scheme, SensitivityMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
+use cso::studies::output;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Display;
 use std::io::Write;
@@ -261,7 +263,7 @@ fn ticking(message: &'static str) -> ProgressBar {
 
 /// With `-o DIR`: builds a command's files (an error is the message) and writes
 /// them into `dir`.
-fn write_into(dir: Option<&Path>, files: impl FnOnce() -> Result<files::Files, String>) -> Outcome {
+fn write_into(dir: Option<&Path>, files: impl FnOnce() -> Result<Files, String>) -> Outcome {
     let Some(dir) = dir else { return Ok(()) };
     let files = files().map_err(|e| fail(EXIT_IO, e))?;
     write_files(dir, &files)
@@ -365,14 +367,14 @@ impl Sensitivity {
             return Err(fail(EXIT_SCENE, msg));
         }
         let pool = thread_pool(self.threads)?;
-        outln!("{}", tables::STUDY_HEADER);
+        outln!("{}", output::STUDY_HEADER);
         let study = pool
             .install(|| {
-                cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", tables::study_row(r)))
+                cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", output::study_row(r)))
             })
             .map_err(|e| fail(EXIT_SCENE, e))?;
-        outln!("{}", tables::study_summary(&study));
-        write_into(self.out.as_deref(), || files::study(&study))?;
+        outln!("{}", output::study_summary(&study));
+        write_into(self.out.as_deref(), || output::study_files(&study))?;
         if let Some(dir) = &self.out {
             outln!("study written to {}", dir.display());
         }
@@ -393,14 +395,14 @@ impl Compare {
             let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
             let md = sweep.markdown();
             outln!("{md}");
-            return write_into(self.out.as_deref(), || files::eps_sweep(&sweep, &md));
+            return write_into(self.out.as_deref(), || output::eps_sweep_files(&sweep, &md));
         }
         let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
         let c = pool.install(|| compare(&scene));
         bar.finish_and_clear();
         let md = c.markdown(true);
         outln!("{md}");
-        write_into(self.out.as_deref(), || files::comparison(&c, &md))?;
+        write_into(self.out.as_deref(), || output::comparison_files(&c, &md))?;
         // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
         // means the scene cannot be solved.
         c.tfeti.map(|_| ()).map_err(|_| EXIT_SCENE)
@@ -461,30 +463,30 @@ impl Bench {
             Benchmark::Scaling => self.cuts_table(
                 pool.current_num_threads(),
                 &format!("tolerance {tolerance:e}"),
-                &tables::SCALING_COLUMNS,
+                &output::SCALING_COLUMNS,
                 &|sx, sy, hh| {
                     let r = bench::scaling_row(sx, sy, hh, tolerance);
-                    Ok(tables::scaling_cells(&r.map_err(|e| e.to_string())?))
+                    Ok(output::scaling_cells(&r.map_err(|e| e.to_string())?))
                 },
             ),
             Benchmark::Compare => self.cuts_table(
                 pool.current_num_threads(),
                 &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
-                &tables::COMPARE_COLUMNS,
+                &output::COMPARE_COLUMNS,
                 &|sx, sy, hh| {
-                    Ok(tables::compare_cells(&bench::compare_row(
+                    Ok(output::compare_cells(&bench::compare_row(
                         sx, sy, hh, tolerance,
                     )?))
                 },
             ),
             Benchmark::Sensitivity => {
                 let threads = pool.current_num_threads();
-                outln!("{}", tables::gradient_costs_header(threads, tolerance));
+                outln!("{}", output::gradient_costs_header(threads, tolerance));
                 for m in bench::GRADIENT_COST_SIZES {
                     match bench::gradient_costs(m, tolerance) {
                         Ok(rows) => rows
                             .iter()
-                            .for_each(|r| outln!("{}", tables::gradient_cost_row(r))),
+                            .for_each(|r| outln!("{}", output::gradient_cost_row(r))),
                         Err(e) => errln!("error at m = {m}: {e}"),
                     }
                 }
@@ -492,7 +494,7 @@ impl Bench {
             }
             Benchmark::Optimize => {
                 let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
-                outln!("{}", tables::reuse(&rows));
+                outln!("{}", output::reuse(&rows));
                 Ok(())
             }
             Benchmark::Hard => {
@@ -502,9 +504,9 @@ impl Bench {
                     bar.tick();
                 });
                 bar.finish_and_clear();
-                let md = tables::hard(tolerance, &sweeps);
+                let md = output::hard(tolerance, &sweeps);
                 outln!("{md}");
-                write_into(self.out.as_deref(), || files::hard(&sweeps, &md))
+                write_into(self.out.as_deref(), || output::hard_files(&sweeps, &md))
             }
         })
     }
@@ -512,13 +514,13 @@ impl Bench {
     /// A table over H/h and cuts, each row printed as it finishes; a failed row
     /// is reported and the table goes on.
     fn cuts_table(&self, threads: usize, title: &str, columns: &[&str], row: CutsRow) -> Outcome {
-        outln!("{}", tables::cuts_header(threads, title, columns));
+        outln!("{}", output::cuts_header(threads, title, columns));
         bench::over_cuts(
             &self.hh,
             self.max_cuts,
             row,
             &mut |hh, (sx, sy), cells| match cells {
-                Ok(cells) => outln!("{}", tables::cuts_row(hh, (sx, sy), &cells)),
+                Ok(cells) => outln!("{}", output::cuts_row(hh, (sx, sy), &cells)),
                 Err(e) => errln!("error at {sx}x{sy}: {e}"),
             },
         );

@@ -16,6 +16,9 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Distinguishes temporary files of threads in one process that write the same
 /// target at once; the process id distinguishes processes.
+/// Files as (name in the output folder, contents).
+pub type Files = Vec<(String, Vec<u8>)>;
+
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Writes `bytes` to `path` atomically: the file at `path` is either left as it

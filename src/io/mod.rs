@@ -3,7 +3,6 @@
 
 pub mod atomic;
 pub mod export;
-pub mod files;
 pub mod optimization;
 pub mod plot;
 pub mod report;

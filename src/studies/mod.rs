@@ -10,5 +10,6 @@
 
 pub mod bench;
 pub mod compare;
+pub mod output;
 pub mod sensitivity;
 pub mod stability;

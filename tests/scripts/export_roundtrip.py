@@ -36,20 +36,23 @@ def petsc4py_importable():
     """petsc4py, also from Debian's packages without the petsc-dev symlink."""
     import glob
 
-    try:
-        import petsc4py  # noqa: F401
-
-        return True
-    except ImportError:
-        pass
-    for path in sorted(glob.glob("/usr/lib/petscdir/*/*-real/lib/python3/dist-packages")):
-        sys.path.append(path)
+    def loads():
         try:
-            import petsc4py  # noqa: F401
+            from petsc4py import PETSc  # noqa: F401
 
             return True
-        except ImportError:
-            sys.path.remove(path)
+        except Exception:  # not installed, or built for another numpy
+            return False
+
+    if loads():
+        return True
+    for path in sorted(glob.glob("/usr/lib/petscdir/*/*-real/lib/python3/dist-packages")):
+        sys.path.append(path)
+        if loads():
+            return True
+        sys.path.remove(path)
+        for name in [m for m in sys.modules if m.startswith("petsc4py")]:
+            del sys.modules[name]
     return False
 
 

@@ -1,0 +1,241 @@
+//! What the studies print and write: the Markdown tables of `cso bench` (in
+//! pieces, a header and one line per row as soon as it is solved) and of the
+//! sensitivity study, and each study's set of files for `-o DIR`, built whole
+//! before the first byte is written (a chart that cannot be drawn leaves no
+//! half set behind). Errors are the messages a user sees (after `error: `).
+
+use super::bench::{CompareRow, GradientCost, ReuseTable, ScalingRow};
+use super::compare::{Comparison, EpsSweep};
+use super::sensitivity::{Study, StudyRun};
+use super::stability::Sweep;
+use crate::io::atomic::Files;
+use std::fmt::Write as _;
+
+/// The header of a table over H/h and cuts of the scaled scene: the thread
+/// count and `title`, then the Markdown header with `columns` after H/h and cuts.
+pub fn cuts_header(threads: usize, title: &str, columns: &[&str]) -> String {
+    format!(
+        "threads {threads}, {title}\n| H/h | cuts | {} |\n|---|---|{}",
+        columns.join(" | "),
+        "---|".repeat(columns.len())
+    )
+}
+
+/// One row of a table over H/h and cuts: `cells` are those after H/h and cuts.
+pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
+    format!("| {hh} | {sx}x{sy} | {cells} |")
+}
+
+/// The columns of `cso bench scaling` after H/h and cuts.
+pub const SCALING_COLUMNS: [&str; 11] = [
+    "subdomains",
+    "primal",
+    "dual",
+    "outer",
+    "inner",
+    "Hessian",
+    "factorize s",
+    "solve s",
+    "total s",
+    "peak MB",
+    "KKT",
+];
+
+/// The cells of one [`SCALING_COLUMNS`] row.
+pub fn scaling_cells(r: &ScalingRow) -> String {
+    format!(
+        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e}",
+        r.subdomains,
+        r.primal,
+        r.dual,
+        r.outer,
+        r.inner,
+        r.hessian,
+        if r.converged { "" } else { " (not converged)" },
+        r.time_factorize,
+        r.time_solve,
+        r.time_total,
+        r.peak_memory
+            .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
+        r.kkt
+    )
+}
+
+/// The columns of `cso bench compare` after H/h and cuts; each cell is
+/// `FETI / TFETI`.
+pub const COMPARE_COLUMNS: [&str; 8] = [
+    "subdomains",
+    "primal",
+    "dual",
+    "kernel",
+    "Hessian",
+    "factorize s",
+    "total s",
+    "u difference",
+];
+
+/// The cells of one [`COMPARE_COLUMNS`] row.
+pub fn compare_cells(r: &CompareRow) -> String {
+    let (f, t) = (&r.feti, &r.tfeti);
+    format!(
+        "{} | {} / {} | {} / {} | {} / {} | {} / {} | {:.3} / {:.3} | {:.3} / {:.3} | {:.0e}",
+        r.subdomains,
+        f.primal,
+        t.primal,
+        f.state.dual,
+        t.state.dual,
+        f.kernel,
+        t.kernel,
+        f.state.hessian_applications,
+        t.state.hessian_applications,
+        f.factorize_seconds,
+        t.factorize_seconds,
+        f.state.seconds,
+        t.state.seconds,
+        r.difference.unwrap_or(f64::NAN)
+    )
+}
+
+/// The header of `cso bench sensitivity`.
+pub fn gradient_costs_header(threads: usize, tolerance: f64) -> String {
+    format!(
+        "threads {threads}, tolerance {tolerance:e}\n\
+         | m | method | Hessian beyond the state | ratio | seconds beyond the state | ratio |\n\
+         |---|---|---|---|---|---|"
+    )
+}
+
+/// One row of `cso bench sensitivity`: the cost beyond the state solve, and
+/// relative to it.
+pub fn gradient_cost_row(r: &GradientCost) -> String {
+    format!(
+        "| {} | {} | {} | {:.2} | {:.3} | {:.2} |",
+        r.m,
+        r.method,
+        r.hessian,
+        r.hessian as f64 / r.state_hessian.max(1) as f64,
+        r.seconds,
+        r.seconds / r.state_seconds.max(1e-9)
+    )
+}
+
+/// `cso bench optimize`: per reuse configuration, the mean cost of a design
+/// iteration.
+pub fn reuse(rows: &ReuseTable) -> String {
+    let mut o = String::from(
+        "| reuse | iterations | Hessian per iteration | seconds per iteration | factorizations reused per iteration |\n|---|---|---|---|---|",
+    );
+    for (name, its) in rows {
+        let n = its.len().max(1) as f64;
+        let _ = write!(
+            o,
+            "\n| {name} | {} | {:.1} | {:.4} | {:.1} |",
+            its.len(),
+            its.iter().map(|i| i.0 as f64).sum::<f64>() / n,
+            its.iter().map(|i| i.1).sum::<f64>() / n,
+            its.iter().map(|i| i.2 as f64).sum::<f64>() / n
+        );
+    }
+    o
+}
+
+/// `cso bench hard`: a title and every sweep's table (also written as hard.md).
+pub fn hard(tolerance: f64, sweeps: &[Sweep]) -> String {
+    let mut md = format!("# Hard scenes, dual tolerance {tolerance:e}\n\n");
+    for s in sweeps {
+        md.push_str(&s.markdown());
+        md.push('\n');
+    }
+    md
+}
+
+/// The header of `cso sensitivity --study`, printed before the first run.
+pub const STUDY_HEADER: &str = "| method | tolerance | h | seconds | Hessian | error | active set changed |\n|---|---|---|---|---|---|---|";
+
+/// One run of the study, printed as it finishes.
+pub fn study_row(r: &StudyRun) -> String {
+    format!(
+        "| {} | {:.0e} | {} | {:.4} | {} | {:.2e} | {} |",
+        r.method,
+        r.tolerance,
+        r.step.map_or("-".to_string(), |h| format!("{h:.0e}")),
+        r.seconds,
+        r.hessian_applications,
+        r.error,
+        if r.active_set_changed { "yes" } else { "" }
+    )
+}
+
+/// After the study's runs: how far the reference is confirmed, and per
+/// finite-difference scheme and tolerance the steps within 1e-4 of it.
+pub fn study_summary(study: &Study) -> String {
+    let mut o = format!(
+        "reference: adjoint at tolerance 1e-12; Richardson-extrapolated central differences agree to {:.1e}\n\
+         \nwhere finite differences are within 1e-4 of the reference (no active-set change):\n\n\
+         | scheme | tolerance | trusted h | best h (error) |\n|---|---|---|---|",
+        study.richardson_agreement
+    );
+    for t in study.trusted(1e-4) {
+        let _ = write!(
+            o,
+            "\n| {} | {:.0e} | {} | {:.0e} ({:.1e}) |",
+            t.method.replace("finite_difference ", ""),
+            t.tolerance,
+            t.range
+                .map_or("none".to_string(), |(a, b)| format!("{a:.0e} .. {b:.0e}")),
+            t.best.0,
+            t.best.1
+        );
+    }
+    o
+}
+
+/// `cso compare -o DIR`: compare.md (the printed tables) and compare.json.
+pub fn comparison_files(c: &Comparison, md: &str) -> Result<Files, String> {
+    let json = serde_json::to_string_pretty(c).map_err(|e| format!("cannot write JSON: {e}"))?;
+    Ok(vec![
+        ("compare.md".into(), md.as_bytes().to_vec()),
+        ("compare.json".into(), json.into_bytes()),
+    ])
+}
+
+/// `cso compare --eps-sweep -o DIR`: eps.md, eps.json and the chart eps.svg.
+pub fn eps_sweep_files(sweep: &EpsSweep, md: &str) -> Result<Files, String> {
+    let json = serde_json::to_string_pretty(sweep).map_err(|e| e.to_string())?;
+    let svg = sweep.svg().map_err(|e| e.to_string())?;
+    Ok(vec![
+        ("eps.md".into(), md.as_bytes().to_vec()),
+        ("eps.json".into(), json.into_bytes()),
+        ("eps.svg".into(), svg.into_bytes()),
+    ])
+}
+
+/// `cso sensitivity --study -o DIR`: study.json, study.csv and the chart study.svg.
+pub fn study_files(study: &Study) -> Result<Files, String> {
+    let json = serde_json::to_string_pretty(study).unwrap_or_default();
+    let svg = study
+        .svg()
+        .map_err(|e| format!("cannot draw the chart: {e}"))?;
+    Ok(vec![
+        ("study.json".into(), json.into_bytes()),
+        ("study.csv".into(), study.csv().into_bytes()),
+        ("study.svg".into(), svg.into_bytes()),
+    ])
+}
+
+/// `cso bench hard -o DIR`: hard.md (the printed tables), hard.json and one
+/// chart per sweep, `hard-1.svg` ...
+pub fn hard_files(sweeps: &[Sweep], md: &str) -> Result<Files, String> {
+    let json = serde_json::to_string_pretty(sweeps).unwrap_or_default();
+    let mut files: Files = vec![
+        ("hard.md".into(), md.as_bytes().to_vec()),
+        ("hard.json".into(), json.into_bytes()),
+    ];
+    for (k, s) in sweeps.iter().enumerate() {
+        let svg = s
+            .svg()
+            .map_err(|e| format!("cannot draw {}: {e}", s.name))?;
+        files.push((format!("hard-{}.svg", k + 1), svg.into_bytes()));
+    }
+    Ok(files)
+}
