@@ -59,6 +59,9 @@ enum Command {
     Bench(Bench),
     /// Check a scene and print what the compiler understood.
     Compile(Compile),
+    /// Write the compiled contact problem (the primal QP: K, f, B_E, c_E, B_I, c_I,
+    /// the kernel basis R and a manifest) for other solvers.
+    Export(Export),
 }
 
 #[derive(Args, Debug)]
@@ -78,6 +81,21 @@ struct Solve {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N")]
     threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Export {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// File format.
+    #[arg(long, value_enum, default_value = "petsc")]
+    format: cso::io::export::Format,
+    /// Write the files and manifest.json into this folder (new or empty).
+    #[arg(short, long, value_name = "DIR")]
+    out: PathBuf,
+    /// Write into a folder that is not empty (files of the same name are replaced).
+    #[arg(long)]
+    force: bool,
 }
 
 #[derive(Args, Debug)]
@@ -215,6 +233,7 @@ fn main() -> ExitCode {
         Command::Compare(c) => c.run(&opts),
         Command::Bench(c) => c.run(),
         Command::Compile(c) => c.run(&opts),
+        Command::Export(c) => c.run(&opts),
     };
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
@@ -328,6 +347,23 @@ impl Solve {
             let msg = format!("{file} did not converge: {:?}", state.info.status);
             return Err(fail(EXIT_SCENE, msg));
         }
+        Ok(())
+    }
+}
+
+impl Export {
+    /// The QP at the scene's design (or `--set`), lowered and factorized, not solved.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
+            .map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
+        cso::io::export::write_dir(&self.out, &files, self.force).map_err(|e| {
+            fail(
+                EXIT_IO,
+                format!("cannot export into {}: {e}", self.out.display()),
+            )
+        })?;
+        outln!("{} files written to {}", files.len(), self.out.display());
         Ok(())
     }
 }

@@ -178,3 +178,33 @@ fn bench_scaling_prints_one_row_per_hh_and_cut() {
     assert!(lines[4].starts_with("| 2 | 2x2 | 5 |"), "{out}");
     assert_eq!(lines.len(), 5, "{out}");
 }
+
+#[test]
+fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
+    let dir = std::env::temp_dir().join(format!("cso-export-cli-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let scene = root().join("examples/semicoercive2d.cso");
+    let (scene, dir_s) = (scene.to_string_lossy(), dir.to_string_lossy().to_string());
+    let (code, out, err) = cso(&["export", &scene, "--format", "mm", "-o", &dir_s]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("8 files written"), "{out}");
+    let manifest: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("manifest.json")).expect("manifest"),
+    )
+    .expect("valid JSON");
+    let primal = manifest["primal"].as_u64().expect("primal");
+    let blocks: u64 = manifest["blocks"]
+        .as_array()
+        .expect("blocks")
+        .iter()
+        .filter_map(|b| b.as_u64())
+        .sum();
+    assert_eq!(primal, blocks);
+    let (code, _, err) = cso(&["export", &scene, "-o", &dir_s]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("--force"), "{err}");
+    let (code, _, err) = cso(&["export", &scene, "-o", &dir_s, "--force"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("K.bin").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
