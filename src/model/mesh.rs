@@ -1,5 +1,6 @@
 //! Structured meshes of bodies, cut into subdomains that each own a copy of their nodes.
 
+use super::grid::Grid;
 use super::LowerError;
 use crate::fem::Element;
 use crate::lang::scene::Scene;
@@ -16,6 +17,8 @@ pub struct BodyMesh {
     pub sy: usize,
     /// Global index of this body's first subdomain.
     pub first_subdomain: usize,
+    /// The index arithmetic of the grid and its blocks (2D and 3D).
+    pub grid: Grid,
     pub coords: Vec<[f64; 2]>,
 }
 
@@ -37,24 +40,11 @@ impl BodyMesh {
     /// Every copy of a grid node: (global subdomain, local node), the first one is
     /// the node's "owner" (used for loads, supports and contact rows).
     pub fn copies(&self, node: usize) -> Vec<(usize, usize)> {
-        let (i, j) = self.ij(node);
-        let (hx, hy) = self.h();
-        let blocks = |k: usize, h: usize, n: usize, s: usize| -> Vec<usize> {
-            if k % h == 0 && k > 0 && k < n {
-                vec![k / h - 1, k / h]
-            } else {
-                vec![(k / h).min(s - 1)]
-            }
-        };
-        let mut out = Vec::with_capacity(4);
-        for by in blocks(j, hy, self.ny, self.sy) {
-            for bx in blocks(i, hx, self.nx, self.sx) {
-                let sub = self.first_subdomain + by * self.sx + bx;
-                let (li, lj) = (i - bx * hx, j - by * hy);
-                out.push((sub, lj * (hx + 1) + li));
-            }
-        }
-        out
+        self.grid
+            .copies(node)
+            .into_iter()
+            .map(|(b, l)| (self.first_subdomain + b, l))
+            .collect()
     }
 
     /// Lower and upper corners of the body's nodes.
@@ -83,14 +73,7 @@ impl BodyMesh {
 
     /// Grid nodes of a face (2D: left, right, bottom, top), in order along the face.
     pub fn face_nodes(&self, face: crate::lang::scene::Face) -> Vec<usize> {
-        use crate::lang::scene::Face;
-        match face {
-            Face::Left => (0..=self.ny).map(|j| self.node(0, j)).collect(),
-            Face::Right => (0..=self.ny).map(|j| self.node(self.nx, j)).collect(),
-            Face::Bottom => (0..=self.nx).map(|i| self.node(i, 0)).collect(),
-            Face::Top => (0..=self.nx).map(|i| self.node(i, self.ny)).collect(),
-            Face::Front | Face::Back => Vec::new(),
-        }
+        self.grid.face_nodes(face)
     }
 }
 
@@ -147,35 +130,29 @@ pub fn build(
             sx,
             sy,
             first_subdomain: subs.len(),
+            grid: Grid::new(&[nx, ny], &[sx, sy]),
             coords,
         };
         let material = &scene.materials[body.material];
-        let (hx, hy) = mesh.h();
+        let g = mesh.grid;
+        let elements: Vec<[usize; 4]> = g
+            .block_elements()
+            .chunks_exact(4)
+            .map(|e| [e[0], e[1], e[2], e[3]])
+            .collect();
         for by in 0..sy {
             for bx in 0..sx {
-                let mut grid = Vec::with_capacity((hx + 1) * (hy + 1));
-                for lj in 0..=hy {
-                    for li in 0..=hx {
-                        grid.push(mesh.node(bx * hx + li, by * hy + lj));
-                    }
-                }
+                let grid = g.nodes_of_block([bx, by, 0]);
                 let coords = grid.iter().map(|&g| mesh.coords[g]).collect();
-                let mut elements = Vec::with_capacity(hx * hy);
-                for lj in 0..hy {
-                    for li in 0..hx {
-                        let n = lj * (hx + 1) + li;
-                        elements.push([n, n + 1, n + hx + 2, n + hx + 1]);
-                    }
-                }
                 let n = grid.len();
                 subs.push(SubdomainMesh {
                     body: bodies.len(),
                     block: (bx, by),
                     element: Element::Quad4,
-                    corners: vec![0, hx, n - 1, n - 1 - hx],
+                    corners: g.block_corners(),
                     coords,
                     grid,
-                    elements,
+                    elements: elements.clone(),
                     young: material.young,
                     poisson: material.poisson,
                     thickness: scene.thickness,

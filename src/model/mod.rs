@@ -6,6 +6,7 @@
 //! later hand each rank its subdomains and the rows that touch them.
 
 pub mod balance;
+pub mod grid;
 pub(crate) mod loads;
 mod mesh;
 mod rows;
