@@ -6,6 +6,7 @@
 pub mod element;
 pub mod hex;
 pub mod quad;
+pub mod quadface;
 
 pub use element::Element;
 pub use quad::{plane_strain, quad_stiffness, quad_strain_at, Quad};
