@@ -15,6 +15,7 @@ pub mod feti;
 pub mod io;
 pub mod lang;
 pub mod model;
+pub mod num;
 pub mod opt;
 pub mod qp;
 pub mod sens;
