@@ -6,10 +6,12 @@
 //! later hand each rank its subdomains and the rows that touch them.
 
 pub mod balance;
-pub(crate) mod loads;
+pub mod geometry;
+mod loads;
 mod mesh;
 mod rows;
 
+pub use geometry::FaceEdge;
 pub use mesh::{BodyMesh, SubdomainMesh};
 pub use rows::{ContactPrimary, Row, RowKind};
 
