@@ -12,6 +12,7 @@ pub mod fem;
 pub mod io;
 pub mod lang;
 pub mod model;
+pub mod num;
 pub mod opt;
 pub mod qp;
 pub mod sens;

@@ -6,7 +6,7 @@
 
 use super::hex::{hex_stiffness, isotropic};
 use super::quad::{plane_strain, quad_stiffness};
-use crate::lang::expr::Scalar;
+use crate::num::Scalar;
 
 /// An element type.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -5,7 +5,7 @@
 //! (i+1, j, k), (i+1, j+1, k), (i, j+1, k), then the top face the same way at
 //! k+1. Dofs are interleaved: `[ux0, uy0, uz0, ux1, ...]`.
 
-use crate::lang::expr::Scalar;
+use crate::num::Scalar;
 
 /// Node coordinates of one element.
 pub type Hex<T> = [[T; 3]; 8];

@@ -3,7 +3,7 @@
 //! Node order is counter-clockwise: (i, j), (i+1, j), (i+1, j+1), (i, j+1) of the
 //! structured grid. Dofs are interleaved: `[ux0, uy0, ux1, uy1, ...]`.
 
-use crate::lang::expr::Scalar;
+use crate::num::Scalar;
 
 /// Node coordinates of one element.
 pub type Quad<T> = [[T; 2]; 4];

@@ -7,7 +7,7 @@
 //! `[-1, 1]^2` with the corners at `(-1,-1), (1,-1), (1,1), (-1,1)`, and
 //! `x_xi x x_eta` points outward.
 
-use crate::lang::expr::Scalar;
+use crate::num::Scalar;
 
 /// Node coordinates of one face.
 pub type QuadFace<T> = [[T; 3]; 4];

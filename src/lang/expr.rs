@@ -6,13 +6,7 @@
 //! state and on dual numbers (`num_dual::Dual64`, `DualVec`, ...) seeded by a design
 //! direction for exact shape derivatives, so the two can never disagree.
 
-use num_dual::DualNum;
-
-/// The number types geometry and elements are evaluated in: `f64`, and dual numbers
-/// over `f64` (`num_dual::Dual64`, `DualVec64<N>`, ...) for exact derivatives.
-pub trait Scalar: DualNum<Primitive = f64> + Copy {}
-
-impl<T: DualNum<Primitive = f64> + Copy> Scalar for T {}
+use crate::num::Scalar;
 
 /// A function of one argument.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

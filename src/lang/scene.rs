@@ -5,7 +5,8 @@
 //! about the text. Geometry that may move with the design stays a [`Formula`];
 //! everything else is a number.
 
-use super::expr::{Arith, Cond, Formula, Func, Point, Scalar};
+use super::expr::{Arith, Cond, Formula, Func, Point};
+use crate::num::Scalar;
 use clap::ValueEnum;
 use serde::Serialize;
 

@@ -6,11 +6,13 @@
 //! later hand each rank its subdomains and the rows that touch them.
 
 pub mod balance;
+pub mod geometry;
 pub mod grid;
-pub(crate) mod loads;
+mod loads;
 mod mesh;
 mod rows;
 
+pub use geometry::FaceEdge;
 pub use mesh::{BodyMesh, SubdomainMesh};
 pub use rows::{ContactPrimary, Row, RowKind};
 

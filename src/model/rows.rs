@@ -2,9 +2,14 @@
 //! glue ties and frictionless node-to-segment contact. Every row is normalized
 //! (`||B_i|| = 1`) and keeps its scale, so multipliers convert back to forces.
 
-use super::loads::{selected_edges, selected_nodes, Edge};
+use super::geometry::{
+    coords, edge_contact_row, edge_tie_row, normalize, obstacle_row, owner, project,
+    selected_edges, selected_nodes, tributary_areas, FaceEdge, ObstacleShape, Pattern,
+};
 use super::{LowerError, Problem};
-use crate::lang::scene::{Condition, Face, Obstacle, Primary, Scene, Selection};
+use crate::fem::facet::Facet;
+use crate::lang::scene::{Condition, Face, Primary, Scene, Selection};
+use crate::num::{norm, sub};
 use std::collections::HashMap;
 
 /// One row of `B` with its right-hand side.
@@ -29,13 +34,13 @@ pub enum RowKind {
     /// Zero normal displacement.
     Symmetry,
     /// A `glue` item's tie: component `comp` of secondary node `node` of `body`
-    /// follows the primary segment `(primary body, a, b)`.
+    /// follows the primary face edge `segment`.
     Tie {
         glue: usize,
         body: usize,
         node: usize,
         comp: usize,
-        segment: (usize, usize, usize),
+        segment: FaceEdge,
     },
     /// Non-penetration of one secondary node.
     Contact {
@@ -48,32 +53,28 @@ pub enum RowKind {
         normal: [f64; 2],
         /// Initial gap (unnormalized).
         gap: f64,
-        /// The primary side: a segment `(body, a, b)` of a face, or an obstacle.
+        /// The primary side: a face edge, or an obstacle.
         primary: ContactPrimary,
     },
 }
 
-/// What a contact row's secondary node touches.
+/// What a contact row's secondary node touches. The edge keeps its orientation,
+/// so the state and its derivatives take the normal from the same rule.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ContactPrimary {
-    Segment { body: usize, a: usize, b: usize },
+    Segment(FaceEdge),
     Obstacle(usize),
 }
 
 fn push(rows: &mut Vec<Row>, entries: Vec<(usize, usize, f64)>, c: f64, kind: RowKind) {
-    let norm = entries.iter().map(|e| e.2 * e.2).sum::<f64>().sqrt();
-    if norm == 0.0 {
-        return;
+    if let Some(r) = normalize(entries, c) {
+        rows.push(Row {
+            entries: r.entries,
+            c: r.c,
+            scale: r.scale,
+            kind,
+        });
     }
-    rows.push(Row {
-        entries: entries
-            .into_iter()
-            .map(|(s, d, v)| (s, d, v / norm))
-            .collect(),
-        c: c / norm,
-        scale: norm,
-        kind,
-    });
 }
 
 /// Builds every row: equalities first, then contact.
@@ -107,10 +108,6 @@ fn gluing(problem: &Problem, rows: &mut Vec<Row>) {
             }
         }
     }
-}
-
-fn owner(problem: &Problem, body: usize, node: usize) -> (usize, usize) {
-    problem.bodies[body].copies(node)[0]
 }
 
 /// What a selection keeps, or the error that it keeps nothing.
@@ -187,61 +184,27 @@ fn edges_or_error(
     problem: &Problem,
     sel: &Selection,
     design: &[f64],
-) -> Result<Vec<Edge>, LowerError> {
+) -> Result<Vec<FaceEdge>, LowerError> {
     non_empty(selected_edges(problem, sel, design), sel)
 }
 
-/// A point projected on a face: segment end nodes, shape values, outward normal.
-struct Projection {
-    a: usize,
-    b: usize,
-    na: f64,
-    nb: f64,
-    normal: [f64; 2],
-    gap: f64,
-}
-
-/// Projects `p` on the selected edges of a face; None when the projection falls
-/// outside the face.
-fn project(problem: &Problem, edges: &[Edge], body: usize, p: [f64; 2]) -> Option<Projection> {
-    let coords = &problem.bodies[body].coords;
-    let mut best: Option<(f64, Projection)> = None;
-    for &(a, b, n, len) in edges {
-        let (pa, pb) = (coords[a], coords[b]);
-        let t = ((p[0] - pa[0]) * (pb[0] - pa[0]) + (p[1] - pa[1]) * (pb[1] - pa[1])) / (len * len);
-        let eps = 1e-9;
-        if !(-eps..=1.0 + eps).contains(&t) {
+/// The selected face edge nearest to `p` among those its projection falls on
+/// (within 1e-9 of an end), with the gap there; None when it falls on none.
+fn nearest_edge(pos: &[&[[f64; 2]]], edges: &[FaceEdge], p: [f64; 2]) -> Option<(FaceEdge, f64)> {
+    let mut best: Option<(f64, FaceEdge, f64)> = None;
+    for e in edges {
+        let seg = e.segment(pos);
+        let at = seg.project(&p);
+        if !seg.inside(at, 1e-9) {
             continue;
         }
-        let t = t.clamp(0.0, 1.0);
-        let q = [pa[0] + t * (pb[0] - pa[0]), pa[1] + t * (pb[1] - pa[1])];
-        let dist = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)).sqrt();
-        let gap = n[0] * (p[0] - q[0]) + n[1] * (p[1] - q[1]);
-        if best.as_ref().is_none_or(|(d, _)| dist < *d) {
-            best = Some((
-                dist,
-                Projection {
-                    a,
-                    b,
-                    na: 1.0 - t,
-                    nb: t,
-                    normal: n,
-                    gap,
-                },
-            ));
+        let pr = project(&seg, &p, at);
+        let dist = norm(&sub(&p, &pr.point));
+        if best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
+            best = Some((dist, *e, pr.gap));
         }
     }
-    best.map(|(_, p)| p)
-}
-
-/// Half the length of the selected face edges next to each node.
-fn tributary(edges: &[Edge]) -> HashMap<usize, f64> {
-    let mut t = HashMap::new();
-    for &(a, b, _, len) in edges {
-        *t.entry(a).or_insert(0.0) += len / 2.0;
-        *t.entry(b).or_insert(0.0) += len / 2.0;
-    }
-    t
+    best.map(|(_, e, gap)| (e, gap))
 }
 
 /// `glue` ties: each secondary node follows its projection on the primary face.
@@ -251,27 +214,23 @@ fn ties(
     design: &[f64],
     rows: &mut Vec<Row>,
 ) -> Result<(), LowerError> {
+    let pos = coords(problem);
     for (g, glue) in scene.glues.iter().enumerate() {
         let edges = edges_or_error(problem, &glue.primary, design)?;
+        let body = glue.secondary.body;
         for node in nodes_or_error(problem, &glue.secondary, design)? {
-            let p = problem.bodies[glue.secondary.body].coords[node];
-            let Some(pr) = project(problem, &edges, glue.primary.body, p) else {
+            let p = pos[body][node];
+            let Some((edge, _)) = nearest_edge(&pos, &edges, p) else {
                 continue;
             };
-            let (s, l) = owner(problem, glue.secondary.body, node);
-            let (sa, la) = owner(problem, glue.primary.body, pr.a);
-            let (sb, lb) = owner(problem, glue.primary.body, pr.b);
-            for a in 0..2 {
-                let mut e = vec![(s, 2 * l + a, 1.0), (sa, 2 * la + a, -pr.na)];
-                if pr.nb != 0.0 {
-                    e.push((sb, 2 * lb + a, -pr.nb));
-                }
+            for comp in 0..2 {
+                let (e, _) = edge_tie_row(problem, body, node, comp, &edge, &pos, Pattern::Sparse);
                 let kind = RowKind::Tie {
                     glue: g,
-                    body: glue.secondary.body,
+                    body,
                     node,
-                    comp: a,
-                    segment: (glue.primary.body, pr.a, pr.b),
+                    comp,
+                    segment: edge,
                 };
                 push(rows, e, 0.0, kind);
             }
@@ -295,100 +254,67 @@ fn contacts(
     design: &[f64],
     rows: &mut Vec<Row>,
 ) -> Result<(), LowerError> {
+    let pos = coords(problem);
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
-        let sec_edges = selected_edges(problem, sec, design);
-        let trib = tributary(&sec_edges);
+        let areas = tributary_areas(&selected_edges(problem, sec, design), &pos, scene.thickness);
         let search = contact
             .search
             .unwrap_or_else(|| default_search(problem, sec.body));
-        let thickness = scene.thickness;
-        let primary_edges = match &contact.primary {
-            Primary::Face(p) => Some((p.body, edges_or_error(problem, p, design)?)),
-            Primary::Obstacle(_) => None,
+        let primary = match &contact.primary {
+            Primary::Face(p) => Side::Edges(edges_or_error(problem, p, design)?),
+            Primary::Obstacle(o) => {
+                Side::Obstacle(*o, ObstacleShape::at(&scene.obstacles[*o], design))
+            }
         };
         for node in nodes {
-            let p = problem.bodies[sec.body].coords[node];
-            let (s, l) = owner(problem, sec.body, node);
-            let area = trib.get(&node).copied().unwrap_or(0.0) * thickness;
-            match (&primary_edges, &contact.primary) {
-                (Some((pb, edges)), _) => {
-                    let Some(pr) = project(problem, edges, *pb, p) else {
+            let p = pos[sec.body][node];
+            let area = areas.get(&node).copied().unwrap_or(0.0);
+            let (e, normal, gap, primary) = match &primary {
+                Side::Edges(edges) => {
+                    let Some((edge, gap)) = nearest_edge(&pos, edges, p) else {
                         continue;
-                    };
-                    if pr.gap.abs() > search {
-                        continue;
-                    }
-                    let n = pr.normal;
-                    let (sa, la) = owner(problem, *pb, pr.a);
-                    let (sb, lb) = owner(problem, *pb, pr.b);
-                    let mut e = vec![(s, 2 * l, -n[0]), (s, 2 * l + 1, -n[1])];
-                    for (sub, loc, w) in [(sa, la, pr.na), (sb, lb, pr.nb)] {
-                        if w != 0.0 {
-                            e.push((sub, 2 * loc, w * n[0]));
-                            e.push((sub, 2 * loc + 1, w * n[1]));
-                        }
-                    }
-                    let kind = RowKind::Contact {
-                        contact: ci,
-                        body: sec.body,
-                        node,
-                        area,
-                        normal: n,
-                        gap: pr.gap,
-                        primary: ContactPrimary::Segment {
-                            body: *pb,
-                            a: pr.a,
-                            b: pr.b,
-                        },
-                    };
-                    push(rows, e, pr.gap, kind);
-                }
-                (None, Primary::Obstacle(o)) => {
-                    let (n, gap) = match &scene.obstacles[*o] {
-                        Obstacle::Plane { point, normal, .. } => {
-                            let q: Vec<f64> =
-                                point.iter().map(|f| f.eval_f64([0.0; 3], design)).collect();
-                            let m: Vec<f64> = normal
-                                .iter()
-                                .map(|f| f.eval_f64([0.0; 3], design))
-                                .collect();
-                            let len = (m[0] * m[0] + m[1] * m[1]).sqrt();
-                            let n = [m[0] / len, m[1] / len];
-                            (n, n[0] * (p[0] - q[0]) + n[1] * (p[1] - q[1]))
-                        }
-                        Obstacle::Sphere { center, radius, .. } => {
-                            let c: Vec<f64> = center
-                                .iter()
-                                .map(|f| f.eval_f64([0.0; 3], design))
-                                .collect();
-                            let r = radius.eval_f64([0.0; 3], design);
-                            let d = ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt();
-                            if d == 0.0 {
-                                continue;
-                            }
-                            ([(p[0] - c[0]) / d, (p[1] - c[1]) / d], d - r)
-                        }
                     };
                     if gap.abs() > search {
                         continue;
                     }
-                    let e = vec![(s, 2 * l, -n[0]), (s, 2 * l + 1, -n[1])];
-                    let kind = RowKind::Contact {
-                        contact: ci,
-                        body: sec.body,
-                        node,
-                        area,
-                        normal: n,
-                        gap,
-                        primary: ContactPrimary::Obstacle(*o),
-                    };
-                    push(rows, e, gap, kind);
+                    let (e, pr) =
+                        edge_contact_row(problem, sec.body, node, &edge, &pos, Pattern::Sparse);
+                    (e, pr.normal, pr.gap, ContactPrimary::Segment(edge))
                 }
-                _ => {}
-            }
+                Side::Obstacle(o, shape) => {
+                    let Some((n, gap)) = shape.normal_gap(&p) else {
+                        continue;
+                    };
+                    if gap.abs() > search {
+                        continue;
+                    }
+                    (
+                        obstacle_row(problem, sec.body, node, &n),
+                        n,
+                        gap,
+                        ContactPrimary::Obstacle(*o),
+                    )
+                }
+            };
+            let kind = RowKind::Contact {
+                contact: ci,
+                body: sec.body,
+                node,
+                area,
+                normal,
+                gap,
+                primary,
+            };
+            push(rows, e, gap, kind);
         }
     }
     Ok(())
+}
+
+/// The primary side of a contact, as lowering searches it.
+enum Side {
+    Edges(Vec<FaceEdge>),
+    Obstacle(usize, ObstacleShape<f64, 2>),
 }

@@ -1,8 +1,9 @@
 //! Values of the functionals of `minimize` / `subject to` on a solved state.
 
-use crate::lang::expr::{Arith, Scalar};
+use crate::lang::expr::Arith;
 use crate::lang::scene::{Body, Dimension, Functional, Scene};
 use crate::model::RowKind;
+use crate::num::Scalar;
 use crate::state::State;
 
 /// What a functional is evaluated on: the scene, a design, its solved state, and

@@ -13,10 +13,14 @@
 //! assembly and one factorization serve the state and every direction.
 
 use super::functional::body_area;
-use crate::fem::quad::{plane_strain, quad_gauss, quad_stiffness};
+use crate::fem::facet::Facet;
+use crate::fem::quad::{plane_strain, quad_stiffness};
 use crate::lang::expr::{Arith, Point};
-use crate::lang::scene::{Condition, Face, Functional, Obstacle, Scene};
-use crate::model::loads::selected_edges;
+use crate::lang::scene::{Functional, Scene};
+use crate::model::geometry::{
+    edge_contact_row, edge_loads, edge_tie_row, nodal_loads, node_positions, normalize,
+    obstacle_row, selected_edges, tributary_areas, NormalRow, ObstacleShape, Pattern,
+};
 use crate::model::{ContactPrimary, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
@@ -128,64 +132,36 @@ fn seeded(design: &[f64], i: usize) -> Vec<D> {
         .collect()
 }
 
-/// Body grid node positions with their velocities, per body.
-fn grid_positions(scene: &Scene, design: &[D]) -> Vec<Vec<[D; 2]>> {
-    scene
-        .bodies
+/// Is a projection parameter at a facet's boundary while the node slides along
+/// the face? The node-to-facet row has a kink there (it switches facet), so its
+/// derivative is one-sided. Sliding means the parameter moves by more than
+/// round-off: `1e-9` of the fastest node's speed over the facet's size.
+fn at_kink<F: Facet<D, 2, 2>>(facet: &F, p: &[D; 2], at: F::Local) -> bool {
+    let speed = facet
+        .nodes()
         .iter()
-        .map(|b| {
-            let (nx, ny) = (b.mesh[0], b.mesh[1]);
-            let mut out = Vec::with_capacity((nx + 1) * (ny + 1));
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    let c = b.node_t([i, j, 0], design);
-                    out.push([c[0], c[1]]);
-                }
-            }
-            out
-        })
-        .collect()
+        .chain([p])
+        .flatten()
+        .fold(0.0f64, |m, x| m.max(x.eps.abs()));
+    let noise = 1e-9 * speed / facet.measure().re;
+    facet.on_boundary(at, 1e-9) && at.as_ref().iter().any(|t| t.eps.abs() > noise)
 }
 
-/// A row recomputed at dual coordinates: (entries, rhs), normalized, and the scale.
-type DualRow = (Vec<(usize, usize, D)>, D, D);
-
-fn normalize(entries: Vec<(usize, usize, D)>, c: D) -> DualRow {
-    let s = entries.iter().map(|e| e.2 * e.2).sum::<D>().sqrt();
-    (
-        entries.into_iter().map(|(a, b, v)| (a, b, v / s)).collect(),
-        c / s,
-        s,
-    )
-}
-
-fn perp_normal(delta: [D; 2], nominal: [f64; 2]) -> [D; 2] {
-    let len = (delta[0] * delta[0] + delta[1] * delta[1]).sqrt();
-    let n = [delta[1] / len, -delta[0] / len];
-    if n[0].re * nominal[0] + n[1].re * nominal[1] >= 0.0 {
-        n
-    } else {
-        [-n[0], -n[1]]
-    }
-}
-
-/// Is a projection parameter at a segment end while moving along the face? The
-/// node-to-segment row has a kink there (it switches segment), so its derivative
-/// is one-sided.
-fn at_kink(t: D) -> bool {
-    (t.re <= 1e-9 || t.re >= 1.0 - 1e-9) && t.eps != 0.0
-}
-
-/// Contact and tie rows at dual coordinates (None for rows that do not move).
+/// Contact and tie rows at dual coordinates (None for rows that do not move):
+/// the state's rows, evaluated on the facets the state chose.
 fn moving_rows(
     scene: &Scene,
     state: &State,
     pos: &[Vec<[D; 2]>],
     design: &[D],
-) -> (Vec<Option<DualRow>>, usize) {
+) -> (Vec<Option<NormalRow<D>>>, usize) {
     let p = &state.problem;
-    let kinks = std::cell::Cell::new(0usize);
-    let owner = |body: usize, node: usize| p.bodies[body].copies(node)[0];
+    let obstacles: Vec<ObstacleShape<D, 2>> = scene
+        .obstacles
+        .iter()
+        .map(|o| ObstacleShape::at(o, design))
+        .collect();
+    let mut kinks = 0;
     let rows = p
         .rows
         .iter()
@@ -193,63 +169,19 @@ fn moving_rows(
             RowKind::Contact {
                 body,
                 node,
-                normal,
                 primary,
                 ..
             } => {
-                let xp = pos[*body][*node];
-                let (s, l) = owner(*body, *node);
+                let xp = &pos[*body][*node];
                 match primary {
-                    ContactPrimary::Segment { body: pb, a, b } => {
-                        let (xa, xb) = (pos[*pb][*a], pos[*pb][*b]);
-                        let delta = [xb[0] - xa[0], xb[1] - xa[1]];
-                        let len2 = delta[0] * delta[0] + delta[1] * delta[1];
-                        let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
-                        if at_kink(t) {
-                            kinks.set(kinks.get() + 1);
-                        }
-                        let n = perp_normal(delta, *normal);
-                        let q = [xa[0] + t * delta[0], xa[1] + t * delta[1]];
-                        let gap = n[0] * (xp[0] - q[0]) + n[1] * (xp[1] - q[1]);
-                        let (sa, la) = owner(*pb, *a);
-                        let (sb, lb) = owner(*pb, *b);
-                        let one = D::from(1.0);
-                        let e = vec![
-                            (s, 2 * l, -n[0]),
-                            (s, 2 * l + 1, -n[1]),
-                            (sa, 2 * la, (one - t) * n[0]),
-                            (sa, 2 * la + 1, (one - t) * n[1]),
-                            (sb, 2 * lb, t * n[0]),
-                            (sb, 2 * lb + 1, t * n[1]),
-                        ];
-                        Some(normalize(e, gap))
+                    ContactPrimary::Segment(edge) => {
+                        let (e, pr) = edge_contact_row(p, *body, *node, edge, pos, Pattern::Full);
+                        kinks += usize::from(at_kink(&edge.segment(pos), xp, pr.local));
+                        normalize(e, pr.gap)
                     }
                     ContactPrimary::Obstacle(o) => {
-                        let at = Point {
-                            coords: [D::from(0.0); 3],
-                            design,
-                        };
-                        let (n, gap) = match &scene.obstacles[*o] {
-                            Obstacle::Plane { point, normal, .. } => {
-                                let q: Vec<D> = point.iter().map(|f| f.eval(&at)).collect();
-                                let m: Vec<D> = normal.iter().map(|f| f.eval(&at)).collect();
-                                let len = (m[0] * m[0] + m[1] * m[1]).sqrt();
-                                let n = [m[0] / len, m[1] / len];
-                                (n, n[0] * (xp[0] - q[0]) + n[1] * (xp[1] - q[1]))
-                            }
-                            Obstacle::Sphere { center, radius, .. } => {
-                                let c: Vec<D> = center.iter().map(|f| f.eval(&at)).collect();
-                                let r = radius.eval(&at);
-                                let d = ((xp[0] - c[0]) * (xp[0] - c[0])
-                                    + (xp[1] - c[1]) * (xp[1] - c[1]))
-                                    .sqrt();
-                                ([(xp[0] - c[0]) / d, (xp[1] - c[1]) / d], d - r)
-                            }
-                        };
-                        Some(normalize(
-                            vec![(s, 2 * l, -n[0]), (s, 2 * l + 1, -n[1])],
-                            gap,
-                        ))
+                        let (n, gap) = obstacles[*o].normal_gap(xp)?;
+                        normalize(obstacle_row(p, *body, *node, &n), gap)
                     }
                 }
             }
@@ -257,32 +189,18 @@ fn moving_rows(
                 body,
                 node,
                 comp,
-                segment: (pb, a, b),
+                segment,
                 ..
             } => {
-                let xp = pos[*body][*node];
-                let (xa, xb) = (pos[*pb][*a], pos[*pb][*b]);
-                let delta = [xb[0] - xa[0], xb[1] - xa[1]];
-                let len2 = delta[0] * delta[0] + delta[1] * delta[1];
-                let t = ((xp[0] - xa[0]) * delta[0] + (xp[1] - xa[1]) * delta[1]) / len2;
-                if at_kink(t) {
-                    kinks.set(kinks.get() + 1);
-                }
-                let (s, l) = owner(*body, *node);
-                let (sa, la) = owner(*pb, *a);
-                let (sb, lb) = owner(*pb, *b);
-                let one = D::from(1.0);
-                let e = vec![
-                    (s, 2 * l + comp, one),
-                    (sa, 2 * la + comp, -(one - t)),
-                    (sb, 2 * lb + comp, -t),
-                ];
-                Some(normalize(e, D::from(0.0)))
+                let (e, pr) = edge_tie_row(p, *body, *node, *comp, segment, pos, Pattern::Full);
+                let xp = &pos[*body][*node];
+                kinks += usize::from(at_kink(&segment.segment(pos), xp, pr.local));
+                normalize(e, D::from(0.0))
             }
             _ => None,
         })
         .collect();
-    (rows, kinks.get())
+    (rows, kinks)
 }
 
 /// `f'` per subdomain (owner copies, like the loads themselves).
@@ -293,51 +211,11 @@ fn load_derivative(
     design: &[f64],
 ) -> Vec<Vec<f64>> {
     let p = &state.problem;
-    let mut fd: Vec<Vec<f64>> = p.subdomains.iter().map(|m| vec![0.0; m.f.len()]).collect();
-    let thickness = scene.thickness;
-    for cond in &scene.conditions {
-        let (sel, t, pr) = match cond {
-            Condition::Traction { sel, value } => (sel, [value[0], value[1]], 0.0),
-            Condition::Pressure { sel, value } => (sel, [0.0, 0.0], *value),
-            _ => continue,
-        };
-        let right_hand = matches!(sel.face, Face::Bottom | Face::Right);
-        for (a, b, _, _) in selected_edges(p, sel, design) {
-            let (xa, xb) = (pos[sel.body][a], pos[sel.body][b]);
-            let delta = [xb[0] - xa[0], xb[1] - xa[1]];
-            let len = (delta[0] * delta[0] + delta[1] * delta[1]).sqrt();
-            // n * len is the rotated edge vector.
-            let nl = if right_hand {
-                [delta[1], -delta[0]]
-            } else {
-                [-delta[1], delta[0]]
-            };
-            let force = [len * t[0] - nl[0] * pr, len * t[1] - nl[1] * pr];
-            for node in [a, b] {
-                let (s, l) = p.bodies[sel.body].copies(node)[0];
-                fd[s][2 * l] += force[0].eps * thickness / 2.0;
-                fd[s][2 * l + 1] += force[1].eps * thickness / 2.0;
-            }
-        }
-    }
-    if let Some(g) = &scene.gravity {
-        for (s, m) in p.subdomains.iter().enumerate() {
-            let rho = scene.materials[scene.bodies[m.body].material]
-                .density
-                .unwrap_or(0.0);
-            for e in &m.elements {
-                let x: [[D; 2]; 4] = std::array::from_fn(|k| pos[m.body][m.grid[e[k]]]);
-                for (n, det) in quad_gauss(&x) {
-                    for k in 0..4 {
-                        for a in 0..2 {
-                            fd[s][2 * e[k] + a] += rho * g[a] * n[k] * det.eps * m.thickness;
-                        }
-                    }
-                }
-            }
-        }
-    }
-    fd
+    let loads = edge_loads(scene, p, design);
+    nodal_loads(scene, p, &loads, pos)
+        .into_iter()
+        .map(|f| f.iter().map(|v| v.eps).collect())
+        .collect()
 }
 
 /// `K' u` per subdomain (only elements whose nodes move).
@@ -461,7 +339,7 @@ impl<'a> Sensitivity<'a> {
         let state = self.state;
         let design = scene.design_init();
         let dd = seeded(&design, i);
-        let pos = grid_positions(scene, &dd);
+        let pos = node_positions(scene, &dd);
         let fprime = load_derivative(scene, state, &pos, &design);
         let kpu = stiffness_derivative_times_u(state, &pos);
         let (rows, kinks) = moving_rows(scene, state, &pos, &dd);
@@ -474,14 +352,14 @@ impl<'a> Sensitivity<'a> {
         let mut scale = vec![0.0; p.rows.len()];
         let mut cbar_all = vec![0.0; p.rows.len()];
         for (r, row) in rows.iter().enumerate() {
-            let Some((entries, c, s)) = row else { continue };
-            scale[r] = s.eps;
+            let Some(row) = row else { continue };
+            scale[r] = row.scale.eps;
             let mut bu = 0.0;
-            for &(sub, d, v) in entries {
+            for &(sub, d, v) in &row.entries {
                 fbar[sub][d] -= v.eps * state.lambda[r];
                 bu += v.eps * state.u[sub][d];
             }
-            cbar_all[r] = c.eps - bu;
+            cbar_all[r] = row.c.eps - bu;
         }
         let cbar: Vec<f64> = self.kept.iter().map(|&r| cbar_all[r]).collect();
         let ukpu = kpu
@@ -701,17 +579,9 @@ impl<'a> Sensitivity<'a> {
         let state = self.state;
         let p = &state.problem;
         let design = self.scene.design_init();
-        let pos = grid_positions(self.scene, dd);
+        let pos = node_positions(self.scene, dd);
         let sec = &self.scene.contacts[c].secondary;
-        let mut area: std::collections::HashMap<usize, D> = std::collections::HashMap::new();
-        for (a, b, _, _) in selected_edges(p, sec, &design) {
-            let (xa, xb) = (pos[sec.body][a], pos[sec.body][b]);
-            let len =
-                ((xb[0] - xa[0]) * (xb[0] - xa[0]) + (xb[1] - xa[1]) * (xb[1] - xa[1])).sqrt();
-            let half = len * (self.scene.thickness / 2.0);
-            *area.entry(a).or_insert(D::from(0.0)) += half;
-            *area.entry(b).or_insert(D::from(0.0)) += half;
-        }
+        let area = tributary_areas(&selected_edges(p, sec, &design), &pos, self.scene.thickness);
         p.rows
             .iter()
             .enumerate()
@@ -919,4 +789,31 @@ pub fn adjoint_at(
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fem::facet::{Orientation, Segment};
+
+    fn moving(x: [f64; 2], v: [f64; 2]) -> [D; 2] {
+        [D::new(x[0], v[0]), D::new(x[1], v[1])]
+    }
+
+    #[test]
+    fn a_kink_is_a_node_at_a_segment_end_that_slides() {
+        let (a, b) = ([0.1, 0.3], [1.7, 0.9]);
+        let kink = |vb: [f64; 2], p: [f64; 2], vp: [f64; 2]| {
+            let s = Segment::new(moving(a, [0.0; 2]), moving(b, vb), Orientation::Clockwise);
+            let p = moving(p, vp);
+            at_kink(&s, &p, s.clamp(s.project(&p)))
+        };
+        // On the end b and moving with it: t stays 1 (round-off aside).
+        assert!(!kink([0.3, 0.7], b, [0.3, 0.7]));
+        // On the end b, sliding along the segment or off it: a kink.
+        assert!(kink([0.0; 2], b, [1.0, 0.0]));
+        assert!(kink([0.3, 0.7], b, [0.0; 2]));
+        // Half way, sliding: no kink.
+        assert!(!kink([0.0; 2], [0.9, 0.6], [1.0, 0.0]));
+    }
 }

@@ -1,0 +1,778 @@
+//! The geometry of rows and loads, once, generic over the number type.
+//!
+//! Lowering evaluates it on `f64` for the state; the sensitivities evaluate the
+//! same functions on dual numbers seeded by a design direction, on the facets the
+//! state chose, so `B'`, `c'` and `f'` are the exact derivatives of `B`, `c`, `f`.
+//! Which facet a node projects on, and which nodes get rows at all, is decided
+//! once on `f64` (`rows.rs`); only the evaluation is shared.
+
+use super::Problem;
+use crate::fem::facet::{Facet, Orientation, Segment};
+use crate::fem::quad::quad_gauss;
+use crate::lang::expr::Point;
+use crate::lang::scene::{Condition, Face, Obstacle, Scene, Selection};
+use crate::num::{dot, norm, sub, Scalar};
+use std::collections::HashMap;
+
+/// One row entry: (global subdomain, local dof, coefficient).
+pub type Entry<T> = (usize, usize, T);
+
+/// One edge of a body's face: its grid nodes in face order and which way that
+/// order runs around the body (it decides the outward normal).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaceEdge {
+    pub body: usize,
+    pub a: usize,
+    pub b: usize,
+    pub orientation: Orientation,
+}
+
+impl FaceEdge {
+    /// The edge's segment at node positions `pos` (per body, per grid node).
+    pub fn segment<T: Scalar>(&self, pos: &[impl AsRef<[[T; 2]]>]) -> Segment<T> {
+        let x = pos[self.body].as_ref();
+        Segment::new(x[self.a], x[self.b], self.orientation)
+    }
+}
+
+/// Faces list their nodes left to right or bottom to top: counter-clockwise
+/// around the body on the bottom and right faces, clockwise on the others.
+pub fn face_orientation(face: Face) -> Orientation {
+    match face {
+        Face::Bottom | Face::Right => Orientation::CounterClockwise,
+        _ => Orientation::Clockwise,
+    }
+}
+
+/// Grid node positions of every body at a design, in any number type (node
+/// `(i, j)` at `j * (nx + 1) + i`, like [`super::BodyMesh::coords`]).
+pub fn node_positions<T: Scalar>(scene: &Scene, design: &[T]) -> Vec<Vec<[T; 2]>> {
+    scene
+        .bodies
+        .iter()
+        .map(|b| {
+            let (nx, ny) = (b.mesh[0], b.mesh[1]);
+            let mut out = Vec::with_capacity((nx + 1) * (ny + 1));
+            for j in 0..=ny {
+                for i in 0..=nx {
+                    let c = b.node_t([i, j, 0], design);
+                    out.push([c[0], c[1]]);
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// The lowered node positions, per body, in the form the generic functions take.
+pub fn coords(problem: &Problem) -> Vec<&[[f64; 2]]> {
+    problem.bodies.iter().map(|b| b.coords.as_slice()).collect()
+}
+
+/// The grid nodes of a selection (face nodes passing the filter), in face order.
+pub(crate) fn selected_nodes(problem: &Problem, sel: &Selection, design: &[f64]) -> Vec<usize> {
+    let body = &problem.bodies[sel.body];
+    let nodes = body.face_nodes(sel.face);
+    let Some(filter) = &sel.filter else {
+        return nodes;
+    };
+    let (lo, hi) = body.bounding_box();
+    let tol = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    nodes
+        .into_iter()
+        .filter(|&n| {
+            let c = body.coords[n];
+            filter.holds([c[0], c[1], 0.0], design, tol)
+        })
+        .collect()
+}
+
+/// The edges of a selection: pairs of neighbouring face nodes that both pass the
+/// filter, leaving out edges of zero length (they have no normal).
+pub(crate) fn selected_edges(problem: &Problem, sel: &Selection, design: &[f64]) -> Vec<FaceEdge> {
+    let body = &problem.bodies[sel.body];
+    let nodes = body.face_nodes(sel.face);
+    let keep = selected_nodes(problem, sel, design);
+    let pos = coords(problem);
+    nodes
+        .windows(2)
+        .filter(|w| keep.contains(&w[0]) && keep.contains(&w[1]))
+        .map(|w| FaceEdge {
+            body: sel.body,
+            a: w[0],
+            b: w[1],
+            orientation: face_orientation(sel.face),
+        })
+        .filter(|e| e.segment(&pos).measure() != 0.0)
+        .collect()
+}
+
+/// Which entries a row keeps. The state's rows leave out facet nodes of weight
+/// zero (a node right over a facet node gets a node-to-node row); the rows of a
+/// derivative keep them, since a zero weight can have a nonzero derivative.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Pattern {
+    Sparse,
+    Full,
+}
+
+/// A point projected on a facet.
+#[derive(Debug, Clone, Copy)]
+pub struct Projection<T, L, const D: usize, const N: usize> {
+    /// Local coordinates of the projection, pulled onto the facet.
+    pub local: L,
+    /// The projection.
+    pub point: [T; D],
+    /// Shape-function values there (the facet nodes' weights in the row).
+    pub weights: [T; N],
+    /// Outward unit normal there (it points to the secondary side).
+    pub normal: [T; D],
+    /// Signed gap `n . (p - point)`.
+    pub gap: T,
+}
+
+/// Projects `p` on `facet` at the local coordinates `at` (from [`Facet::project`]).
+pub fn project<T, F, const D: usize, const N: usize>(
+    facet: &F,
+    p: &[T; D],
+    at: F::Local,
+) -> Projection<T, F::Local, D, N>
+where
+    T: Scalar,
+    F: Facet<T, D, N>,
+{
+    let local = facet.clamp(at);
+    let point = facet.point(local);
+    let normal = facet.normal(local);
+    Projection {
+        local,
+        point,
+        weights: facet.shape(local),
+        normal,
+        gap: dot(&normal, &sub(p, &point)),
+    }
+}
+
+/// The un-normalized row `n^T (sum_k N_k u_k - u_p)` of a secondary node (its
+/// owner copy `(subdomain, local node)`) over facet nodes with weights `N_k`; with
+/// no facet nodes, the obstacle row `-n^T u_p`.
+pub fn contact_entries<T: Scalar, const D: usize>(
+    secondary: (usize, usize),
+    facet: &[(usize, usize)],
+    weights: &[T],
+    normal: &[T; D],
+    pattern: Pattern,
+) -> Vec<Entry<T>> {
+    let (s, l) = secondary;
+    let mut e: Vec<Entry<T>> = (0..D).map(|a| (s, D * l + a, -normal[a])).collect();
+    for (&(sub, loc), &w) in facet.iter().zip(weights) {
+        if pattern == Pattern::Full || w.re() != 0.0 {
+            e.extend((0..D).map(|a| (sub, D * loc + a, w * normal[a])));
+        }
+    }
+    e
+}
+
+/// The un-normalized tie row `u_p - sum_k N_k u_k` of component `comp`.
+pub fn tie_entries<T: Scalar, const D: usize>(
+    secondary: (usize, usize),
+    comp: usize,
+    facet: &[(usize, usize)],
+    weights: &[T],
+    pattern: Pattern,
+) -> Vec<Entry<T>> {
+    let (s, l) = secondary;
+    let mut e = vec![(s, D * l + comp, T::from(1.0))];
+    for (&(sub, loc), &w) in facet.iter().zip(weights) {
+        if pattern == Pattern::Full || w.re() != 0.0 {
+            e.push((sub, D * loc + comp, -w));
+        }
+    }
+    e
+}
+
+/// A row scaled to unit norm, with the norm it had (multipliers of the
+/// un-normalized row are `lambda / scale`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NormalRow<T> {
+    pub entries: Vec<Entry<T>>,
+    pub c: T,
+    pub scale: T,
+}
+
+/// Scales a row and its right-hand side to `||B_i|| = 1`; None for a row of zeros.
+pub fn normalize<T: Scalar>(entries: Vec<Entry<T>>, c: T) -> Option<NormalRow<T>> {
+    let scale = entries.iter().map(|e| e.2 * e.2).sum::<T>().sqrt();
+    if scale.re() == 0.0 {
+        return None;
+    }
+    Some(NormalRow {
+        entries: entries
+            .into_iter()
+            .map(|(s, d, v)| (s, d, v / scale))
+            .collect(),
+        c: c / scale,
+        scale,
+    })
+}
+
+/// The owner copy of a body's grid node (it carries loads, supports and rows).
+pub(crate) fn owner(problem: &Problem, body: usize, node: usize) -> (usize, usize) {
+    problem.bodies[body].copies(node)[0]
+}
+
+/// The contact row of secondary node `node` of `body` over a face edge, at node
+/// positions `pos`: the un-normalized entries (`c` is the projection's gap).
+pub fn edge_contact_row<T: Scalar>(
+    problem: &Problem,
+    body: usize,
+    node: usize,
+    edge: &FaceEdge,
+    pos: &[impl AsRef<[[T; 2]]>],
+    pattern: Pattern,
+) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
+    let seg = edge.segment(pos);
+    let p = pos[body].as_ref()[node];
+    let pr = project(&seg, &p, seg.project(&p));
+    let facet = [
+        owner(problem, edge.body, edge.a),
+        owner(problem, edge.body, edge.b),
+    ];
+    let e = contact_entries(
+        owner(problem, body, node),
+        &facet,
+        &pr.weights,
+        &pr.normal,
+        pattern,
+    );
+    (e, pr)
+}
+
+/// The tie row of component `comp` of node `node` of `body` over a face edge.
+pub fn edge_tie_row<T: Scalar>(
+    problem: &Problem,
+    body: usize,
+    node: usize,
+    comp: usize,
+    edge: &FaceEdge,
+    pos: &[impl AsRef<[[T; 2]]>],
+    pattern: Pattern,
+) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
+    let seg = edge.segment(pos);
+    let p = pos[body].as_ref()[node];
+    let pr = project(&seg, &p, seg.project(&p));
+    let facet = [
+        owner(problem, edge.body, edge.a),
+        owner(problem, edge.body, edge.b),
+    ];
+    let e = tie_entries::<T, 2>(
+        owner(problem, body, node),
+        comp,
+        &facet,
+        &pr.weights,
+        pattern,
+    );
+    (e, pr)
+}
+
+/// The obstacle row `-n^T u_p` of a secondary node with outward normal `n`.
+pub fn obstacle_row<T: Scalar>(
+    problem: &Problem,
+    body: usize,
+    node: usize,
+    normal: &[T; 2],
+) -> Vec<Entry<T>> {
+    contact_entries(
+        owner(problem, body, node),
+        &[],
+        &[],
+        normal,
+        Pattern::Sparse,
+    )
+}
+
+/// A rigid obstacle at a design.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ObstacleShape<T, const D: usize> {
+    /// Through `point`, with outward unit `normal`.
+    Plane { point: [T; D], normal: [T; D] },
+    /// Touched from outside.
+    Sphere { center: [T; D], radius: T },
+}
+
+impl<T: Scalar, const D: usize> ObstacleShape<T, D> {
+    /// The obstacle's formulas evaluated at `design`.
+    pub fn at(obstacle: &Obstacle, design: &[T]) -> Self {
+        let at = Point {
+            coords: [T::from(0.0); 3],
+            design,
+        };
+        let vector = |v: &[crate::lang::expr::Formula]| -> [T; D] {
+            std::array::from_fn(|k| v.get(k).map_or(T::from(f64::NAN), |f| f.eval(&at)))
+        };
+        match obstacle {
+            Obstacle::Plane { point, normal, .. } => {
+                let m = vector(normal);
+                let len = norm(&m);
+                ObstacleShape::Plane {
+                    point: vector(point),
+                    normal: m.map(|x| x / len),
+                }
+            }
+            Obstacle::Sphere { center, radius, .. } => ObstacleShape::Sphere {
+                center: vector(center),
+                radius: radius.eval(&at),
+            },
+        }
+    }
+
+    /// Outward unit normal and signed gap of point `p`; None at a sphere's
+    /// centre, where no normal exists.
+    pub fn normal_gap(&self, p: &[T; D]) -> Option<([T; D], T)> {
+        match self {
+            ObstacleShape::Plane { point, normal } => Some((*normal, dot(normal, &sub(p, point)))),
+            ObstacleShape::Sphere { center, radius } => {
+                let d = sub(p, center);
+                let dist = norm(&d);
+                if dist.re() == 0.0 {
+                    return None;
+                }
+                Some((d.map(|x| x / dist), dist - *radius))
+            }
+        }
+    }
+}
+
+/// Tributary area of each node of some face edges: its share of their length,
+/// times the thickness.
+pub fn tributary_areas<T: Scalar>(
+    edges: &[FaceEdge],
+    pos: &[impl AsRef<[[T; 2]]>],
+    thickness: f64,
+) -> HashMap<usize, T> {
+    let mut t: HashMap<usize, T> = HashMap::new();
+    for e in edges {
+        let share = e.segment(pos).tributary();
+        *t.entry(e.a).or_insert(T::from(0.0)) += share[0];
+        *t.entry(e.b).or_insert(T::from(0.0)) += share[1];
+    }
+    t.values_mut().for_each(|v| *v *= thickness);
+    t
+}
+
+/// A traction or a pressure (along the inward normal) with the face edges it
+/// acts on, selected at the design.
+pub(crate) struct EdgeLoad<'s> {
+    pub sel: &'s Selection,
+    pub traction: [f64; 2],
+    pub pressure: f64,
+    pub edges: Vec<FaceEdge>,
+}
+
+/// The scene's tractions and pressures in order, each with its selected edges
+/// (empty where the selection keeps none: lowering refuses that).
+pub(crate) fn edge_loads<'s>(
+    scene: &'s Scene,
+    problem: &Problem,
+    design: &[f64],
+) -> Vec<EdgeLoad<'s>> {
+    scene
+        .conditions
+        .iter()
+        .filter_map(|cond| {
+            let (sel, traction, pressure) = match cond {
+                Condition::Traction { sel, value } => (sel, [value[0], value[1]], 0.0),
+                Condition::Pressure { sel, value } => (sel, [0.0, 0.0], *value),
+                _ => return None,
+            };
+            Some(EdgeLoad {
+                sel,
+                traction,
+                pressure,
+                edges: selected_edges(problem, sel, design),
+            })
+        })
+        .collect()
+}
+
+/// Consistent nodal loads per subdomain at node positions `pos`: edge loads on
+/// the nodes' owner copies, then gravity element by element. The order of the
+/// sums is fixed, so the same positions give the same bits.
+pub(crate) fn nodal_loads<T: Scalar>(
+    scene: &Scene,
+    problem: &Problem,
+    loads: &[EdgeLoad],
+    pos: &[impl AsRef<[[T; 2]]>],
+) -> Vec<Vec<T>> {
+    let mut f: Vec<Vec<T>> = problem
+        .subdomains
+        .iter()
+        .map(|s| vec![T::from(0.0); s.f.len()])
+        .collect();
+    for load in loads {
+        for e in &load.edges {
+            let forces = e.segment(pos).uniform_load(load.traction, load.pressure);
+            for (node, force) in [e.a, e.b].into_iter().zip(forces) {
+                if let Some(&(sub, local)) = problem.bodies[e.body].copies(node).first() {
+                    for a in 0..2 {
+                        f[sub][2 * local + a] += force[a] * scene.thickness;
+                    }
+                }
+            }
+        }
+    }
+    if let Some(g) = &scene.gravity {
+        for (s, m) in problem.subdomains.iter().enumerate() {
+            let rho = scene.materials[scene.bodies[m.body].material]
+                .density
+                .unwrap_or(0.0);
+            let x = pos[m.body].as_ref();
+            for e in &m.elements {
+                let xe: [[T; 2]; 4] = std::array::from_fn(|k| x[m.grid[e[k]]]);
+                for (n, det) in quad_gauss(&xe) {
+                    for k in 0..4 {
+                        for a in 0..2 {
+                            f[s][2 * e[k] + a] += det * (rho * g[a] * n[k]) * m.thickness;
+                        }
+                    }
+                }
+            }
+        }
+    }
+    f
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::lang::expr::Formula;
+    use crate::lang::{compile, CheckOptions};
+    use num_dual::Dual64;
+
+    fn close(a: f64, b: f64) -> bool {
+        (a - b).abs() <= 1e-14 * (1.0 + b.abs())
+    }
+
+    fn assert_entries(got: &[Entry<f64>], want: &[Entry<f64>]) {
+        assert_eq!(got.len(), want.len(), "{got:?}");
+        for (g, w) in got.iter().zip(want) {
+            assert!(
+                g.0 == w.0 && g.1 == w.1 && close(g.2, w.2),
+                "{g:?} vs {w:?}"
+            );
+        }
+    }
+
+    /// The segment (1, 1) -> (5, 4) (length 5, outward normal (0.6, -0.8)) and a
+    /// node half a unit out over its quarter point (2, 1.75).
+    fn tilted() -> (Segment<f64>, [f64; 2]) {
+        let s = Segment::new([1.0, 1.0], [5.0, 4.0], Orientation::CounterClockwise);
+        (s, [2.0 + 0.3, 1.75 - 0.4])
+    }
+
+    #[test]
+    fn a_node_over_a_tilted_segment_by_hand() {
+        let (s, p) = tilted();
+        let pr = project(&s, &p, s.project(&p));
+        assert!(close(pr.local[0], 0.25), "{:?}", pr.local);
+        assert!(close(pr.weights[0], 0.75) && close(pr.weights[1], 0.25));
+        assert!(close(pr.normal[0], 0.6) && close(pr.normal[1], -0.8));
+        assert!(close(pr.point[0], 2.0) && close(pr.point[1], 1.75));
+        assert!(close(pr.gap, 0.5), "{}", pr.gap);
+        // Secondary node: subdomain 0, local node 5; segment nodes: 1/2 and 1/3.
+        let e = contact_entries(
+            (0, 5),
+            &[(1, 2), (1, 3)],
+            &pr.weights,
+            &pr.normal,
+            Pattern::Sparse,
+        );
+        let want = [
+            (0, 10, -0.6),
+            (0, 11, 0.8),
+            (1, 4, 0.45),
+            (1, 5, -0.6),
+            (1, 6, 0.15),
+            (1, 7, -0.2),
+        ];
+        assert_entries(&e, &want);
+        // ||B_i||^2 = |n|^2 (1 + 0.75^2 + 0.25^2) = 1.625.
+        let r = normalize(e, pr.gap).expect("a nonzero row");
+        let scale = 1.625f64.sqrt();
+        assert!(close(r.scale, scale) && close(r.c, 0.5 / scale));
+        let want: Vec<_> = want.iter().map(|&(s, d, v)| (s, d, v / scale)).collect();
+        assert_entries(&r.entries, &want);
+    }
+
+    #[test]
+    fn a_tie_by_hand() {
+        let (s, p) = tilted();
+        let pr = project(&s, &p, s.project(&p));
+        let e = tie_entries::<f64, 2>((0, 5), 1, &[(1, 2), (1, 3)], &pr.weights, Pattern::Sparse);
+        assert_entries(&e, &[(0, 11, 1.0), (1, 5, -0.75), (1, 7, -0.25)]);
+        let r = normalize(e, 0.0).expect("a nonzero row");
+        assert!(close(r.scale, 1.625f64.sqrt()) && r.c == 0.0);
+        assert!(normalize::<f64>(vec![(0, 0, 0.0)], 1.0).is_none());
+    }
+
+    #[test]
+    fn state_rows_leave_out_zero_weights_and_derivative_rows_keep_them() {
+        // Right over the segment's end b: weights (0, 1).
+        let s = Segment::new([0.0, 0.0], [2.0, 0.0], Orientation::Clockwise);
+        let p = [2.0, 1.0];
+        let pr = project(&s, &p, s.project(&p));
+        assert_eq!(pr.weights, [0.0, 1.0]);
+        assert_eq!(pr.gap, 1.0);
+        assert!(s.on_boundary(pr.local, 1e-9));
+        let facet = [(1, 2), (1, 3)];
+        let sparse = contact_entries((0, 5), &facet, &pr.weights, &pr.normal, Pattern::Sparse);
+        assert_entries(
+            &sparse,
+            &[(0, 10, 0.0), (0, 11, -1.0), (1, 6, 0.0), (1, 7, 1.0)],
+        );
+        let full = contact_entries((0, 5), &facet, &pr.weights, &pr.normal, Pattern::Full);
+        assert_eq!(full.len(), 6);
+        let tie = tie_entries::<f64, 2>((0, 5), 0, &facet, &pr.weights, Pattern::Sparse);
+        assert_entries(&tie, &[(0, 10, 1.0), (1, 6, -1.0)]);
+    }
+
+    fn plane(design_normal: bool) -> Obstacle {
+        // Through (0, -1), normal (3, 4) (or (design[0], 4)).
+        Obstacle::Plane {
+            name: "floor".into(),
+            point: vec![Formula::Const(0.0), Formula::Const(-1.0)],
+            normal: vec![
+                if design_normal {
+                    Formula::Design(0)
+                } else {
+                    Formula::Const(3.0)
+                },
+                Formula::Const(4.0),
+            ],
+        }
+    }
+
+    fn sphere() -> Obstacle {
+        // Centre (1, 1), radius design[1].
+        Obstacle::Sphere {
+            name: "ball".into(),
+            center: vec![Formula::Const(1.0), Formula::Const(1.0)],
+            radius: Formula::Design(1),
+        }
+    }
+
+    #[test]
+    fn obstacles_by_hand() {
+        let design = [3.0, 2.0];
+        let p = [2.0, 1.0];
+        let (n, gap) = ObstacleShape::<f64, 2>::at(&plane(false), &design)
+            .normal_gap(&p)
+            .expect("a plane has a normal everywhere");
+        // n = (0.6, 0.8), gap = n . ((2, 1) - (0, -1)) = 1.2 + 1.6.
+        assert!(close(n[0], 0.6) && close(n[1], 0.8) && close(gap, 2.8));
+        let ball = ObstacleShape::<f64, 2>::at(&sphere(), &design);
+        let (n, gap) = ball.normal_gap(&[4.0, 5.0]).expect("off the centre");
+        // |(3, 4)| = 5: n = (0.6, 0.8), gap = 5 - 2.
+        assert!(close(n[0], 0.6) && close(n[1], 0.8) && close(gap, 3.0));
+        assert!(ball.normal_gap(&[1.0, 1.0]).is_none());
+        let e = obstacle_row::<f64>(&one_body_problem().1, 0, 0, &n);
+        assert_entries(&e, &[(0, 0, -0.6), (0, 1, -0.8)]);
+    }
+
+    /// Every value of the row geometry, as a function of the node `p`, the segment
+    /// ends `a`, `b` and two design values (a plane's normal x, a ball's radius).
+    fn row_geometry<T: Scalar>(x: &[T; 8]) -> Vec<T> {
+        let (p, a, b) = ([x[0], x[1]], [x[2], x[3]], [x[4], x[5]]);
+        let design = [x[6], x[7]];
+        let s = Segment::new(a, b, Orientation::Clockwise);
+        let pr = project(&s, &p, s.project(&p));
+        let facet = [(1, 0), (1, 1)];
+        let mut v = vec![pr.local[0], pr.gap];
+        v.extend(pr.weights);
+        v.extend(pr.normal);
+        let c = contact_entries((0, 0), &facet, &pr.weights, &pr.normal, Pattern::Full);
+        let r = normalize(c, pr.gap).expect("nonzero");
+        v.extend(r.entries.iter().map(|e| e.2));
+        v.extend([r.c, r.scale]);
+        let t = tie_entries::<T, 2>((0, 0), 1, &facet, &pr.weights, Pattern::Full);
+        let r = normalize(t, T::from(0.0)).expect("nonzero");
+        v.extend(r.entries.iter().map(|e| e.2));
+        v.push(r.scale);
+        for o in [plane(true), sphere()] {
+            let (n, gap) = ObstacleShape::<T, 2>::at(&o, &design)
+                .normal_gap(&p)
+                .expect("off the centre");
+            v.extend(n);
+            v.push(gap);
+        }
+        v
+    }
+
+    #[test]
+    fn dual_rows_are_the_f64_rows_with_their_exact_derivatives() {
+        let x = [2.5, 0.7, 1.0, 1.0, 5.0, 4.0, 3.0, 0.4];
+        let base = row_geometry(&x);
+        let h = 1e-6;
+        for i in 0..x.len() {
+            let xd: [Dual64; 8] = std::array::from_fn(|k| {
+                if k == i {
+                    Dual64::from(x[k]).derivative()
+                } else {
+                    Dual64::from(x[k])
+                }
+            });
+            let dual = row_geometry(&xd);
+            let (mut xp, mut xm) = (x, x);
+            xp[i] += h;
+            xm[i] -= h;
+            let (plus, minus) = (row_geometry(&xp), row_geometry(&xm));
+            for k in 0..base.len() {
+                // Dual division multiplies by the reciprocal: equal to round-off.
+                assert!(close(dual[k].re, base[k]), "value {k}, seed {i}");
+                let fd = (plus[k] - minus[k]) / (2.0 * h);
+                assert!(
+                    (dual[k].eps - fd).abs() <= 1e-6 * fd.abs().max(1.0),
+                    "d value {k} / d x{i}: {} vs {fd}",
+                    dual[k].eps
+                );
+            }
+        }
+    }
+
+    /// A trapezoid under its tilted top face `y = 1 + x / 2`, x in [0, 2], of
+    /// thickness 0.5, density 2: area 3, top length sqrt(5).
+    fn one_body_problem_with(loads: &str) -> (Scene, Problem) {
+        let src = format!(
+            "scene tilt {{ dim = 2, thickness = 0.5 m }}
+material mat {{ E = 1000, nu = 0.3, rho = 2 }}
+body b {{ material = mat, x = 0 .. 2, y = 0 .. 1, top = 1 + 0.5 * x, mesh = 4 x 2, subdomains = 2 x 1 }}
+fix b.bottom
+{loads}"
+        );
+        let scene = match compile(&src, &CheckOptions::default()) {
+            Ok(s) => s,
+            Err(d) => panic!("{d:?}"),
+        };
+        let problem = super::super::lower(&scene, &[]).expect("lowers");
+        (scene, problem)
+    }
+
+    fn one_body_problem() -> (Scene, Problem) {
+        one_body_problem_with("pressure b.top = 3")
+    }
+
+    fn resultant(f: &[Vec<f64>]) -> [f64; 2] {
+        let mut r = [0.0; 2];
+        for fs in f {
+            for (k, v) in fs.iter().enumerate() {
+                r[k % 2] += v;
+            }
+        }
+        r
+    }
+
+    #[test]
+    fn pressure_on_a_tilted_face_is_p_times_length_times_thickness_inward() {
+        let (scene, problem) = one_body_problem();
+        let loads = edge_loads(&scene, &problem, &[]);
+        let f = nodal_loads(&scene, &problem, &loads, &coords(&problem));
+        // Outward normal (-1, 2) / sqrt(5): the resultant is 3 * sqrt(5) * 0.5
+        // along (1, -2) / sqrt(5), i.e. (1.5, -3).
+        let r = resultant(&f);
+        assert!(close(r[0], 1.5) && close(r[1], -3.0), "{r:?}");
+        // The lowered problem carries the same loads.
+        let lowered: Vec<Vec<f64>> = problem.subdomains.iter().map(|s| s.f.clone()).collect();
+        assert_eq!(lowered, f);
+        // Each of the 4 edges gives half its share to each end: ends get 1/8, the
+        // others 1/4 of the resultant (summed over their copies).
+        let top = problem.bodies[0].face_nodes(Face::Top);
+        for (k, &node) in top.iter().enumerate() {
+            let mut fy = 0.0;
+            for (s, l) in problem.bodies[0].copies(node) {
+                fy += f[s][2 * l + 1];
+            }
+            let share = if k == 0 || k == 4 { 1.0 / 8.0 } else { 0.25 };
+            assert!(close(fy, -3.0 * share), "node {k}: {fy}");
+        }
+    }
+
+    #[test]
+    fn gravity_is_rho_g_area_thickness() {
+        let (scene, problem) = one_body_problem_with("gravity = (1, -9.81)");
+        let f = nodal_loads(&scene, &problem, &[], &coords(&problem));
+        let r = resultant(&f);
+        // 2 kg/m^3 * 3 m^2 * 0.5 m.
+        assert!(close(r[0], 3.0) && close(r[1], -3.0 * 9.81), "{r:?}");
+    }
+
+    #[test]
+    fn tributary_areas_of_a_tilted_face() {
+        let (scene, problem) = one_body_problem();
+        let Condition::Pressure { sel, .. } = &scene.conditions[1] else {
+            panic!("the second condition is the pressure");
+        };
+        let edges = selected_edges(&problem, sel, &[]);
+        assert_eq!(edges.len(), 4);
+        assert!(edges
+            .iter()
+            .all(|e| e.orientation == Orientation::Clockwise));
+        let areas = tributary_areas(&edges, &coords(&problem), 0.5);
+        let edge = 5f64.sqrt() / 4.0;
+        let top = problem.bodies[0].face_nodes(Face::Top);
+        for (k, node) in top.iter().enumerate() {
+            let want = if k == 0 || k == 4 { edge / 2.0 } else { edge } * 0.5;
+            assert!(close(areas[node], want), "node {k}: {}", areas[node]);
+        }
+        let total: f64 = areas.values().sum();
+        assert!(close(total, 5f64.sqrt() * 0.5));
+    }
+
+    #[test]
+    fn dual_loads_and_areas_are_the_f64_ones_with_their_exact_derivatives() {
+        let (scene, problem) = one_body_problem_with(
+            "pressure b.top = 3\ntraction b.right = (1, 2)\ngravity = (1, -9.81)",
+        );
+        let loads = edge_loads(&scene, &problem, &[]);
+        let top = problem.bodies[0].face_nodes(Face::Top);
+        let edges = &loads[0].edges;
+        let base: Vec<Vec<[f64; 2]>> = problem.bodies.iter().map(|b| b.coords.clone()).collect();
+        assert_eq!(node_positions::<f64>(&scene, &[]), base);
+        let values = |f: Vec<Vec<f64>>, a: HashMap<usize, f64>| -> Vec<f64> {
+            let mut v: Vec<f64> = f.concat();
+            v.extend(top.iter().map(|n| a[n]));
+            v
+        };
+        // Move the top's middle node, then the top right corner, in x and in y.
+        for (node, comp) in [(top[2], 1), (top[4], 0), (top[4], 1)] {
+            let mut dual: Vec<Vec<[Dual64; 2]>> = base
+                .iter()
+                .map(|b| b.iter().map(|c| c.map(Dual64::from)).collect())
+                .collect();
+            dual[0][node][comp] = dual[0][node][comp].derivative();
+            let f = nodal_loads(&scene, &problem, &loads, &dual);
+            let a = tributary_areas(edges, &dual, 0.5);
+            let mut d: Vec<Dual64> = f.concat();
+            d.extend(top.iter().map(|n| a[n]));
+            let at = |x: &[Vec<[f64; 2]>]| {
+                values(
+                    nodal_loads(&scene, &problem, &loads, x),
+                    tributary_areas(edges, x, 0.5),
+                )
+            };
+            let h = 1e-6;
+            let (mut xp, mut xm) = (base.clone(), base.clone());
+            xp[0][node][comp] += h;
+            xm[0][node][comp] -= h;
+            let (plus, minus, here) = (at(&xp), at(&xm), at(&base));
+            for k in 0..here.len() {
+                assert!(close(d[k].re, here[k]), "value {k}");
+                let fd = (plus[k] - minus[k]) / (2.0 * h);
+                assert!(
+                    (d[k].eps - fd).abs() <= 1e-6 * fd.abs().max(1.0),
+                    "{k}: {} vs {fd}",
+                    d[k].eps
+                );
+            }
+        }
+    }
+}
