@@ -7,6 +7,7 @@
 //! `[-1, 1]^2` with the corners at `(-1,-1), (1,-1), (1,1), (-1,1)`, and
 //! `x_xi x x_eta` points outward.
 
+use super::facet::{Facet, Orientation};
 use crate::num::Scalar;
 
 /// Node coordinates of one face.
@@ -150,6 +151,78 @@ pub fn project<T: Scalar>(x: &QuadFace<T>, q: [T; 3], start: [f64; 2]) -> Option
     None
 }
 
+/// A bilinear quadrilateral face as a [`Facet`]: local coordinates `[xi, eta]`
+/// on `[-1, 1]^2`; the orientation says whether the node order is
+/// counter-clockwise seen from outside (outward normal `x_xi x x_eta`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct QuadFacet<T> {
+    nodes: QuadFace<T>,
+    orientation: Orientation,
+}
+
+impl<T: Scalar> QuadFacet<T> {
+    pub fn new(nodes: QuadFace<T>, orientation: Orientation) -> Self {
+        QuadFacet { nodes, orientation }
+    }
+
+    fn sign(&self) -> f64 {
+        match self.orientation {
+            Orientation::CounterClockwise => 1.0,
+            Orientation::Clockwise => -1.0,
+        }
+    }
+}
+
+impl<T: Scalar> Facet<T, 3, 4> for QuadFacet<T> {
+    type Local = [T; 2];
+
+    fn nodes(&self) -> &[[T; 3]; 4] {
+        &self.nodes
+    }
+
+    fn measure(&self) -> T {
+        let t = tributary(&self.nodes);
+        t[0] + t[1] + t[2] + t[3]
+    }
+
+    fn normal(&self, [xi, eta]: [T; 2]) -> [T; 3] {
+        let s = self.sign();
+        normal(&self.nodes, xi, eta).map(|v| v * s)
+    }
+
+    fn project(&self, p: &[T; 3]) -> [T; 2] {
+        project(&self.nodes, *p, [0.0, 0.0]).unwrap_or([T::from(f64::NAN); 2])
+    }
+
+    fn inside(&self, at: [T; 2], tol: f64) -> bool {
+        at.iter().all(|v| v.re().abs() <= 1.0 + tol)
+    }
+
+    fn on_boundary(&self, at: [T; 2], tol: f64) -> bool {
+        at.iter().any(|v| v.re().abs() >= 1.0 - tol)
+    }
+
+    fn clamp(&self, at: [T; 2]) -> [T; 2] {
+        at.map(|v| v - T::from(v.re() - v.re().clamp(-1.0, 1.0)))
+    }
+
+    fn shape(&self, [xi, eta]: [T; 2]) -> [T; 4] {
+        shape(xi, eta)
+    }
+
+    fn point(&self, [xi, eta]: [T; 2]) -> [T; 3] {
+        frame(&self.nodes, xi, eta).0
+    }
+
+    fn load_weights(&self) -> [T; 4] {
+        tributary(&self.nodes)
+    }
+
+    fn uniform_load(&self, traction: [f64; 3], pressure: f64) -> [[T; 3]; 4] {
+        consistent_load(&self.nodes, traction, pressure * self.sign())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -270,6 +343,50 @@ mod tests {
                     close(fd[k][d].eps, (fp[k][d] - fm[k][d]) / (2.0 * h)),
                     "f[{k}][{d}]"
                 );
+            }
+        }
+    }
+
+    #[test]
+    fn the_faces_of_a_box_as_facets() {
+        // Every face of a grid box as facets: outward normals, areas, loads and
+        // projections through the Facet interface.
+        use crate::lang::scene::Face;
+        use crate::model::grid::Grid;
+        let g = Grid::new(&[2, 3, 2], &[1, 1, 1]);
+        let pos = |node: usize| g.ijk(node).map(|v| v as f64 * 0.5);
+        for (face, want) in [
+            (Face::Left, [-1.0, 0.0, 0.0]),
+            (Face::Back, [0.0, 1.0, 0.0]),
+            (Face::Top, [0.0, 0.0, 1.0]),
+        ] {
+            for f in g.face_facets(face) {
+                let x: QuadFace<f64> = std::array::from_fn(|k| pos(f[k]));
+                for o in [Orientation::CounterClockwise, Orientation::Clockwise] {
+                    let facet = QuadFacet::new(x, o);
+                    let s = if o == Orientation::Clockwise {
+                        -1.0
+                    } else {
+                        1.0
+                    };
+                    let n = facet.normal([0.3, -0.2]);
+                    for d in 0..3 {
+                        assert!((n[d] - s * want[d]).abs() < 1e-15, "{face:?}");
+                    }
+                    assert!((facet.measure() - 0.25).abs() < 1e-15);
+                    // A pressure pushes against the facet's outward normal.
+                    let f = facet.uniform_load([0.0; 3], 2.0);
+                    for d in 0..3 {
+                        let total: f64 = f.iter().map(|fk| fk[d]).sum();
+                        assert!((total + 2.0 * 0.25 * n[d]).abs() < 1e-15);
+                    }
+                    // The centre, lifted off the face, projects to (0, 0).
+                    let c = facet.point([0.0, 0.0]);
+                    let p = [0, 1, 2].map(|d| c[d] + 0.1 * n[d]);
+                    let at = facet.project(&p);
+                    assert!(at[0].abs() < 1e-12 && at[1].abs() < 1e-12);
+                    assert!(facet.inside(at, 1e-9) && !facet.on_boundary(at, 1e-9));
+                }
             }
         }
     }
