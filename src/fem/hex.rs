@@ -202,6 +202,19 @@ mod tests {
         x
     }
 
+    /// Nodal displacements `u = E x` of a uniform strain `e` (Voigt, engineering
+    /// shears).
+    fn uniform_strain(x: &Hex<f64>, e: [f64; 6]) -> [f64; 24] {
+        let mut u = [0.0; 24];
+        for n in 0..8 {
+            let p = x[n];
+            u[3 * n] = e[0] * p[0] + 0.5 * e[5] * p[1] + 0.5 * e[4] * p[2];
+            u[3 * n + 1] = 0.5 * e[5] * p[0] + e[1] * p[1] + 0.5 * e[3] * p[2];
+            u[3 * n + 2] = 0.5 * e[4] * p[0] + 0.5 * e[3] * p[1] + e[2] * p[2];
+        }
+        u
+    }
+
     #[test]
     fn stiffness_is_symmetric_semidefinite_with_six_rigid_modes() {
         let k = hex_stiffness(&brick(), &isotropic(1000.0, 0.3)).expect("valid brick");
@@ -224,13 +237,7 @@ mod tests {
         // u = E x for a constant strain: the computed strain equals it anywhere.
         let x = brick();
         let e = [1e-3, -2e-4, 3e-4, 5e-4, -1e-4, 2e-4];
-        let mut u = [0.0; 24];
-        for n in 0..8 {
-            let p = x[n];
-            u[3 * n] = e[0] * p[0] + 0.5 * e[5] * p[1] + 0.5 * e[4] * p[2];
-            u[3 * n + 1] = 0.5 * e[5] * p[0] + e[1] * p[1] + 0.5 * e[3] * p[2];
-            u[3 * n + 2] = 0.5 * e[4] * p[0] + 0.5 * e[3] * p[1] + e[2] * p[2];
-        }
+        let u = uniform_strain(&x, e);
         for xi in [[0.0, 0.0, 0.0], [0.3, -0.7, 0.5], [-0.9, 0.9, -0.2]] {
             let got = hex_strain_at(&x, &u, xi);
             for r in 0..6 {
@@ -248,13 +255,7 @@ mod tests {
         let d = isotropic(1000.0, 0.3);
         let k = hex_stiffness(&x, &d).expect("valid");
         let e = [1e-3, -2e-4, 3e-4, 5e-4, -1e-4, 2e-4];
-        let mut u = [0.0; 24];
-        for n in 0..8 {
-            let p = x[n];
-            u[3 * n] = e[0] * p[0] + 0.5 * e[5] * p[1] + 0.5 * e[4] * p[2];
-            u[3 * n + 1] = 0.5 * e[5] * p[0] + e[1] * p[1] + 0.5 * e[3] * p[2];
-            u[3 * n + 2] = 0.5 * e[4] * p[0] + 0.5 * e[3] * p[1] + e[2] * p[2];
-        }
+        let u = uniform_strain(&x, e);
         let f: Vec<f64> = (0..24)
             .map(|a| (0..24).map(|b| k[a * 24 + b] * u[b]).sum())
             .collect();

@@ -69,16 +69,21 @@ fn gauss() -> [[f64; 2]; 4] {
     CORNERS.map(|c| [G * c[0], G * c[1]])
 }
 
+/// At each 2x2 Gauss point: the shape functions, the outward area vector and
+/// its length (the area element).
+fn gauss_terms<T: Scalar>(x: &QuadFace<T>) -> impl Iterator<Item = ([T; 4], [T; 3], T)> + '_ {
+    gauss().into_iter().map(move |[xi, eta]| {
+        let (xi, eta) = (T::from(xi), T::from(eta));
+        let nda = area_vector(x, xi, eta);
+        (shape(xi, eta), nda, dot(nda, nda).sqrt())
+    })
+}
+
 /// Consistent nodal forces of a uniform traction `t` plus a pressure `p`
 /// (pushing along the inward normal): `f_k = int N_k (t - p n) dA`, 2x2 Gauss.
 pub fn consistent_load<T: Scalar>(x: &QuadFace<T>, t: [f64; 3], p: f64) -> [[T; 3]; 4] {
-    let zero = T::from(0.0);
-    let mut f = [[zero; 3]; 4];
-    for [xi, eta] in gauss() {
-        let (xi, eta) = (T::from(xi), T::from(eta));
-        let nda = area_vector(x, xi, eta);
-        let da = dot(nda, nda).sqrt();
-        let n = shape(xi, eta);
+    let mut f = [[T::from(0.0); 3]; 4];
+    for (n, nda, da) in gauss_terms(x) {
         for k in 0..4 {
             for d in 0..3 {
                 f[k][d] += n[k] * (da * t[d] - nda[d] * p);
@@ -90,13 +95,8 @@ pub fn consistent_load<T: Scalar>(x: &QuadFace<T>, t: [f64; 3], p: f64) -> [[T; 
 
 /// The area of the face and each node's share of it (`int N_k dA`), 2x2 Gauss.
 pub fn tributary<T: Scalar>(x: &QuadFace<T>) -> [T; 4] {
-    let zero = T::from(0.0);
-    let mut out = [zero; 4];
-    for [xi, eta] in gauss() {
-        let (xi, eta) = (T::from(xi), T::from(eta));
-        let nda = area_vector(x, xi, eta);
-        let da = dot(nda, nda).sqrt();
-        let n = shape(xi, eta);
+    let mut out = [T::from(0.0); 4];
+    for (n, _, da) in gauss_terms(x) {
         for k in 0..4 {
             out[k] += n[k] * da;
         }
