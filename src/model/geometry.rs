@@ -221,6 +221,31 @@ pub(crate) fn owner(problem: &Problem, body: usize, node: usize) -> (usize, usiz
     problem.bodies[body].copies(node)[0]
 }
 
+/// A secondary node projected on a face edge: the node's owner copy, the
+/// edge's owner copies, and the projection (what contact and tie rows share).
+type EdgeProjection<T> = (
+    (usize, usize),
+    [(usize, usize); 2],
+    Projection<T, [T; 1], 2, 2>,
+);
+
+fn edge_projection<T: Scalar>(
+    problem: &Problem,
+    body: usize,
+    node: usize,
+    edge: &FaceEdge,
+    pos: &[impl AsRef<[[T; 2]]>],
+) -> EdgeProjection<T> {
+    let seg = edge.segment(pos);
+    let p = pos[body].as_ref()[node];
+    let pr = project(&seg, &p, seg.project(&p));
+    let facet = [
+        owner(problem, edge.body, edge.a),
+        owner(problem, edge.body, edge.b),
+    ];
+    (owner(problem, body, node), facet, pr)
+}
+
 /// The contact row of secondary node `node` of `body` over a face edge, at node
 /// positions `pos`: the un-normalized entries (`c` is the projection's gap).
 pub fn edge_contact_row<T: Scalar>(
@@ -231,20 +256,8 @@ pub fn edge_contact_row<T: Scalar>(
     pos: &[impl AsRef<[[T; 2]]>],
     pattern: Pattern,
 ) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
-    let seg = edge.segment(pos);
-    let p = pos[body].as_ref()[node];
-    let pr = project(&seg, &p, seg.project(&p));
-    let facet = [
-        owner(problem, edge.body, edge.a),
-        owner(problem, edge.body, edge.b),
-    ];
-    let e = contact_entries(
-        owner(problem, body, node),
-        &facet,
-        &pr.weights,
-        &pr.normal,
-        pattern,
-    );
+    let (secondary, facet, pr) = edge_projection(problem, body, node, edge, pos);
+    let e = contact_entries(secondary, &facet, &pr.weights, &pr.normal, pattern);
     (e, pr)
 }
 
@@ -258,20 +271,8 @@ pub fn edge_tie_row<T: Scalar>(
     pos: &[impl AsRef<[[T; 2]]>],
     pattern: Pattern,
 ) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
-    let seg = edge.segment(pos);
-    let p = pos[body].as_ref()[node];
-    let pr = project(&seg, &p, seg.project(&p));
-    let facet = [
-        owner(problem, edge.body, edge.a),
-        owner(problem, edge.body, edge.b),
-    ];
-    let e = tie_entries::<T, 2>(
-        owner(problem, body, node),
-        comp,
-        &facet,
-        &pr.weights,
-        pattern,
-    );
+    let (secondary, facet, pr) = edge_projection(problem, body, node, edge, pos);
+    let e = tie_entries::<T, 2>(secondary, comp, &facet, &pr.weights, pattern);
     (e, pr)
 }
 
