@@ -385,7 +385,11 @@ impl Sensitivity {
         let pool = thread_pool(self.threads)?;
         let g = pool
             .install(|| cso::sens::gradient(&scene, method, h, scheme))
-            .map_err(|e| fail(EXIT_SCENE, e))?;
+            .map_err(|e| match e {
+                // A bad `--step` is a usage error, not the scene's.
+                cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
+                e => fail(EXIT_SCENE, e),
+            })?;
         outln!("{}", tables::gradient(&scene.name, &g));
         if let Some(dir) = &self.out {
             let json = serde_json::to_string_pretty(&g)

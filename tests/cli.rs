@@ -208,3 +208,19 @@ fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
     assert!(dir.join("K.bin").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_zero_finite_difference_step_is_a_usage_error_not_nan() {
+    let args = [
+        "sensitivity",
+        "examples/scont2d.cso",
+        "--method",
+        "finite_difference",
+        "--step",
+        "0",
+    ];
+    let (code, out, err) = cso(&args);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(!out.contains("NaN"), "{out}");
+    assert!(err.contains("step must be a positive number"), "{err}");
+}
