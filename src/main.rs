@@ -280,6 +280,14 @@ fn ticking(message: &'static str) -> ProgressBar {
     bar
 }
 
+/// With `-o DIR`: creates and probes the folder before any computation, so that
+/// a bad path costs a second, not a solve whose results are then lost.
+fn prepare(dir: Option<&Path>) -> Outcome {
+    let Some(dir) = dir else { return Ok(()) };
+    cso::io::atomic::prepare_dir(dir)
+        .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))
+}
+
 /// With `-o DIR`: builds a command's files (an error is the message) and writes
 /// them into `dir`.
 fn write_into(dir: Option<&Path>, files: impl FnOnce() -> Result<Files, String>) -> Outcome {
@@ -324,6 +332,7 @@ impl Solve {
     /// The state solve with a progress line, the summary, and the files.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         let bar = spinner();
         let result = pool.install(|| {
@@ -355,14 +364,14 @@ impl Export {
     /// The QP at the scene's design (or `--set`), lowered and factorized, not solved.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let cannot = |e: std::io::Error| {
+            let msg = format!("cannot export into {}: {e}", self.out.display());
+            fail(EXIT_IO, msg)
+        };
+        cso::io::export::check_dir(&self.out, self.force).map_err(cannot)?;
         let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
             .map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
-        cso::io::export::write_dir(&self.out, &files, self.force).map_err(|e| {
-            fail(
-                EXIT_IO,
-                format!("cannot export into {}: {e}", self.out.display()),
-            )
-        })?;
+        cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;
         outln!("{} files written to {}", files.len(), self.out.display());
         Ok(())
     }
@@ -372,6 +381,7 @@ impl Sensitivity {
     /// A table of dJ/da_i for the objective and each constraint (or the study).
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         if self.study {
             return self.run_study(&scene);
         }
@@ -427,6 +437,7 @@ impl Compare {
     fn run(&self, opts: &CheckOptions) -> Outcome {
         use cso::studies::compare::{compare, eps_sweep, EPS_SWEEP};
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         if self.eps_sweep {
             let bar = ticking("solving by TFETI and by FETI at each eps");
@@ -453,6 +464,7 @@ impl Optimize {
     /// MMA iterations with a progress line, then the best design.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
         bar.set_style(
@@ -538,6 +550,7 @@ impl Bench {
                 Ok(())
             }
             Benchmark::Hard => {
+                prepare(self.out.as_deref())?;
                 let bar = ProgressBar::new_spinner();
                 let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
                     bar.set_message(what.to_string());

@@ -224,3 +224,31 @@ fn a_zero_finite_difference_step_is_a_usage_error_not_nan() {
     assert!(!out.contains("NaN"), "{out}");
     assert!(err.contains("step must be a positive number"), "{err}");
 }
+
+#[test]
+fn an_output_path_that_is_a_file_fails_before_any_solve() {
+    let file = std::env::temp_dir().join(format!("cso-out-file-{}", std::process::id()));
+    std::fs::write(&file, "not a folder").expect("temp file");
+    let f = file.to_string_lossy().to_string();
+    let scene = "examples/semicoercive2d.cso";
+    let commands: [&[&str]; 6] = [
+        &["solve", scene, "-o", &f],
+        &["sensitivity", scene, "-o", &f],
+        &["sensitivity", "examples/scont2d.cso", "--study", "-o", &f],
+        &["optimize", "examples/scont2d.cso", "-o", &f],
+        &["compare", scene, "-o", &f],
+        &["export", scene, "-o", &f],
+    ];
+    for args in commands {
+        let (code, out, err) = cso(args);
+        assert_eq!(code, 2, "{args:?}: {out}{err}");
+        // Nothing was computed: no summary, table or study row on stdout.
+        assert!(out.is_empty(), "{args:?}: {out}");
+        assert!(err.contains("is not a directory"), "{args:?}: {err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(&file).expect("kept"),
+        "not a folder"
+    );
+    let _ = std::fs::remove_file(&file);
+}
