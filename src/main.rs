@@ -35,6 +35,11 @@ struct Cli {
     #[arg(long = "set", value_name = "NAME=VALUE", global = true, value_parser = parse_set)]
     set: Vec<(String, String)>,
 
+    /// Refuse scenes estimated to need more memory than this (e.g. 8GiB, 512MB;
+    /// `none` for no limit). Default: 80% of the machine's memory.
+    #[arg(long, value_name = "SIZE", global = true, value_parser = parse_memory_limit)]
+    memory_limit: Option<MemoryLimit>,
+
     #[command(subcommand)]
     command: Command,
 }
@@ -79,7 +84,7 @@ struct Solve {
     #[arg(short, long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -119,7 +124,7 @@ struct Sensitivity {
     #[arg(long)]
     study: bool,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -131,7 +136,7 @@ struct Optimize {
     #[arg(short, long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -148,7 +153,7 @@ struct Compare {
     #[arg(long)]
     eps_sweep: bool,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -167,7 +172,7 @@ struct Bench {
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
     /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
     #[arg(short, long, value_name = "DIR")]
@@ -181,6 +186,31 @@ struct Compile {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+}
+
+/// `--memory-limit`: a size, or no limit at all.
+#[derive(Debug, Clone, Copy)]
+enum MemoryLimit {
+    Bytes(u64),
+    None,
+}
+
+fn parse_memory_limit(s: &str) -> Result<MemoryLimit, String> {
+    if s.trim().eq_ignore_ascii_case("none") {
+        return Ok(MemoryLimit::None);
+    }
+    cso::lang::check::parse_bytes(s).map(MemoryLimit::Bytes)
+}
+
+/// `--threads`: 0 would silently mean "all cores" to rayon; leaving the flag
+/// out says that.
+fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "expected a number of threads of at least 1, found `{s}` (leave --threads out to use every core)"
+        )),
+    }
 }
 
 fn parse_set(s: &str) -> Result<(String, String), String> {
@@ -223,7 +253,11 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let opts = CheckOptions {
         overrides: cli.set.clone(),
-        memory_limit: Some(cso::machine_memory_limit()),
+        memory_limit: match cli.memory_limit {
+            Some(MemoryLimit::Bytes(b)) => Some(b),
+            Some(MemoryLimit::None) => None,
+            None => Some(cso::machine_memory_limit()),
+        },
     };
     let outcome = match &cli.command {
         Command::Check(c) => c.run(&opts),
@@ -243,11 +277,26 @@ fn main() -> ExitCode {
 
 /// Reads and checks one file; prints diagnostics and returns the exit code on failure.
 fn load(path: &Path, opts: &CheckOptions) -> Result<Scene, u8> {
+    load_as(path, opts, false)
+}
+
+/// [`load`], with the diagnostics as JSON on stdout when `json` (for programs
+/// that asked for JSON and must get it even when the scene has errors).
+fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
     let src = std::fs::read_to_string(path)
         .map_err(|e| fail(EXIT_IO, format!("cannot read {}: {e}", path.display())))?;
     compile(&src, opts).map_err(|diags| {
         let name = path.display().to_string();
-        err!("{}", diag::render(&diags, &name, &src));
+        if json {
+            let errors = diag::to_json(&diags, &name, &src);
+            let doc = serde_json::json!({ "file": name, "errors": errors });
+            match serde_json::to_string_pretty(&doc) {
+                Ok(s) => outln!("{s}"),
+                Err(e) => return fail(EXIT_IO, format!("cannot write JSON: {e}")),
+            }
+        } else {
+            err!("{}", diag::render(&diags, &name, &src));
+        }
         let n = diags.len();
         let s = if n == 1 { "" } else { "s" };
         fail(EXIT_SCENE, format!("{name} has {n} error{s}"))
@@ -316,7 +365,8 @@ impl Check {
 
 impl Compile {
     fn run(&self, opts: &CheckOptions) -> Outcome {
-        let summary = cso::io::summary::summarize_with_operators(&load(&self.file, opts)?);
+        let scene = load_as(&self.file, opts, self.json)?;
+        let summary = cso::io::summary::summarize_with_operators(&scene);
         if self.json {
             let s = serde_json::to_string_pretty(&summary)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
@@ -353,7 +403,9 @@ impl Solve {
             outln!("results written to {}", dir.display());
         }
         if !state.converged() {
-            let msg = format!("{file} did not converge: {:?}", state.info.status);
+            let status =
+                cso::io::report::dual_status(&state.info.status, scene.solver.max_iterations);
+            let msg = format!("{file} did not converge: the dual solve {status}");
             return Err(fail(EXIT_SCENE, msg));
         }
         Ok(())

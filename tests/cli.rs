@@ -252,3 +252,94 @@ fn an_output_path_that_is_a_file_fails_before_any_solve() {
     );
     let _ = std::fs::remove_file(&file);
 }
+
+/// A scene file in the temp folder: `example` with `extra` appended.
+fn scene_with(example: &str, extra: &str, tag: &str) -> std::path::PathBuf {
+    let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
+    let path = std::env::temp_dir().join(format!("cso-{tag}-{}.cso", std::process::id()));
+    std::fs::write(&path, format!("{src}\n{extra}\n")).expect("temp scene");
+    path
+}
+
+#[test]
+fn solver_statuses_are_words_and_say_what_the_limit_counts() {
+    let path = scene_with(
+        "two_blocks.cso",
+        "solver { max_iterations = 3 }",
+        "max-iterations",
+    );
+    let (code, out, err) = cso(&["solve", &path.to_string_lossy()]);
+    assert_eq!(code, 1, "{out}{err}");
+    for text in [&out, &err] {
+        assert!(!text.contains("MaxIterations"), "{text}");
+        assert!(
+            text.contains("limit of 3 Hessian applications (`solver { max_iterations }`)"),
+            "{text}"
+        );
+    }
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn why_the_optimizer_stopped_is_said_in_words() {
+    let path = scene_with("scont2d.cso", "", "optimize-words");
+    let src = std::fs::read_to_string(&path)
+        .expect("scene")
+        .replace("max_iterations = 30", "max_iterations = 1");
+    std::fs::write(&path, src).expect("scene");
+    let (code, out, err) = cso(&["optimize", &path.to_string_lossy()]);
+    assert_eq!(code, 0, "{err}");
+    let stopped = out
+        .lines()
+        .find(|l| l.starts_with("stopped: "))
+        .expect("a stopped line");
+    assert!(
+        stopped.contains("limit of 1 design iterations (`optimize { max_iterations }`)"),
+        "{stopped}"
+    );
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn zero_threads_is_refused_at_the_command_line() {
+    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso", "--threads", "0"]);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(err.contains("at least 1"), "{err}");
+    assert!(out.is_empty(), "{out}");
+}
+
+#[test]
+fn the_memory_limit_can_be_set_or_lifted() {
+    let scene = "examples/two_blocks.cso";
+    let (code, _, err) = cso(&["--memory-limit", "1KiB", "check", scene]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("more than the 1.0 KiB allowed"), "{err}");
+    let (code, _, err) = cso(&["check", scene, "--memory-limit", "none"]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = cso(&["check", scene, "--memory-limit", "8 parsecs"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown size unit"), "{err}");
+}
+
+#[test]
+fn compile_json_reports_the_errors_of_a_scene_as_json() {
+    let file = "tests/diagnostics/13_unknown_material.cso";
+    let (code, out, err) = cso(&["compile", file, "--json"]);
+    assert_eq!(code, 1, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    assert_eq!(v["file"], file);
+    let first = &v["errors"][0];
+    assert!(
+        first["code"]
+            .as_str()
+            .is_some_and(|c| c.starts_with("cso::")),
+        "{v}"
+    );
+    let label = &first["labels"][0];
+    assert!(label["line"].as_u64().is_some_and(|l| l > 1), "{v}");
+    assert!(label["column"].as_u64().is_some_and(|c| c >= 1), "{v}");
+    // Without --json the diagnostics stay on stderr and stdout stays empty.
+    let (code, out, _) = cso(&["compile", file]);
+    assert_eq!(code, 1);
+    assert!(out.is_empty(), "{out}");
+}

@@ -54,6 +54,9 @@ pub struct SolverReport {
     pub hessian_applications: usize,
     pub f_applications: usize,
     pub tolerance: f64,
+    /// The budget of Hessian applications (`solver { max_iterations }`): what
+    /// `max_iterations` counts, since one outer iteration may take hundreds.
+    pub max_iterations: usize,
     /// Final `||g^P|| / ||b||` and `||G l|| / ||b||` of the dual problem.
     pub projected_gradient: f64,
     pub feasibility: f64,
@@ -90,6 +93,19 @@ pub struct ProbeReport {
     pub y: f64,
     pub ux: f64,
     pub uy: f64,
+}
+
+/// How the dual solve ended, in words for the summary and error messages (the
+/// `Status` variants are code names), saying what the iteration limit counts.
+pub fn dual_status(status: &Status, max_iterations: usize) -> String {
+    match status {
+        Status::Converged => "converged".to_string(),
+        Status::MaxIterations => format!(
+            "stopped at the limit of {max_iterations} Hessian applications \
+             (`solver {{ max_iterations }}`)"
+        ),
+        Status::Breakdown(c) => format!("broke down: {c}"),
+    }
 }
 
 /// The wire format of `report.json`.
@@ -131,6 +147,7 @@ impl Report {
             hessian_applications: state.info.hessian_applications,
             f_applications: state.f_applications,
             tolerance: scene.solver.tolerance,
+            max_iterations: scene.solver.max_iterations,
             projected_gradient: state.info.projected_gradient / state.b_norm.max(f64::MIN_POSITIVE),
             feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
             history: state.info.history.clone(),
@@ -262,11 +279,7 @@ impl Report {
             let _ = writeln!(o, "  {}", k.line(!timings));
         }
         let v = &self.solver;
-        let status = match &v.status {
-            Status::Converged => "converged".to_string(),
-            Status::MaxIterations => "stopped at the iteration limit".to_string(),
-            Status::Breakdown(c) => format!("broke down: {c}"),
-        };
+        let status = dual_status(&v.status, v.max_iterations);
         let _ = writeln!(
             o,
             "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {})",

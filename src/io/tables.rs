@@ -5,7 +5,7 @@
 
 use crate::lang::diag::num;
 use crate::lang::Scene;
-use crate::opt::{Iterate, Optimization};
+use crate::opt::{Iterate, Optimization, Termination};
 use crate::qp::QpInfo;
 use crate::sens::Gradient;
 use std::fmt::Write as _;
@@ -83,6 +83,28 @@ pub fn worst_constraint(constraints: &[f64]) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
+/// Why the optimizer stopped, in words (the `Termination` variants are code
+/// names), with the setting that decided it.
+pub fn termination(scene: &Scene, t: &Termination) -> String {
+    let o = &scene.optimize;
+    match t {
+        Termination::Kkt => format!(
+            "converged: the design problem's KKT residual is below `optimize {{ tolerance = {} }}`",
+            num(o.tolerance)
+        ),
+        Termination::SmallStep => format!(
+            "the design moved less than `optimize {{ tolerance = {} }}` (relative to its bounds)",
+            num(o.tolerance)
+        ),
+        Termination::MaxIterations => format!(
+            "reached the limit of {} design iterations (`optimize {{ max_iterations }}`) before converging",
+            o.max_iterations
+        ),
+        Termination::Failure(why) => format!("failed: {why}"),
+        Termination::Interrupted => "interrupted (Ctrl-C); the best design so far is kept".into(),
+    }
+}
+
 /// `cso optimize`: every iterate, why the run stopped, and the best feasible
 /// design with its variables.
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
@@ -101,7 +123,7 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
             it.kkt
         );
     }
-    let _ = write!(o, "\nstopped: {:?}", run.termination);
+    let _ = write!(o, "\nstopped: {}", termination(scene, &run.termination));
     match run.best.and_then(|b| run.history.get(b)) {
         Some(it) => {
             let _ = write!(

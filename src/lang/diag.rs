@@ -151,6 +151,80 @@ pub fn render(diags: &[Diagnostic], name: &str, text: &str) -> String {
     out
 }
 
+/// The 1-based line and column (in characters) of byte `offset` of `text`.
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let mut at = offset.min(text.len());
+    while !text.is_char_boundary(at) {
+        at -= 1;
+    }
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[start..].chars().count() + 1)
+}
+
+/// One labelled place of a diagnostic for programs: file, 1-based line and
+/// column of both ends, byte offsets, and the label.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JsonLabel {
+    pub file: String,
+    pub line: usize,
+    pub column: usize,
+    pub end_line: usize,
+    pub end_column: usize,
+    pub start: usize,
+    pub end: usize,
+    pub text: String,
+}
+
+/// A diagnostic as `cso compile --json` prints it (an editor or CI reads it).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JsonDiagnostic {
+    pub code: &'static str,
+    pub message: String,
+    /// The first label is the primary one.
+    pub labels: Vec<JsonLabel>,
+    pub help: Option<String>,
+}
+
+/// Diagnostics of the source `text` named `name` for programs, with the
+/// places resolved to lines and columns (a `--set` value is its own file).
+pub fn to_json(diags: &[Diagnostic], name: &str, text: &str) -> Vec<JsonDiagnostic> {
+    diags
+        .iter()
+        .map(|d| {
+            let (file, src) = match &d.origin {
+                Some((n, t)) => (n.as_str(), t.as_str()),
+                None => (name, text),
+            };
+            let labels = d
+                .labels
+                .iter()
+                .map(|l| {
+                    let (line, column) = line_column(src, l.span.start);
+                    let (end_line, end_column) = line_column(src, l.span.end);
+                    JsonLabel {
+                        file: file.to_string(),
+                        line,
+                        column,
+                        end_line,
+                        end_column,
+                        start: l.span.start,
+                        end: l.span.end,
+                        text: l.text.clone(),
+                    }
+                })
+                .collect();
+            JsonDiagnostic {
+                code: d.code,
+                message: d.message.clone(),
+                labels,
+                help: d.help.clone(),
+            }
+        })
+        .collect()
+}
+
 /// Sorts diagnostics by position (overrides first) and drops exact repeats.
 pub fn sort(diags: &mut Vec<Diagnostic>) {
     diags.sort_by_key(|d| d.offset());
