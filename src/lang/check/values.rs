@@ -44,6 +44,31 @@ fn fold(f: Formula) -> Formula {
 }
 
 impl<'a> Checker<'a> {
+    /// A word after a number that is no unit (`210 Gpa`): named as a unit, with
+    /// the units it most likely meant, since the number alone would be taken in SI.
+    fn unknown_unit(&mut self, name: &str, span: Span) {
+        let near = units::nearest_units(name);
+        let label = match near.as_slice() {
+            [] => "not a unit".to_string(),
+            [one] => format!("did you mean `{one}`?"),
+            [rest @ .., last] => format!(
+                "did you mean {} or `{last}`?",
+                rest.iter()
+                    .map(|u| format!("`{u}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+        self.error(
+            Diagnostic::new("cso::unknown-unit", format!("unknown unit `{name}`"))
+                .label(span, label)
+                .help(format!(
+                    "units are case-sensitive; the known ones are {}",
+                    units::known_units().join(" ")
+                )),
+        );
+    }
+
     /// Compiles an expression to a formula of the coordinates and the design
     /// variables, with its dimension. Reports errors and returns None on any.
     pub(crate) fn formula(&mut self, e: &Expr) -> Option<(Formula, Quantity)> {
@@ -63,7 +88,8 @@ impl<'a> Checker<'a> {
                 let mut dim = Dim::NONE;
                 for (name, power) in &unit.factors {
                     let Some((f, d)) = units::unit(name) else {
-                        continue;
+                        self.unknown_unit(name, unit.span);
+                        return None;
                     };
                     if power.unsigned_abs() > 12 {
                         self.error(
