@@ -283,9 +283,16 @@ fn load(path: &Path, opts: &CheckOptions) -> Result<Scene, u8> {
 /// [`load`], with the diagnostics as JSON on stdout when `json` (for programs
 /// that asked for JSON and must get it even when the scene has errors).
 fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
-    let src = std::fs::read_to_string(path)
+    let bytes = std::fs::read(path)
         .map_err(|e| fail(EXIT_IO, format!("cannot read {}: {e}", path.display())))?;
-    compile(&src, opts).map_err(|diags| {
+    let (checked, src) = match diag::decode(bytes) {
+        Ok(src) => (compile(&src, opts), src),
+        Err(bad) => {
+            let (d, lossy) = *bad;
+            (Err(vec![d]), lossy)
+        }
+    };
+    checked.map_err(|diags| {
         let name = path.display().to_string();
         if json {
             let errors = diag::to_json(&diags, &name, &src);
@@ -452,7 +459,7 @@ impl Sensitivity {
                 cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
                 e => fail(EXIT_SCENE, e),
             })?;
-        outln!("{}", tables::gradient(&scene.name, &g));
+        outln!("{}", tables::gradient(&scene, &g));
         if let Some(dir) = &self.out {
             let json = serde_json::to_string_pretty(&g)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;

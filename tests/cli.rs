@@ -343,3 +343,51 @@ fn compile_json_reports_the_errors_of_a_scene_as_json() {
     assert_eq!(code, 1);
     assert!(out.is_empty(), "{out}");
 }
+
+#[test]
+fn a_scene_that_is_not_utf8_is_diagnosed_with_line_column_and_byte() {
+    let path = std::env::temp_dir().join(format!("cso-latin1-{}.cso", std::process::id()));
+    // "# Müller" in Latin-1: 0xFC at line 2, column 4.
+    let mut bytes = b"scene s { dim = 2 }\n# M".to_vec();
+    bytes.push(0xFC);
+    bytes.extend_from_slice(b"ller\n");
+    std::fs::write(&path, bytes).expect("temp scene");
+    let (code, _, err) = cso(&["check", &path.to_string_lossy()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the file is not UTF-8: byte 0xFC at line 2, column 4"),
+        "{err}"
+    );
+    assert!(err.contains(":2:4]"), "rendered at its place: {err}");
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn constraints_are_shown_in_the_users_own_form() {
+    let path = scene_with(
+        "scont2d.cso",
+        "subject to contact_force(seat) >= 0",
+        "user-form",
+    );
+    let (code, out, err) = cso(&["sensitivity", &path.to_string_lossy()]);
+    assert_eq!(code, 0, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.contains("contact_force(seat) >= 0"))
+        .expect("the constraint's line");
+    // The contact carries the 5 N load: lhs - rhs = +5 and it holds (the
+    // internal `g <= 0` form would read -5).
+    assert!(line.contains("lhs - rhs = 5: holds"), "{line}");
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn a_2d_energy_states_its_thickness_and_the_value_per_metre() {
+    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    let line = out.lines().find(|l| l.contains("energy")).expect("energy");
+    assert!(
+        line.contains("(2D, thickness 1 m:") && line.contains(" J/m"),
+        "{line}"
+    );
+}

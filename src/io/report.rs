@@ -10,7 +10,8 @@
 //!   inside SMALBE) and all `F` applications, tolerance, `history` (relative
 //!   projected gradient after each outer iteration);
 //! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
-//! - `energy` (1/2 u^T K u), `compliance` (f^T u);
+//! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
+//!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
 //! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
 //! - `contacts`: per contact total normal force, active count and per node
 //!   `x`, `y`, `gap` (after deformation), `multiplier` (normal force, N) and
@@ -118,6 +119,9 @@ pub struct Report {
     pub kkt: Kkt,
     pub energy: f64,
     pub compliance: f64,
+    /// 2D: the out-of-plane thickness the energy, forces and compliance are for
+    /// (plane strain over a slice); None in 3D.
+    pub thickness: Option<f64>,
     pub bodies: Vec<BodyReport>,
     pub contacts: Vec<ContactReport>,
     pub probes: Vec<ProbeReport>,
@@ -231,6 +235,7 @@ impl Report {
             kkt: state.kkt.clone(),
             energy: state.energy(),
             compliance: state.compliance(),
+            thickness: (scene.dim == crate::lang::scene::Dimension::Two).then_some(scene.thickness),
             bodies,
             contacts,
             probes,
@@ -312,12 +317,25 @@ impl Report {
             bucket(k.sign),
             bucket(k.complementarity)
         );
-        let _ = writeln!(
+        let _ = write!(
             o,
             "  energy {} J, compliance {} J",
             num(self.energy),
             num(self.compliance)
         );
+        // A 2D scene is a slice: say of what thickness, and per metre of it.
+        match self.thickness {
+            Some(t) if t > 0.0 => {
+                let _ = writeln!(
+                    o,
+                    " (2D, thickness {} m: {} J/m, {} J/m)",
+                    num(t),
+                    num(self.energy / t),
+                    num(self.compliance / t)
+                );
+            }
+            _ => o.push('\n'),
+        }
         for b in &self.bodies {
             let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
         }

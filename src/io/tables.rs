@@ -14,17 +14,46 @@ use std::fmt::Write as _;
 /// classes at the design, what the gradient cost beyond the state solve, and a
 /// warning when perturbing changed the active set (those columns are not
 /// derivatives).
-pub fn gradient(scene: &str, g: &Gradient) -> String {
-    let mut o = format!("{} gradient of `{scene}`\n", g.method);
+///
+/// A constraint is shown as the user wrote it, `A >= B` or `A <= B`, with the
+/// value and derivatives of `A - B` and whether it holds, not in the internal
+/// `g <= 0` form (which flips the sign of a `>=`).
+pub fn gradient(scene: &Scene, g: &Gradient) -> String {
+    let mut o = format!("{} gradient of `{}`\n", g.method, scene.name);
     let _ = write!(
         o,
         "  contact nodes: {} strong (carrying force), {} weak (closed, no force)",
         g.strong, g.weak
     );
+    let first_constraint = usize::from(scene.objective.is_some());
     for (k, name) in g.functionals.iter().enumerate() {
-        let _ = write!(o, "\n  {name}   (value {})", num(g.values[k]));
+        // `g = A - B` for `A <= B`, `B - A` for `A >= B`: back to `A - B`.
+        let constraint = k
+            .checked_sub(first_constraint)
+            .and_then(|c| scene.constraints.get(c));
+        let sign = match constraint {
+            Some(c) if !c.upper => -1.0,
+            _ => 1.0,
+        };
+        match constraint {
+            Some(_) => {
+                let holds = if g.values[k] <= 0.0 {
+                    "holds"
+                } else {
+                    "violated"
+                };
+                let _ = write!(
+                    o,
+                    "\n  subject to {name}   (lhs - rhs = {}: {holds}; derivatives of lhs - rhs)",
+                    num(sign * g.values[k])
+                );
+            }
+            None => {
+                let _ = write!(o, "\n  {name}   (value {})", num(g.values[k]));
+            }
+        }
         for (i, d) in g.design.iter().enumerate() {
-            let _ = write!(o, "\n    d/d{:<8} {:>14.6e}", d, g.gradient[k][i]);
+            let _ = write!(o, "\n    d/d{:<8} {:>14.6e}", d, sign * g.gradient[k][i]);
         }
     }
     let extra_h = g

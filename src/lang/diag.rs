@@ -151,6 +151,33 @@ pub fn render(diags: &[Diagnostic], name: &str, text: &str) -> String {
     out
 }
 
+/// A scene file's bytes as text, or a diagnostic at the first byte that is not
+/// UTF-8, with line, column and the byte, and a lossy text to render it against
+/// (its prefix up to that byte is the file's own, so the span is exact).
+pub fn decode(bytes: Vec<u8>) -> Result<String, Box<(Diagnostic, String)>> {
+    let e = match String::from_utf8(bytes) {
+        Ok(s) => return Ok(s),
+        Err(e) => e,
+    };
+    let at = e.utf8_error().valid_up_to();
+    let byte = e.as_bytes().get(at).copied().unwrap_or(0);
+    let text = String::from_utf8_lossy(e.as_bytes()).into_owned();
+    let (line, column) = line_column(&text, at);
+    let d = Diagnostic::new(
+        "cso::encoding",
+        format!("the file is not UTF-8: byte 0x{byte:02X} at line {line}, column {column}"),
+    )
+    .label(
+        Span {
+            start: at,
+            end: at + char::REPLACEMENT_CHARACTER.len_utf8(),
+        },
+        format!("byte 0x{byte:02X} is not UTF-8"),
+    )
+    .help("save the file as UTF-8 (e.g. `iconv -f latin1 -t utf-8`); cso reads UTF-8 only");
+    Err(Box::new((d, text)))
+}
+
 /// The 1-based line and column (in characters) of byte `offset` of `text`.
 pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
     let mut at = offset.min(text.len());
