@@ -11,11 +11,12 @@ use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Display;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 const EXAMPLES: &str = "\
 Examples:
@@ -39,6 +40,11 @@ struct Cli {
     /// `none` for no limit). Default: 80% of the machine's memory.
     #[arg(long, value_name = "SIZE", global = true, value_parser = parse_memory_limit)]
     memory_limit: Option<MemoryLimit>,
+
+    /// No progress output (on a terminal: no bar; in a log or pipe: no
+    /// progress lines). Results and errors are printed as usual.
+    #[arg(long, short, global = true)]
+    quiet: bool,
 
     #[command(subcommand)]
     command: Command,
@@ -251,6 +257,7 @@ fn fail(code: u8, msg: impl Display) -> u8 {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    QUIET.store(cli.quiet, Ordering::Relaxed);
     let opts = CheckOptions {
         overrides: cli.set.clone(),
         memory_limit: match cli.memory_limit {
@@ -318,22 +325,105 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, u8> {
         .map_err(|e| fail(EXIT_IO, format!("cannot start threads: {e}")))
 }
 
-/// A spinner with elapsed time and a message, for the solver's progress.
-fn spinner() -> ProgressBar {
-    let bar = ProgressBar::new_spinner();
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-    );
-    bar
+/// `--quiet`: no progress output at all.
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// How often a plain progress line is written when stderr is not a terminal:
+/// often enough to show a long run is alive, rarely enough for a log.
+const PLAIN_EVERY: Duration = Duration::from_secs(5);
+
+/// Progress of one long phase, for people. On a terminal, indicatif's bar or
+/// spinner; on a log or a pipe, where the bar draws nothing, a plain line
+/// `cso: PHASE [ELAPSED] MESSAGE` at the start, at most every [`PLAIN_EVERY`]
+/// and at the end; with `--quiet`, nothing.
+struct Progress {
+    phase: &'static str,
+    bar: Option<ProgressBar>,
+    plain: bool,
+    start: Instant,
+    /// When the last plain line was written (callbacks may run on pool threads).
+    last: Mutex<Instant>,
 }
 
-/// A spinner that ticks on its own (for work without progress callbacks).
-fn ticking(message: &'static str) -> ProgressBar {
-    let bar = spinner();
-    bar.set_message(message);
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
-    bar
+impl Progress {
+    /// A spinner with elapsed time and a message.
+    fn spinner(phase: &'static str) -> Progress {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        Progress::with(phase, bar)
+    }
+
+    /// A bar of `len` steps (design iterations).
+    fn bar(phase: &'static str, len: u64) -> Progress {
+        let bar = ProgressBar::new(len);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Progress::with(phase, bar)
+    }
+
+    /// A spinner that ticks on its own, for work without progress callbacks.
+    fn ticking(phase: &'static str, message: &str) -> Progress {
+        let p = Progress::spinner(phase);
+        p.update(|| message.to_string());
+        if let Some(bar) = &p.bar {
+            bar.enable_steady_tick(Duration::from_millis(200));
+        }
+        p
+    }
+
+    fn with(phase: &'static str, bar: ProgressBar) -> Progress {
+        let quiet = QUIET.load(Ordering::Relaxed);
+        let terminal = std::io::stderr().is_terminal();
+        let p = Progress {
+            phase,
+            bar: (!quiet && terminal).then_some(bar),
+            plain: !quiet && !terminal,
+            start: Instant::now(),
+            last: Mutex::new(Instant::now()),
+        };
+        if p.plain {
+            errln!("cso: {phase} [0.0 s] started");
+        }
+        p
+    }
+
+    /// A new message (built only when it will be shown).
+    fn update(&self, message: impl FnOnce() -> String) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(message());
+            bar.tick();
+        } else if self.plain {
+            let Ok(mut last) = self.last.lock() else {
+                return;
+            };
+            if last.elapsed() >= PLAIN_EVERY {
+                *last = Instant::now();
+                let t = self.start.elapsed().as_secs_f64();
+                errln!("cso: {} [{t:.1} s] {}", self.phase, message());
+            }
+        }
+    }
+
+    /// One step of a bar done.
+    fn inc(&self) {
+        if let Some(bar) = &self.bar {
+            bar.inc(1);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        } else if self.plain {
+            let t = self.start.elapsed().as_secs_f64();
+            errln!("cso: {} [{t:.1} s] done", self.phase);
+        }
+    }
 }
 
 /// With `-o DIR`: creates and probes the folder before any computation, so that
@@ -391,14 +481,13 @@ impl Solve {
         let (scene, file) = (load(&self.file, opts)?, self.file.display());
         prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
-        let bar = spinner();
+        let bar = Progress::spinner("solve");
         let result = pool.install(|| {
             cso::state::solve(&scene, &scene.design_init(), &mut |info| {
-                bar.set_message(tables::solve_progress(info));
-                bar.tick();
+                bar.update(|| tables::solve_progress(info));
             })
         });
-        bar.finish_and_clear();
+        bar.finish();
         let state = result.map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
@@ -452,13 +541,14 @@ impl Sensitivity {
         let h = self.step.unwrap_or(scene.sensitivity.step);
         let scheme = self.scheme.unwrap_or(scene.sensitivity.scheme);
         let pool = thread_pool(self.threads)?;
-        let g = pool
-            .install(|| cso::sens::gradient(&scene, method, h, scheme))
-            .map_err(|e| match e {
-                // A bad `--step` is a usage error, not the scene's.
-                cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
-                e => fail(EXIT_SCENE, e),
-            })?;
+        let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
+        let g = pool.install(|| cso::sens::gradient(&scene, method, h, scheme));
+        bar.finish();
+        let g = g.map_err(|e| match e {
+            // A bad `--step` is a usage error, not the scene's.
+            cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
+            e => fail(EXIT_SCENE, e),
+        })?;
         outln!("{}", tables::gradient(&scene, &g));
         if let Some(dir) = &self.out {
             let json = serde_json::to_string_pretty(&g)
@@ -499,17 +589,20 @@ impl Compare {
         prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         if self.eps_sweep {
-            let bar = ticking("solving by TFETI and by FETI at each eps");
+            let bar = Progress::ticking("eps sweep", "solving by TFETI and by FETI at each eps");
             let sweep = pool.install(|| eps_sweep(&scene, &EPS_SWEEP));
-            bar.finish_and_clear();
+            bar.finish();
             let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
             let md = sweep.markdown();
             outln!("{md}");
             return write_into(self.out.as_deref(), || output::eps_sweep_files(&sweep, &md));
         }
-        let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
+        let bar = Progress::ticking(
+            "compare",
+            "solving the state and sensitivities by FETI and by Total FETI",
+        );
         let c = pool.install(|| compare(&scene));
-        bar.finish_and_clear();
+        bar.finish();
         let md = c.markdown(true);
         outln!("{md}");
         write_into(self.out.as_deref(), || output::comparison_files(&c, &md))?;
@@ -525,11 +618,7 @@ impl Optimize {
         let scene = load(&self.file, opts)?;
         prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
-        let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
-        bar.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
+        let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
         // Ctrl-C: finish the current design, then stop with the best one written.
         // Without a handler (one is already set) Ctrl-C simply ends the process.
         let stop = Arc::new(AtomicBool::new(false));
@@ -542,12 +631,18 @@ impl Optimize {
                 if let Some(series) = series.as_mut() {
                     series.record(&scene, it.iteration, state);
                 }
-                bar.set_message(tables::iterate_progress(it));
-                bar.inc(1);
+                bar.update(|| {
+                    format!(
+                        "iteration {} {}",
+                        it.iteration,
+                        tables::iterate_progress(it)
+                    )
+                });
+                bar.inc();
                 !stop.load(Ordering::SeqCst)
             })
         });
-        bar.finish_and_clear();
+        bar.finish();
         let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
         if let Some(series) = series {
             series.finish(&scene).map_err(|e| fail(EXIT_IO, e))?;
@@ -610,12 +705,11 @@ impl Bench {
             }
             Benchmark::Hard => {
                 prepare(self.out.as_deref())?;
-                let bar = ProgressBar::new_spinner();
+                let bar = Progress::spinner("bench hard");
                 let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
-                    bar.set_message(what.to_string());
-                    bar.tick();
+                    bar.update(|| what.to_string());
                 });
-                bar.finish_and_clear();
+                bar.finish();
                 let md = output::hard(tolerance, &sweeps);
                 outln!("{md}");
                 write_into(self.out.as_deref(), || output::hard_files(&sweeps, &md))

@@ -391,3 +391,19 @@ fn a_2d_energy_states_its_thickness_and_the_value_per_metre() {
         "{line}"
     );
 }
+
+#[test]
+fn progress_is_plain_lines_when_stderr_is_not_a_terminal_and_quiet_silences_it() {
+    // The test's stderr is a pipe, as in a log or CI.
+    let (code, _, err) = cso(&["solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("cso: solve [0.0 s] started"), "{err}");
+    let done = err.lines().last().unwrap_or("");
+    assert!(
+        done.starts_with("cso: solve [") && done.ends_with("s] done"),
+        "{err}"
+    );
+    let (code, _, err) = cso(&["--quiet", "solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.is_empty(), "{err}");
+}
