@@ -11,11 +11,12 @@ use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Display;
-use std::io::Write;
+use std::io::{IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 const EXAMPLES: &str = "\
 Examples:
@@ -34,6 +35,16 @@ struct Cli {
     /// Override a `let` constant of the scene: NAME=VALUE (units allowed, e.g. P=3MN/m).
     #[arg(long = "set", value_name = "NAME=VALUE", global = true, value_parser = parse_set)]
     set: Vec<(String, String)>,
+
+    /// Refuse scenes estimated to need more memory than this (e.g. 8GiB, 512MB;
+    /// `none` for no limit). Default: 80% of the machine's memory.
+    #[arg(long, value_name = "SIZE", global = true, value_parser = parse_memory_limit)]
+    memory_limit: Option<MemoryLimit>,
+
+    /// No progress output (on a terminal: no bar; in a log or pipe: no
+    /// progress lines). Results and errors are printed as usual.
+    #[arg(long, short, global = true)]
+    quiet: bool,
 
     #[command(subcommand)]
     command: Command,
@@ -79,7 +90,7 @@ struct Solve {
     #[arg(short, long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -119,7 +130,7 @@ struct Sensitivity {
     #[arg(long)]
     study: bool,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -131,7 +142,7 @@ struct Optimize {
     #[arg(short, long, value_name = "DIR")]
     out: Option<PathBuf>,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -148,7 +159,7 @@ struct Compare {
     #[arg(long)]
     eps_sweep: bool,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
 }
 
@@ -167,7 +178,7 @@ struct Bench {
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
     /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
     /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
     #[arg(short, long, value_name = "DIR")]
@@ -181,6 +192,31 @@ struct Compile {
     /// Print JSON instead of text.
     #[arg(long)]
     json: bool,
+}
+
+/// `--memory-limit`: a size, or no limit at all.
+#[derive(Debug, Clone, Copy)]
+enum MemoryLimit {
+    Bytes(u64),
+    None,
+}
+
+fn parse_memory_limit(s: &str) -> Result<MemoryLimit, String> {
+    if s.trim().eq_ignore_ascii_case("none") {
+        return Ok(MemoryLimit::None);
+    }
+    cso::lang::check::parse_bytes(s).map(MemoryLimit::Bytes)
+}
+
+/// `--threads`: 0 would silently mean "all cores" to rayon; leaving the flag
+/// out says that.
+fn parse_threads(s: &str) -> Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        _ => Err(format!(
+            "expected a number of threads of at least 1, found `{s}` (leave --threads out to use every core)"
+        )),
+    }
 }
 
 fn parse_set(s: &str) -> Result<(String, String), String> {
@@ -221,9 +257,14 @@ fn fail(code: u8, msg: impl Display) -> u8 {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
+    QUIET.store(cli.quiet, Ordering::Relaxed);
     let opts = CheckOptions {
         overrides: cli.set.clone(),
-        memory_limit: Some(cso::machine_memory_limit()),
+        memory_limit: match cli.memory_limit {
+            Some(MemoryLimit::Bytes(b)) => Some(b),
+            Some(MemoryLimit::None) => None,
+            None => Some(cso::machine_memory_limit()),
+        },
     };
     let outcome = match &cli.command {
         Command::Check(c) => c.run(&opts),
@@ -243,11 +284,33 @@ fn main() -> ExitCode {
 
 /// Reads and checks one file; prints diagnostics and returns the exit code on failure.
 fn load(path: &Path, opts: &CheckOptions) -> Result<Scene, u8> {
-    let src = std::fs::read_to_string(path)
+    load_as(path, opts, false)
+}
+
+/// [`load`], with the diagnostics as JSON on stdout when `json` (for programs
+/// that asked for JSON and must get it even when the scene has errors).
+fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
+    let bytes = std::fs::read(path)
         .map_err(|e| fail(EXIT_IO, format!("cannot read {}: {e}", path.display())))?;
-    compile(&src, opts).map_err(|diags| {
+    let (checked, src) = match diag::decode(bytes) {
+        Ok(src) => (compile(&src, opts), src),
+        Err(bad) => {
+            let (d, lossy) = *bad;
+            (Err(vec![d]), lossy)
+        }
+    };
+    checked.map_err(|diags| {
         let name = path.display().to_string();
-        err!("{}", diag::render(&diags, &name, &src));
+        if json {
+            let errors = diag::to_json(&diags, &name, &src);
+            let doc = serde_json::json!({ "file": name, "errors": errors });
+            match serde_json::to_string_pretty(&doc) {
+                Ok(s) => outln!("{s}"),
+                Err(e) => return fail(EXIT_IO, format!("cannot write JSON: {e}")),
+            }
+        } else {
+            err!("{}", diag::render(&diags, &name, &src));
+        }
         let n = diags.len();
         let s = if n == 1 { "" } else { "s" };
         fail(EXIT_SCENE, format!("{name} has {n} error{s}"))
@@ -262,22 +325,113 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, u8> {
         .map_err(|e| fail(EXIT_IO, format!("cannot start threads: {e}")))
 }
 
-/// A spinner with elapsed time and a message, for the solver's progress.
-fn spinner() -> ProgressBar {
-    let bar = ProgressBar::new_spinner();
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} {elapsed} {msg}")
-            .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-    );
-    bar
+/// `--quiet`: no progress output at all.
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// How often a plain progress line is written when stderr is not a terminal:
+/// often enough to show a long run is alive, rarely enough for a log.
+const PLAIN_EVERY: Duration = Duration::from_secs(5);
+
+/// Progress of one long phase, for people. On a terminal, indicatif's bar or
+/// spinner; on a log or a pipe, where the bar draws nothing, a plain line
+/// `cso: PHASE [ELAPSED] MESSAGE` at the start, at most every [`PLAIN_EVERY`]
+/// and at the end; with `--quiet`, nothing.
+struct Progress {
+    phase: &'static str,
+    bar: Option<ProgressBar>,
+    plain: bool,
+    start: Instant,
+    /// When the last plain line was written (callbacks may run on pool threads).
+    last: Mutex<Instant>,
 }
 
-/// A spinner that ticks on its own (for work without progress callbacks).
-fn ticking(message: &'static str) -> ProgressBar {
-    let bar = spinner();
-    bar.set_message(message);
-    bar.enable_steady_tick(std::time::Duration::from_millis(200));
-    bar
+impl Progress {
+    /// A spinner with elapsed time and a message.
+    fn spinner(phase: &'static str) -> Progress {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {elapsed} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        Progress::with(phase, bar)
+    }
+
+    /// A bar of `len` steps (design iterations).
+    fn bar(phase: &'static str, len: u64) -> Progress {
+        let bar = ProgressBar::new(len);
+        bar.set_style(
+            ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Progress::with(phase, bar)
+    }
+
+    /// A spinner that ticks on its own, for work without progress callbacks.
+    fn ticking(phase: &'static str, message: &str) -> Progress {
+        let p = Progress::spinner(phase);
+        p.update(|| message.to_string());
+        if let Some(bar) = &p.bar {
+            bar.enable_steady_tick(Duration::from_millis(200));
+        }
+        p
+    }
+
+    fn with(phase: &'static str, bar: ProgressBar) -> Progress {
+        let quiet = QUIET.load(Ordering::Relaxed);
+        let terminal = std::io::stderr().is_terminal();
+        let p = Progress {
+            phase,
+            bar: (!quiet && terminal).then_some(bar),
+            plain: !quiet && !terminal,
+            start: Instant::now(),
+            last: Mutex::new(Instant::now()),
+        };
+        if p.plain {
+            errln!("cso: {phase} [0.0 s] started");
+        }
+        p
+    }
+
+    /// A new message (built only when it will be shown).
+    fn update(&self, message: impl FnOnce() -> String) {
+        if let Some(bar) = &self.bar {
+            bar.set_message(message());
+            bar.tick();
+        } else if self.plain {
+            let Ok(mut last) = self.last.lock() else {
+                return;
+            };
+            if last.elapsed() >= PLAIN_EVERY {
+                *last = Instant::now();
+                let t = self.start.elapsed().as_secs_f64();
+                errln!("cso: {} [{t:.1} s] {}", self.phase, message());
+            }
+        }
+    }
+
+    /// One step of a bar done.
+    fn inc(&self) {
+        if let Some(bar) = &self.bar {
+            bar.inc(1);
+        }
+    }
+
+    fn finish(&self) {
+        if let Some(bar) = &self.bar {
+            bar.finish_and_clear();
+        } else if self.plain {
+            let t = self.start.elapsed().as_secs_f64();
+            errln!("cso: {} [{t:.1} s] done", self.phase);
+        }
+    }
+}
+
+/// With `-o DIR`: creates and probes the folder before any computation, so that
+/// a bad path costs a second, not a solve whose results are then lost.
+fn prepare(dir: Option<&Path>) -> Outcome {
+    let Some(dir) = dir else { return Ok(()) };
+    cso::io::atomic::prepare_dir(dir)
+        .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))
 }
 
 /// With `-o DIR`: builds a command's files (an error is the message) and writes
@@ -308,7 +462,8 @@ impl Check {
 
 impl Compile {
     fn run(&self, opts: &CheckOptions) -> Outcome {
-        let summary = cso::io::summary::summarize_with_operators(&load(&self.file, opts)?);
+        let scene = load_as(&self.file, opts, self.json)?;
+        let summary = cso::io::summary::summarize_with_operators(&scene);
         if self.json {
             let s = serde_json::to_string_pretty(&summary)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
@@ -324,15 +479,15 @@ impl Solve {
     /// The state solve with a progress line, the summary, and the files.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
-        let bar = spinner();
+        let bar = Progress::spinner("solve");
         let result = pool.install(|| {
             cso::state::solve(&scene, &scene.design_init(), &mut |info| {
-                bar.set_message(tables::solve_progress(info));
-                bar.tick();
+                bar.update(|| tables::solve_progress(info));
             })
         });
-        bar.finish_and_clear();
+        bar.finish();
         let state = result.map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
@@ -344,7 +499,9 @@ impl Solve {
             outln!("results written to {}", dir.display());
         }
         if !state.converged() {
-            let msg = format!("{file} did not converge: {:?}", state.info.status);
+            let status =
+                cso::io::report::dual_status(&state.info.status, scene.solver.max_iterations);
+            let msg = format!("{file} did not converge: the dual solve {status}");
             return Err(fail(EXIT_SCENE, msg));
         }
         Ok(())
@@ -355,14 +512,14 @@ impl Export {
     /// The QP at the scene's design (or `--set`), lowered and factorized, not solved.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let cannot = |e: std::io::Error| {
+            let msg = format!("cannot export into {}: {e}", self.out.display());
+            fail(EXIT_IO, msg)
+        };
+        cso::io::export::check_dir(&self.out, self.force).map_err(cannot)?;
         let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
             .map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
-        cso::io::export::write_dir(&self.out, &files, self.force).map_err(|e| {
-            fail(
-                EXIT_IO,
-                format!("cannot export into {}: {e}", self.out.display()),
-            )
-        })?;
+        cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;
         outln!("{} files written to {}", files.len(), self.out.display());
         Ok(())
     }
@@ -372,6 +529,7 @@ impl Sensitivity {
     /// A table of dJ/da_i for the objective and each constraint (or the study).
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         if self.study {
             return self.run_study(&scene);
         }
@@ -383,10 +541,15 @@ impl Sensitivity {
         let h = self.step.unwrap_or(scene.sensitivity.step);
         let scheme = self.scheme.unwrap_or(scene.sensitivity.scheme);
         let pool = thread_pool(self.threads)?;
-        let g = pool
-            .install(|| cso::sens::gradient(&scene, method, h, scheme))
-            .map_err(|e| fail(EXIT_SCENE, e))?;
-        outln!("{}", tables::gradient(&scene.name, &g));
+        let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
+        let g = pool.install(|| cso::sens::gradient(&scene, method, h, scheme));
+        bar.finish();
+        let g = g.map_err(|e| match e {
+            // A bad `--step` is a usage error, not the scene's.
+            cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
+            e => fail(EXIT_SCENE, e),
+        })?;
+        outln!("{}", tables::gradient(&scene, &g));
         if let Some(dir) = &self.out {
             let json = serde_json::to_string_pretty(&g)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
@@ -423,19 +586,23 @@ impl Compare {
     fn run(&self, opts: &CheckOptions) -> Outcome {
         use cso::studies::compare::{compare, eps_sweep, EPS_SWEEP};
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         if self.eps_sweep {
-            let bar = ticking("solving by TFETI and by FETI at each eps");
+            let bar = Progress::ticking("eps sweep", "solving by TFETI and by FETI at each eps");
             let sweep = pool.install(|| eps_sweep(&scene, &EPS_SWEEP));
-            bar.finish_and_clear();
+            bar.finish();
             let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
             let md = sweep.markdown();
             outln!("{md}");
             return write_into(self.out.as_deref(), || output::eps_sweep_files(&sweep, &md));
         }
-        let bar = ticking("solving the state and sensitivities by FETI and by Total FETI");
+        let bar = Progress::ticking(
+            "compare",
+            "solving the state and sensitivities by FETI and by Total FETI",
+        );
         let c = pool.install(|| compare(&scene));
-        bar.finish_and_clear();
+        bar.finish();
         let md = c.markdown(true);
         outln!("{md}");
         write_into(self.out.as_deref(), || output::comparison_files(&c, &md))?;
@@ -449,12 +616,9 @@ impl Optimize {
     /// MMA iterations with a progress line, then the best design.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let scene = load(&self.file, opts)?;
+        prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
-        let bar = ProgressBar::new(scene.optimize.max_iterations as u64);
-        bar.set_style(
-            ProgressStyle::with_template("{bar:30} {pos}/{len} {msg}")
-                .unwrap_or_else(|_| ProgressStyle::default_bar()),
-        );
+        let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
         // Ctrl-C: finish the current design, then stop with the best one written.
         // Without a handler (one is already set) Ctrl-C simply ends the process.
         let stop = Arc::new(AtomicBool::new(false));
@@ -467,12 +631,18 @@ impl Optimize {
                 if let Some(series) = series.as_mut() {
                     series.record(&scene, it.iteration, state);
                 }
-                bar.set_message(tables::iterate_progress(it));
-                bar.inc(1);
+                bar.update(|| {
+                    format!(
+                        "iteration {} {}",
+                        it.iteration,
+                        tables::iterate_progress(it)
+                    )
+                });
+                bar.inc();
                 !stop.load(Ordering::SeqCst)
             })
         });
-        bar.finish_and_clear();
+        bar.finish();
         let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
         if let Some(series) = series {
             series.finish(&scene).map_err(|e| fail(EXIT_IO, e))?;
@@ -534,12 +704,12 @@ impl Bench {
                 Ok(())
             }
             Benchmark::Hard => {
-                let bar = ProgressBar::new_spinner();
+                prepare(self.out.as_deref())?;
+                let bar = Progress::spinner("bench hard");
                 let sweeps = cso::studies::stability::sweeps(tolerance, &mut |what| {
-                    bar.set_message(what.to_string());
-                    bar.tick();
+                    bar.update(|| what.to_string());
                 });
-                bar.finish_and_clear();
+                bar.finish();
                 let md = output::hard(tolerance, &sweeps);
                 outln!("{md}");
                 write_into(self.out.as_deref(), || output::hard_files(&sweeps, &md))

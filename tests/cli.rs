@@ -208,3 +208,202 @@ fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
     assert!(dir.join("K.bin").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_zero_finite_difference_step_is_a_usage_error_not_nan() {
+    let args = [
+        "sensitivity",
+        "examples/scont2d.cso",
+        "--method",
+        "finite_difference",
+        "--step",
+        "0",
+    ];
+    let (code, out, err) = cso(&args);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(!out.contains("NaN"), "{out}");
+    assert!(err.contains("step must be a positive number"), "{err}");
+}
+
+#[test]
+fn an_output_path_that_is_a_file_fails_before_any_solve() {
+    let file = std::env::temp_dir().join(format!("cso-out-file-{}", std::process::id()));
+    std::fs::write(&file, "not a folder").expect("temp file");
+    let f = file.to_string_lossy().to_string();
+    let scene = "examples/semicoercive2d.cso";
+    let commands: [&[&str]; 6] = [
+        &["solve", scene, "-o", &f],
+        &["sensitivity", scene, "-o", &f],
+        &["sensitivity", "examples/scont2d.cso", "--study", "-o", &f],
+        &["optimize", "examples/scont2d.cso", "-o", &f],
+        &["compare", scene, "-o", &f],
+        &["export", scene, "-o", &f],
+    ];
+    for args in commands {
+        let (code, out, err) = cso(args);
+        assert_eq!(code, 2, "{args:?}: {out}{err}");
+        // Nothing was computed: no summary, table or study row on stdout.
+        assert!(out.is_empty(), "{args:?}: {out}");
+        assert!(err.contains("is not a directory"), "{args:?}: {err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(&file).expect("kept"),
+        "not a folder"
+    );
+    let _ = std::fs::remove_file(&file);
+}
+
+/// A scene file in the temp folder: `example` with `extra` appended.
+fn scene_with(example: &str, extra: &str, tag: &str) -> std::path::PathBuf {
+    let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
+    let path = std::env::temp_dir().join(format!("cso-{tag}-{}.cso", std::process::id()));
+    std::fs::write(&path, format!("{src}\n{extra}\n")).expect("temp scene");
+    path
+}
+
+#[test]
+fn solver_statuses_are_words_and_say_what_the_limit_counts() {
+    let path = scene_with(
+        "two_blocks.cso",
+        "solver { max_iterations = 3 }",
+        "max-iterations",
+    );
+    let (code, out, err) = cso(&["solve", &path.to_string_lossy()]);
+    assert_eq!(code, 1, "{out}{err}");
+    for text in [&out, &err] {
+        assert!(!text.contains("MaxIterations"), "{text}");
+        assert!(
+            text.contains("limit of 3 Hessian applications (`solver { max_iterations }`)"),
+            "{text}"
+        );
+    }
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn why_the_optimizer_stopped_is_said_in_words() {
+    let path = scene_with("scont2d.cso", "", "optimize-words");
+    let src = std::fs::read_to_string(&path)
+        .expect("scene")
+        .replace("max_iterations = 30", "max_iterations = 1");
+    std::fs::write(&path, src).expect("scene");
+    let (code, out, err) = cso(&["optimize", &path.to_string_lossy()]);
+    assert_eq!(code, 0, "{err}");
+    let stopped = out
+        .lines()
+        .find(|l| l.starts_with("stopped: "))
+        .expect("a stopped line");
+    assert!(
+        stopped.contains("limit of 1 design iterations (`optimize { max_iterations }`)"),
+        "{stopped}"
+    );
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn zero_threads_is_refused_at_the_command_line() {
+    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso", "--threads", "0"]);
+    assert_eq!(code, 2, "{out}{err}");
+    assert!(err.contains("at least 1"), "{err}");
+    assert!(out.is_empty(), "{out}");
+}
+
+#[test]
+fn the_memory_limit_can_be_set_or_lifted() {
+    let scene = "examples/two_blocks.cso";
+    let (code, _, err) = cso(&["--memory-limit", "1KiB", "check", scene]);
+    assert_eq!(code, 1, "{err}");
+    assert!(err.contains("more than the 1.0 KiB allowed"), "{err}");
+    let (code, _, err) = cso(&["check", scene, "--memory-limit", "none"]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = cso(&["check", scene, "--memory-limit", "8 parsecs"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("unknown size unit"), "{err}");
+}
+
+#[test]
+fn compile_json_reports_the_errors_of_a_scene_as_json() {
+    let file = "tests/diagnostics/13_unknown_material.cso";
+    let (code, out, err) = cso(&["compile", file, "--json"]);
+    assert_eq!(code, 1, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("valid JSON");
+    assert_eq!(v["file"], file);
+    let first = &v["errors"][0];
+    assert!(
+        first["code"]
+            .as_str()
+            .is_some_and(|c| c.starts_with("cso::")),
+        "{v}"
+    );
+    let label = &first["labels"][0];
+    assert!(label["line"].as_u64().is_some_and(|l| l > 1), "{v}");
+    assert!(label["column"].as_u64().is_some_and(|c| c >= 1), "{v}");
+    // Without --json the diagnostics stay on stderr and stdout stays empty.
+    let (code, out, _) = cso(&["compile", file]);
+    assert_eq!(code, 1);
+    assert!(out.is_empty(), "{out}");
+}
+
+#[test]
+fn a_scene_that_is_not_utf8_is_diagnosed_with_line_column_and_byte() {
+    let path = std::env::temp_dir().join(format!("cso-latin1-{}.cso", std::process::id()));
+    // "# Müller" in Latin-1: 0xFC at line 2, column 4.
+    let mut bytes = b"scene s { dim = 2 }\n# M".to_vec();
+    bytes.push(0xFC);
+    bytes.extend_from_slice(b"ller\n");
+    std::fs::write(&path, bytes).expect("temp scene");
+    let (code, _, err) = cso(&["check", &path.to_string_lossy()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the file is not UTF-8: byte 0xFC at line 2, column 4"),
+        "{err}"
+    );
+    assert!(err.contains(":2:4]"), "rendered at its place: {err}");
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn constraints_are_shown_in_the_users_own_form() {
+    let path = scene_with(
+        "scont2d.cso",
+        "subject to contact_force(seat) >= 0",
+        "user-form",
+    );
+    let (code, out, err) = cso(&["sensitivity", &path.to_string_lossy()]);
+    assert_eq!(code, 0, "{err}");
+    let line = out
+        .lines()
+        .find(|l| l.contains("contact_force(seat) >= 0"))
+        .expect("the constraint's line");
+    // The contact carries the 5 N load: lhs - rhs = +5 and it holds (the
+    // internal `g <= 0` form would read -5).
+    assert!(line.contains("lhs - rhs = 5: holds"), "{line}");
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn a_2d_energy_states_its_thickness_and_the_value_per_metre() {
+    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    let line = out.lines().find(|l| l.contains("energy")).expect("energy");
+    assert!(
+        line.contains("(2D, thickness 1 m:") && line.contains(" J/m"),
+        "{line}"
+    );
+}
+
+#[test]
+fn progress_is_plain_lines_when_stderr_is_not_a_terminal_and_quiet_silences_it() {
+    // The test's stderr is a pipe, as in a log or CI.
+    let (code, _, err) = cso(&["solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("cso: solve [0.0 s] started"), "{err}");
+    let done = err.lines().last().unwrap_or("");
+    assert!(
+        done.starts_with("cso: solve [") && done.ends_with("s] done"),
+        "{err}"
+    );
+    let (code, _, err) = cso(&["--quiet", "solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.is_empty(), "{err}");
+}

@@ -274,3 +274,29 @@ minimize corner.uz
     let node = s.bodies[0].node([2, 2, 0], &[]);
     assert!((node[2] - 0.02).abs() < 1e-15);
 }
+
+#[test]
+fn a_let_without_units_is_unchecked_as_documented() {
+    // `P` is a line load in SI (N/m): `P / (2 * w)` is a traction, not 1/m.
+    let s = check("let P = 2e6\nlet w = 10 mm\ntraction block.top = (0, -P / (2 * w))\n");
+    match &s.conditions[1] {
+        Condition::Traction { value, .. } => assert!((value[1] + 1e8).abs() < 1e-6, "{value:?}"),
+        c => panic!("expected the traction, found {c:?}"),
+    }
+}
+
+#[test]
+fn a_dimension_error_points_at_the_let_that_gave_the_dimension() {
+    let src =
+        format!("{BASE}let P = 2 MN\nlet w = 10 mm\ntraction block.top = (0, -P / (2 * w))\n");
+    let d = compile(&src, &options()).expect_err("a force per length is no traction");
+    assert_eq!(d.len(), 1, "{d:?}");
+    let at_let = src.find("2 MN").expect("the let's value");
+    assert!(
+        d[0].labels
+            .iter()
+            .any(|l| l.span.start == at_let && l.text == "`P` is a force (N) here"),
+        "{:?}",
+        d[0].labels
+    );
+}

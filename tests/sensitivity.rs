@@ -4,7 +4,7 @@
 use crate::{options, root};
 use cso::lang::compile;
 use cso::lang::scene::Scheme;
-use cso::sens::{body_area, finite_difference};
+use cso::sens::{body_area, finite_difference, GradientError};
 use num_dual::Dual64;
 
 fn scont2d() -> cso::lang::Scene {
@@ -362,4 +362,32 @@ fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_
     }
     assert_eq!(study.csv().lines().count(), study.runs.len() + 1);
     assert!(study.svg().expect("draws").starts_with("<svg"));
+}
+
+#[test]
+fn a_finite_difference_step_that_is_not_positive_is_refused_before_solving() {
+    let s = scont2d();
+    for h in [0.0, -1e-6, f64::NAN, f64::INFINITY] {
+        let err = finite_difference(&s, h, Scheme::Central).expect_err("refused");
+        assert!(matches!(err, GradientError::Step(_)), "h = {h}: {err:?}");
+        assert!(
+            err.to_string().contains("must be a positive number"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn a_step_that_moves_the_geometry_too_far_is_blamed_not_the_supports() {
+    // The design solves; a[2] = 0 moved by -0.5 pulls the punch's face away.
+    let s = scont2d();
+    let err = finite_difference(&s, 0.5, Scheme::Central).expect_err("too far");
+    let GradientError::Perturbed { variable, step, .. } = &err else {
+        panic!("expected the step to be blamed: {err:?}");
+    };
+    assert!(s.design.iter().any(|d| &d.name == variable), "{variable}");
+    assert_eq!(step.abs(), 0.5);
+    let msg = err.to_string();
+    assert!(msg.contains("step 0.5 moves the geometry too far"), "{msg}");
+    assert!(msg.contains(&format!("`{variable}`")), "{msg}");
 }

@@ -60,6 +60,30 @@ pub fn write_files<N: AsRef<str>, B: AsRef<[u8]>>(dir: &Path, files: &[(N, B)]) 
         .try_for_each(|(name, bytes)| write_atomic(&dir.join(name.as_ref()), bytes.as_ref()))
 }
 
+/// Makes sure `dir` can take a command's output before the computation starts:
+/// creates it (and its parents), then writes and removes a probe file. A path
+/// that names a file, a read-only folder or a missing mount then fails in a
+/// second instead of after the whole solve, whose results would be lost.
+///
+/// # Errors
+/// `AlreadyExists` when `dir` exists and is not a directory; otherwise whatever
+/// creating the directory or the probe file reports.
+pub fn prepare_dir(dir: &Path) -> io::Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(io::Error::new(
+            io::ErrorKind::AlreadyExists,
+            format!("{} exists and is not a directory", dir.display()),
+        ));
+    }
+    fs::create_dir_all(dir)?;
+    let probe = temp_path(&dir.join(".cso-probe"))?;
+    OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)?;
+    fs::remove_file(&probe)
+}
+
 /// The temporary file's path: same directory as `path`, so the final rename
 /// stays within one file system.
 fn temp_path(path: &Path) -> io::Result<PathBuf> {
@@ -184,5 +208,20 @@ mod tests {
         assert!(name.starts_with("step.vtu."), "{name}");
         assert!(name.ends_with(".tmp"), "{name}");
         assert!(name.contains(&std::process::id().to_string()), "{name}");
+    }
+
+    #[test]
+    fn prepare_dir_creates_the_folder_and_refuses_a_file() {
+        let dir = test_dir("prepare");
+        let nested = dir.join("a").join("b");
+        prepare_dir(&nested).unwrap();
+        assert!(nested.is_dir());
+        assert!(entries(&nested).is_empty(), "the probe is removed");
+        let file = dir.join("file");
+        fs::write(&file, b"x").unwrap();
+        let err = prepare_dir(&file).unwrap_err();
+        assert!(err.to_string().contains("is not a directory"), "{err}");
+        assert_eq!(fs::read(&file).unwrap(), b"x");
+        let _ = fs::remove_dir_all(&dir);
     }
 }

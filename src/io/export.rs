@@ -328,14 +328,11 @@ pub fn export(
     Ok(files(&qp, format, &scene.name, named))
 }
 
-/// Writes `files` into `dir` (created if missing), each atomically. A
+/// Checks, before anything is computed, that `dir` can take an export: a
 /// directory that exists and holds anything is refused unless `force`, so an
-/// export never mixes with older files.
-pub fn write_dir(
-    dir: &std::path::Path,
-    files: &[(String, Vec<u8>)],
-    force: bool,
-) -> std::io::Result<()> {
+/// export never mixes with older files; otherwise it is created and probed
+/// ([`super::atomic::prepare_dir`]).
+pub fn check_dir(dir: &std::path::Path, force: bool) -> std::io::Result<()> {
     if !force {
         if let Ok(mut entries) = std::fs::read_dir(dir) {
             if entries.next().is_some() {
@@ -349,7 +346,16 @@ pub fn write_dir(
             }
         }
     }
-    std::fs::create_dir_all(dir)?;
+    super::atomic::prepare_dir(dir)
+}
+
+/// Writes `files` into `dir` (see [`check_dir`]), each atomically.
+pub fn write_dir(
+    dir: &std::path::Path,
+    files: &[(String, Vec<u8>)],
+    force: bool,
+) -> std::io::Result<()> {
+    check_dir(dir, force)?;
     for (name, bytes) in files {
         super::atomic::write_atomic(&dir.join(name), bytes)?;
     }

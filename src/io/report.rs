@@ -10,7 +10,8 @@
 //!   inside SMALBE) and all `F` applications, tolerance, `history` (relative
 //!   projected gradient after each outer iteration);
 //! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
-//! - `energy` (1/2 u^T K u), `compliance` (f^T u);
+//! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
+//!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
 //! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
 //! - `contacts`: per contact total normal force, active count and per node
 //!   `x`, `y`, `gap` (after deformation), `multiplier` (normal force, N) and
@@ -54,6 +55,9 @@ pub struct SolverReport {
     pub hessian_applications: usize,
     pub f_applications: usize,
     pub tolerance: f64,
+    /// The budget of Hessian applications (`solver { max_iterations }`): what
+    /// `max_iterations` counts, since one outer iteration may take hundreds.
+    pub max_iterations: usize,
     /// Final `||g^P|| / ||b||` and `||G l|| / ||b||` of the dual problem.
     pub projected_gradient: f64,
     pub feasibility: f64,
@@ -92,6 +96,19 @@ pub struct ProbeReport {
     pub uy: f64,
 }
 
+/// How the dual solve ended, in words for the summary and error messages (the
+/// `Status` variants are code names), saying what the iteration limit counts.
+pub fn dual_status(status: &Status, max_iterations: usize) -> String {
+    match status {
+        Status::Converged => "converged".to_string(),
+        Status::MaxIterations => format!(
+            "stopped at the limit of {max_iterations} Hessian applications \
+             (`solver {{ max_iterations }}`)"
+        ),
+        Status::Breakdown(c) => format!("broke down: {c}"),
+    }
+}
+
 /// The wire format of `report.json`.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
@@ -102,6 +119,9 @@ pub struct Report {
     pub kkt: Kkt,
     pub energy: f64,
     pub compliance: f64,
+    /// 2D: the out-of-plane thickness the energy, forces and compliance are for
+    /// (plane strain over a slice); None in 3D.
+    pub thickness: Option<f64>,
     pub bodies: Vec<BodyReport>,
     pub contacts: Vec<ContactReport>,
     pub probes: Vec<ProbeReport>,
@@ -131,6 +151,7 @@ impl Report {
             hessian_applications: state.info.hessian_applications,
             f_applications: state.f_applications,
             tolerance: scene.solver.tolerance,
+            max_iterations: scene.solver.max_iterations,
             projected_gradient: state.info.projected_gradient / state.b_norm.max(f64::MIN_POSITIVE),
             feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
             history: state.info.history.clone(),
@@ -214,6 +235,7 @@ impl Report {
             kkt: state.kkt.clone(),
             energy: state.energy(),
             compliance: state.compliance(),
+            thickness: (scene.dim == crate::lang::scene::Dimension::Two).then_some(scene.thickness),
             bodies,
             contacts,
             probes,
@@ -262,11 +284,7 @@ impl Report {
             let _ = writeln!(o, "  {}", k.line(!timings));
         }
         let v = &self.solver;
-        let status = match &v.status {
-            Status::Converged => "converged".to_string(),
-            Status::MaxIterations => "stopped at the iteration limit".to_string(),
-            Status::Breakdown(c) => format!("broke down: {c}"),
-        };
+        let status = dual_status(&v.status, v.max_iterations);
         let _ = writeln!(
             o,
             "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {})",
@@ -299,12 +317,25 @@ impl Report {
             bucket(k.sign),
             bucket(k.complementarity)
         );
-        let _ = writeln!(
+        let _ = write!(
             o,
             "  energy {} J, compliance {} J",
             num(self.energy),
             num(self.compliance)
         );
+        // A 2D scene is a slice: say of what thickness, and per metre of it.
+        match self.thickness {
+            Some(t) if t > 0.0 => {
+                let _ = writeln!(
+                    o,
+                    " (2D, thickness {} m: {} J/m, {} J/m)",
+                    num(t),
+                    num(self.energy / t),
+                    num(self.compliance / t)
+                );
+            }
+            _ => o.push('\n'),
+        }
         for b in &self.bodies {
             let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
         }

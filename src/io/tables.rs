@@ -5,7 +5,7 @@
 
 use crate::lang::diag::num;
 use crate::lang::Scene;
-use crate::opt::{Iterate, Optimization};
+use crate::opt::{Iterate, Optimization, Termination};
 use crate::qp::QpInfo;
 use crate::sens::Gradient;
 use std::fmt::Write as _;
@@ -14,17 +14,46 @@ use std::fmt::Write as _;
 /// classes at the design, what the gradient cost beyond the state solve, and a
 /// warning when perturbing changed the active set (those columns are not
 /// derivatives).
-pub fn gradient(scene: &str, g: &Gradient) -> String {
-    let mut o = format!("{} gradient of `{scene}`\n", g.method);
+///
+/// A constraint is shown as the user wrote it, `A >= B` or `A <= B`, with the
+/// value and derivatives of `A - B` and whether it holds, not in the internal
+/// `g <= 0` form (which flips the sign of a `>=`).
+pub fn gradient(scene: &Scene, g: &Gradient) -> String {
+    let mut o = format!("{} gradient of `{}`\n", g.method, scene.name);
     let _ = write!(
         o,
         "  contact nodes: {} strong (carrying force), {} weak (closed, no force)",
         g.strong, g.weak
     );
+    let first_constraint = usize::from(scene.objective.is_some());
     for (k, name) in g.functionals.iter().enumerate() {
-        let _ = write!(o, "\n  {name}   (value {})", num(g.values[k]));
+        // `g = A - B` for `A <= B`, `B - A` for `A >= B`: back to `A - B`.
+        let constraint = k
+            .checked_sub(first_constraint)
+            .and_then(|c| scene.constraints.get(c));
+        let sign = match constraint {
+            Some(c) if !c.upper => -1.0,
+            _ => 1.0,
+        };
+        match constraint {
+            Some(_) => {
+                let holds = if g.values[k] <= 0.0 {
+                    "holds"
+                } else {
+                    "violated"
+                };
+                let _ = write!(
+                    o,
+                    "\n  subject to {name}   (lhs - rhs = {}: {holds}; derivatives of lhs - rhs)",
+                    num(sign * g.values[k])
+                );
+            }
+            None => {
+                let _ = write!(o, "\n  {name}   (value {})", num(g.values[k]));
+            }
+        }
         for (i, d) in g.design.iter().enumerate() {
-            let _ = write!(o, "\n    d/d{:<8} {:>14.6e}", d, g.gradient[k][i]);
+            let _ = write!(o, "\n    d/d{:<8} {:>14.6e}", d, sign * g.gradient[k][i]);
         }
     }
     let extra_h = g
@@ -83,6 +112,28 @@ pub fn worst_constraint(constraints: &[f64]) -> f64 {
         .fold(f64::NEG_INFINITY, f64::max)
 }
 
+/// Why the optimizer stopped, in words (the `Termination` variants are code
+/// names), with the setting that decided it.
+pub fn termination(scene: &Scene, t: &Termination) -> String {
+    let o = &scene.optimize;
+    match t {
+        Termination::Kkt => format!(
+            "converged: the design problem's KKT residual is below `optimize {{ tolerance = {} }}`",
+            num(o.tolerance)
+        ),
+        Termination::SmallStep => format!(
+            "the design moved less than `optimize {{ tolerance = {} }}` (relative to its bounds)",
+            num(o.tolerance)
+        ),
+        Termination::MaxIterations => format!(
+            "reached the limit of {} design iterations (`optimize {{ max_iterations }}`) before converging",
+            o.max_iterations
+        ),
+        Termination::Failure(why) => format!("failed: {why}"),
+        Termination::Interrupted => "interrupted (Ctrl-C); the best design so far is kept".into(),
+    }
+}
+
 /// `cso optimize`: every iterate, why the run stopped, and the best feasible
 /// design with its variables.
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
@@ -101,7 +152,7 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
             it.kkt
         );
     }
-    let _ = write!(o, "\nstopped: {:?}", run.termination);
+    let _ = write!(o, "\nstopped: {}", termination(scene, &run.termination));
     match run.best.and_then(|b| run.history.get(b)) {
         Some(it) => {
             let _ = write!(

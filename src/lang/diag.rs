@@ -151,6 +151,107 @@ pub fn render(diags: &[Diagnostic], name: &str, text: &str) -> String {
     out
 }
 
+/// A scene file's bytes as text, or a diagnostic at the first byte that is not
+/// UTF-8, with line, column and the byte, and a lossy text to render it against
+/// (its prefix up to that byte is the file's own, so the span is exact).
+pub fn decode(bytes: Vec<u8>) -> Result<String, Box<(Diagnostic, String)>> {
+    let e = match String::from_utf8(bytes) {
+        Ok(s) => return Ok(s),
+        Err(e) => e,
+    };
+    let at = e.utf8_error().valid_up_to();
+    let byte = e.as_bytes().get(at).copied().unwrap_or(0);
+    let text = String::from_utf8_lossy(e.as_bytes()).into_owned();
+    let (line, column) = line_column(&text, at);
+    let d = Diagnostic::new(
+        "cso::encoding",
+        format!("the file is not UTF-8: byte 0x{byte:02X} at line {line}, column {column}"),
+    )
+    .label(
+        Span {
+            start: at,
+            end: at + char::REPLACEMENT_CHARACTER.len_utf8(),
+        },
+        format!("byte 0x{byte:02X} is not UTF-8"),
+    )
+    .help("save the file as UTF-8 (e.g. `iconv -f latin1 -t utf-8`); cso reads UTF-8 only");
+    Err(Box::new((d, text)))
+}
+
+/// The 1-based line and column (in characters) of byte `offset` of `text`.
+pub fn line_column(text: &str, offset: usize) -> (usize, usize) {
+    let mut at = offset.min(text.len());
+    while !text.is_char_boundary(at) {
+        at -= 1;
+    }
+    let before = &text[..at];
+    let line = before.matches('\n').count() + 1;
+    let start = before.rfind('\n').map_or(0, |i| i + 1);
+    (line, before[start..].chars().count() + 1)
+}
+
+/// One labelled place of a diagnostic for programs: file, 1-based line and
+/// column of both ends, byte offsets, and the label.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JsonLabel {
+    pub file: String,
+    pub line: usize,
+    pub column: usize,
+    pub end_line: usize,
+    pub end_column: usize,
+    pub start: usize,
+    pub end: usize,
+    pub text: String,
+}
+
+/// A diagnostic as `cso compile --json` prints it (an editor or CI reads it).
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct JsonDiagnostic {
+    pub code: &'static str,
+    pub message: String,
+    /// The first label is the primary one.
+    pub labels: Vec<JsonLabel>,
+    pub help: Option<String>,
+}
+
+/// Diagnostics of the source `text` named `name` for programs, with the
+/// places resolved to lines and columns (a `--set` value is its own file).
+pub fn to_json(diags: &[Diagnostic], name: &str, text: &str) -> Vec<JsonDiagnostic> {
+    diags
+        .iter()
+        .map(|d| {
+            let (file, src) = match &d.origin {
+                Some((n, t)) => (n.as_str(), t.as_str()),
+                None => (name, text),
+            };
+            let labels = d
+                .labels
+                .iter()
+                .map(|l| {
+                    let (line, column) = line_column(src, l.span.start);
+                    let (end_line, end_column) = line_column(src, l.span.end);
+                    JsonLabel {
+                        file: file.to_string(),
+                        line,
+                        column,
+                        end_line,
+                        end_column,
+                        start: l.span.start,
+                        end: l.span.end,
+                        text: l.text.clone(),
+                    }
+                })
+                .collect();
+            JsonDiagnostic {
+                code: d.code,
+                message: d.message.clone(),
+                labels,
+                help: d.help.clone(),
+            }
+        })
+        .collect()
+}
+
 /// Sorts diagnostics by position (overrides first) and drops exact repeats.
 pub fn sort(diags: &mut Vec<Diagnostic>) {
     diags.sort_by_key(|d| d.offset());

@@ -396,7 +396,7 @@ fn rule_name(rule: Rule) -> Option<&'static str> {
         Rule::dotdot => "`..`",
         Rule::grid_x => "`x`",
         Rule::grid_atom => "a count",
-        Rule::unit | Rule::unit_term | Rule::unit_name => "a unit",
+        Rule::unit | Rule::unit_term | Rule::unit_name | Rule::unknown_unit => "a unit",
         Rule::unit_power => "an integer power",
         Rule::unit_op => "`*` or `/`",
         Rule::string_inner => "the rest of the string",
@@ -910,6 +910,13 @@ fn atom(pair: Pair<Rule>, offset: usize) -> Expr {
 
 fn unit(pair: Pair<Rule>, offset: usize) -> UnitExpr {
     let span = span_of(&pair, offset);
+    if pair.as_rule() == Rule::unknown_unit {
+        // The checker refuses it by name, with the nearest known units.
+        return UnitExpr {
+            factors: vec![(pair.as_str().to_string(), 1)],
+            span,
+        };
+    }
     let mut factors = Vec::new();
     let mut sign = 1;
     for p in pair.into_inner() {

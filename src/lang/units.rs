@@ -157,6 +157,35 @@ pub fn is_unit(name: &str) -> bool {
     unit(name).is_some()
 }
 
+/// The known units a misspelt one most likely meant: those equal but for case
+/// (`Gpa` -> `GPa`, `mn` -> `MN`), then those one edit away of the same length
+/// (`mn` -> `mm`); else the nearest within two edits.
+pub fn nearest_units(name: &str) -> Vec<&'static str> {
+    let names = UNITS.iter().map(|u| u.0);
+    let d = |u: &str| crate::lang::check::distance(name, u);
+    let mut near: Vec<&'static str> = names
+        .clone()
+        .filter(|u| u.eq_ignore_ascii_case(name))
+        .collect();
+    let typos: Vec<&'static str> = names
+        .clone()
+        .filter(|u| !near.contains(u) && d(u) == 1 && u.len() == name.len())
+        .collect();
+    near.extend(typos);
+    if near.is_empty() {
+        let best = names.clone().map(d).min().unwrap_or(usize::MAX);
+        if best <= 2.min(name.len().saturating_sub(1)) {
+            near.extend(names.filter(|u| d(u) == best));
+        }
+    }
+    near
+}
+
+/// Every unit the language knows, for a help line.
+pub fn known_units() -> Vec<&'static str> {
+    UNITS.iter().map(|u| u.0).collect()
+}
+
 /// What the checker knows of an expression's dimension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Quantity {
@@ -250,6 +279,15 @@ mod tests {
         assert_eq!(Dim::MASS.per(Dim::VOLUME), Dim::DENSITY);
         assert_eq!(Dim::AREA.root(2), Some(Dim::LENGTH));
         assert_eq!(Dim::LENGTH.root(2), None);
+    }
+
+    #[test]
+    fn misspelt_units_find_the_nearest_known_ones() {
+        assert_eq!(nearest_units("Gpa"), ["GPa"]);
+        assert_eq!(nearest_units("mn"), ["MN", "mm"]);
+        assert_eq!(nearest_units("kpa"), ["kPa"]);
+        assert_eq!(nearest_units("Kn"), ["kN"]);
+        assert!(nearest_units("parsec").is_empty());
     }
 
     #[test]

@@ -10,7 +10,7 @@ pub mod mma;
 
 use crate::lang::expr::Formula;
 use crate::lang::scene::{Functional, Scene, SensitivityMethod};
-use crate::sens::{Eval, Gradient};
+use crate::sens::{Eval, Gradient, GradientError};
 use crate::state::{SolveError, State};
 use mma::{kkt_residual, Mma, MmaSettings};
 use serde::Serialize;
@@ -110,7 +110,7 @@ fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
     reuse: Reuse,
-) -> Result<(State, Gradient), SolveError> {
+) -> Result<(State, Gradient), GradientError> {
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = match previous {
@@ -143,7 +143,7 @@ fn state_and_gradient(
 pub fn optimize(
     scene: &Scene,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
-) -> Result<Optimization, SolveError> {
+) -> Result<Optimization, GradientError> {
     optimize_with(scene, Reuse::default(), observer)
 }
 
@@ -152,16 +152,12 @@ pub fn optimize_with(
     scene: &Scene,
     reuse: Reuse,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
-) -> Result<Optimization, SolveError> {
+) -> Result<Optimization, GradientError> {
     let Some(objective) = &scene.objective else {
-        return Err(SolveError::Unsupported(
-            "the scene has no `minimize` objective".into(),
-        ));
+        return Err(SolveError::Unsupported("the scene has no `minimize` objective".into()).into());
     };
     if scene.design.is_empty() {
-        return Err(SolveError::Unsupported(
-            "the scene has no design variables".into(),
-        ));
+        return Err(SolveError::Unsupported("the scene has no design variables".into()).into());
     }
     let x0 = scene.design_init();
     let start = crate::state::solve(scene, &x0, &mut |_| {})?;

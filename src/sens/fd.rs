@@ -7,7 +7,78 @@ use super::functional::Eval;
 use crate::lang::scene::{Scene, Scheme};
 use crate::state::{solve, solve_reusing, SolveError, State};
 use serde::Serialize;
+use std::fmt;
 use std::time::Instant;
+
+/// Why a gradient could not be computed. A finite-difference step is input the
+/// user chose, so its failures are told apart from a scene that cannot be solved.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GradientError {
+    /// The finite-difference step is zero, negative or not finite: every
+    /// difference quotient would be NaN or meaningless.
+    Step(f64),
+    /// The state at the design itself cannot be solved.
+    Solve(SolveError),
+    /// The state at `design +- step e_i` cannot be solved while the one at the
+    /// design can: the step moved the geometry too far (faces crossing, contact
+    /// lost), so the failure says nothing about the scene.
+    Perturbed {
+        variable: String,
+        /// The signed step that failed (`-h` for the backward half of central).
+        step: f64,
+        /// The value of the variable at the design, and its bounds.
+        value: f64,
+        bounds: (f64, f64),
+        error: Box<SolveError>,
+    },
+}
+
+impl From<SolveError> for GradientError {
+    fn from(e: SolveError) -> Self {
+        GradientError::Solve(e)
+    }
+}
+
+impl fmt::Display for GradientError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use crate::lang::diag::num;
+        match self {
+            GradientError::Step(h) => write!(
+                f,
+                "the finite-difference step must be a positive number, found {h}; try 1e-6"
+            ),
+            GradientError::Solve(e) => write!(f, "{e}"),
+            GradientError::Perturbed {
+                variable,
+                step,
+                value,
+                bounds,
+                error,
+            } => write!(
+                f,
+                "the finite-difference step {} moves the geometry too far: with design \
+                 variable `{variable}` moved from {} to {} (its bounds are {} .. {}) the \
+                 scene cannot be solved; use a smaller step, e.g. 1e-6 (solver: {error})",
+                num(step.abs()),
+                num(*value),
+                num(value + step),
+                num(bounds.0),
+                num(bounds.1),
+            ),
+        }
+    }
+}
+
+impl std::error::Error for GradientError {}
+
+/// Refuses a step that cannot give a difference quotient.
+pub fn check_step(h: f64) -> Result<(), GradientError> {
+    if h.is_finite() && h > 0.0 {
+        Ok(())
+    } else {
+        Err(GradientError::Step(h))
+    }
+}
 
 /// A gradient table: one row per functional (objective first, then each
 /// constraint as `g <= 0`), one column per design variable.
@@ -41,7 +112,11 @@ fn active_set(state: &State) -> Vec<bool> {
 }
 
 /// Gradient by finite differences with step `h` (absolute) and the scheme.
-pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, SolveError> {
+/// A step that is not positive and finite is refused before any solve; a
+/// perturbed solve that fails is reported as the step's fault
+/// ([`GradientError::Perturbed`]), since the design itself solved.
+pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, GradientError> {
+    check_step(h)?;
     let t0 = Instant::now();
     let design = scene.design_init();
     let base = solve(scene, &design, &mut |_| {})?;
@@ -60,12 +135,23 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
     let mut hessian = base.info.hessian_applications;
     let mut changed = Vec::new();
     for i in 0..design.len() {
-        let eval_at = |shift: f64| -> Result<(Vec<f64>, bool, usize), SolveError> {
+        let eval_at = |shift: f64| -> Result<(Vec<f64>, bool, usize), GradientError> {
             let mut d = design.clone();
             d[i] += shift;
             // Subdomains the step does not move keep the base's factorization;
             // the others refactor on its symbolic one.
-            let st = solve_reusing(scene, &d, Some(&base), true, false, &mut |_| {})?;
+            let st = solve_reusing(scene, &d, Some(&base), true, false, &mut |_| {}).map_err(
+                |error| {
+                    let var = &scene.design[i];
+                    GradientError::Perturbed {
+                        variable: var.name.clone(),
+                        step: shift,
+                        value: design[i],
+                        bounds: (var.lower, var.upper),
+                        error: Box::new(error),
+                    }
+                },
+            )?;
             let v: Vec<f64> = Eval {
                 scene,
                 design: &d,

@@ -8,12 +8,11 @@ pub mod fd;
 pub mod functional;
 pub mod semi;
 
-pub use fd::{finite_difference, Gradient};
+pub use fd::{check_step, finite_difference, Gradient, GradientError};
 pub use functional::{body_area, Eval};
 pub use semi::{adjoint, adjoint_at, semi_analytic, semi_analytic_at, Sensitivity};
 
 use crate::lang::scene::{Scene, Scheme, SensitivityMethod};
-use crate::state::SolveError;
 
 /// The gradient of the scene's functionals at its initial design by `method`;
 /// `h` and `scheme` matter to finite differences only, the exact methods solve
@@ -23,10 +22,10 @@ pub fn gradient(
     method: SensitivityMethod,
     h: f64,
     scheme: Scheme,
-) -> Result<Gradient, SolveError> {
+) -> Result<Gradient, GradientError> {
     match method {
         SensitivityMethod::FiniteDifference => finite_difference(scene, h, scheme),
-        SensitivityMethod::Adjoint => adjoint(scene, scene.solver.tolerance),
-        SensitivityMethod::SemiAnalytic => semi_analytic(scene, scene.solver.tolerance),
+        SensitivityMethod::Adjoint => Ok(adjoint(scene, scene.solver.tolerance)?),
+        SensitivityMethod::SemiAnalytic => Ok(semi_analytic(scene, scene.solver.tolerance)?),
     }
 }

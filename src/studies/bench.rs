@@ -208,7 +208,10 @@ pub struct GradientCost {
 }
 
 /// Gradient cost beyond the state solve, for the three methods.
-pub fn gradient_costs(m: usize, tolerance: f64) -> Result<Vec<GradientCost>, SolveError> {
+pub fn gradient_costs(
+    m: usize,
+    tolerance: f64,
+) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
     let src = scont_with(m);
     let mut scene = compile(&src, &CheckOptions::default()).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
@@ -241,7 +244,7 @@ pub type ReuseTable = Vec<(String, Vec<(usize, f64, usize)>)>;
 /// Per design iteration on scont2d: Hessian applications and seconds of the state
 /// solve + gradient, cold (full refactorization, cold dual start) against partial
 /// refactorization and warm start.
-pub fn optimization_reuse() -> Result<ReuseTable, SolveError> {
+pub fn optimization_reuse() -> Result<ReuseTable, crate::sens::GradientError> {
     use crate::opt::{optimize_with, Reuse};
     let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
     let scene = compile(&src, &CheckOptions::default()).map_err(|d| {

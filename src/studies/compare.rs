@@ -8,6 +8,7 @@
 //! steps) of the state solve and of each design variable's semi-analytical
 //! sensitivity, times; and checks that both give the same displacements.
 
+use crate::io::report::dual_status;
 use crate::lang::scene::{Scene, SolverMethod};
 use crate::sens::Sensitivity;
 use crate::state::{solve, State};
@@ -65,8 +66,8 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
     let seconds = t.elapsed().as_secs_f64();
     if !state.converged() {
         return Err(format!(
-            "the state solve did not converge ({:?})",
-            state.info.status
+            "the state solve did not converge ({})",
+            dual_status(&state.info.status, s.solver.max_iterations)
         ));
     }
     let held = state.elimination.as_ref().map_or(0, |e| e.count());
@@ -275,7 +276,7 @@ impl Comparison {
         let _ = writeln!(o, "{head}\n{rule}");
         for c in [f, t] {
             if let Some(e) = &c.sensitivity_error {
-                let _ = writeln!(o, "| {} | failed: {e} | | |", c.method);
+                let _ = writeln!(o, "| {} | failed: {} | | |", c.method, super::md_cell(e));
                 continue;
             }
             let mut dual = format!("| {} | Dual | {} |", c.method, c.state.dual);
@@ -355,8 +356,8 @@ pub fn eps_sweep(scene: &Scene, eps: &[f64]) -> Result<EpsSweep, String> {
     let t = solve(&s, &design, &mut |_| {}).map_err(|e| e.to_string())?;
     if !t.converged() {
         return Err(format!(
-            "the TFETI state solve did not converge ({:?})",
-            t.info.status
+            "the TFETI state solve did not converge ({})",
+            dual_status(&t.info.status, s.solver.max_iterations)
         ));
     }
     let mut runs = Vec::new();
@@ -373,8 +374,12 @@ pub fn eps_sweep(scene: &Scene, eps: &[f64]) -> Result<EpsSweep, String> {
                     difference: Some(du),
                     kkt: Some(f.kkt.worst()),
                     refused: (!f.converged()).then(|| "failed".to_string()),
-                    message: (!f.converged())
-                        .then(|| format!("the dual solve did not converge: {:?}", f.info.status)),
+                    message: (!f.converged()).then(|| {
+                        format!(
+                            "the dual solve {}",
+                            dual_status(&f.info.status, s.solver.max_iterations)
+                        )
+                    }),
                 }
             }
             Err(err) => {
@@ -419,7 +424,8 @@ impl EpsSweep {
         );
         let _ = writeln!(
             o,
-            "| eps | kernel | CG steps | max |u - u_TFETI| / max |u| | KKT | outcome |"
+            "| eps | kernel | CG steps | {} | KKT | outcome |",
+            super::md_cell("max |u - u_TFETI| / max |u|")
         );
         let _ = writeln!(o, "|---|---|---|---|---|---|");
         let opt = |v: Option<usize>| v.map_or("-".to_string(), |v| v.to_string());
@@ -429,7 +435,10 @@ impl EpsSweep {
                 None => "solved".to_string(),
                 Some("too small") => "refused: eps too small (a zero pivot accepted)".to_string(),
                 Some("too large") => "refused: eps too large (a genuine pivot dropped)".to_string(),
-                Some(_) => format!("failed: {}", r.message.as_deref().unwrap_or("")),
+                Some(_) => format!(
+                    "failed: {}",
+                    super::md_cell(r.message.as_deref().unwrap_or(""))
+                ),
             };
             let _ = writeln!(
                 o,

@@ -13,3 +13,22 @@ pub mod compare;
 pub mod output;
 pub mod sensitivity;
 pub mod stability;
+
+/// Free text (an error message, a formula with `|u|`) as one Markdown table
+/// cell: a bare `|` would end the cell and shift every column after it.
+pub fn md_cell(text: &str) -> String {
+    text.replace('|', "\\|").replace('\n', " ")
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn a_bar_in_a_cell_does_not_split_it() {
+        let row = format!("| {} | x |", super::md_cell("max |u| / 2"));
+        // Unescaped bars are exactly the three column separators.
+        let bars = row
+            .match_indices('|')
+            .filter(|(i, _)| !row[..*i].ends_with('\\'));
+        assert_eq!(bars.count(), 3, "{row}");
+    }
+}

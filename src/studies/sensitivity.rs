@@ -8,8 +8,7 @@
 //! `max_i |g_i - g_ref_i| / max_i |g_ref_i|` over the objective's gradient.
 
 use crate::lang::scene::{Scene, Scheme};
-use crate::sens::{adjoint, finite_difference, semi_analytic, Gradient};
-use crate::state::SolveError;
+use crate::sens::{adjoint, finite_difference, semi_analytic, Gradient, GradientError};
 use serde::Serialize;
 
 /// One run of one method.
@@ -49,7 +48,7 @@ fn error(g: &Gradient, reference: &[f64]) -> f64 {
 }
 
 /// Runs the study; `progress` is told each run as it finishes.
-pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study, SolveError> {
+pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study, GradientError> {
     let mut tight = scene.clone();
     tight.solver.tolerance = 1e-12;
     tight.solver.max_iterations = tight.solver.max_iterations.max(100_000);

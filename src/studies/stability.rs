@@ -122,7 +122,7 @@ fn run(src: &str, x: f64, tolerance: f64) -> Point {
             note: if st.converged() {
                 String::new()
             } else {
-                format!("{:?}", st.info.status)
+                crate::io::report::dual_status(&st.info.status, scene.solver.max_iterations)
             },
         },
         Err(e) => Point {
@@ -230,8 +230,8 @@ impl Sweep {
                 let p = &pts[k];
                 let cell = match (p.hessian_applications, p.kkt) {
                     (Some(h), Some(kkt)) if p.converged => format!("{h} ({kkt:.0e})"),
-                    (Some(h), _) => format!("{h}, not converged: {}", p.note),
-                    _ => format!("refused: {}", p.note),
+                    (Some(h), _) => format!("{h}, not converged: {}", super::md_cell(&p.note)),
+                    _ => format!("refused: {}", super::md_cell(&p.note)),
                 };
                 let _ = write!(line, " {cell} |");
             }

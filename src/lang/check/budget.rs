@@ -109,3 +109,58 @@ mod tests {
         assert_eq!(count(1.5e12), "1.5e12");
     }
 }
+
+/// Parses a memory size as a person writes it: `8GiB`, `8 GB`, `512M`, `1.5T`,
+/// `2000000000` (bytes). Binary and decimal prefixes are told apart (`GiB`
+/// 2^30, `GB` 10^9); a bare letter (`G`) is binary, as in `free -h`.
+pub fn parse_bytes(text: &str) -> Result<u64, String> {
+    let t = text.trim();
+    let split = t
+        .find(|c: char| !(c.is_ascii_digit() || c == '.' || c == '_'))
+        .unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let value: f64 = number
+        .replace('_', "")
+        .parse()
+        .map_err(|_| format!("expected a size such as 8GiB or 512MB, found `{t}`"))?;
+    let scale = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "k" | "kib" => 1024.0,
+        "kb" => 1e3,
+        "m" | "mib" => 1024f64.powi(2),
+        "mb" => 1e6,
+        "g" | "gib" => 1024f64.powi(3),
+        "gb" => 1e9,
+        "t" | "tib" => 1024f64.powi(4),
+        "tb" => 1e12,
+        other => {
+            let known = "B, KiB, MiB, GiB, TiB (or KB, MB, GB, TB)";
+            return Err(format!("unknown size unit `{other}` in `{t}`; use {known}"));
+        }
+    };
+    let bytes = value * scale;
+    if bytes.is_finite() && bytes >= 1.0 && bytes < u64::MAX as f64 {
+        Ok(bytes as u64)
+    } else {
+        Err(format!(
+            "a memory limit must be at least 1 byte, found `{t}`"
+        ))
+    }
+}
+
+#[cfg(test)]
+mod parse_tests {
+    use super::parse_bytes;
+
+    #[test]
+    fn sizes_parse_with_binary_and_decimal_prefixes() {
+        assert_eq!(parse_bytes("8GiB"), Ok(8 << 30));
+        assert_eq!(parse_bytes("8 GB"), Ok(8_000_000_000));
+        assert_eq!(parse_bytes("512m"), Ok(512 << 20));
+        assert_eq!(parse_bytes("1.5K"), Ok(1536));
+        assert_eq!(parse_bytes("1000"), Ok(1000));
+        assert!(parse_bytes("8 parsecs").is_err());
+        assert!(parse_bytes("0").is_err());
+        assert!(parse_bytes("GiB").is_err());
+    }
+}

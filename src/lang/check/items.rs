@@ -503,11 +503,12 @@ impl<'a> Checker<'a> {
                                 format!("the extent `{key} = {} .. {}` is empty", num(l), num(h)),
                             )
                             .label(a.span.to(b.span), "the start must be below the end")
-                            .help(format!(
-                                "write `{key} = {} .. {}`",
-                                self.text(b.span),
-                                self.text(a.span)
-                            )),
+                            .help(if l > h {
+                                format!("write `{key} = {} .. {}`", self.text(b.span), self.text(a.span))
+                            } else {
+                                // Swapping equal ends would suggest the same empty extent.
+                                format!("give the body a width along {key}: the end must be larger than the start")
+                            }),
                         );
                     }
                     ext = (lo, hi);
@@ -555,13 +556,18 @@ impl<'a> Checker<'a> {
                                     which.join(" and ")
                                 ),
                             )
-                            .label(
-                                fl.value.as_ref().map_or(fl.span, Value::span),
-                                bad.iter()
-                                    .map(|&i| format!("{} is not a multiple of {}", m[i], s[i]))
-                                    .collect::<Vec<_>>()
-                                    .join(", "),
-                            )
+                            .label(fl.value.as_ref().map_or(fl.span, Value::span), {
+                                // One clause per distinct pair: `80 x 80` into
+                                // `3 x 3` says it once (the message names the axes).
+                                let mut clauses: Vec<String> = Vec::new();
+                                for &i in &bad {
+                                    let c = format!("{} is not a multiple of {}", m[i], s[i]);
+                                    if !clauses.contains(&c) {
+                                        clauses.push(c);
+                                    }
+                                }
+                                clauses.join(", ")
+                            })
                             .help(format!("e.g. `mesh = {}`", fixed.join(" x "))),
                         );
                     }

@@ -11,7 +11,7 @@ mod items;
 mod names;
 mod values;
 
-pub use budget::{bytes, estimate, MemoryEstimate};
+pub use budget::{bytes, estimate, parse_bytes, MemoryEstimate};
 pub use names::{did_you_mean, distance, suggest};
 
 use super::ast::{File, Ident, Item, ItemKind, Span};
@@ -471,7 +471,8 @@ impl<'a> Checker<'a> {
                     .label(span, format!("{} primal unknowns in all", budget::count(est.dofs)))
                     .help(format!(
                         "estimate: stiffness {}, factors {}, vectors {}; use a coarser `mesh`, \
-                         or more `subdomains` (smaller factors)",
+                         or more `subdomains` (smaller factors), or set the limit with \
+                         `--memory-limit` (default 80% of the machine's memory)",
                         budget::bytes(est.stiffness),
                         budget::bytes(est.factors),
                         budget::bytes(est.vectors)

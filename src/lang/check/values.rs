@@ -44,6 +44,31 @@ fn fold(f: Formula) -> Formula {
 }
 
 impl<'a> Checker<'a> {
+    /// A word after a number that is no unit (`210 Gpa`): named as a unit, with
+    /// the units it most likely meant, since the number alone would be taken in SI.
+    fn unknown_unit(&mut self, name: &str, span: Span) {
+        let near = units::nearest_units(name);
+        let label = match near.as_slice() {
+            [] => "not a unit".to_string(),
+            [one] => format!("did you mean `{one}`?"),
+            [rest @ .., last] => format!(
+                "did you mean {} or `{last}`?",
+                rest.iter()
+                    .map(|u| format!("`{u}`"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        };
+        self.error(
+            Diagnostic::new("cso::unknown-unit", format!("unknown unit `{name}`"))
+                .label(span, label)
+                .help(format!(
+                    "units are case-sensitive; the known ones are {}",
+                    units::known_units().join(" ")
+                )),
+        );
+    }
+
     /// Compiles an expression to a formula of the coordinates and the design
     /// variables, with its dimension. Reports errors and returns None on any.
     pub(crate) fn formula(&mut self, e: &Expr) -> Option<(Formula, Quantity)> {
@@ -63,7 +88,8 @@ impl<'a> Checker<'a> {
                 let mut dim = Dim::NONE;
                 for (name, power) in &unit.factors {
                     let Some((f, d)) = units::unit(name) else {
-                        continue;
+                        self.unknown_unit(name, unit.span);
+                        return None;
                     };
                     if power.unsigned_abs() > 12 {
                         self.error(
@@ -295,7 +321,13 @@ impl<'a> Checker<'a> {
                     );
                     None
                 } else {
-                    self.formula(value)
+                    // A `let` with no unit anywhere is unchecked (the contract):
+                    // `let P = 2e6` is a line load in SI where one is expected,
+                    // not a plain number that makes `P / w` a 1/m.
+                    self.formula(value).map(|(f, q)| match q {
+                        Quantity::Bare => (f, Quantity::Unchecked),
+                        q => (f, q),
+                    })
                 };
                 self.let_depth -= 1;
                 self.let_stack.pop();
@@ -832,15 +864,54 @@ impl<'a> Checker<'a> {
         } else {
             format!("write it in {want}{example}")
         };
-        self.error(
-            Diagnostic::new(
-                "cso::unit",
-                format!("{what} expects {}, found {}", want.describe(), q.describe()),
-            )
-            .label(e.span, format!("this is {}", q.describe()))
-            .help(help),
-        );
+        let mut d = Diagnostic::new(
+            "cso::unit",
+            format!("{what} expects {}, found {}", want.describe(), q.describe()),
+        )
+        .label(e.span, format!("this is {}", q.describe()))
+        .help(help);
+        // The dimension often comes from a constant defined far away: show it.
+        for (name, span, dim) in self.lets_with_units(e) {
+            d = d.label(span, format!("`{name}` is {} here", dim.describe()));
+        }
+        self.error(d);
         false
+    }
+
+    /// The `let` constants with a known dimension that `e` uses, with the span of
+    /// their definition's value, each once (overridden ones are on the command line).
+    fn lets_with_units(&self, e: &Expr) -> Vec<(String, Span, Dim)> {
+        fn names<'e>(e: &'e Expr, out: &mut Vec<&'e str>) {
+            match &e.kind {
+                ExprKind::Name(n) => out.push(n),
+                ExprKind::Number { .. } | ExprKind::Str(_) => {}
+                ExprKind::Unary(_, a) | ExprKind::Member { base: a, .. } => names(a, out),
+                ExprKind::Binary(_, a, b) | ExprKind::Index { base: a, index: b } => {
+                    names(a, out);
+                    names(b, out);
+                }
+                ExprKind::Call { func, args } => {
+                    names(func, out);
+                    args.iter().for_each(|a| names(a, out));
+                }
+                ExprKind::Vector(v) | ExprKind::List(v) => v.iter().for_each(|a| names(a, out)),
+            }
+        }
+        let mut used = Vec::new();
+        names(e, &mut used);
+        let mut out: Vec<(String, Span, Dim)> = Vec::new();
+        for name in used {
+            let Some(i) = self.table(Kind::Let).get(name) else {
+                continue;
+            };
+            if self.overridden.contains_key(&i) || out.iter().any(|(n, ..)| n == name) {
+                continue;
+            }
+            if let (_, value, LetState::Done(Some((_, Quantity::Known(dim))))) = &self.lets[i] {
+                out.push((name.to_string(), value.span, *dim));
+            }
+        }
+        out
     }
 
     /// A whole number `>= min`.
