@@ -198,7 +198,7 @@ pub fn setup_reusing(
                 .map(|sub| (Arc::new(sub), false))
                 .map_err(|error| SolveError::Subdomain {
                     body: problem.bodies[m.body].name.clone(),
-                    block: m.block,
+                    block: m.block.map(|b| b as u32),
                     error,
                 })
         })
@@ -304,15 +304,21 @@ pub fn solve_reusing(
         });
     }
     if let Some(u) = crate::model::balance::unbalanced_wrench(&setup.problem) {
-        let num = crate::lang::diag::num;
+        let list = |v: &[f64]| -> String {
+            let parts: Vec<String> = v.iter().map(|x| crate::lang::diag::num(*x)).collect();
+            if parts.len() == 1 {
+                parts[0].clone()
+            } else {
+                format!("({})", parts.join(", "))
+            }
+        };
         return Err(SolveError::Unbalanced {
             body: setup.problem.bodies[u.body].name.clone(),
             load: u.force,
             why: format!(
-                "with its moment, {} N m about ({}, {}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
-                num(u.moment),
-                num(u.centre[0]),
-                num(u.centre[1]),
+                "with its moment, {} N m about ({}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
+                list(&u.moment),
+                list(&u.centre),
                 u.misfit
             ),
         });
@@ -457,9 +463,11 @@ impl State {
     }
 
     /// Displacement of a body's grid node (from its first copy).
-    pub fn node_displacement(&self, body: usize, node: usize) -> [f64; 2] {
+    /// The displacement of a body's grid node (`z = 0` in 2D).
+    pub fn node_displacement(&self, body: usize, node: usize) -> [f64; 3] {
         let (s, l) = self.problem.bodies[body].copies(node)[0];
-        [self.u[s][2 * l], self.u[s][2 * l + 1]]
+        let d = self.problem.dim;
+        std::array::from_fn(|a| if a < d { self.u[s][d * l + a] } else { 0.0 })
     }
 
     /// `1/2 u^T K u`.

@@ -13,7 +13,6 @@
 //! and in the multipliers of the rows both formulations share.
 
 use crate::options;
-use cso::fem::quad::{plane_strain, quad_stiffness};
 use cso::lang::scene::SolverMethod;
 use cso::lang::{compile, Scene};
 use cso::model::{lower, Problem, RowKind};
@@ -50,15 +49,35 @@ fn compile_scene(src: &str) -> Scene {
 /// Global dof of a subdomain's local dof.
 fn global_dof(problem: &Problem, offsets: &[usize], s: usize, d: usize) -> usize {
     let sub = &problem.subdomains[s];
-    offsets[sub.body] + 2 * sub.grid[d / 2] + d % 2
+    let dim = problem.dim;
+    offsets[sub.body] + dim * sub.grid[d / dim] + d % dim
+}
+
+/// The grid cell whose lowest corner is `ijk`, as the element's nodes should
+/// list it: counter-clockwise in 2D; bottom face then top face in 3D.
+fn cell(grid: &cso::model::grid::Grid, [i, j, k]: [usize; 3]) -> Vec<usize> {
+    let quad = |k: usize| {
+        [
+            grid.node([i, j, k]),
+            grid.node([i + 1, j, k]),
+            grid.node([i + 1, j + 1, k]),
+            grid.node([i, j + 1, k]),
+        ]
+    };
+    if grid.dim == 2 {
+        quad(0).to_vec()
+    } else {
+        [quad(k), quad(k + 1)].concat()
+    }
 }
 
 fn assemble(problem: &Problem) -> Global {
+    let dim = problem.dim;
     let mut offsets = Vec::new();
     let mut n = 0;
     for b in &problem.bodies {
         offsets.push(n);
-        n += 2 * b.coords.len();
+        n += dim * b.coords.len();
     }
     let mut k = Mat::<f64>::zeros(n, n);
     let mut f = vec![0.0; n];
@@ -66,36 +85,39 @@ fn assemble(problem: &Problem) -> Global {
     let mut seen: Vec<Vec<bool>> = problem
         .bodies
         .iter()
-        .map(|b| vec![false; b.nx * b.ny])
+        .map(|b| vec![false; b.grid.n[..dim].iter().product()])
         .collect();
     for (s, sub) in problem.subdomains.iter().enumerate() {
         let body = &problem.bodies[sub.body];
-        let d = plane_strain(sub.young, sub.poisson);
-        for e in &sub.elements {
-            let nodes: [usize; 4] = std::array::from_fn(|a| sub.grid[e[a]]);
-            // The element is identified by its lower-left grid node.
-            let (i, j) = body.ij(nodes[0]);
+        let g = &body.grid;
+        for e in sub.elements.chunks_exact(sub.element.nodes()) {
+            let nodes: Vec<usize> = e.iter().map(|&a| sub.grid[a]).collect();
+            // The element is identified by its lowest grid corner.
+            let ijk = g.ijk(nodes[0]);
             assert_eq!(
                 nodes,
-                [
-                    body.node(i, j),
-                    body.node(i + 1, j),
-                    body.node(i + 1, j + 1),
-                    body.node(i, j + 1)
-                ],
-                "subdomain {s}: an element is not a counter-clockwise grid cell"
+                cell(g, ijk),
+                "subdomain {s}: an element is not a grid cell in the expected order"
             );
-            let cell = j * body.nx + i;
-            assert!(!seen[sub.body][cell], "element ({i}, {j}) assembled twice");
-            seen[sub.body][cell] = true;
+            let id = (ijk[2] * g.n[1] + ijk[1]) * g.n[0] + ijk[0];
+            assert!(!seen[sub.body][id], "element {ijk:?} assembled twice");
+            seen[sub.body][id] = true;
             // Coordinates from the body grid (not from the subdomain's copy).
-            let x: [[f64; 2]; 4] = std::array::from_fn(|a| body.coords[nodes[a]]);
-            let ke = quad_stiffness(&x, &d, sub.thickness).expect("element not inverted");
-            let dofs: [usize; 8] =
-                std::array::from_fn(|a| offsets[sub.body] + 2 * nodes[a / 2] + a % 2);
-            for a in 0..8 {
-                for b in 0..8 {
-                    k[(dofs[a], dofs[b])] += ke[a][b];
+            let x: Vec<f64> = nodes
+                .iter()
+                .flat_map(|&a| body.coords[a][..dim].to_vec())
+                .collect();
+            let ke = sub
+                .element
+                .stiffness(&x, sub.young, sub.poisson, sub.thickness)
+                .expect("element not inverted");
+            let dofs: Vec<usize> = (0..dim * nodes.len())
+                .map(|a| offsets[sub.body] + dim * nodes[a / dim] + a % dim)
+                .collect();
+            let nd = dofs.len();
+            for a in 0..nd {
+                for b in 0..nd {
+                    k[(dofs[a], dofs[b])] += ke[a * nd + b];
                 }
             }
         }
@@ -278,15 +300,17 @@ struct Diff {
 }
 
 fn compare(problem: &Problem, g: &Global, u: &[Vec<f64>], lambda: &[f64], r: &Reference) -> Diff {
+    let dim = problem.dim;
     let mut umax = 0.0f64;
     let mut diff = (0.0f64, (0, 0));
+    let len = |v: &mut dyn Iterator<Item = f64>| v.map(|x| x * x).sum::<f64>().sqrt();
     for (b, body) in problem.bodies.iter().enumerate() {
         for node in 0..body.coords.len() {
-            let gi = g.offsets[b] + 2 * node;
-            let want = [r.u[gi], r.u[gi + 1]];
-            umax = umax.max(want[0].hypot(want[1]));
+            let gi = g.offsets[b] + dim * node;
+            let want = &r.u[gi..gi + dim];
+            umax = umax.max(len(&mut want.iter().copied()));
             for (s, l) in body.copies(node) {
-                let d = (u[s][2 * l] - want[0]).hypot(u[s][2 * l + 1] - want[1]);
+                let d = len(&mut (0..dim).map(|a| u[s][dim * l + a] - want[a]));
                 if d > diff.0 || d.is_nan() {
                     diff = (d, (b, node));
                 }
@@ -509,8 +533,8 @@ fn lowered_loads_of_the_glued_scene_have_the_right_resultant() {
     let mut area = vec![0.0; problem.bodies.len()];
     for sub in &problem.subdomains {
         let c = &problem.bodies[sub.body].coords;
-        for e in &sub.elements {
-            let x: Vec<[f64; 2]> = e.iter().map(|&l| c[sub.grid[l]]).collect();
+        for e in sub.elements.chunks_exact(4) {
+            let x: Vec<[f64; 3]> = e.iter().map(|&l| c[sub.grid[l]]).collect();
             area[sub.body] += 0.5
                 * (0..4)
                     .map(|k| x[k][0] * x[(k + 1) % 4][1] - x[(k + 1) % 4][0] * x[k][1])

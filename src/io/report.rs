@@ -18,12 +18,14 @@
 //!   `pressure` (force over the node's tributary area);
 //! - `probes`: `ux`, `uy` at the node nearest to each probe point.
 
+use crate::fem::hex::{hex_strain_at, isotropic};
 use crate::fem::quad::{plane_strain, quad_strain_at};
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
 use crate::io::vtu::{vtu_string, CellType, Field, VtuMesh};
 use crate::lang::diag::{num, round6};
 use crate::lang::scene::Scene;
+use crate::model::SubdomainMesh;
 use crate::model::{RowCounts, RowKind};
 use crate::qp::Status;
 use crate::state::{Kkt, State, Times};
@@ -68,6 +70,9 @@ pub struct SolverReport {
 pub struct ContactNode {
     pub x: f64,
     pub y: f64,
+    /// 3D only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
     pub gap: f64,
     pub multiplier: f64,
     pub pressure: f64,
@@ -92,8 +97,14 @@ pub struct ProbeReport {
     pub name: String,
     pub x: f64,
     pub y: f64,
+    /// 3D only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub z: Option<f64>,
     pub ux: f64,
     pub uy: f64,
+    /// 3D only.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uz: Option<f64>,
 }
 
 /// How the dual solve ended, in words for the summary and error messages (the
@@ -165,7 +176,11 @@ impl Report {
                 max_abs_u: (0..body.coords.len())
                     .map(|n| {
                         let u = state.node_displacement(b, n);
-                        (u[0] * u[0] + u[1] * u[1]).sqrt()
+                        if p.dim == 2 {
+                            (u[0] * u[0] + u[1] * u[1]).sqrt()
+                        } else {
+                            (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]).sqrt()
+                        }
                     })
                     .fold(0.0, f64::max),
             })
@@ -202,6 +217,7 @@ impl Report {
                 c.nodes.push(ContactNode {
                     x: x[0],
                     y: x[1],
+                    z: (p.dim == 3).then_some(x[2]),
                     gap,
                     multiplier: force,
                     pressure: if area > 0.0 { force / area } else { 0.0 },
@@ -218,12 +234,15 @@ impl Report {
             .map(|(pr, &(b, n))| {
                 let u = state.node_displacement(b, n);
                 let x = p.bodies[b].coords[n];
+                let three = p.dim == 3;
                 ProbeReport {
                     name: pr.name.clone(),
                     x: x[0],
                     y: x[1],
+                    z: three.then_some(x[2]),
                     ux: u[0],
                     uy: u[1],
+                    uz: three.then_some(u[2]),
                 }
             })
             .collect();
@@ -385,50 +404,66 @@ pub struct BodyFields {
     pub vtu: String,
 }
 
+/// Stress at an element's centre (Voigt: 3 components in 2D plane strain, 6 in
+/// 3D) and its von Mises value (in 2D with the plane-strain `zz` stress).
+fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) {
+    let d = m.dim();
+    let ue: Vec<f64> = e
+        .iter()
+        .flat_map(|&k| (0..d).map(move |a| d * k + a))
+        .map(|i| u[i])
+        .collect();
+    if d == 2 {
+        let dm = plane_strain(m.young, m.poisson);
+        let x: [[f64; 2]; 4] = std::array::from_fn(|k| {
+            let p = m.point(e[k]);
+            [p[0], p[1]]
+        });
+        let ue: [f64; 8] = std::array::from_fn(|i| ue[i]);
+        let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
+        let sig: Vec<f64> = (0..3)
+            .map(|r| (0..3).map(|c| dm[r][c] * eps[c]).sum())
+            .collect();
+        let szz = m.poisson * (sig[0] + sig[1]);
+        let vm = (0.5
+            * ((sig[0] - sig[1]).powi(2) + (sig[1] - szz).powi(2) + (szz - sig[0]).powi(2))
+            + 3.0 * sig[2] * sig[2])
+            .sqrt();
+        return (sig, vm);
+    }
+    let dm = isotropic(m.young, m.poisson);
+    let x: [[f64; 3]; 8] = std::array::from_fn(|k| m.point(e[k]));
+    let ue: [f64; 24] = std::array::from_fn(|i| ue[i]);
+    let eps = hex_strain_at(&x, &ue, [0.0; 3]);
+    let sig: Vec<f64> = (0..6)
+        .map(|r| (0..6).map(|c| dm[r][c] * eps[c]).sum())
+        .collect();
+    let vm = (0.5
+        * ((sig[0] - sig[1]).powi(2) + (sig[1] - sig[2]).powi(2) + (sig[2] - sig[0]).powi(2))
+        + 3.0 * (sig[3] * sig[3] + sig[4] * sig[4] + sig[5] * sig[5]))
+        .sqrt();
+    (sig, vm)
+}
+
 /// Displacement, stress, von Mises, subdomain id and contact pressure of body `b`.
 pub fn body_fields(state: &State, b: usize) -> BodyFields {
     let p = &state.problem;
     let body = &p.bodies[b];
     let n = body.coords.len();
-    let disp: Vec<[f64; 3]> = (0..n)
-        .map(|k| {
-            let u = state.node_displacement(b, k);
-            [u[0], u[1], 0.0]
-        })
-        .collect();
-    let points: Vec<[f64; 3]> = body.coords.iter().map(|c| [c[0], c[1], 0.0]).collect();
+    let disp: Vec<[f64; 3]> = (0..n).map(|k| state.node_displacement(b, k)).collect();
+    let points = body.coords.clone();
     let mut cells = Vec::new();
     let mut subdomain = Vec::new();
     let mut stress = Vec::new();
     let mut von_mises = Vec::new();
     let first = body.first_subdomain;
-    for s in first..first + body.sx * body.sy {
+    for s in first..first + body.subdomains() {
         let m = &p.subdomains[s];
-        let d = plane_strain(m.young, m.poisson);
-        for e in &m.elements {
+        for e in m.element_nodes() {
             cells.push(e.iter().map(|&l| m.grid[l]).collect::<Vec<usize>>());
             subdomain.push(s as i64);
-            let x = [
-                m.coords[e[0]],
-                m.coords[e[1]],
-                m.coords[e[2]],
-                m.coords[e[3]],
-            ];
-            let mut ue = [0.0; 8];
-            for k in 0..4 {
-                ue[2 * k] = state.u[s][2 * e[k]];
-                ue[2 * k + 1] = state.u[s][2 * e[k] + 1];
-            }
-            let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
-            let sig: Vec<f64> = (0..3)
-                .map(|r| (0..3).map(|c| d[r][c] * eps[c]).sum())
-                .collect();
-            let szz = m.poisson * (sig[0] + sig[1]);
-            let vm = (0.5
-                * ((sig[0] - sig[1]).powi(2) + (sig[1] - szz).powi(2) + (szz - sig[0]).powi(2))
-                + 3.0 * sig[2] * sig[2])
-                .sqrt();
-            stress.push([sig[0], sig[1], sig[2]]);
+            let (sig, vm) = element_stress(m, e, &state.u[s]);
+            stress.push(sig);
             von_mises.push(vm);
         }
     }
@@ -449,19 +484,40 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
     let mesh = VtuMesh {
         points: &points,
         cells: &cells,
-        cell_type: CellType::Quad,
+        cell_type: if p.dim == 2 {
+            CellType::Quad
+        } else {
+            CellType::Hexahedron
+        },
     };
+    // VTU vectors have three components: 3D stress goes as normal and shear parts.
+    let part = |k: usize| -> Vec<[f64; 3]> {
+        stress
+            .iter()
+            .map(|s: &Vec<f64>| std::array::from_fn(|a| s.get(3 * k + a).copied().unwrap_or(0.0)))
+            .collect()
+    };
+    let (normal, shear) = (part(0), part(1));
+    let mut cell_fields = vec![(
+        if p.dim == 2 {
+            "stress (xx, yy, xy)"
+        } else {
+            "stress (xx, yy, zz)"
+        },
+        Field::Vector(&normal),
+    )];
+    if p.dim == 3 {
+        cell_fields.push(("stress (yz, xz, xy)", Field::Vector(&shear)));
+    }
+    cell_fields.push(("von Mises", Field::Scalar(&von_mises)));
+    cell_fields.push(("subdomain", Field::Int(&subdomain)));
     let vtu = vtu_string(
         &mesh,
         &[
             ("displacement", Field::Vector(&disp)),
             ("contact pressure", Field::Scalar(&pressure)),
         ],
-        &[
-            ("stress (xx, yy, xy)", Field::Vector(&stress)),
-            ("von Mises", Field::Scalar(&von_mises)),
-            ("subdomain", Field::Int(&subdomain)),
-        ],
+        &cell_fields,
     );
     BodyFields {
         disp,
@@ -472,11 +528,84 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
 }
 
 /// Writes `report.json`, `BODY.vtu` per body, `contact_NAME.svg` per contact and
-/// `deformed.svg`, each atomically.
+/// (2D) `deformed.svg`, each atomically.
 pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
     let json = serde_json::to_string_pretty(report).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("report.json"), json.as_bytes())?;
+    let p = &state.problem;
+    let fields: Vec<BodyFields> = (0..p.bodies.len()).map(|b| body_fields(state, b)).collect();
+    for (body, f) in p.bodies.iter().zip(&fields) {
+        write_atomic(&dir.join(format!("{}.vtu", body.name)), f.vtu.as_bytes())?;
+    }
+    if p.dim == 2 {
+        let svg = deformed_plot(scene, state, report, &fields)?;
+        write_atomic(&dir.join("deformed.svg"), svg.as_bytes())?;
+    }
+    for c in &report.contacts {
+        // 2D: pressure along x. 3D: against the distance from the force's centre.
+        let (xlabel, x): (&str, Vec<f64>) = match centre_of_force(c) {
+            Some(o) => (
+                "distance from the centre of the contact force (m)",
+                c.nodes
+                    .iter()
+                    .map(|n| {
+                        let z = n.z.unwrap_or(0.0);
+                        ((n.x - o[0]).powi(2) + (n.y - o[1]).powi(2) + (z - o[2]).powi(2)).sqrt()
+                    })
+                    .collect(),
+            ),
+            None => ("x (m)", c.nodes.iter().map(|n| n.x).collect()),
+        };
+        let mut xy: Vec<(f64, f64)> = x
+            .into_iter()
+            .zip(c.nodes.iter().map(|n| n.pressure))
+            .collect();
+        xy.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let (x, y): (Vec<f64>, Vec<f64>) = xy.into_iter().unzip();
+        let svg = line_chart(
+            &format!("{}: contact pressure along `{}`", scene.name, c.name),
+            xlabel,
+            "pressure (Pa)",
+            &[Series {
+                name: &c.name,
+                x: &x,
+                y: &y,
+            }],
+            false,
+            false,
+        )
+        .map_err(std::io::Error::other)?;
+        write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
+    }
+    Ok(())
+}
+
+/// In 3D, the point where a contact's force acts (force-weighted mean of its
+/// nodes); None in 2D or without force.
+fn centre_of_force(c: &ContactReport) -> Option<[f64; 3]> {
+    let total: f64 = c.nodes.iter().map(|n| n.multiplier.max(0.0)).sum();
+    if c.nodes.iter().any(|n| n.z.is_none()) || total <= 0.0 {
+        return None;
+    }
+    let mut o = [0.0; 3];
+    for n in &c.nodes {
+        let w = n.multiplier.max(0.0) / total;
+        o[0] += w * n.x;
+        o[1] += w * n.y;
+        o[2] += w * n.z.unwrap_or(0.0);
+    }
+    Some(o)
+}
+
+/// The 2D deformed mesh coloured by von Mises stress, magnified so the largest
+/// displacement is 5% of the scene.
+fn deformed_plot(
+    scene: &Scene,
+    state: &State,
+    report: &Report,
+    fields: &[BodyFields],
+) -> std::io::Result<String> {
     let p = &state.problem;
     let mut outline = Vec::new();
     let mut all_points = Vec::new();
@@ -495,21 +624,13 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         }
     }
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    // Deformed shape magnified so the largest displacement is 5% of the scene.
     let magnify = if umax > 0.0 { 0.05 * size / umax } else { 0.0 };
-    for (b, body) in p.bodies.iter().enumerate() {
-        let BodyFields {
-            disp,
-            cells,
-            von_mises,
-            vtu,
-        } = body_fields(state, b);
-        write_atomic(&dir.join(format!("{}.vtu", body.name)), vtu.as_bytes())?;
+    for (body, f) in p.bodies.iter().zip(fields) {
         let base = all_points.len();
         for (k, c) in body.coords.iter().enumerate() {
-            all_points.push([c[0] + magnify * disp[k][0], c[1] + magnify * disp[k][1]]);
+            all_points.push([c[0] + magnify * f.disp[k][0], c[1] + magnify * f.disp[k][1]]);
         }
-        for cell in &cells {
+        for cell in &f.cells {
             all_cells.push([
                 cell[0] + base,
                 cell[1] + base,
@@ -517,7 +638,7 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
                 cell[3] + base,
             ]);
         }
-        all_vm.extend_from_slice(&von_mises);
+        all_vm.extend_from_slice(&f.von_mises);
         let ring: Vec<[f64; 2]> = [
             body.face_nodes(crate::lang::scene::Face::Bottom),
             body.face_nodes(crate::lang::scene::Face::Right),
@@ -532,7 +653,7 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         ]
         .concat()
         .into_iter()
-        .map(|k| body.coords[k])
+        .map(|k| [body.coords[k][0], body.coords[k][1]])
         .collect();
         outline.push(ring);
     }
@@ -541,26 +662,6 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         scene.name,
         num(round6(magnify))
     );
-    let svg = mesh_plot(&title, &all_points, &all_cells, Some(&all_vm), &outline)
-        .map_err(std::io::Error::other)?;
-    write_atomic(&dir.join("deformed.svg"), svg.as_bytes())?;
-    for c in &report.contacts {
-        let x: Vec<f64> = c.nodes.iter().map(|n| n.x).collect();
-        let y: Vec<f64> = c.nodes.iter().map(|n| n.pressure).collect();
-        let svg = line_chart(
-            &format!("{}: contact pressure along `{}`", scene.name, c.name),
-            "x (m)",
-            "pressure (Pa)",
-            &[Series {
-                name: &c.name,
-                x: &x,
-                y: &y,
-            }],
-            false,
-            false,
-        )
-        .map_err(std::io::Error::other)?;
-        write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
-    }
-    Ok(())
+    mesh_plot(&title, &all_points, &all_cells, Some(&all_vm), &outline)
+        .map_err(std::io::Error::other)
 }

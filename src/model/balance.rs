@@ -13,89 +13,99 @@
 use super::{Problem, RowKind};
 
 /// The wrench of a body's load that its rows cannot balance, if any: the body,
-/// the load's resultant and moment about the body's centre, and what is left
-/// over relative to the load.
+/// the load's resultant and moment about the body's centre (one component in
+/// 2D, three in 3D), and what is left over relative to the load.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Unbalanced {
     pub body: usize,
-    pub force: [f64; 2],
-    pub moment: f64,
-    pub centre: [f64; 2],
+    pub force: Vec<f64>,
+    pub moment: Vec<f64>,
+    pub centre: Vec<f64>,
     pub misfit: f64,
 }
 
 /// Checks every loaded body; the first that cannot be balanced.
 pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
     let nb = problem.bodies.len();
+    let dim = problem.dim;
+    // Force and moment components: 3 in 2D, 6 in 3D.
+    let w = if dim == 2 { 3 } else { 6 };
     // Centre and size of each body (bounding box).
-    let boxes: Vec<([f64; 2], f64)> = problem
+    let boxes: Vec<([f64; 3], f64)> = problem
         .bodies
         .iter()
         .map(|b| {
             let (lo, hi) = b.bounding_box();
-            let c = [(lo[0] + hi[0]) / 2.0, (lo[1] + hi[1]) / 2.0];
-            (
-                c,
-                (hi[0] - lo[0]).hypot(hi[1] - lo[1]).max(f64::MIN_POSITIVE),
-            )
+            let c = [0, 1, 2].map(|a| (lo[a] + hi[a]) / 2.0);
+            (c, b.diagonal().max(f64::MIN_POSITIVE))
         })
         .collect();
-    let wrench = |body: usize, x: [f64; 2], d: usize, v: f64| -> [f64; 3] {
+    let wrench = |body: usize, x: [f64; 3], d: usize, v: f64| -> Vec<f64> {
         let (c, size) = boxes[body];
-        let f = if d % 2 == 0 { [v, 0.0] } else { [0.0, v] };
-        let m = (x[0] - c[0]) * f[1] - (x[1] - c[1]) * f[0];
-        [f[0], f[1], m / size]
+        let mut f = [0.0; 3];
+        f[d % dim] = v;
+        let r = [0, 1, 2].map(|a| x[a] - c[a]);
+        let m = [
+            r[1] * f[2] - r[2] * f[1],
+            r[2] * f[0] - r[0] * f[2],
+            r[0] * f[1] - r[1] * f[0],
+        ];
+        if dim == 2 {
+            vec![f[0], f[1], m[2] / size]
+        } else {
+            vec![f[0], f[1], f[2], m[0] / size, m[1] / size, m[2] / size]
+        }
     };
-    let mut load = vec![[0.0f64; 3]; nb];
+    let mut load = vec![vec![0.0f64; w]; nb];
     let mut size = vec![0.0f64; nb];
     for m in &problem.subdomains {
         for (k, &v) in m.f.iter().enumerate() {
-            let w = wrench(m.body, m.coords[k / 2], k, v);
-            for a in 0..3 {
-                load[m.body][a] += w[a];
+            let wr = wrench(m.body, m.point(k / dim), k, v);
+            for a in 0..w {
+                load[m.body][a] += wr[a];
             }
             size[m.body] += v.abs();
         }
     }
     // Columns per body: equalities both ways, contacts one way.
-    let mut columns: Vec<Vec<[f64; 3]>> = vec![Vec::new(); nb];
+    let mut columns: Vec<Vec<Vec<f64>>> = vec![Vec::new(); nb];
     for (i, row) in problem.rows.iter().enumerate() {
-        let mut per = vec![[0.0f64; 3]; nb];
+        let mut per = vec![vec![0.0f64; w]; nb];
         let mut touched = vec![false; nb];
         for &(s, d, v) in &row.entries {
             let m = &problem.subdomains[s];
-            let w = wrench(m.body, m.coords[d / 2], d, v);
-            for a in 0..3 {
-                per[m.body][a] += w[a];
+            let wr = wrench(m.body, m.point(d / dim), d, v);
+            for a in 0..w {
+                per[m.body][a] += wr[a];
             }
             touched[m.body] = true;
         }
         let equality = i < problem.n_equality || !matches!(row.kind, RowKind::Contact { .. });
         for b in (0..nb).filter(|&b| touched[b]) {
-            let w = per[b];
-            if w.iter().all(|x| x.abs() <= 1e-14) {
+            let col = &per[b];
+            if col.iter().all(|x| x.abs() <= 1e-14) {
                 continue;
             }
-            columns[b].push(w);
+            columns[b].push(col.clone());
             if equality {
-                columns[b].push([-w[0], -w[1], -w[2]]);
+                columns[b].push(col.iter().map(|x| -x).collect());
             }
         }
     }
     for b in 0..nb {
-        let w = load[b];
-        let norm = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+        let wr = &load[b];
+        let norm = norm(wr);
         if norm <= 1e-10 * size[b].max(f64::MIN_POSITIVE) {
             continue;
         }
-        let misfit = nnls_misfit(&columns[b], w) / norm;
+        let misfit = nnls_misfit(&columns[b], wr) / norm;
         if misfit > 1e-6 {
             let (c, scale) = boxes[b];
             return Some(Unbalanced {
                 body: b,
-                force: [w[0], w[1]],
-                moment: w[2] * scale,
-                centre: c,
+                force: wr[..dim].to_vec(),
+                moment: wr[dim..].iter().map(|m| m * scale).collect(),
+                centre: c[..dim].to_vec(),
                 misfit,
             });
         }
@@ -103,23 +113,30 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
     None
 }
 
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+fn norm(v: &[f64]) -> f64 {
+    dot(v, v).sqrt()
+}
+
 /// `min ||A x - b||` over `x >= 0` (the columns of `A` given), by Lawson-Hanson;
 /// returns the residual norm.
-fn nnls_misfit(columns: &[[f64; 3]], b: [f64; 3]) -> f64 {
+fn nnls_misfit(columns: &[Vec<f64>], b: &[f64]) -> f64 {
     let k = columns.len();
     let mut x = vec![0.0; k];
     let mut passive = vec![false; k];
-    let residual = |x: &[f64]| -> [f64; 3] {
-        let mut r = b;
+    let residual = |x: &[f64]| -> Vec<f64> {
+        let mut r = b.to_vec();
         for (c, xi) in columns.iter().zip(x) {
-            for a in 0..3 {
-                r[a] -= c[a] * xi;
+            for (ra, ca) in r.iter_mut().zip(c) {
+                *ra -= ca * xi;
             }
         }
         r
     };
-    let dot = |c: &[f64; 3], r: &[f64; 3]| c[0] * r[0] + c[1] * r[1] + c[2] * r[2];
-    let bnorm = dot(&b, &b).sqrt();
+    let bnorm = norm(b);
     for _ in 0..(3 * k + 10) {
         let r = residual(&x);
         // The most promising column not yet used.
@@ -130,7 +147,7 @@ fn nnls_misfit(columns: &[[f64; 3]], b: [f64; 3]) -> f64 {
         else {
             break;
         };
-        if gain <= 1e-12 * bnorm * norm3(&columns[j]) {
+        if gain <= 1e-12 * bnorm * norm(&columns[j]) {
             break;
         }
         passive[j] = true;
@@ -170,17 +187,13 @@ fn nnls_misfit(columns: &[[f64; 3]], b: [f64; 3]) -> f64 {
             }
         }
     }
-    norm3(&residual(&x))
-}
-
-fn norm3(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+    norm(&residual(&x))
 }
 
 /// Least-norm least squares on the columns `set` (few: a pseudo-inverse).
-fn least_squares(columns: &[[f64; 3]], set: &[usize], b: [f64; 3]) -> Vec<f64> {
-    let a = faer::Mat::<f64>::from_fn(3, set.len(), |r, c| columns[set[c]][r]);
-    let rhs = faer::Mat::<f64>::from_fn(3, 1, |r, _| b[r]);
+fn least_squares(columns: &[Vec<f64>], set: &[usize], b: &[f64]) -> Vec<f64> {
+    let a = faer::Mat::<f64>::from_fn(b.len(), set.len(), |r, c| columns[set[c]][r]);
+    let rhs = faer::Mat::<f64>::from_fn(b.len(), 1, |r, _| b[r]);
     match a.thin_svd() {
         Ok(svd) => {
             let z = svd.pseudoinverse() * &rhs;
@@ -194,7 +207,7 @@ fn least_squares(columns: &[[f64; 3]], set: &[usize], b: [f64; 3]) -> Vec<f64> {
 #[derive(Debug, Clone, PartialEq)]
 pub struct UnbalancedForce {
     pub body: usize,
-    pub load: [f64; 2],
+    pub load: Vec<f64>,
     pub why: String,
 }
 
@@ -203,8 +216,12 @@ pub struct UnbalancedForce {
 /// it, with contact rows pushing only. Without it SMALBE would iterate on an
 /// unbounded dual (a floating body pushed along a free translation).
 pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
+    // In 3D the wrench check below names what cannot be carried.
+    if problem.dim != 2 {
+        return None;
+    }
     let nb = problem.bodies.len();
-    let mut load = vec![[0.0f64; 2]; nb];
+    let mut load = vec![vec![0.0f64; 2]; nb];
     let mut size = vec![0.0f64; nb];
     for m in &problem.subdomains {
         for (k, v) in m.f.iter().enumerate() {
@@ -231,7 +248,7 @@ pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
         }
     }
     for b in 0..nb {
-        let f = load[b];
+        let f = [load[b][0], load[b][1]];
         let fnorm = f[0].hypot(f[1]);
         if fnorm <= 1e-10 * size[b].max(f64::MIN_POSITIVE) {
             continue;
@@ -263,7 +280,7 @@ pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
                 if !can {
                     return Some(UnbalancedForce {
                         body: b,
-                        load: f,
+                        load: f.to_vec(),
                         why: format!(
                             "along ({}, {}) only contacts hold it, and no contact can push that way (it is pulled away from them, or it has none)",
                             crate::lang::diag::num(t[0]),
@@ -309,7 +326,7 @@ pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
                     };
                     return Some(UnbalancedForce {
                         body: b,
-                        load: f,
+                        load: f.to_vec(),
                         why,
                     });
                 }
@@ -327,13 +344,17 @@ mod tests {
     fn nnls_finds_cone_members_and_misses_the_rest() {
         // The cone of (1, 0, 0) and (0, 1, 0): (2, 3, 0) inside, (1, 1, 1) outside
         // by exactly 1, (-1, 0, 0) outside by 1.
-        let cols = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]];
-        assert!(nnls_misfit(&cols, [2.0, 3.0, 0.0]) < 1e-14);
-        assert!((nnls_misfit(&cols, [1.0, 1.0, 1.0]) - 1.0).abs() < 1e-14);
-        assert!((nnls_misfit(&cols, [-1.0, 0.0, 0.0]) - 1.0).abs() < 1e-14);
+        let cols = [vec![1.0, 0.0, 0.0], vec![0.0, 1.0, 0.0]];
+        assert!(nnls_misfit(&cols, &[2.0, 3.0, 0.0]) < 1e-14);
+        assert!((nnls_misfit(&cols, &[1.0, 1.0, 1.0]) - 1.0).abs() < 1e-14);
+        assert!((nnls_misfit(&cols, &[-1.0, 0.0, 0.0]) - 1.0).abs() < 1e-14);
         // Both signs of a column span its line.
-        let both = [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], [1.0, 1.0, 0.0]];
-        assert!(nnls_misfit(&both, [3.0, 3.0, -7.0]) < 1e-13);
-        assert!((nnls_misfit(&both, [1.0, -1.0, 0.0]) - 2f64.sqrt()).abs() < 1e-13);
+        let both = [
+            vec![0.0, 0.0, 1.0],
+            vec![0.0, 0.0, -1.0],
+            vec![1.0, 1.0, 0.0],
+        ];
+        assert!(nnls_misfit(&both, &[3.0, 3.0, -7.0]) < 1e-13);
+        assert!((nnls_misfit(&both, &[1.0, -1.0, 0.0]) - 2f64.sqrt()).abs() < 1e-13);
     }
 }

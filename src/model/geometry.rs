@@ -1,21 +1,49 @@
-//! The geometry of rows and loads, once, generic over the number type.
+//! The geometry of rows and loads, once, generic over the number type and the
+//! dimension.
 //!
 //! Lowering evaluates it on `f64` for the state; the sensitivities evaluate the
 //! same functions on dual numbers seeded by a design direction, on the facets the
 //! state chose, so `B'`, `c'` and `f'` are the exact derivatives of `B`, `c`, `f`.
 //! Which facet a node projects on, and which nodes get rows at all, is decided
 //! once on `f64` (`rows.rs`); only the evaluation is shared.
+//!
+//! A [`Piece`] is one facet of a body's face named by its grid nodes: a
+//! [`FaceEdge`] (two nodes) in 2D, a [`FaceQuad`] (four) in 3D. Rows, loads and
+//! tributary areas are written once over pieces.
 
+use super::grid::Grid;
 use super::Problem;
 use crate::fem::facet::{Facet, Orientation, Segment};
+use crate::fem::hex::hex_gauss;
 use crate::fem::quad::quad_gauss;
+use crate::fem::quadface::QuadFacet;
 use crate::lang::expr::Point;
 use crate::lang::scene::{Condition, Face, Obstacle, Scene, Selection};
 use crate::num::{dot, norm, sub, Scalar};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// One row entry: (global subdomain, local dof, coefficient).
 pub type Entry<T> = (usize, usize, T);
+
+/// One facet of a body's face, named by its grid nodes, in `D` dimensions with
+/// `N` nodes: what contact search, projection, face loads and tributary areas
+/// work on.
+pub trait Piece<const D: usize, const N: usize>: Copy + std::fmt::Debug + PartialEq {
+    /// The facet's geometry in number type `T`.
+    type Facet<T: Scalar>: Facet<T, D, N>;
+
+    /// The body whose face it is.
+    fn body(&self) -> usize;
+
+    /// Its grid nodes, in facet order.
+    fn nodes(&self) -> [usize; N];
+
+    /// Its facet at node positions `pos` (per body, per grid node).
+    fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; D]]>]) -> Self::Facet<T>;
+
+    /// Every piece of a body's face, in face order.
+    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self>;
+}
 
 /// One edge of a body's face: its grid nodes in face order and which way that
 /// order runs around the body (it decides the outward normal).
@@ -32,6 +60,69 @@ impl FaceEdge {
     pub fn segment<T: Scalar>(&self, pos: &[impl AsRef<[[T; 2]]>]) -> Segment<T> {
         let x = pos[self.body].as_ref();
         Segment::new(x[self.a], x[self.b], self.orientation)
+    }
+}
+
+impl Piece<2, 2> for FaceEdge {
+    type Facet<T: Scalar> = Segment<T>;
+
+    fn body(&self) -> usize {
+        self.body
+    }
+
+    fn nodes(&self) -> [usize; 2] {
+        [self.a, self.b]
+    }
+
+    fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; 2]]>]) -> Segment<T> {
+        self.segment(pos)
+    }
+
+    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self> {
+        grid.face_nodes(face)
+            .windows(2)
+            .map(|w| FaceEdge {
+                body,
+                a: w[0],
+                b: w[1],
+                orientation: face_orientation(face),
+            })
+            .collect()
+    }
+}
+
+/// One quadrilateral of a body's face in 3D, its nodes counter-clockwise seen
+/// from outside (as [`Grid::face_facets`] orders them).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct FaceQuad {
+    pub body: usize,
+    pub nodes: [usize; 4],
+}
+
+impl Piece<3, 4> for FaceQuad {
+    type Facet<T: Scalar> = QuadFacet<T>;
+
+    fn body(&self) -> usize {
+        self.body
+    }
+
+    fn nodes(&self) -> [usize; 4] {
+        self.nodes
+    }
+
+    fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; 3]]>]) -> QuadFacet<T> {
+        let x = pos[self.body].as_ref();
+        QuadFacet::new(self.nodes.map(|n| x[n]), Orientation::CounterClockwise)
+    }
+
+    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self> {
+        grid.face_facets(face)
+            .into_iter()
+            .map(|q| FaceQuad {
+                body,
+                nodes: [q[0], q[1], q[2], q[3]],
+            })
+            .collect()
     }
 }
 
@@ -64,9 +155,18 @@ pub fn node_positions<T: Scalar>(scene: &Scene, design: &[T]) -> Vec<Vec<[T; 2]>
         .collect()
 }
 
-/// The lowered node positions, per body, in the form the generic functions take.
-pub fn coords(problem: &Problem) -> Vec<&[[f64; 2]]> {
-    problem.bodies.iter().map(|b| b.coords.as_slice()).collect()
+/// The lowered node positions of every body in `D` coordinates (2D drops `z`).
+pub fn coords<const D: usize>(problem: &Problem) -> Vec<Vec<[f64; D]>> {
+    problem
+        .bodies
+        .iter()
+        .map(|b| {
+            b.coords
+                .iter()
+                .map(|c| std::array::from_fn(|a| c[a]))
+                .collect()
+        })
+        .collect()
 }
 
 /// The grid nodes of a selection (face nodes passing the filter), in face order.
@@ -77,34 +177,33 @@ pub(crate) fn selected_nodes(problem: &Problem, sel: &Selection, design: &[f64])
         return nodes;
     };
     let (lo, hi) = body.bounding_box();
-    let tol = 1e-9 * (hi[0] - lo[0]).max(hi[1] - lo[1]);
+    let tol = 1e-9 * (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
     nodes
         .into_iter()
-        .filter(|&n| {
-            let c = body.coords[n];
-            filter.holds([c[0], c[1], 0.0], design, tol)
-        })
+        .filter(|&n| filter.holds(body.coords[n], design, tol))
         .collect()
 }
 
-/// The edges of a selection: pairs of neighbouring face nodes that both pass the
-/// filter, leaving out edges of zero length (they have no normal).
-pub(crate) fn selected_edges(problem: &Problem, sel: &Selection, design: &[f64]) -> Vec<FaceEdge> {
+/// The pieces of a selection: facets of the face whose nodes all pass the
+/// filter, leaving out facets of zero measure (they have no normal).
+pub(crate) fn selected_pieces<P: Piece<D, N>, const D: usize, const N: usize>(
+    problem: &Problem,
+    sel: &Selection,
+    design: &[f64],
+) -> Vec<P> {
     let body = &problem.bodies[sel.body];
-    let nodes = body.face_nodes(sel.face);
-    let keep = selected_nodes(problem, sel, design);
-    let pos = coords(problem);
-    nodes
-        .windows(2)
-        .filter(|w| keep.contains(&w[0]) && keep.contains(&w[1]))
-        .map(|w| FaceEdge {
-            body: sel.body,
-            a: w[0],
-            b: w[1],
-            orientation: face_orientation(sel.face),
-        })
-        .filter(|e| e.segment(&pos).measure() != 0.0)
+    let keep: HashSet<usize> = selected_nodes(problem, sel, design).into_iter().collect();
+    let pos = coords::<D>(problem);
+    P::of_face(sel.body, sel.face, &body.grid)
+        .into_iter()
+        .filter(|p| p.nodes().iter().all(|n| keep.contains(n)))
+        .filter(|p| p.facet(&pos).measure() != 0.0)
         .collect()
+}
+
+/// The edges of a selection in 2D.
+pub(crate) fn selected_edges(problem: &Problem, sel: &Selection, design: &[f64]) -> Vec<FaceEdge> {
+    selected_pieces(problem, sel, design)
 }
 
 /// Which entries a row keeps. The state's rows leave out facet nodes of weight
@@ -221,67 +320,68 @@ pub(crate) fn owner(problem: &Problem, body: usize, node: usize) -> (usize, usiz
     problem.bodies[body].copies(node)[0]
 }
 
-/// A secondary node projected on a face edge: the node's owner copy, the
-/// edge's owner copies, and the projection (what contact and tie rows share).
-type EdgeProjection<T> = (
+/// The projection of a point on a piece's facet.
+pub type PieceProjection<T, P, const D: usize, const N: usize> =
+    Projection<T, <<P as Piece<D, N>>::Facet<T> as Facet<T, D, N>>::Local, D, N>;
+
+/// A secondary node projected on a piece: the node's owner copy, the piece's
+/// owner copies, and the projection (what contact and tie rows share).
+type Projected<T, P, const D: usize, const N: usize> = (
     (usize, usize),
-    [(usize, usize); 2],
-    Projection<T, [T; 1], 2, 2>,
+    [(usize, usize); N],
+    PieceProjection<T, P, D, N>,
 );
 
-fn edge_projection<T: Scalar>(
+fn piece_projection<T: Scalar, P: Piece<D, N>, const D: usize, const N: usize>(
     problem: &Problem,
     body: usize,
     node: usize,
-    edge: &FaceEdge,
-    pos: &[impl AsRef<[[T; 2]]>],
-) -> EdgeProjection<T> {
-    let seg = edge.segment(pos);
+    piece: &P,
+    pos: &[impl AsRef<[[T; D]]>],
+) -> Projected<T, P, D, N> {
+    let facet = piece.facet(pos);
     let p = pos[body].as_ref()[node];
-    let pr = project(&seg, &p, seg.project(&p));
-    let facet = [
-        owner(problem, edge.body, edge.a),
-        owner(problem, edge.body, edge.b),
-    ];
-    (owner(problem, body, node), facet, pr)
+    let pr = project(&facet, &p, facet.project(&p));
+    let owners = piece.nodes().map(|n| owner(problem, piece.body(), n));
+    (owner(problem, body, node), owners, pr)
 }
 
-/// The contact row of secondary node `node` of `body` over a face edge, at node
+/// The contact row of secondary node `node` of `body` over a piece, at node
 /// positions `pos`: the un-normalized entries (`c` is the projection's gap).
-pub fn edge_contact_row<T: Scalar>(
+pub fn contact_row<T: Scalar, P: Piece<D, N>, const D: usize, const N: usize>(
     problem: &Problem,
     body: usize,
     node: usize,
-    edge: &FaceEdge,
-    pos: &[impl AsRef<[[T; 2]]>],
+    piece: &P,
+    pos: &[impl AsRef<[[T; D]]>],
     pattern: Pattern,
-) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
-    let (secondary, facet, pr) = edge_projection(problem, body, node, edge, pos);
+) -> (Vec<Entry<T>>, PieceProjection<T, P, D, N>) {
+    let (secondary, facet, pr) = piece_projection(problem, body, node, piece, pos);
     let e = contact_entries(secondary, &facet, &pr.weights, &pr.normal, pattern);
     (e, pr)
 }
 
-/// The tie row of component `comp` of node `node` of `body` over a face edge.
-pub fn edge_tie_row<T: Scalar>(
+/// The tie row of component `comp` of node `node` of `body` over a piece.
+pub fn tie_row<T: Scalar, P: Piece<D, N>, const D: usize, const N: usize>(
     problem: &Problem,
     body: usize,
     node: usize,
     comp: usize,
-    edge: &FaceEdge,
-    pos: &[impl AsRef<[[T; 2]]>],
+    piece: &P,
+    pos: &[impl AsRef<[[T; D]]>],
     pattern: Pattern,
-) -> (Vec<Entry<T>>, Projection<T, [T; 1], 2, 2>) {
-    let (secondary, facet, pr) = edge_projection(problem, body, node, edge, pos);
-    let e = tie_entries::<T, 2>(secondary, comp, &facet, &pr.weights, pattern);
+) -> (Vec<Entry<T>>, PieceProjection<T, P, D, N>) {
+    let (secondary, facet, pr) = piece_projection(problem, body, node, piece, pos);
+    let e = tie_entries::<T, D>(secondary, comp, &facet, &pr.weights, pattern);
     (e, pr)
 }
 
 /// The obstacle row `-n^T u_p` of a secondary node with outward normal `n`.
-pub fn obstacle_row<T: Scalar>(
+pub fn obstacle_row<T: Scalar, const D: usize>(
     problem: &Problem,
     body: usize,
     node: usize,
-    normal: &[T; 2],
+    normal: &[T; D],
 ) -> Vec<Entry<T>> {
     contact_entries(
         owner(problem, body, node),
@@ -344,97 +444,125 @@ impl<T: Scalar, const D: usize> ObstacleShape<T, D> {
     }
 }
 
-/// Tributary area of each node of some face edges: its share of their length,
-/// times the thickness.
-pub fn tributary_areas<T: Scalar>(
-    edges: &[FaceEdge],
-    pos: &[impl AsRef<[[T; 2]]>],
+/// Tributary area of each node of some pieces: its share of their measure
+/// (times the thickness in 2D).
+pub fn tributary_areas<T: Scalar, P: Piece<D, N>, const D: usize, const N: usize>(
+    pieces: &[P],
+    pos: &[impl AsRef<[[T; D]]>],
     thickness: f64,
 ) -> HashMap<usize, T> {
     let mut t: HashMap<usize, T> = HashMap::new();
-    for e in edges {
-        let share = e.segment(pos).tributary();
-        *t.entry(e.a).or_insert(T::from(0.0)) += share[0];
-        *t.entry(e.b).or_insert(T::from(0.0)) += share[1];
+    for p in pieces {
+        let share = p.facet(pos).tributary();
+        for (n, s) in p.nodes().into_iter().zip(share) {
+            *t.entry(n).or_insert(T::from(0.0)) += s;
+        }
     }
-    t.values_mut().for_each(|v| *v *= thickness);
+    if D == 2 {
+        t.values_mut().for_each(|v| *v *= thickness);
+    }
     t
 }
 
-/// A traction or a pressure (along the inward normal) with the face edges it
-/// acts on, selected at the design.
-pub(crate) struct EdgeLoad<'s> {
+/// A traction or a pressure (along the inward normal) with the pieces it acts
+/// on, selected at the design.
+pub(crate) struct FaceLoad<'s, P, const D: usize> {
     pub sel: &'s Selection,
-    pub traction: [f64; 2],
+    pub traction: [f64; D],
     pub pressure: f64,
-    pub edges: Vec<FaceEdge>,
+    pub pieces: Vec<P>,
 }
 
-/// The scene's tractions and pressures in order, each with its selected edges
+/// The scene's tractions and pressures in order, each with its selected pieces
 /// (empty where the selection keeps none: lowering refuses that).
-pub(crate) fn edge_loads<'s>(
+pub(crate) fn face_loads<'s, P: Piece<D, N>, const D: usize, const N: usize>(
     scene: &'s Scene,
     problem: &Problem,
     design: &[f64],
-) -> Vec<EdgeLoad<'s>> {
+) -> Vec<FaceLoad<'s, P, D>> {
     scene
         .conditions
         .iter()
         .filter_map(|cond| {
             let (sel, traction, pressure) = match cond {
-                Condition::Traction { sel, value } => (sel, [value[0], value[1]], 0.0),
-                Condition::Pressure { sel, value } => (sel, [0.0, 0.0], *value),
+                Condition::Traction { sel, value } => (
+                    sel,
+                    std::array::from_fn(|a| value.get(a).copied().unwrap_or(0.0)),
+                    0.0,
+                ),
+                Condition::Pressure { sel, value } => (sel, [0.0; D], *value),
                 _ => return None,
             };
-            Some(EdgeLoad {
+            Some(FaceLoad {
                 sel,
                 traction,
                 pressure,
-                edges: selected_edges(problem, sel, design),
+                pieces: selected_pieces(problem, sel, design),
             })
         })
         .collect()
 }
 
-/// Consistent nodal loads per subdomain at node positions `pos`: edge loads on
-/// the nodes' owner copies, then gravity element by element. The order of the
-/// sums is fixed, so the same positions give the same bits.
-pub(crate) fn nodal_loads<T: Scalar>(
+/// Consistent nodal loads per subdomain at node positions `pos`: face loads on
+/// the nodes' owner copies, then gravity element by element (per unit
+/// thickness times the thickness in 2D). The order of the sums is fixed, so the
+/// same positions give the same bits.
+pub(crate) fn nodal_loads<T: Scalar, P: Piece<D, N>, const D: usize, const N: usize>(
     scene: &Scene,
     problem: &Problem,
-    loads: &[EdgeLoad],
-    pos: &[impl AsRef<[[T; 2]]>],
+    loads: &[FaceLoad<P, D>],
+    pos: &[impl AsRef<[[T; D]]>],
 ) -> Vec<Vec<T>> {
+    let thickness = if D == 2 { scene.thickness } else { 1.0 };
     let mut f: Vec<Vec<T>> = problem
         .subdomains
         .iter()
         .map(|s| vec![T::from(0.0); s.f.len()])
         .collect();
     for load in loads {
-        for e in &load.edges {
-            let forces = e.segment(pos).uniform_load(load.traction, load.pressure);
-            for (node, force) in [e.a, e.b].into_iter().zip(forces) {
-                if let Some(&(sub, local)) = problem.bodies[e.body].copies(node).first() {
-                    for a in 0..2 {
-                        f[sub][2 * local + a] += force[a] * scene.thickness;
+        for p in &load.pieces {
+            let forces = p.facet(pos).uniform_load(load.traction, load.pressure);
+            for (node, force) in p.nodes().into_iter().zip(forces) {
+                if let Some(&(sub, local)) = problem.bodies[p.body()].copies(node).first() {
+                    for a in 0..D {
+                        f[sub][D * local + a] += force[a] * thickness;
                     }
                 }
             }
         }
     }
-    if let Some(g) = &scene.gravity {
-        for (s, m) in problem.subdomains.iter().enumerate() {
-            let rho = scene.materials[scene.bodies[m.body].material]
-                .density
-                .unwrap_or(0.0);
-            let x = pos[m.body].as_ref();
-            for e in &m.elements {
-                let xe: [[T; 2]; 4] = std::array::from_fn(|k| x[m.grid[e[k]]]);
-                for (n, det) in quad_gauss(&xe) {
-                    for k in 0..4 {
-                        for a in 0..2 {
-                            f[s][2 * e[k] + a] += det * (rho * g[a] * n[k]) * m.thickness;
-                        }
+    let Some(g) = &scene.gravity else {
+        return f;
+    };
+    for (s, m) in problem.subdomains.iter().enumerate() {
+        let rho = scene.materials[scene.bodies[m.body].material]
+            .density
+            .unwrap_or(0.0);
+        let x = pos[m.body].as_ref();
+        for e in m.element_nodes() {
+            let gauss: Vec<(Vec<f64>, T)> = if D == 2 {
+                let xe: [[T; 2]; 4] = std::array::from_fn(|k| {
+                    let p = x[m.grid[e[k]]];
+                    [p[0], p[1]]
+                });
+                quad_gauss(&xe)
+                    .into_iter()
+                    .map(|(n, det)| (n.to_vec(), det))
+                    .collect()
+            } else {
+                let xe: [[T; 3]; 8] = std::array::from_fn(|k| {
+                    let p = x[m.grid[e[k]]];
+                    [p[0], p[1], p[2]]
+                });
+                hex_gauss(&xe)
+                    .into_iter()
+                    .map(|(n, det)| (n.to_vec(), det))
+                    .collect()
+            };
+            for (n, det) in gauss {
+                for (k, nk) in n.iter().enumerate() {
+                    for a in 0..D {
+                        f[s][D * e[k] + a] += det * (rho * g[a] * nk) * thickness;
                     }
                 }
             }
@@ -576,7 +704,7 @@ mod tests {
         // |(3, 4)| = 5: n = (0.6, 0.8), gap = 5 - 2.
         assert!(close(n[0], 0.6) && close(n[1], 0.8) && close(gap, 3.0));
         assert!(ball.normal_gap(&[1.0, 1.0]).is_none());
-        let e = obstacle_row::<f64>(&one_body_problem().1, 0, 0, &n);
+        let e = obstacle_row(&one_body_problem().1, 0, 0, &n);
         assert_entries(&e, &[(0, 0, -0.6), (0, 1, -0.8)]);
     }
 
@@ -675,8 +803,8 @@ fix b.bottom
     #[test]
     fn pressure_on_a_tilted_face_is_p_times_length_times_thickness_inward() {
         let (scene, problem) = one_body_problem();
-        let loads = edge_loads(&scene, &problem, &[]);
-        let f = nodal_loads(&scene, &problem, &loads, &coords(&problem));
+        let loads = face_loads::<FaceEdge, 2, 2>(&scene, &problem, &[]);
+        let f = nodal_loads(&scene, &problem, &loads, &coords::<2>(&problem));
         // Outward normal (-1, 2) / sqrt(5): the resultant is 3 * sqrt(5) * 0.5
         // along (1, -2) / sqrt(5), i.e. (1.5, -3).
         let r = resultant(&f);
@@ -700,7 +828,7 @@ fix b.bottom
     #[test]
     fn gravity_is_rho_g_area_thickness() {
         let (scene, problem) = one_body_problem_with("gravity = (1, -9.81)");
-        let f = nodal_loads(&scene, &problem, &[], &coords(&problem));
+        let f = nodal_loads::<f64, FaceEdge, 2, 2>(&scene, &problem, &[], &coords::<2>(&problem));
         let r = resultant(&f);
         // 2 kg/m^3 * 3 m^2 * 0.5 m.
         assert!(close(r[0], 3.0) && close(r[1], -3.0 * 9.81), "{r:?}");
@@ -717,7 +845,7 @@ fix b.bottom
         assert!(edges
             .iter()
             .all(|e| e.orientation == Orientation::Clockwise));
-        let areas = tributary_areas(&edges, &coords(&problem), 0.5);
+        let areas = tributary_areas(&edges, &coords::<2>(&problem), 0.5);
         let edge = 5f64.sqrt() / 4.0;
         let top = problem.bodies[0].face_nodes(Face::Top);
         for (k, node) in top.iter().enumerate() {
@@ -733,10 +861,10 @@ fix b.bottom
         let (scene, problem) = one_body_problem_with(
             "pressure b.top = 3\ntraction b.right = (1, 2)\ngravity = (1, -9.81)",
         );
-        let loads = edge_loads(&scene, &problem, &[]);
+        let loads = face_loads::<FaceEdge, 2, 2>(&scene, &problem, &[]);
         let top = problem.bodies[0].face_nodes(Face::Top);
-        let edges = &loads[0].edges;
-        let base: Vec<Vec<[f64; 2]>> = problem.bodies.iter().map(|b| b.coords.clone()).collect();
+        let edges = &loads[0].pieces;
+        let base: Vec<Vec<[f64; 2]>> = coords::<2>(&problem);
         assert_eq!(node_positions::<f64>(&scene, &[]), base);
         let values = |f: Vec<Vec<f64>>, a: HashMap<usize, f64>| -> Vec<f64> {
             let mut v: Vec<f64> = f.concat();

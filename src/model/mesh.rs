@@ -5,36 +5,28 @@ use super::LowerError;
 use crate::fem::Element;
 use crate::lang::scene::Scene;
 
-/// One body's structured grid: `(nx + 1) x (ny + 1)` nodes, node `(i, j)` at
-/// index `j * (nx + 1) + i`, placed by the column-morphing rule.
+/// One body's structured grid, nodes placed by the column-morphing rule and
+/// numbered as [`Grid::node`] says (`j (nx + 1) + i` in 2D).
 #[derive(Debug, Clone)]
 pub struct BodyMesh {
     pub name: String,
-    pub nx: usize,
-    pub ny: usize,
-    /// Subdomain cuts along x and y.
-    pub sx: usize,
-    pub sy: usize,
     /// Global index of this body's first subdomain.
     pub first_subdomain: usize,
     /// The index arithmetic of the grid and its blocks (2D and 3D).
     pub grid: Grid,
-    pub coords: Vec<[f64; 2]>,
+    /// Node positions; `z = 0` in 2D.
+    pub coords: Vec<[f64; 3]>,
 }
 
 impl BodyMesh {
-    pub fn node(&self, i: usize, j: usize) -> usize {
-        j * (self.nx + 1) + i
+    /// 2 or 3.
+    pub fn dim(&self) -> usize {
+        self.grid.dim
     }
 
-    /// Grid position of a node index.
-    pub fn ij(&self, node: usize) -> (usize, usize) {
-        (node % (self.nx + 1), node / (self.nx + 1))
-    }
-
-    /// Elements per subdomain along x and y.
-    pub fn h(&self) -> (usize, usize) {
-        (self.nx / self.sx, self.ny / self.sy)
+    /// Subdomains of this body: `first_subdomain ..` this many.
+    pub fn subdomains(&self) -> usize {
+        self.grid.blocks()
     }
 
     /// Every copy of a grid node: (global subdomain, local node), the first one is
@@ -47,11 +39,11 @@ impl BodyMesh {
             .collect()
     }
 
-    /// Lower and upper corners of the body's nodes.
-    pub fn bounding_box(&self) -> ([f64; 2], [f64; 2]) {
-        let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    /// Lower and upper corners of the body's nodes (`z` is 0 in 2D).
+    pub fn bounding_box(&self) -> ([f64; 3], [f64; 3]) {
+        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
         for c in &self.coords {
-            for a in 0..2 {
+            for a in 0..3 {
                 lo[a] = lo[a].min(c[a]);
                 hi[a] = hi[a].max(c[a]);
             }
@@ -59,11 +51,22 @@ impl BodyMesh {
         (lo, hi)
     }
 
-    /// The grid node nearest to a point.
+    /// The length of the bounding box's diagonal.
+    pub fn diagonal(&self) -> f64 {
+        let (lo, hi) = self.bounding_box();
+        if self.dim() == 2 {
+            (hi[0] - lo[0]).hypot(hi[1] - lo[1])
+        } else {
+            (0..3).map(|a| (hi[a] - lo[a]).powi(2)).sum::<f64>().sqrt()
+        }
+    }
+
+    /// The grid node nearest to a point (missing coordinates are 0).
     pub fn nearest(&self, p: &[f64]) -> usize {
+        let at = |a: usize| p.get(a).copied().unwrap_or(0.0);
         let mut best = (f64::INFINITY, 0);
         for (k, c) in self.coords.iter().enumerate() {
-            let d = (c[0] - p[0]).powi(2) + (c[1] - p.get(1).copied().unwrap_or(0.0)).powi(2);
+            let d = (0..self.dim()).map(|a| (c[a] - at(a)).powi(2)).sum::<f64>();
             if d < best.0 {
                 best = (d, k);
             }
@@ -71,7 +74,8 @@ impl BodyMesh {
         best.1
     }
 
-    /// Grid nodes of a face (2D: left, right, bottom, top), in order along the face.
+    /// Grid nodes of a face, in order (2D: along the face; 3D: row-major over
+    /// the face's two axes).
     pub fn face_nodes(&self, face: crate::lang::scene::Face) -> Vec<usize> {
         self.grid.face_nodes(face)
     }
@@ -81,23 +85,47 @@ impl BodyMesh {
 #[derive(Debug, Clone)]
 pub struct SubdomainMesh {
     pub body: usize,
-    /// Block position among the body's cuts.
-    pub block: (usize, usize),
+    /// Block position among the body's cuts (`z` is 0 in 2D).
+    pub block: [usize; 3],
     /// The element type of every element.
     pub element: Element,
-    /// Corner nodes of the block (local), counter-clockwise from the first:
-    /// far-apart nodes for fixing the kernel.
+    /// Far-apart local nodes for fixing the kernel.
     pub corners: Vec<usize>,
-    /// Local nodes, `(hx + 1) x (hy + 1)`, and their body grid node.
-    pub coords: Vec<[f64; 2]>,
+    /// Local node positions, `dim` coordinates each, flat.
+    pub coords: Vec<f64>,
+    /// The body grid node of each local node.
     pub grid: Vec<usize>,
-    /// Elements as local node indices, counter-clockwise.
-    pub elements: Vec<[usize; 4]>,
+    /// Elements as local node indices, `element.nodes()` each, flat
+    /// (quadrilaterals counter-clockwise; hexahedra bottom then top face).
+    pub elements: Vec<usize>,
     pub young: f64,
     pub poisson: f64,
     pub thickness: f64,
-    /// Nodal loads, interleaved (`2 * nodes`).
+    /// Nodal loads, interleaved (`dim * nodes`).
     pub f: Vec<f64>,
+}
+
+impl SubdomainMesh {
+    /// 2 or 3.
+    pub fn dim(&self) -> usize {
+        self.element.dim()
+    }
+
+    /// Local nodes.
+    pub fn nodes(&self) -> usize {
+        self.grid.len()
+    }
+
+    /// Position of local node `k` (`z = 0` in 2D).
+    pub fn point(&self, k: usize) -> [f64; 3] {
+        let d = self.dim();
+        std::array::from_fn(|a| if a < d { self.coords[d * k + a] } else { 0.0 })
+    }
+
+    /// The elements, as local node indices.
+    pub fn element_nodes(&self) -> std::slice::ChunksExact<'_, usize> {
+        self.elements.chunks_exact(self.element.nodes())
+    }
 }
 
 /// Builds every body's grid and its subdomains at the given design.
@@ -108,56 +136,58 @@ pub fn build(
     let mut bodies = Vec::new();
     let mut subs = Vec::new();
     for body in &scene.bodies {
-        let (nx, ny) = (body.mesh[0], body.mesh[1]);
-        let (sx, sy) = (body.subdomains[0], body.subdomains[1]);
-        let mut coords = Vec::with_capacity((nx + 1) * (ny + 1));
-        for j in 0..=ny {
-            for i in 0..=nx {
-                let c = body.node([i, j, 0], design);
-                if !c[0].is_finite() || !c[1].is_finite() {
-                    return Err(LowerError::Geometry(format!(
-                        "node ({i}, {j}) of body `{}` has no finite position at this design",
-                        body.name
-                    )));
-                }
-                coords.push([c[0], c[1]]);
+        let grid = Grid::new(&body.mesh, &body.subdomains);
+        let dim = grid.dim;
+        let mut coords = Vec::with_capacity(grid.nodes());
+        for node in 0..grid.nodes() {
+            let ijk = grid.ijk(node);
+            let c = body.node(ijk, design);
+            if !c[..dim].iter().all(|v| v.is_finite()) {
+                let at: Vec<String> = ijk[..dim].iter().map(|v| v.to_string()).collect();
+                return Err(LowerError::Geometry(format!(
+                    "node ({}) of body `{}` has no finite position at this design",
+                    at.join(", "),
+                    body.name
+                )));
             }
+            coords.push(if dim == 2 { [c[0], c[1], 0.0] } else { c });
         }
         let mesh = BodyMesh {
             name: body.name.clone(),
-            nx,
-            ny,
-            sx,
-            sy,
             first_subdomain: subs.len(),
-            grid: Grid::new(&[nx, ny], &[sx, sy]),
+            grid,
             coords,
         };
         let material = &scene.materials[body.material];
-        let g = mesh.grid;
-        let elements: Vec<[usize; 4]> = g
-            .block_elements()
-            .chunks_exact(4)
-            .map(|e| [e[0], e[1], e[2], e[3]])
-            .collect();
-        for by in 0..sy {
-            for bx in 0..sx {
-                let grid = g.nodes_of_block([bx, by, 0]);
-                let coords = grid.iter().map(|&g| mesh.coords[g]).collect();
-                let n = grid.len();
-                subs.push(SubdomainMesh {
-                    body: bodies.len(),
-                    block: (bx, by),
-                    element: Element::Quad4,
-                    corners: g.block_corners(),
-                    coords,
-                    grid,
-                    elements: elements.clone(),
-                    young: material.young,
-                    poisson: material.poisson,
-                    thickness: scene.thickness,
-                    f: vec![0.0; 2 * n],
-                });
+        let element = if dim == 2 {
+            Element::Quad4
+        } else {
+            Element::Hex8
+        };
+        let elements = grid.block_elements();
+        for bz in 0..grid.s[2] {
+            for by in 0..grid.s[1] {
+                for bx in 0..grid.s[0] {
+                    let nodes = grid.nodes_of_block([bx, by, bz]);
+                    let coords = nodes
+                        .iter()
+                        .flat_map(|&g| mesh.coords[g][..dim].to_vec())
+                        .collect();
+                    let n = nodes.len();
+                    subs.push(SubdomainMesh {
+                        body: bodies.len(),
+                        block: [bx, by, bz],
+                        element,
+                        corners: grid.block_corners(),
+                        coords,
+                        grid: nodes,
+                        elements: elements.clone(),
+                        young: material.young,
+                        poisson: material.poisson,
+                        thickness: scene.thickness,
+                        f: vec![0.0; dim * n],
+                    });
+                }
             }
         }
         bodies.push(mesh);

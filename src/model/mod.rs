@@ -12,7 +12,7 @@ mod loads;
 mod mesh;
 mod rows;
 
-pub use geometry::FaceEdge;
+pub use geometry::{FaceEdge, FaceQuad};
 pub use mesh::{BodyMesh, SubdomainMesh};
 pub use rows::{ContactPrimary, Row, RowKind};
 
@@ -31,15 +31,25 @@ pub struct Problem {
     pub n_equality: usize,
     /// Probes: body, grid node nearest to the point.
     pub probes: Vec<(usize, usize)>,
+    /// Contacts whose bodies start inside each other (beyond round-off).
+    pub penetrations: Vec<Penetration>,
+}
+
+/// The deepest initial overlap of one contact: its secondary node lies `depth`
+/// behind the primary side. A modelling error at the scene's own design (the
+/// solver would push the bodies apart); a design perturbation may cause it too.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Penetration {
+    pub contact: usize,
+    pub depth: f64,
+    /// Where the secondary node is (`z = 0` in 2D).
+    pub at: [f64; 3],
 }
 
 impl Problem {
     /// Primal unknowns over all subdomains.
     pub fn primal_dofs(&self) -> usize {
-        self.subdomains
-            .iter()
-            .map(|s| s.coords.len() * self.dim)
-            .sum()
+        self.subdomains.iter().map(|s| s.nodes() * self.dim).sum()
     }
 
     /// Rows by kind, for summaries: (gluing, dirichlet, symmetry, ties, contact).
@@ -110,19 +120,18 @@ impl std::error::Error for LowerError {}
 
 /// Lowers a checked scene at the given design.
 pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
-    if scene.dim != Dimension::Two {
-        return Err(LowerError::Unsupported(
-            "solving 3D scenes is not implemented yet (2D first; 3D hexahedra come next)".into(),
-        ));
-    }
     let (bodies, subdomains) = mesh::build(scene, design)?;
     let mut problem = Problem {
-        dim: 2,
+        dim: match scene.dim {
+            Dimension::Two => 2,
+            Dimension::Three => 3,
+        },
         bodies,
         subdomains,
         rows: Vec::new(),
         n_equality: 0,
         probes: Vec::new(),
+        penetrations: Vec::new(),
     };
     loads::apply(scene, &mut problem, design)?;
     rows::build(scene, &mut problem, design)?;

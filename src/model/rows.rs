@@ -1,14 +1,15 @@
 //! The rows of `B u = c` and `B u <= c`: gluing of subdomain copies, supports,
-//! glue ties and frictionless node-to-segment contact. Every row is normalized
+//! glue ties and frictionless node-to-facet contact (node-to-segment in 2D,
+//! node-to-face in 3D, written once over [`Piece`]s). Every row is normalized
 //! (`||B_i|| = 1`) and keeps its scale, so multipliers convert back to forces.
 
 use super::geometry::{
-    coords, edge_contact_row, edge_tie_row, normalize, obstacle_row, owner, project,
-    selected_edges, selected_nodes, tributary_areas, FaceEdge, ObstacleShape, Pattern,
+    contact_row, coords, normalize, obstacle_row, owner, project, selected_nodes, selected_pieces,
+    tie_row, tributary_areas, FaceEdge, FaceQuad, ObstacleShape, Pattern, Piece,
 };
-use super::{LowerError, Problem};
+use super::{LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
-use crate::lang::scene::{Condition, Face, Primary, Scene, Selection};
+use crate::lang::scene::{Condition, Primary, Scene, Selection};
 use crate::num::{norm, sub};
 use std::collections::HashMap;
 
@@ -34,36 +35,59 @@ pub enum RowKind {
     /// Zero normal displacement.
     Symmetry,
     /// A `glue` item's tie: component `comp` of secondary node `node` of `body`
-    /// follows the primary face edge `segment`.
+    /// follows the primary face's facet `facet` (never an obstacle).
     Tie {
         glue: usize,
         body: usize,
         node: usize,
         comp: usize,
-        segment: FaceEdge,
+        facet: ContactPrimary,
     },
     /// Non-penetration of one secondary node.
     Contact {
         contact: usize,
         body: usize,
         node: usize,
-        /// Tributary area of the node on the secondary face (length x thickness).
+        /// Tributary area of the node on the secondary face (length x thickness
+        /// in 2D).
         area: f64,
-        /// Outward normal of the primary side at the projection (points to the secondary).
-        normal: [f64; 2],
+        /// Outward normal of the primary side at the projection (points to the
+        /// secondary; `z = 0` in 2D).
+        normal: [f64; 3],
         /// Initial gap (unnormalized).
         gap: f64,
-        /// The primary side: a face edge, or an obstacle.
+        /// The primary side: a facet of a face, or an obstacle.
         primary: ContactPrimary,
     },
 }
 
-/// What a contact row's secondary node touches. The edge keeps its orientation,
-/// so the state and its derivatives take the normal from the same rule.
+/// What a contact row's secondary node touches. The facet keeps its
+/// orientation, so the state and its derivatives take the normal from the
+/// same rule.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ContactPrimary {
+    /// A face edge (2D).
     Segment(FaceEdge),
+    /// A face quadrilateral (3D).
+    Quad(FaceQuad),
     Obstacle(usize),
+}
+
+/// How a piece is named in a row's kind.
+trait Named {
+    fn named(self) -> ContactPrimary;
+}
+
+impl Named for FaceEdge {
+    fn named(self) -> ContactPrimary {
+        ContactPrimary::Segment(self)
+    }
+}
+
+impl Named for FaceQuad {
+    fn named(self) -> ContactPrimary {
+        ContactPrimary::Quad(self)
+    }
 }
 
 fn push(rows: &mut Vec<Row>, entries: Vec<(usize, usize, f64)>, c: f64, kind: RowKind) {
@@ -82,25 +106,42 @@ pub fn build(scene: &Scene, problem: &mut Problem, design: &[f64]) -> Result<(),
     let mut rows = Vec::new();
     gluing(problem, &mut rows);
     supports(scene, problem, design, &mut rows)?;
-    ties(scene, problem, design, &mut rows)?;
-    problem.n_equality = rows.len();
-    contacts(scene, problem, design, &mut rows)?;
+    if problem.dim == 2 {
+        by_pieces::<FaceEdge, 2, 2>(scene, problem, design, &mut rows)?;
+    } else {
+        by_pieces::<FaceQuad, 3, 4>(scene, problem, design, &mut rows)?;
+    }
     problem.rows = rows;
     Ok(())
 }
 
+/// Ties, then contact rows, over the pieces of the problem's dimension.
+fn by_pieces<P: Piece<D, N> + Named, const D: usize, const N: usize>(
+    scene: &Scene,
+    problem: &mut Problem,
+    design: &[f64],
+    rows: &mut Vec<Row>,
+) -> Result<(), LowerError> {
+    let pos = coords::<D>(problem);
+    ties::<P, D, N>(scene, problem, design, &pos, rows)?;
+    problem.n_equality = rows.len();
+    problem.penetrations = contacts::<P, D, N>(scene, problem, design, &pos, rows)?;
+    Ok(())
+}
+
 /// Copies of a node in neighbouring subdomains: a chain of rows per component
-/// (non-redundant where four subdomains meet).
+/// (non-redundant where four or eight subdomains meet).
 fn gluing(problem: &Problem, rows: &mut Vec<Row>) {
+    let d = problem.dim;
     for body in &problem.bodies {
         for node in 0..body.coords.len() {
             let copies = body.copies(node);
             for w in copies.windows(2) {
                 let ((s, l), (t, m)) = (w[0], w[1]);
-                for a in 0..2 {
+                for a in 0..d {
                     push(
                         rows,
-                        vec![(s, 2 * l + a, 1.0), (t, 2 * m + a, -1.0)],
+                        vec![(s, d * l + a, 1.0), (t, d * m + a, -1.0)],
                         0.0,
                         RowKind::Gluing,
                     );
@@ -135,6 +176,7 @@ fn supports(
     design: &[f64],
     rows: &mut Vec<Row>,
 ) -> Result<(), LowerError> {
+    let d = problem.dim;
     let mut done: HashMap<(usize, usize, usize), f64> = HashMap::new();
     for cond in &scene.conditions {
         let (sel, comps, kind): (&Selection, Vec<(usize, f64)>, RowKind) = match cond {
@@ -145,9 +187,8 @@ fn supports(
             ),
             Condition::Displace { sel, values } => (sel, values.clone(), RowKind::Dirichlet),
             Condition::Symmetry { sel } => {
-                let axis = match sel.face {
-                    Face::Left | Face::Right => 0,
-                    _ => 1,
+                let Some((axis, _)) = problem.bodies[sel.body].grid.face_axis(sel.face) else {
+                    continue;
                 };
                 (sel, vec![(axis, 0.0)], RowKind::Symmetry)
             }
@@ -159,11 +200,11 @@ fn supports(
                     Some(v) if *v == value => continue,
                     Some(v) => {
                         let c = problem.bodies[sel.body].coords[node];
+                        let at: Vec<String> = c[..d].iter().map(|x| x.to_string()).collect();
                         return Err(LowerError::Geometry(format!(
-                            "conflicting supports: component {} of the node at ({}, {}) of body `{}` is held at {} and at {}",
-                            ["ux", "uy"][comp],
-                            c[0],
-                            c[1],
+                            "conflicting supports: component {} of the node at ({}) of body `{}` is held at {} and at {}",
+                            ["ux", "uy", "uz"][comp.min(2)],
+                            at.join(", "),
                             problem.bodies[sel.body].name,
                             v,
                             value
@@ -173,64 +214,69 @@ fn supports(
                 }
                 done.insert((sel.body, node, comp), value);
                 let (s, l) = owner(problem, sel.body, node);
-                push(rows, vec![(s, 2 * l + comp, 1.0)], value, kind.clone());
+                push(rows, vec![(s, d * l + comp, 1.0)], value, kind.clone());
             }
         }
     }
     Ok(())
 }
 
-fn edges_or_error(
+fn pieces_or_error<P: Piece<D, N>, const D: usize, const N: usize>(
     problem: &Problem,
     sel: &Selection,
     design: &[f64],
-) -> Result<Vec<FaceEdge>, LowerError> {
-    non_empty(selected_edges(problem, sel, design), sel)
+) -> Result<Vec<P>, LowerError> {
+    non_empty(selected_pieces(problem, sel, design), sel)
 }
 
-/// The selected face edge nearest to `p` among those its projection falls on
-/// (within 1e-9 of an end), with the gap there; None when it falls on none.
-fn nearest_edge(pos: &[&[[f64; 2]]], edges: &[FaceEdge], p: [f64; 2]) -> Option<(FaceEdge, f64)> {
-    let mut best: Option<(f64, FaceEdge, f64)> = None;
-    for e in edges {
-        let seg = e.segment(pos);
-        let at = seg.project(&p);
-        if !seg.inside(at, 1e-9) {
+/// The selected piece nearest to `p` among those its projection falls on
+/// (within 1e-9 of the facet's boundary), with the gap there; None when it
+/// falls on none.
+fn nearest_piece<P: Piece<D, N>, const D: usize, const N: usize>(
+    pos: &[Vec<[f64; D]>],
+    pieces: &[P],
+    p: [f64; D],
+) -> Option<(P, f64)> {
+    let mut best: Option<(f64, P, f64)> = None;
+    for piece in pieces {
+        let facet = piece.facet(pos);
+        let at = facet.project(&p);
+        if !facet.inside(at, 1e-9) {
             continue;
         }
-        let pr = project(&seg, &p, at);
+        let pr = project(&facet, &p, at);
         let dist = norm(&sub(&p, &pr.point));
         if best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
-            best = Some((dist, *e, pr.gap));
+            best = Some((dist, *piece, pr.gap));
         }
     }
-    best.map(|(_, e, gap)| (e, gap))
+    best.map(|(_, piece, gap)| (piece, gap))
 }
 
 /// `glue` ties: each secondary node follows its projection on the primary face.
-fn ties(
+fn ties<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     scene: &Scene,
     problem: &Problem,
     design: &[f64],
+    pos: &[Vec<[f64; D]>],
     rows: &mut Vec<Row>,
 ) -> Result<(), LowerError> {
-    let pos = coords(problem);
     for (g, glue) in scene.glues.iter().enumerate() {
-        let edges = edges_or_error(problem, &glue.primary, design)?;
+        let pieces: Vec<P> = pieces_or_error(problem, &glue.primary, design)?;
         let body = glue.secondary.body;
         for node in nodes_or_error(problem, &glue.secondary, design)? {
             let p = pos[body][node];
-            let Some((edge, _)) = nearest_edge(&pos, &edges, p) else {
+            let Some((piece, _)) = nearest_piece(pos, &pieces, p) else {
                 continue;
             };
-            for comp in 0..2 {
-                let (e, _) = edge_tie_row(problem, body, node, comp, &edge, &pos, Pattern::Sparse);
+            for comp in 0..D {
+                let (e, _) = tie_row(problem, body, node, comp, &piece, pos, Pattern::Sparse);
                 let kind = RowKind::Tie {
                     glue: g,
                     body,
                     node,
                     comp,
-                    segment: edge,
+                    facet: piece.named(),
                 };
                 push(rows, e, 0.0, kind);
             }
@@ -242,46 +288,56 @@ fn ties(
 /// The default search distance: a tenth of the secondary body's diagonal.
 fn default_search(problem: &Problem, body: usize) -> f64 {
     let (lo, hi) = problem.bodies[body].bounding_box();
-    0.1 * ((hi[0] - lo[0]).powi(2) + (hi[1] - lo[1]).powi(2)).sqrt()
+    0.1 * (0..problem.dim)
+        .map(|a| (hi[a] - lo[a]).powi(2))
+        .sum::<f64>()
+        .sqrt()
 }
 
-/// Node-to-segment contact rows `n^T (sum_k N_k u_k - u_p) <= g`, and node-to-
+/// Node-to-facet contact rows `n^T (sum_k N_k u_k - u_p) <= g`, and node-to-
 /// obstacle rows `-n^T u_p <= g`, only for secondary nodes whose projection falls
-/// on the primary side within the search distance.
-fn contacts(
+/// on the primary side within the search distance. Returns the deepest initial
+/// overlap of each contact whose bodies start inside each other.
+fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     scene: &Scene,
     problem: &Problem,
     design: &[f64],
+    pos: &[Vec<[f64; D]>],
     rows: &mut Vec<Row>,
-) -> Result<(), LowerError> {
-    let pos = coords(problem);
+) -> Result<Vec<Penetration>, LowerError> {
+    let mut overlaps = Vec::new();
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
-        let areas = tributary_areas(&selected_edges(problem, sec, design), &pos, scene.thickness);
+        let secondary: Vec<P> = selected_pieces(problem, sec, design);
+        let areas = tributary_areas(&secondary, pos, scene.thickness);
         let search = contact
             .search
             .unwrap_or_else(|| default_search(problem, sec.body));
         let primary = match &contact.primary {
-            Primary::Face(p) => Side::Edges(edges_or_error(problem, p, design)?),
+            Primary::Face(p) => Side::Facets(pieces_or_error::<P, D, N>(problem, p, design)?),
             Primary::Obstacle(o) => {
                 Side::Obstacle(*o, ObstacleShape::at(&scene.obstacles[*o], design))
             }
         };
+        // Bodies that start inside each other are a modelling error, not a
+        // contact state: the deepest overlap beyond round-off is reported.
+        let tolerance = 1e-9 * problem.bodies[sec.body].diagonal();
+        let mut deepest: Option<(f64, [f64; 3])> = None;
         for node in nodes {
             let p = pos[sec.body][node];
             let area = areas.get(&node).copied().unwrap_or(0.0);
             let (e, normal, gap, primary) = match &primary {
-                Side::Edges(edges) => {
-                    let Some((edge, gap)) = nearest_edge(&pos, edges, p) else {
+                Side::Facets(pieces) => {
+                    let Some((piece, gap)) = nearest_piece(pos, pieces, p) else {
                         continue;
                     };
                     if gap.abs() > search {
                         continue;
                     }
                     let (e, pr) =
-                        edge_contact_row(problem, sec.body, node, &edge, &pos, Pattern::Sparse);
-                    (e, pr.normal, pr.gap, ContactPrimary::Segment(edge))
+                        contact_row(problem, sec.body, node, &piece, pos, Pattern::Sparse);
+                    (e, pr.normal, pr.gap, piece.named())
                 }
                 Side::Obstacle(o, shape) => {
                     let Some((n, gap)) = shape.normal_gap(&p) else {
@@ -298,23 +354,33 @@ fn contacts(
                     )
                 }
             };
+            if gap < -tolerance && deepest.is_none_or(|(d, _)| gap < d) {
+                deepest = Some((gap, problem.bodies[sec.body].coords[node]));
+            }
             let kind = RowKind::Contact {
                 contact: ci,
                 body: sec.body,
                 node,
                 area,
-                normal,
+                normal: std::array::from_fn(|a| if a < D { normal[a] } else { 0.0 }),
                 gap,
                 primary,
             };
             push(rows, e, gap, kind);
         }
+        if let Some((gap, at)) = deepest {
+            overlaps.push(Penetration {
+                contact: ci,
+                depth: -gap,
+                at,
+            });
+        }
     }
-    Ok(())
+    Ok(overlaps)
 }
 
 /// The primary side of a contact, as lowering searches it.
-enum Side {
-    Edges(Vec<FaceEdge>),
-    Obstacle(usize, ObstacleShape<f64, 2>),
+enum Side<P, const D: usize> {
+    Facets(Vec<P>),
+    Obstacle(usize, ObstacleShape<f64, D>),
 }

@@ -18,8 +18,8 @@ use crate::fem::quad::{plane_strain, quad_stiffness};
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Scene};
 use crate::model::geometry::{
-    edge_contact_row, edge_loads, edge_tie_row, nodal_loads, node_positions, normalize,
-    obstacle_row, selected_edges, tributary_areas, NormalRow, ObstacleShape, Pattern,
+    contact_row, face_loads, nodal_loads, node_positions, normalize, obstacle_row, selected_edges,
+    tie_row, tributary_areas, FaceEdge, NormalRow, ObstacleShape, Pattern,
 };
 use crate::model::{ContactPrimary, RowKind};
 use crate::qp::SmalbeSettings;
@@ -175,7 +175,7 @@ fn moving_rows(
                 let xp = &pos[*body][*node];
                 match primary {
                     ContactPrimary::Segment(edge) => {
-                        let (e, pr) = edge_contact_row(p, *body, *node, edge, pos, Pattern::Full);
+                        let (e, pr) = contact_row(p, *body, *node, edge, pos, Pattern::Full);
                         kinks += usize::from(at_kink(&edge.segment(pos), xp, pr.local));
                         normalize(e, pr.gap)
                     }
@@ -183,16 +183,18 @@ fn moving_rows(
                         let (n, gap) = obstacles[*o].normal_gap(xp)?;
                         normalize(obstacle_row(p, *body, *node, &n), gap)
                     }
+                    // 3D scenes are refused before any derivative is asked for.
+                    ContactPrimary::Quad(_) => None,
                 }
             }
             RowKind::Tie {
                 body,
                 node,
                 comp,
-                segment,
+                facet: ContactPrimary::Segment(segment),
                 ..
             } => {
-                let (e, pr) = edge_tie_row(p, *body, *node, *comp, segment, pos, Pattern::Full);
+                let (e, pr) = tie_row(p, *body, *node, *comp, segment, pos, Pattern::Full);
                 let xp = &pos[*body][*node];
                 kinks += usize::from(at_kink(&segment.segment(pos), xp, pr.local));
                 normalize(e, D::from(0.0))
@@ -211,7 +213,7 @@ fn load_derivative(
     design: &[f64],
 ) -> Vec<Vec<f64>> {
     let p = &state.problem;
-    let loads = edge_loads(scene, p, design);
+    let loads = face_loads::<FaceEdge, 2, 2>(scene, p, design);
     nodal_loads(scene, p, &loads, pos)
         .into_iter()
         .map(|f| f.iter().map(|v| v.eps).collect())
@@ -227,7 +229,7 @@ fn stiffness_derivative_times_u(state: &State, pos: &[Vec<[D; 2]>]) -> Vec<Vec<f
         .map(|(s, m)| {
             let mut out = vec![0.0; m.f.len()];
             let d = plane_strain(m.young, m.poisson);
-            for e in &m.elements {
+            for e in m.element_nodes() {
                 let x: [[D; 2]; 4] = std::array::from_fn(|k| pos[m.body][m.grid[e[k]]]);
                 if x.iter().all(|c| c[0].eps == 0.0 && c[1].eps == 0.0) {
                     continue;
@@ -262,6 +264,13 @@ pub struct Sensitivity<'a> {
 impl<'a> Sensitivity<'a> {
     /// Sets up the sensitivity dual on the state's factorizations.
     pub fn new(scene: &'a Scene, state: &'a State) -> Result<Self, SolveError> {
+        if state.problem.dim != 2 {
+            return Err(SolveError::Unsupported(
+                "semi-analytic and adjoint sensitivities of 3D scenes are not implemented yet; \
+                 use `--method finite_difference`"
+                    .into(),
+            ));
+        }
         let classes = classify(state);
         let mut kept: Vec<usize> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))

@@ -21,7 +21,8 @@ pub enum SolveError {
     Lower(LowerError),
     Subdomain {
         body: String,
-        block: (usize, usize),
+        /// Block position among the body's cuts (`z` is 0 in 2D).
+        block: [u32; 3],
         error: SubdomainError,
     },
     /// Rigid motions that no support, glue or contact holds.
@@ -40,7 +41,7 @@ pub enum SolveError {
     /// A body's load points where nothing can hold it (contacts only push).
     Unbalanced {
         body: String,
-        load: [f64; 2],
+        load: Vec<f64>,
         why: String,
     },
 }
@@ -51,7 +52,15 @@ impl fmt::Display for SolveError {
             SolveError::Unsupported(s) => write!(f, "{s}"),
             SolveError::Lower(e) => write!(f, "{e}"),
             SolveError::Subdomain { body, block, error } => {
-                write!(f, "subdomain ({}, {}) of body `{body}`: {error}", block.0, block.1)
+                if block[2] == 0 {
+                    write!(f, "subdomain ({}, {}) of body `{body}`: {error}", block[0], block[1])
+                } else {
+                    write!(
+                        f,
+                        "subdomain ({}, {}, {}) of body `{body}`: {error}",
+                        block[0], block[1], block[2]
+                    )
+                }
             }
             SolveError::FreeRigidModes(m) => write!(
                 f,
@@ -76,9 +85,11 @@ impl fmt::Display for SolveError {
             }
             SolveError::Unbalanced { body, load, why } => write!(
                 f,
-                "the load on body `{body}`, ({}, {}) N in all, cannot be carried: {why}",
-                crate::lang::diag::num(load[0]),
-                crate::lang::diag::num(load[1])
+                "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",
+                load.iter()
+                    .map(|x| crate::lang::diag::num(*x))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         }
     }

@@ -158,8 +158,8 @@ impl<'a> Geometry<'a> {
     pub fn of(mesh: &'a SubdomainMesh) -> Self {
         Geometry {
             element: mesh.element,
-            coords: mesh.coords.as_flattened(),
-            elements: mesh.elements.as_flattened(),
+            coords: &mesh.coords,
+            elements: &mesh.elements,
             corners: &mesh.corners,
             young: mesh.young,
             poisson: mesh.poisson,
@@ -454,20 +454,20 @@ pub(crate) mod tests {
             for i in 0..=hx {
                 let x = i as f64 / hx as f64;
                 let bottom = curvature * (x - 0.5).powi(2);
-                coords.push([x, bottom + (1.0 - bottom) * j as f64 / hy as f64]);
+                coords.extend([x, bottom + (1.0 - bottom) * j as f64 / hy as f64]);
             }
         }
         let mut elements = Vec::new();
         for j in 0..hy {
             for i in 0..hx {
                 let n = j * (hx + 1) + i;
-                elements.push([n, n + 1, n + hx + 2, n + hx + 1]);
+                elements.extend([n, n + 1, n + hx + 2, n + hx + 1]);
             }
         }
-        let n = coords.len();
+        let n = coords.len() / 2;
         SubdomainMesh {
             body: 0,
-            block: (0, 0),
+            block: [0; 3],
             element: crate::fem::Element::Quad4,
             corners: vec![0, hx, n - 1, n - 1 - hx],
             grid: (0..n).collect(),
