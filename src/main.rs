@@ -447,10 +447,15 @@ impl Check {
     /// Every file, in order; the worst exit code of them.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         let codes = self.files.iter().map(|file| match load(file, opts) {
-            Ok(scene) => {
-                outln!("{}", cso::io::summary::check_line(file, &scene));
-                0
-            }
+            // What lowering can tell without factorizing: overlaps, loads
+            // nothing can carry, supports against contacts.
+            Ok(scene) => match cso::state::precheck_scene(&scene) {
+                Ok(()) => {
+                    outln!("{}", cso::io::summary::check_line(file, &scene));
+                    0
+                }
+                Err(e) => fail(EXIT_SCENE, format!("{}: {e}", file.display())),
+            },
             Err(code) => code,
         });
         match codes.fold(0, u8::max) {

@@ -107,6 +107,59 @@ pub fn setup(scene: &Scene, design: &[f64]) -> Result<Setup, SolveError> {
     setup_reusing(scene, design, None)
 }
 
+/// What can be known about a lowered scene before anything is factorized:
+/// bodies that start inside each other (at the scene's own design only: a
+/// design perturbation may press them together, and the contact rows then
+/// push them apart), loads no support or contact can carry (force, then force
+/// and moment), and supports that hold a contact node inside what it touches.
+pub fn precheck(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), SolveError> {
+    if let Some(p) = problem.penetrations.first() {
+        if design == scene.design_init().as_slice() {
+            return Err(SolveError::Penetration {
+                contact: scene.contacts[p.contact].name.clone(),
+                depth: p.depth,
+                at: p.at[..problem.dim].to_vec(),
+            });
+        }
+    }
+    if let Some(u) = crate::model::balance::unbalanced_force(problem) {
+        return Err(SolveError::Unbalanced {
+            body: problem.bodies[u.body].name.clone(),
+            load: u.load,
+            why: u.why,
+        });
+    }
+    if let Some(u) = crate::model::balance::unbalanced_wrench(problem) {
+        let list = |v: &[f64]| -> String {
+            let parts: Vec<String> = v.iter().map(|x| crate::lang::diag::num(*x)).collect();
+            if parts.len() == 1 {
+                parts[0].clone()
+            } else {
+                format!("({})", parts.join(", "))
+            }
+        };
+        return Err(SolveError::Unbalanced {
+            body: problem.bodies[u.body].name.clone(),
+            load: u.force,
+            why: format!(
+                "with its moment, {} N m about ({}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
+                list(&u.moment),
+                list(&u.centre),
+                u.misfit
+            ),
+        });
+    }
+    Elimination::new(problem).check_held_contacts(problem)
+}
+
+/// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
+/// adds to the language checks; nothing is assembled or factorized).
+pub fn precheck_scene(scene: &Scene) -> Result<(), SolveError> {
+    let design = scene.design_init();
+    let problem = lower(scene, &design).map_err(SolveError::Lower)?;
+    precheck(scene, &design, &problem)
+}
+
 /// Factorizations of one set-up, for reports: subdomains whose symbolic
 /// factorization was computed, those refactored numerically (new values on a
 /// reused pattern included), and those reused whole (nodes did not move).
@@ -156,6 +209,7 @@ pub fn setup_reusing(
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
+    precheck(scene, design, &problem)?;
     let lower_time = t0.elapsed().as_secs_f64();
     let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
     let elimination = feti.then(|| Arc::new(Elimination::new(&problem)));
@@ -296,37 +350,6 @@ pub fn solve_reusing(
     let t0 = Instant::now();
     let mut times = Times::default();
     let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
-    if let Some(u) = crate::model::balance::unbalanced_force(&setup.problem) {
-        return Err(SolveError::Unbalanced {
-            body: setup.problem.bodies[u.body].name.clone(),
-            load: u.load,
-            why: u.why,
-        });
-    }
-    if let Some(u) = crate::model::balance::unbalanced_wrench(&setup.problem) {
-        let list = |v: &[f64]| -> String {
-            let parts: Vec<String> = v.iter().map(|x| crate::lang::diag::num(*x)).collect();
-            if parts.len() == 1 {
-                parts[0].clone()
-            } else {
-                format!("({})", parts.join(", "))
-            }
-        };
-        return Err(SolveError::Unbalanced {
-            body: setup.problem.bodies[u.body].name.clone(),
-            load: u.force,
-            why: format!(
-                "with its moment, {} N m about ({}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
-                list(&u.moment),
-                list(&u.centre),
-                u.misfit
-            ),
-        });
-    }
-    match &setup.elimination {
-        Some(e) => e.check_held_contacts(&setup.problem)?,
-        None => Elimination::new(&setup.problem).check_held_contacts(&setup.problem)?,
-    }
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 

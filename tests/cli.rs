@@ -407,3 +407,63 @@ fn progress_is_plain_lines_when_stderr_is_not_a_terminal_and_quiet_silences_it()
     assert_eq!(code, 0, "{err}");
     assert!(err.is_empty(), "{err}");
 }
+
+/// A copy of an example with text replaced, in the target folder.
+fn scene_replacing(example: &str, from: &str, to: &str, tag: &str) -> std::path::PathBuf {
+    let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
+    assert!(src.contains(from), "{example} has no `{from}`");
+    let path = std::env::temp_dir().join(format!("cso-cli-{tag}-{}.cso", std::process::id()));
+    std::fs::write(&path, src.replace(from, to)).expect("writable");
+    path
+}
+
+#[test]
+fn bodies_that_start_inside_each_other_are_refused_by_check_and_solve() {
+    // The punch's bottom 0.1 m below the base's top (issue 19 item 2).
+    let sunk = scene_replacing(
+        "semicoercive2d.cso",
+        "bottom = 1 +",
+        "bottom = 0.9 +",
+        "sunk",
+    );
+    let sunk = sunk.to_string_lossy().to_string();
+    for cmd in ["check", "solve"] {
+        let (code, _, err) = cso(&[cmd, &sunk]);
+        assert_eq!(code, 1, "{cmd}: {err}");
+        assert!(
+            err.contains("the bodies of contact `seat` start inside each other")
+                && err.contains("at (1.5, 0.9) lies 0.1 m behind the primary side"),
+            "{cmd}: {err}"
+        );
+    }
+    // A floor whose normal points away from the ball: every node is behind it.
+    let flipped = scene_replacing(
+        "hertz3d.cso",
+        "normal = (0, 0, 1)",
+        "normal = (0, 0, -1)",
+        "flipped",
+    );
+    let (code, _, err) = cso(&["check", &flipped.to_string_lossy()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("contact `seat` start inside each other") && err.contains("obstacle's normal"),
+        "{err}"
+    );
+}
+
+#[test]
+fn check_refuses_a_load_that_nothing_can_carry() {
+    // The floating punch pulled up, away from its only contact (issue 19 item 4).
+    let pulled = scene_replacing(
+        "semicoercive2d.cso",
+        "traction punch.top = (0, -5)",
+        "traction punch.top = (0, 5)",
+        "pulled",
+    );
+    let (code, _, err) = cso(&["check", &pulled.to_string_lossy()]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the load on body `punch`") && err.contains("cannot be carried"),
+        "{err}"
+    );
+}

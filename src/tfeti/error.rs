@@ -38,6 +38,13 @@ pub enum SolveError {
         /// How the dual solve stopped, when it did not converge.
         stopped: Option<String>,
     },
+    /// The bodies of a contact start inside each other: its deepest secondary
+    /// node lies `depth` behind the primary side, at `at`.
+    Penetration {
+        contact: String,
+        depth: f64,
+        at: Vec<f64>,
+    },
     /// A body's load points where nothing can hold it (contacts only push).
     Unbalanced {
         body: String,
@@ -83,6 +90,15 @@ impl fmt::Display for SolveError {
                 }
                 Ok(())
             }
+            SolveError::Penetration { contact, depth, at } => write!(
+                f,
+                "the bodies of contact `{contact}` start inside each other: its secondary node at ({}) lies {} m behind the primary side; move them apart, or check the primary face and the obstacle's normal (it must point towards the secondary body)",
+                at.iter()
+                    .map(|x| crate::lang::diag::num(*x))
+                    .collect::<Vec<_>>()
+                    .join(", "),
+                crate::lang::diag::num(*depth)
+            ),
             SolveError::Unbalanced { body, load, why } => write!(
                 f,
                 "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",
