@@ -49,7 +49,10 @@ pub struct Column {
 pub struct Comparison {
     pub scene: String,
     pub tolerance: f64,
+    /// The eps FETI ran with: the scene's, or raised where the scene's was too small.
     pub eps: f64,
+    /// Each eps FETI tried first and was refused as too small, with the message.
+    pub refused_eps: Vec<(f64, String)>,
     pub design: Vec<String>,
     pub feti: Result<Column, String>,
     pub tfeti: Result<Column, String>,
@@ -131,7 +134,21 @@ fn difference(a: &State, b: &State) -> f64 {
 /// Solves the scene by both methods and measures them.
 pub fn compare(scene: &Scene) -> Comparison {
     let tfeti = column(scene, SolverMethod::Tfeti);
-    let feti = column(scene, SolverMethod::Feti);
+    // An eps that accepts a zero pivot as genuine is raised by 100 (at most to
+    // 1e-4) so the table can be printed, and the refusals are reported: how far
+    // eps had to move is part of the comparison (TFETI needs none).
+    let mut feti_scene = scene.clone();
+    let mut refused_eps = Vec::new();
+    let feti = loop {
+        let run = column(&feti_scene, SolverMethod::Feti);
+        match &run {
+            Err(e) if e.contains("eps is too small") && feti_scene.solver.eps < 1e-4 => {
+                refused_eps.push((feti_scene.solver.eps, e.clone()));
+                feti_scene.solver.eps *= 100.0;
+            }
+            _ => break run,
+        }
+    };
     let difference = match (&feti, &tfeti) {
         (Ok((_, f)), Ok((_, t))) => Some(difference(f, t)),
         _ => None,
@@ -139,7 +156,8 @@ pub fn compare(scene: &Scene) -> Comparison {
     Comparison {
         scene: scene.name.clone(),
         tolerance: scene.solver.tolerance,
-        eps: scene.solver.eps,
+        eps: feti_scene.solver.eps,
+        refused_eps,
         design: scene.design.iter().map(|d| d.name.clone()).collect(),
         feti: feti.map(|(c, _)| c),
         tfeti: tfeti.map(|(c, _)| c),
@@ -186,6 +204,9 @@ impl Comparison {
             "Dual tolerance {:e}; FETI kernel detection eps = {:e}.\n",
             self.tolerance, self.eps
         );
+        for (eps, why) in &self.refused_eps {
+            let _ = writeln!(o, "FETI with eps = {eps:e} was refused: {why}\n");
+        }
         let (f, t) = match (&self.feti, &self.tfeti) {
             (Ok(f), Ok(t)) => (f, t),
             (f, t) => {
