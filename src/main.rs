@@ -168,9 +168,12 @@ struct Bench {
     /// Which benchmark.
     #[arg(value_enum)]
     which: Benchmark,
-    /// Elements per subdomain side, H/h (repeatable).
-    #[arg(long = "hh", default_values_t = [16, 32])]
+    /// Elements per subdomain side, H/h (repeatable; default 16 and 32 in 2D, 8 in 3D).
+    #[arg(long = "hh")]
     hh: Vec<usize>,
+    /// `scaling3d`: subdomains per side of the base cube (repeatable).
+    #[arg(long = "sides", default_values_t = [2, 3, 4, 6])]
+    sides: Vec<usize>,
     /// Largest cut of the base, `SXxSY`.
     #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
     max_cuts: (usize, usize),
@@ -680,6 +683,30 @@ impl Bench {
                     Ok(output::scaling_cells(&r.map_err(|e| e.to_string())?))
                 },
             ),
+            Benchmark::Scaling3d => {
+                let threads = pool.current_num_threads();
+                let title = format!("tolerance {tolerance:e}, 3D punch, base cut k x k x k");
+                outln!(
+                    "{}",
+                    output::cuts_header(threads, &title, &output::SCALING_COLUMNS)
+                );
+                let hhs = if self.hh.is_empty() {
+                    vec![8]
+                } else {
+                    self.hh.clone()
+                };
+                for &hh in &hhs {
+                    for &k in &self.sides {
+                        match bench::scaling_row_3d(k, hh, tolerance) {
+                            Ok(r) => {
+                                outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
+                            }
+                            Err(e) => errln!("error at {k}x{k}x{k}: {e}"),
+                        }
+                    }
+                }
+                Ok(())
+            }
             Benchmark::Compare => self.cuts_table(
                 pool.current_num_threads(),
                 &format!("tolerance {tolerance:e}; each cell FETI / TFETI"),
@@ -726,8 +753,13 @@ impl Bench {
     /// is reported and the table goes on.
     fn cuts_table(&self, threads: usize, title: &str, columns: &[&str], row: CutsRow) -> Outcome {
         outln!("{}", output::cuts_header(threads, title, columns));
+        let hhs = if self.hh.is_empty() {
+            vec![16, 32]
+        } else {
+            self.hh.clone()
+        };
         bench::over_cuts(
-            &self.hh,
+            &hhs,
             self.max_cuts,
             row,
             &mut |hh, (sx, sy), cells| match cells {

@@ -17,6 +17,8 @@ use serde::Serialize;
 #[value(rename_all = "snake_case")]
 pub enum Benchmark {
     Scaling,
+    /// The 3D punch on a base cut into `k x k x k` subdomains (`--sides`).
+    Scaling3d,
     Compare,
     Hard,
     Sensitivity,
@@ -97,6 +99,41 @@ pub fn scaled_scene(
     })
 }
 
+/// The 3D scaling scene: a unit-cube base cut `k x k x k`, a punch with a
+/// curved bottom on it cut `max(1, k/2)` each way (fixed below, its top pushed
+/// down), every subdomain `hh^3` hexahedra.
+pub fn scaled_punch_3d(k: usize, hh: usize, tolerance: f64) -> String {
+    let p = (k / 2).max(1);
+    format!(
+        "scene scaled3d {{ dim = 3 }}
+material soft {{ E = 1000, nu = 0.3 }}
+body base {{ material = soft, x = 0 .. 1, y = 0 .. 1, z = 0 .. 1, mesh = {n} x {n} x {n}, subdomains = {k} x {k} x {k} }}
+body punch {{ material = soft, x = 0.25 .. 0.75, y = 0.25 .. 0.75, z = 1 .. 1.5,
+  bottom = 1 + 0.1 * ((x - 0.5)^2 + (y - 0.5)^2),
+  mesh = {m} x {m} x {m}, subdomains = {p} x {p} x {p} }}
+fix base.bottom
+displace punch.top {{ ux = 0, uy = 0, uz = -0.01 }}
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+solver {{ tolerance = {tolerance:e}, max_iterations = 100000 }}
+",
+        n = k * hh,
+        m = p * hh,
+    )
+}
+
+/// One row of the 3D scaling table: the scene of [`scaled_punch_3d`].
+pub fn scaling_row_3d(k: usize, hh: usize, tolerance: f64) -> Result<ScalingRow, SolveError> {
+    let src = scaled_punch_3d(k, hh, tolerance);
+    let options = CheckOptions {
+        memory_limit: None,
+        ..CheckOptions::default()
+    };
+    let scene = compile(&src, &options).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    row_of(&scene, hh, (k, k))
+}
+
 /// One row of the scaling table.
 #[derive(Debug, Clone, Serialize)]
 pub struct ScalingRow {
@@ -133,7 +170,16 @@ pub fn scaling_row(
     tolerance: f64,
 ) -> Result<ScalingRow, SolveError> {
     let scene = scaled_scene(sx, sy, hh, tolerance)?;
-    let state = solve(&scene, &[], &mut |_| {})?;
+    row_of(&scene, hh, (sx, sy))
+}
+
+/// Solves a bench scene and measures it.
+fn row_of(
+    scene: &crate::lang::Scene,
+    hh: usize,
+    (sx, sy): (usize, usize),
+) -> Result<ScalingRow, SolveError> {
+    let state = solve(scene, &[], &mut |_| {})?;
     Ok(ScalingRow {
         hh,
         cuts: (sx, sy),
