@@ -542,6 +542,16 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         let svg = deformed_plot(scene, state, report, &fields)?;
         write_atomic(&dir.join("deformed.svg"), svg.as_bytes())?;
     }
+    if p.dim == 3 {
+        for (ci, c) in scene.contacts.iter().enumerate() {
+            if let Some(svg) = contact_map(scene, state, ci)? {
+                write_atomic(
+                    &dir.join(format!("contact_{}_map.svg", c.name)),
+                    svg.as_bytes(),
+                )?;
+            }
+        }
+    }
     for c in &report.contacts {
         // 2D: pressure along x. 3D: against the distance from the force's centre.
         let (xlabel, x): (&str, Vec<f64>) = match centre_of_force(c) {
@@ -579,6 +589,71 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
     }
     Ok(())
+}
+
+/// In 3D, a heat map of contact `ci`'s pressure over its secondary face, seen
+/// along the face's axis (each face quadrilateral coloured by the mean of its
+/// nodes' pressure); None where the face has no quadrilaterals.
+fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Option<String>> {
+    let p = &state.problem;
+    let sel = &scene.contacts[ci].secondary;
+    let body = &p.bodies[sel.body];
+    let quads: Vec<crate::model::FaceQuad> =
+        crate::model::geometry::selected_pieces(p, sel, &scene.design_init());
+    let Some((axis, _)) = body.grid.face_axis(sel.face) else {
+        return Ok(None);
+    };
+    if quads.is_empty() {
+        return Ok(None);
+    }
+    let mut pressure = std::collections::HashMap::new();
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact {
+            contact,
+            node,
+            area,
+            ..
+        } = row.kind
+        {
+            if contact == ci && area > 0.0 {
+                *pressure.entry(node).or_insert(0.0) += state.lambda[i] / row.scale / area;
+            }
+        }
+    }
+    let (a, b) = match axis {
+        0 => (1, 2),
+        1 => (0, 2),
+        _ => (0, 1),
+    };
+    let mut points = Vec::new();
+    let mut index = std::collections::HashMap::new();
+    let mut cells = Vec::new();
+    let mut values = Vec::new();
+    for q in &quads {
+        let cell = q.nodes.map(|n| {
+            *index.entry(n).or_insert_with(|| {
+                let x = body.coords[n];
+                points.push([x[a], x[b]]);
+                points.len() - 1
+            })
+        });
+        cells.push(cell);
+        values.push(
+            q.nodes
+                .iter()
+                .map(|n| pressure.get(n).copied().unwrap_or(0.0))
+                .sum::<f64>()
+                / 4.0,
+        );
+    }
+    let names = ["x", "y", "z"];
+    let title = format!(
+        "{}: contact pressure (Pa) on `{}`, seen along {} ({} and {} in m)",
+        scene.name, sel.text, names[axis], names[a], names[b]
+    );
+    mesh_plot(&title, &points, &cells, Some(&values), &[])
+        .map(Some)
+        .map_err(std::io::Error::other)
 }
 
 /// In 3D, the point where a contact's force acts (force-weighted mean of its
