@@ -453,7 +453,10 @@ impl Check {
             // What lowering can tell without factorizing: overlaps, loads
             // nothing can carry, supports against contacts.
             Ok(scene) => match cso::state::precheck_scene(&scene) {
-                Ok(()) => {
+                Ok(warnings) => {
+                    for w in warnings {
+                        errln!("warning: {}: {w}", file.display());
+                    }
                     outln!("{}", cso::io::summary::check_line(file, &scene));
                     0
                 }
@@ -497,6 +500,9 @@ impl Solve {
         });
         bar.finish();
         let state = result.map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
+        for w in cso::state::warnings(&scene, &state.problem) {
+            errln!("warning: {file}: {w}");
+        }
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
         if let Some(dir) = &self.out {

@@ -153,11 +153,31 @@ pub fn precheck(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), 
 }
 
 /// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
-/// adds to the language checks; nothing is assembled or factorized).
-pub fn precheck_scene(scene: &Scene) -> Result<(), SolveError> {
+/// adds to the language checks; nothing is assembled or factorized); the
+/// warnings of the lowered problem on success.
+pub fn precheck_scene(scene: &Scene) -> Result<Vec<String>, SolveError> {
     let design = scene.design_init();
     let problem = lower(scene, &design).map_err(SolveError::Lower)?;
-    precheck(scene, &design, &problem)
+    precheck(scene, &design, &problem)?;
+    Ok(warnings(scene, &problem))
+}
+
+/// What a user should hear about a lowered problem that is not an error: a
+/// contact that gets no row at all (its surfaces never come within the search
+/// distance, so it cannot act).
+pub fn warnings(scene: &Scene, problem: &Problem) -> Vec<String> {
+    problem
+        .idle_contacts
+        .iter()
+        .map(|&(c, search)| {
+            format!(
+                "contact `{}` adds no row: no node of `{}` comes within the search distance ({} m) of its primary side, so it cannot act; move the bodies closer or raise `search`",
+                scene.contacts[c].name,
+                scene.contacts[c].secondary.text,
+                crate::lang::diag::num(search)
+            )
+        })
+        .collect()
 }
 
 /// Factorizations of one set-up, for reports: subdomains whose symbolic

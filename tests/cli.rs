@@ -146,7 +146,7 @@ fn bench_choices_and_cuts_are_checked_before_anything_runs() {
     let (code, out, _) = cso(&["bench", "--help"]);
     assert_eq!(code, 0);
     assert!(
-        out.contains("[possible values: scaling, compare, hard, sensitivity, optimize]"),
+        out.contains("[possible values: scaling, scaling3d, compare, hard, sensitivity, optimize]"),
         "{out}"
     );
     let (code, _, err) = cso(&["bench", "scaleing"]);
@@ -466,4 +466,32 @@ fn check_refuses_a_load_that_nothing_can_carry() {
         err.contains("the load on body `punch`") && err.contains("cannot be carried"),
         "{err}"
     );
+}
+
+#[test]
+fn a_contact_whose_surfaces_never_meet_is_warned_about() {
+    // The punch lifted 1 m: beyond the default search distance (a tenth of its
+    // diagonal), so the contact adds no row.
+    let lifted = scene_replacing("two_blocks.cso", "bottom = 1 +", "bottom = 2 +", "lifted");
+    let lifted = scene_replacing_in(&lifted, "y = 1 .. 2", "y = 2 .. 3");
+    let lifted = scene_replacing_in(&lifted, "at = (1.5, 1)", "at = (1.5, 2)");
+    for cmd in ["check", "solve"] {
+        let (code, _, err) = cso(&[cmd, &lifted.to_string_lossy()]);
+        assert!(cmd == "solve" || code == 0, "{cmd}: {err}");
+        assert!(
+            err.contains("warning:")
+                && err.contains("contact `seat` adds no row: no node of `punch.bottom` comes within the search distance"),
+            "{cmd}: {err}"
+        );
+    }
+    let (_, _, err) = cso(&["check", "examples/two_blocks.cso"]);
+    assert!(!err.contains("warning"), "{err}");
+}
+
+/// `path` with text replaced, in place.
+fn scene_replacing_in(path: &std::path::Path, from: &str, to: &str) -> std::path::PathBuf {
+    let src = std::fs::read_to_string(path).expect("scene");
+    assert!(src.contains(from), "no `{from}`");
+    std::fs::write(path, src.replace(from, to)).expect("writable");
+    path.to_path_buf()
 }

@@ -33,6 +33,9 @@ pub struct Problem {
     pub probes: Vec<(usize, usize)>,
     /// Contacts whose bodies start inside each other (beyond round-off).
     pub penetrations: Vec<Penetration>,
+    /// Contacts that got no row: no secondary node within the search distance
+    /// of the primary side (index into the scene's contacts, search distance).
+    pub idle_contacts: Vec<(usize, f64)>,
 }
 
 /// The deepest initial overlap of one contact: its secondary node lies `depth`
@@ -132,6 +135,7 @@ pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
         n_equality: 0,
         probes: Vec::new(),
         penetrations: Vec::new(),
+        idle_contacts: Vec::new(),
     };
     loads::apply(scene, &mut problem, design)?;
     rows::build(scene, &mut problem, design)?;

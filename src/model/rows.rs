@@ -125,7 +125,9 @@ fn by_pieces<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let pos = coords::<D>(problem);
     ties::<P, D, N>(scene, problem, design, &pos, rows)?;
     problem.n_equality = rows.len();
-    problem.penetrations = contacts::<P, D, N>(scene, problem, design, &pos, rows)?;
+    let (penetrations, idle) = contacts::<P, D, N>(scene, problem, design, &pos, rows)?;
+    problem.penetrations = penetrations;
+    problem.idle_contacts = idle;
     Ok(())
 }
 
@@ -297,15 +299,17 @@ fn default_search(problem: &Problem, body: usize) -> f64 {
 /// Node-to-facet contact rows `n^T (sum_k N_k u_k - u_p) <= g`, and node-to-
 /// obstacle rows `-n^T u_p <= g`, only for secondary nodes whose projection falls
 /// on the primary side within the search distance. Returns the deepest initial
-/// overlap of each contact whose bodies start inside each other.
+/// overlap of each contact whose bodies start inside each other, and the
+/// contacts that got no row (with their search distance).
 fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     scene: &Scene,
     problem: &Problem,
     design: &[f64],
     pos: &[Vec<[f64; D]>],
     rows: &mut Vec<Row>,
-) -> Result<Vec<Penetration>, LowerError> {
+) -> Result<(Vec<Penetration>, Vec<(usize, f64)>), LowerError> {
     let mut overlaps = Vec::new();
+    let mut idle = Vec::new();
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
@@ -324,6 +328,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
         // contact state: the deepest overlap beyond round-off is reported.
         let tolerance = 1e-9 * problem.bodies[sec.body].diagonal();
         let mut deepest: Option<(f64, [f64; 3])> = None;
+        let before = rows.len();
         for node in nodes {
             let p = pos[sec.body][node];
             let area = areas.get(&node).copied().unwrap_or(0.0);
@@ -375,8 +380,11 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                 at,
             });
         }
+        if rows.len() == before {
+            idle.push((ci, search));
+        }
     }
-    Ok(overlaps)
+    Ok((overlaps, idle))
 }
 
 /// The primary side of a contact, as lowering searches it.

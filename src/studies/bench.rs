@@ -17,7 +17,7 @@ use serde::Serialize;
 #[value(rename_all = "snake_case")]
 pub enum Benchmark {
     Scaling,
-    /// The 3D punch on a base cut into `k x k x k` subdomains (`--sides`).
+    // The 3D punch on a base cut into `k x k x k` subdomains (`--sides`).
     Scaling3d,
     Compare,
     Hard,

@@ -59,6 +59,13 @@ pub fn dual_solve_from(
     dual.apply_f(&l_tilde, &mut fl);
     let mut b: Vec<f64> = d.iter().zip(&fl).map(|(a, b)| a - b).collect();
     dual.project(&mut b);
+    // A right-hand side at round-off of the data it came from is zero: a scene
+    // moved only rigidly (prescribed displacements, no load) has lambda = 0.
+    // Iterating on the round-off instead would chase components outside Im P,
+    // where P F P is singular, and diverge.
+    if norm(&b) <= 1e3 * f64::EPSILON * (norm(&d) + norm(&fl)) {
+        b.iter_mut().for_each(|x| *x = 0.0);
+    }
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
             if i < n_equality {
