@@ -3,6 +3,7 @@
 //! TFETI promises numerical scalability: at fixed H/h the number of Hessian
 //! applications should stay nearly constant as the decomposition grows.
 
+use crate::lang::scene::Preconditioner;
 use crate::lang::{compile, CheckOptions};
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
@@ -115,6 +116,7 @@ pub struct ScalingRow {
     pub peak_memory: Option<u64>,
     pub kkt: f64,
     pub converged: bool,
+    pub preconditioner: Preconditioner,
 }
 
 /// Peak resident set size of this process (Linux), bytes.
@@ -125,14 +127,16 @@ pub fn peak_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// Solves one scaled scene.
+/// Solves one scaled scene with a dual preconditioner.
 pub fn scaling_row(
     sx: usize,
     sy: usize,
     hh: usize,
     tolerance: f64,
+    preconditioner: Preconditioner,
 ) -> Result<ScalingRow, SolveError> {
-    let scene = scaled_scene(sx, sy, hh, tolerance)?;
+    let mut scene = scaled_scene(sx, sy, hh, tolerance)?;
+    scene.solver.preconditioner = preconditioner;
     let state = solve(&scene, &[], &mut |_| {})?;
     Ok(ScalingRow {
         hh,
@@ -149,6 +153,7 @@ pub fn scaling_row(
         peak_memory: peak_memory(),
         kkt: state.kkt.worst(),
         converged: state.converged(),
+        preconditioner,
     })
 }
 
