@@ -661,6 +661,46 @@ mod tests {
     }
 
     #[test]
+    fn a_preconditioner_changes_the_path_not_the_solution() {
+        // Preconditioning in face with an SPD M (not an inverse of A): the same
+        // KKT point as the enumeration, on singular P S P Hessians with bounds.
+        let mut rng = Lcg::new(37);
+        for trial in 0..12 {
+            let n = 4 + trial % 5;
+            let m = 1 + trial % 2;
+            let geq = DenseEq::random(m, n, &mut rng);
+            let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
+            let precond = random_spd(n, 0.5, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = bounds(n, &mut rng);
+            let exact = enumerate(&a, &b, &lower, &geq);
+            let mut x = vec![0.0; n];
+            let info = smalbe_preconditioned(
+                &a,
+                Some(&precond),
+                &b,
+                &lower,
+                &geq,
+                &mut x,
+                &tight(),
+                &mut |_| {},
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            assert!(precond.count.get() > 0, "the preconditioner was used");
+            let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+            assert!(
+                res <= 1e-8 && feas <= 1e-8,
+                "trial {trial}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-7 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+    }
+
+    #[test]
     fn default_tolerance_is_relative() {
         let mut rng = Lcg::new(19);
         let n = 40;
