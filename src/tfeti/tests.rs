@@ -337,13 +337,16 @@ fn dense_schur(k: &Mat<f64>, b: &[usize]) -> Mat<f64> {
     &kbb - &kbi * kii.partial_piv_lu().inverse() * kbi.transpose()
 }
 
+/// A subdomain's dense local operator from its `K_s` and touched dofs.
+type LocalBlock = dyn Fn(&Mat<f64>, &[usize]) -> Mat<f64>;
+
 /// `P W B M_loc B^T W P` densely: `W = (B B^T)^-1` (all rows are equalities),
 /// `M_loc` block diagonal with `local(s, K_s, touched dofs)` on the touched
 /// dofs, `P` the orthogonal projector onto `ker G`, `G = R^T B^T`.
 fn dense_preconditioner(
     cluster: &Cluster,
     rows: &[Row],
-    local: &dyn Fn(&Mat<f64>, &[usize]) -> Mat<f64>,
+    local: &LocalBlock,
     scaled: bool,
 ) -> Mat<f64> {
     let (b, off) = dense_b_all(cluster, rows);
