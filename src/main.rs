@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
 use cso::io::atomic::Files;
 use cso::io::tables;
-use cso::lang::scene::{Scheme, SensitivityMethod};
+use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
@@ -92,6 +92,9 @@ struct Solve {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
+    /// Dual preconditioner (default: the scene's `solver { preconditioner }`).
+    #[arg(long, value_enum)]
+    preconditioner: Option<Preconditioner>,
 }
 
 #[derive(Args, Debug)]
@@ -180,6 +183,10 @@ struct Bench {
     /// Relative tolerance of the dual solve.
     #[arg(long, default_value_t = 1e-6)]
     tolerance: f64,
+    /// `scaling`, `scaling3d`: dual preconditioners, one row each per H/h and cut
+    /// (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
+    preconditioner: Vec<Preconditioner>,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
@@ -489,7 +496,10 @@ impl Compile {
 impl Solve {
     /// The state solve with a progress line, the summary, and the files.
     fn run(&self, opts: &CheckOptions) -> Outcome {
-        let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let (mut scene, file) = (load(&self.file, opts)?, self.file.display());
+        if let Some(p) = self.preconditioner {
+            scene.solver.preconditioner = p;
+        }
         prepare(self.out.as_deref())?;
         let pool = thread_pool(self.threads)?;
         let bar = Progress::spinner("solve");
@@ -685,8 +695,13 @@ impl Bench {
                 &format!("tolerance {tolerance:e}"),
                 &output::SCALING_COLUMNS,
                 &|sx, sy, hh| {
-                    let r = bench::scaling_row(sx, sy, hh, tolerance);
-                    Ok(output::scaling_cells(&r.map_err(|e| e.to_string())?))
+                    // One row per preconditioner, each after H/h and cuts.
+                    let mut cells = Vec::new();
+                    for &p in &self.preconditioner {
+                        let r = bench::scaling_row(sx, sy, hh, tolerance, p);
+                        cells.push(output::scaling_cells(&r.map_err(|e| e.to_string())?));
+                    }
+                    Ok(cells.join(&format!(" |\n| {hh} | {sx}x{sy} | ")))
                 },
             ),
             Benchmark::Scaling3d => {
@@ -703,11 +718,13 @@ impl Bench {
                 };
                 for &hh in &hhs {
                     for &k in &self.sides {
-                        match bench::scaling_row_3d(k, hh, tolerance) {
-                            Ok(r) => {
-                                outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
+                        for &p in &self.preconditioner {
+                            match bench::scaling_row_3d(k, hh, tolerance, p) {
+                                Ok(r) => {
+                                    outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
+                                }
+                                Err(e) => errln!("error at {k}x{k}x{k}: {e}"),
                             }
-                            Err(e) => errln!("error at {k}x{k}x{k}: {e}"),
                         }
                     }
                 }

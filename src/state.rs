@@ -340,6 +340,17 @@ pub fn operator_sizes(scene: &Scene, design: &[f64]) -> Result<OperatorSizes, So
     })
 }
 
+/// The scene's dual preconditioner, as the solver names it.
+pub fn preconditioner(scene: &Scene) -> Option<crate::tfeti::precond::Kind> {
+    use crate::lang::scene::Preconditioner;
+    use crate::tfeti::precond::Kind;
+    match scene.solver.preconditioner {
+        Preconditioner::None => None,
+        Preconditioner::Lumped => Some(Kind::Lumped),
+        Preconditioner::Dirichlet => Some(Kind::Dirichlet),
+    }
+}
+
 /// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
 pub fn solve(
     scene: &Scene,
@@ -360,13 +371,6 @@ pub fn solve_reusing(
     warm_start: bool,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    use crate::lang::scene::Preconditioner;
-    if scene.solver.preconditioner != Preconditioner::None {
-        return Err(SolveError::Unsupported(
-            "`solver { preconditioner }`: dual preconditioners are not implemented yet; use `none`"
-                .into(),
-        ));
-    }
     let t0 = Instant::now();
     let mut times = Times::default();
     let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
@@ -374,7 +378,8 @@ pub fn solve_reusing(
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
-    let system = setup.dual_system()?;
+    let mut system = setup.dual_system()?;
+    system.set_preconditioner(preconditioner(scene), setup.problem.n_equality);
     let Setup {
         problem,
         cluster,

@@ -309,6 +309,59 @@ fn zero_threads_is_refused_at_the_command_line() {
 }
 
 #[test]
+fn the_preconditioner_is_chosen_on_the_command_line() {
+    let (code, out, err) = cso(&[
+        "solve",
+        "examples/semicoercive2d.cso",
+        "--preconditioner",
+        "dirichlet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // It is used: another count of Hessian applications than the scene's `none`.
+    let (_, plain, _) = cso(&["solve", "examples/semicoercive2d.cso"]);
+    let hessian = |s: &str| {
+        s.lines()
+            .find(|l| l.contains("Hessian applications"))
+            .map(str::to_string)
+    };
+    assert!(
+        hessian(&out).is_some() && hessian(&out) != hessian(&plain),
+        "{out}{plain}"
+    );
+    let (code, _, err) = cso(&[
+        "solve",
+        "examples/two_blocks.cso",
+        "--preconditioner",
+        "jacobi",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("dirichlet"), "{err}");
+    let (code, out, err) = cso(&[
+        "bench",
+        "scaling",
+        "--hh",
+        "2",
+        "--max-cuts",
+        "2x1",
+        "--threads",
+        "1",
+        "--preconditioner",
+        "none,lumped",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<&str> = out.lines().skip(3).collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    assert!(
+        rows[0].starts_with("| 2 | 2x1 | 3 |") && rows[0].ends_with("| none |"),
+        "{out}"
+    );
+    assert!(
+        rows[1].starts_with("| 2 | 2x1 | 3 |") && rows[1].ends_with("| lumped |"),
+        "{out}"
+    );
+}
+
+#[test]
 fn the_memory_limit_can_be_set_or_lifted() {
     let scene = "examples/two_blocks.cso";
     let (code, _, err) = cso(&["--memory-limit", "1KiB", "check", scene]);

@@ -13,7 +13,7 @@
 //! and in the multipliers of the rows both formulations share.
 
 use crate::options;
-use cso::lang::scene::SolverMethod;
+use cso::lang::scene::{Preconditioner, SolverMethod};
 use cso::lang::{compile, Scene};
 use cso::model::{lower, Problem, RowKind};
 use cso::state::{solve, State};
@@ -348,8 +348,18 @@ fn compare(problem: &Problem, g: &Global, u: &[Vec<f64>], lambda: &[f64], r: &Re
 /// Lowers and solves a scene both ways at the initial design (TFETI or
 /// classical FETI as `method` says).
 fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
+    both_with(src, method, Preconditioner::None)
+}
+
+/// [`both`] with a dual preconditioner.
+fn both_with(
+    src: &str,
+    method: SolverMethod,
+    preconditioner: Preconditioner,
+) -> (State, Global, Reference) {
     let mut scene = compile_scene(src);
     scene.solver.method = method;
+    scene.solver.preconditioner = preconditioner;
     scene.solver.tolerance = 1e-10;
     scene.solver.max_iterations = 20_000;
     let design = scene.design_init();
@@ -369,21 +379,43 @@ fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
     (state, g, r)
 }
 
-/// Asserts agreement of TFETI and of classical FETI with the reference.
+/// Asserts agreement of TFETI and of classical FETI with the reference, with
+/// every dual preconditioner.
 fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
-    check_method(name, src, SolverMethod::Tfeti, tol_u, tol_mult);
-    check_method(
-        &format!("{name} (FETI)"),
-        src,
-        SolverMethod::Feti,
-        tol_u,
-        tol_mult,
-    );
+    for p in [
+        Preconditioner::None,
+        Preconditioner::Lumped,
+        Preconditioner::Dirichlet,
+    ] {
+        check_method(
+            &format!("{name} ({p:?})"),
+            src,
+            SolverMethod::Tfeti,
+            p,
+            tol_u,
+            tol_mult,
+        );
+        check_method(
+            &format!("{name} (FETI, {p:?})"),
+            src,
+            SolverMethod::Feti,
+            p,
+            tol_u,
+            tol_mult,
+        );
+    }
 }
 
 /// Asserts agreement and returns the differences for the report.
-fn check_method(name: &str, src: &str, method: SolverMethod, tol_u: f64, tol_mult: f64) -> Diff {
-    let (state, g, r) = both(src, method);
+fn check_method(
+    name: &str,
+    src: &str,
+    method: SolverMethod,
+    preconditioner: Preconditioner,
+    tol_u: f64,
+    tol_mult: f64,
+) -> Diff {
+    let (state, g, r) = both_with(src, method, preconditioner);
     let d = compare(&state.problem, &g, &state.u, &state.lambda, &r);
     eprintln!(
         "{name}: {} dofs, {} rows ({} contact, {} active), PDAS {} iterations, {} Hessian applications: rel. diff u {:.2e} at {:?}, multipliers {:.2e}",

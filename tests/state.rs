@@ -212,3 +212,79 @@ fn a_floating_body_pulled_away_from_its_contact_is_refused_before_solving() {
     let state = solve(&scene(&src), &[], &mut |_| {}).expect("solves");
     assert!(state.converged());
 }
+
+/// The state with a dual preconditioner (and a tolerance).
+fn solve_with(
+    s: &Scene,
+    preconditioner: cso::lang::scene::Preconditioner,
+    tolerance: f64,
+) -> cso::state::State {
+    let mut s = s.clone();
+    s.solver.preconditioner = preconditioner;
+    s.solver.tolerance = tolerance;
+    s.solver.max_iterations = 20_000;
+    let state = solve(&s, &s.design_init(), &mut |_| {}).expect("solves");
+    assert!(state.converged(), "{preconditioner:?}: {:?}", state.info);
+    state
+}
+
+#[test]
+fn every_preconditioner_gives_the_unpreconditioned_state_on_the_2d_examples() {
+    use cso::lang::scene::Preconditioner;
+    for name in ["two_blocks", "semicoercive2d", "scont2d", "hertz2d"] {
+        let s = example(name);
+        let plain = solve_with(&s, Preconditioner::None, 1e-9);
+        let umax = plain.u.iter().flatten().fold(0.0f64, |m, v| m.max(v.abs()));
+        let lmax = plain.lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for p in [Preconditioner::Lumped, Preconditioner::Dirichlet] {
+            let pre = solve_with(&s, p, 1e-9);
+            let du = plain
+                .u
+                .iter()
+                .flatten()
+                .zip(pre.u.iter().flatten())
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            let dl = plain
+                .lambda
+                .iter()
+                .zip(&pre.lambda)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                du <= 1e-6 * umax,
+                "{name} {p:?}: max |du| = {du:e}, max |u| = {umax:e}"
+            );
+            assert!(
+                dl <= 1e-5 * lmax,
+                "{name} {p:?}: max |dl| = {dl:e}, max |l| = {lmax:e}"
+            );
+            assert!(pre.kkt.worst() < 1e-6, "{name} {p:?}: {:?}", pre.kkt);
+        }
+    }
+}
+
+#[test]
+fn the_dirichlet_preconditioner_saves_hessian_applications_on_many_subdomains() {
+    use cso::lang::scene::Preconditioner;
+    // Contact (SMALBE + MPRGP preconditioned in face), 36 subdomains, H/h = 8.
+    let contact = cso::studies::bench::scaled_scene(8, 4, 8, 1e-6).expect("checks");
+    // Gluing and supports only (preconditioned projected CG), 128 subdomains.
+    let glued = scene(
+        "scene glued { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 64 x 32, subdomains = 16 x 8 }
+fix base.bottom
+traction base.top = (1, -5)
+",
+    );
+    for (name, s, factor) in [("contact", &contact, 0.95), ("glued", &glued, 0.6)] {
+        let count = |p| solve_with(s, p, 1e-6).info.hessian_applications;
+        let (none, dirichlet) = (
+            count(Preconditioner::None),
+            count(Preconditioner::Dirichlet),
+        );
+        assert!(
+            (dirichlet as f64) < factor * none as f64,
+            "{name}: {dirichlet} Hessian applications with dirichlet, {none} without"
+        );
+    }
+}

@@ -307,7 +307,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     design: &[f64],
     pos: &[Vec<[f64; D]>],
     rows: &mut Vec<Row>,
-) -> Result<(Vec<Penetration>, Vec<(usize, f64)>), LowerError> {
+) -> Result<ContactFindings, LowerError> {
     let mut overlaps = Vec::new();
     let mut idle = Vec::new();
     for (ci, contact) in scene.contacts.iter().enumerate() {
@@ -386,6 +386,10 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     }
     Ok((overlaps, idle))
 }
+
+/// The deepest overlap of each contact that has one, and the contacts that got
+/// no row (with their search distance).
+type ContactFindings = (Vec<Penetration>, Vec<(usize, f64)>);
 
 /// The primary side of a contact, as lowering searches it.
 enum Side<P, const D: usize> {

@@ -9,7 +9,7 @@ mod mprgp;
 mod smalbe;
 
 pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
-pub use smalbe::{smalbe, SmalbeSettings};
+pub use smalbe::{smalbe, smalbe_preconditioned, SmalbeSettings};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.
 pub trait Operator {

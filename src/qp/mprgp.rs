@@ -135,6 +135,7 @@ pub fn mprgp(
                 history.push(gp / scale);
             }
         },
+        None,
     );
     if history.len() < history.capacity() && run.iterations % HISTORY_EVERY != 0 {
         history.push(run.gp_norm / scale);
@@ -162,6 +163,10 @@ pub(super) struct Workspace {
     pub(super) p: Vec<f64>,
     /// `A p`.
     pub(super) ap: Vec<f64>,
+    /// With a preconditioner: the preconditioned free gradient `z = M_F phi`
+    /// and the free gradient `phi` it is computed from (empty otherwise).
+    pub(super) z: Vec<f64>,
+    pub(super) r: Vec<f64>,
 }
 
 impl Workspace {
@@ -170,6 +175,17 @@ impl Workspace {
             g: vec![0.0; n],
             p: vec![0.0; n],
             ap: vec![0.0; n],
+            z: Vec::new(),
+            r: Vec::new(),
+        }
+    }
+
+    /// Work vectors for a preconditioned run as well.
+    pub(super) fn preconditioned(n: usize) -> Self {
+        Self {
+            z: vec![0.0; n],
+            r: vec![0.0; n],
+            ..Self::new(n)
         }
     }
 }
@@ -234,7 +250,56 @@ fn free_gradient(x: &[f64], lower: &[f64], g: &[f64], p: &mut [f64]) {
     }
 }
 
+/// `z = M_F phi(x)`: preconditioning in face. The free gradient is
+/// preconditioned by `m` and cut back to the free set, so that the direction
+/// stays in the current face (`M_F` is the free block of `M`, SPD when `M` is).
+/// Should round-off or a semidefinite `M` give no descent (`phi^T z <= 0`), the
+/// free gradient itself is used.
+fn precondition(
+    m: &dyn Operator,
+    x: &[f64],
+    lower: &[f64],
+    g: &[f64],
+    r: &mut [f64],
+    z: &mut [f64],
+) {
+    free_gradient(x, lower, g, r);
+    m.apply(r, z);
+    for ((zi, &xi), &li) in z.iter_mut().zip(x).zip(lower) {
+        if xi <= li {
+            *zi = 0.0;
+        }
+    }
+    let descent = dot(r, z);
+    if !(descent > 0.0 && descent.is_finite()) {
+        z.copy_from_slice(r);
+    }
+}
+
+/// The first direction of a face: `phi(x)`, or `M_F phi(x)` with a preconditioner.
+fn face_direction(
+    m: Option<&dyn Operator>,
+    x: &[f64],
+    lower: &[f64],
+    g: &[f64],
+    r: &mut [f64],
+    p: &mut [f64],
+) {
+    match m {
+        None => free_gradient(x, lower, g, p),
+        Some(m) => precondition(m, x, lower, g, r, p),
+    }
+}
+
 /// The MPRGP iteration on a prepared workspace.
+///
+/// With a preconditioner `precond` (an approximate inverse of `A`), the
+/// conjugate gradient steps are preconditioned in face (Dostál 2009, sec. 5.10:
+/// the free gradient is preconditioned by the free block of `M`); the
+/// proportioning test, the expansion's projected gradient step and the stopping
+/// test keep the plain gradient, so the rate bound of the expansion steps and
+/// the meaning of the tolerance do not change. `ws` must then come from
+/// [`Workspace::preconditioned`].
 ///
 /// `x` is projected onto the bounds first. If `g_ready`, `ws.g` already holds
 /// `A x - b` for the projected `x` (SMALBE keeps it between outer iterations
@@ -256,8 +321,9 @@ pub(super) fn run(
     g_ready: bool,
     stop: &mut dyn FnMut(&[f64], f64) -> bool,
     trace: &mut dyn FnMut(usize, f64),
+    precond: Option<&dyn Operator>,
 ) -> Run {
-    let Workspace { g, p, ap } = ws;
+    let Workspace { g, p, ap, z, r } = ws;
     let a_bar = params.a_bar;
     let gamma2 = params.gamma * params.gamma;
     let mut out = Run {
@@ -275,7 +341,7 @@ pub(super) fn run(
         gradient(a, b, x, g);
         out.applications += 1;
     }
-    free_gradient(x, lower, g, p);
+    face_direction(precond, x, lower, g, r, p);
     loop {
         let s = split(x, lower, g, a_bar);
         out.gp_norm = s.gp_norm;
@@ -331,17 +397,30 @@ pub(super) fn run(
                 axpy(-a_cg, p, x);
                 axpy(-a_cg, ap, g);
                 project(x, lower);
-                // p = phi(x) - (phi^T A p / p^T A p) p, phi(x) at the new x.
-                let mut phi_ap = 0.0;
-                for (((&xi, &li), &gi), &api) in x.iter().zip(lower).zip(g.iter()).zip(ap.iter()) {
-                    if xi > li {
-                        phi_ap += gi * api;
+                if let Some(m) = precond {
+                    // p = z - (z^T A p / p^T A p) p, z = M_F phi(x) at the new x.
+                    precondition(m, x, lower, g, r, z);
+                    let c = dot(z, ap) / pap;
+                    for (pi, &zi) in p.iter_mut().zip(z.iter()) {
+                        *pi = zi - c * *pi;
                     }
-                }
-                let c = phi_ap / pap;
-                for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
-                    let phi = if xi > li { gi } else { 0.0 };
-                    *pi = phi - c * *pi;
+                } else {
+                    // p = phi(x) - (phi^T A p / p^T A p) p, phi(x) at the new x.
+                    let mut phi_ap = 0.0;
+                    for (((&xi, &li), &gi), &api) in
+                        x.iter().zip(lower).zip(g.iter()).zip(ap.iter())
+                    {
+                        if xi > li {
+                            phi_ap += gi * api;
+                        }
+                    }
+                    let c = phi_ap / pap;
+                    for (((pi, &xi), &li), &gi) in
+                        p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter())
+                    {
+                        let phi = if xi > li { gi } else { 0.0 };
+                        *pi = phi - c * *pi;
+                    }
                 }
             } else {
                 // Expansion: the feasible step to the face's boundary, then a
@@ -359,7 +438,7 @@ pub(super) fn run(
                 }
                 gradient(a, b, x, g);
                 out.applications += 1;
-                free_gradient(x, lower, g, p);
+                face_direction(precond, x, lower, g, r, p);
             }
         } else {
             // Proportioning: release constraints along the chopped gradient
@@ -384,7 +463,7 @@ pub(super) fn run(
             axpy(-step, p, x);
             axpy(-step, ap, g);
             project(x, lower);
-            free_gradient(x, lower, g, p);
+            face_direction(precond, x, lower, g, r, p);
         }
     }
 }

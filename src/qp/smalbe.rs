@@ -126,6 +126,35 @@ impl Operator for Augmented<'_> {
     }
 }
 
+/// The preconditioner of the augmented Hessian `A + rho G^T G` from one of
+/// `A` (an approximate inverse on `ker G`, zero on `range G^T`, like `P M P`):
+/// `M + (1/rho) G^T G`, exact on `range G^T` where the Hessian is `rho I`
+/// (ESPRESO's `||PFP|| P M P + (1/rho)(I - P)`).
+struct AugmentedPreconditioner<'a> {
+    m: &'a dyn Operator,
+    g: &'a dyn Equality,
+    rho: f64,
+    gx: Cell<Vec<f64>>,
+    gtgx: Cell<Vec<f64>>,
+}
+
+impl Operator for AugmentedPreconditioner<'_> {
+    fn dim(&self) -> usize {
+        self.m.dim()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut gx = self.gx.take();
+        let mut gtgx = self.gtgx.take();
+        self.m.apply(x, y);
+        self.g.apply(x, &mut gx);
+        self.g.apply_t(&gx, &mut gtgx);
+        axpy(1.0 / self.rho, &gtgx, y);
+        self.gx.set(gx);
+        self.gtgx.set(gtgx);
+    }
+}
+
 /// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` and `G x = 0`
 /// by SMALBE with MPRGP inside.
 ///
@@ -157,6 +186,27 @@ pub fn smalbe(
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> QpInfo {
+    smalbe_preconditioned(a, None, b, lower, g, x, settings, observer)
+}
+
+/// [`smalbe`] with MPRGP preconditioned in face by `precond`, an approximate
+/// inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the scaled TFETI dual);
+/// `None` is [`smalbe`] exactly. The augmented Hessian is preconditioned by
+/// `precond + (1/rho) G^T G`. The inner stopping test stays on the plain
+/// projected gradient `||g^P|| <= min(M ||G x||, eta)`, as do the final test and
+/// the update of `M`: the preconditioner changes the directions, not what the
+/// tolerances mean, so that solutions with and without it agree to `eps`.
+#[allow(clippy::too_many_arguments)]
+pub fn smalbe_preconditioned(
+    a: &dyn Operator,
+    precond: Option<&dyn Operator>,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> QpInfo {
     let n = a.dim();
     let mut info = QpInfo {
         status: Status::MaxIterations,
@@ -181,7 +231,10 @@ pub fn smalbe(
         return info;
     }
     let m = g.rows();
-    let mut ws = Workspace::new(n);
+    let mut ws = match precond {
+        None => Workspace::new(n),
+        Some(_) => Workspace::preconditioned(n),
+    };
     let power = settings.mprgp.power_iterations;
 
     // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar.
@@ -197,6 +250,13 @@ pub fn smalbe(
     }
     let rho = settings.rho_factor * norm_a;
     let hessian = Augmented::new(a, g, rho);
+    let augmented_precond = precond.map(|p| AugmentedPreconditioner {
+        m: p,
+        g,
+        rho,
+        gx: Cell::new(vec![0.0; m]),
+        gtgx: Cell::new(vec![0.0; n]),
+    });
     let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
     info.hessian_applications += used;
     let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
@@ -254,6 +314,7 @@ pub fn smalbe(
                 g_ready,
                 &mut stop,
                 &mut |_, _| {},
+                augmented_precond.as_ref().map(|p| p as &dyn Operator),
             )
         };
         info.outer_iterations = k + 1;
@@ -586,6 +647,46 @@ mod tests {
             let mut x = vec![0.0; n];
             let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
             assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+            assert!(
+                res <= 1e-8 && feas <= 1e-8,
+                "trial {trial}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-7 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_preconditioner_changes_the_path_not_the_solution() {
+        // Preconditioning in face with an SPD M (not an inverse of A): the same
+        // KKT point as the enumeration, on singular P S P Hessians with bounds.
+        let mut rng = Lcg::new(37);
+        for trial in 0..12 {
+            let n = 4 + trial % 5;
+            let m = 1 + trial % 2;
+            let geq = DenseEq::random(m, n, &mut rng);
+            let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
+            let precond = random_spd(n, 0.5, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = bounds(n, &mut rng);
+            let exact = enumerate(&a, &b, &lower, &geq);
+            let mut x = vec![0.0; n];
+            let info = smalbe_preconditioned(
+                &a,
+                Some(&precond),
+                &b,
+                &lower,
+                &geq,
+                &mut x,
+                &tight(),
+                &mut |_| {},
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            assert!(precond.count.get() > 0, "the preconditioner was used");
             let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
             assert!(
                 res <= 1e-8 && feas <= 1e-8,

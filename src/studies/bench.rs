@@ -3,6 +3,7 @@
 //! TFETI promises numerical scalability: at fixed H/h the number of Hessian
 //! applications should stay nearly constant as the decomposition grows.
 
+use crate::lang::scene::Preconditioner;
 use crate::lang::{compile, CheckOptions};
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
@@ -122,15 +123,21 @@ solver {{ tolerance = {tolerance:e}, max_iterations = 100000 }}
 }
 
 /// One row of the 3D scaling table: the scene of [`scaled_punch_3d`].
-pub fn scaling_row_3d(k: usize, hh: usize, tolerance: f64) -> Result<ScalingRow, SolveError> {
+pub fn scaling_row_3d(
+    k: usize,
+    hh: usize,
+    tolerance: f64,
+    preconditioner: Preconditioner,
+) -> Result<ScalingRow, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
     let options = CheckOptions {
         memory_limit: None,
         ..CheckOptions::default()
     };
-    let scene = compile(&src, &options).map_err(|d| {
+    let mut scene = compile(&src, &options).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
+    scene.solver.preconditioner = preconditioner;
     row_of(&scene, hh, (k, k))
 }
 
@@ -152,6 +159,7 @@ pub struct ScalingRow {
     pub peak_memory: Option<u64>,
     pub kkt: f64,
     pub converged: bool,
+    pub preconditioner: Preconditioner,
 }
 
 /// Peak resident set size of this process (Linux), bytes.
@@ -162,14 +170,16 @@ pub fn peak_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// Solves one scaled scene.
+/// Solves one scaled scene with a dual preconditioner.
 pub fn scaling_row(
     sx: usize,
     sy: usize,
     hh: usize,
     tolerance: f64,
+    preconditioner: Preconditioner,
 ) -> Result<ScalingRow, SolveError> {
-    let scene = scaled_scene(sx, sy, hh, tolerance)?;
+    let mut scene = scaled_scene(sx, sy, hh, tolerance)?;
+    scene.solver.preconditioner = preconditioner;
     row_of(&scene, hh, (sx, sy))
 }
 
@@ -195,6 +205,7 @@ fn row_of(
         peak_memory: peak_memory(),
         kkt: state.kkt.worst(),
         converged: state.converged(),
+        preconditioner: scene.solver.preconditioner,
     })
 }
 

@@ -27,7 +27,7 @@ pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
 }
 
 /// The columns of `cso bench scaling` after H/h and cuts.
-pub const SCALING_COLUMNS: [&str; 11] = [
+pub const SCALING_COLUMNS: [&str; 12] = [
     "subdomains",
     "primal",
     "dual",
@@ -39,12 +39,13 @@ pub const SCALING_COLUMNS: [&str; 11] = [
     "total s",
     "peak MB",
     "KKT",
+    "preconditioner",
 ];
 
 /// The cells of one [`SCALING_COLUMNS`] row.
 pub fn scaling_cells(r: &ScalingRow) -> String {
     format!(
-        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e}",
+        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {}",
         r.subdomains,
         r.primal,
         r.dual,
@@ -57,7 +58,8 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         r.time_total,
         r.peak_memory
             .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
-        r.kkt
+        r.kkt,
+        format!("{:?}", r.preconditioner).to_lowercase()
     )
 }
 

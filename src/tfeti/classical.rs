@@ -192,6 +192,22 @@ impl DualSystem {
         }
     }
 
+    /// Builds the dual preconditioner `kind` (None: none) on the dual problem
+    /// solved, whose equalities come first (`n_equality` of the rows given to
+    /// [`DualSystem::new`]; FETI keeps fewer).
+    pub fn set_preconditioner(
+        &mut self,
+        kind: Option<crate::tfeti::precond::Kind>,
+        n_equality: usize,
+    ) -> Option<crate::tfeti::precond::Built> {
+        match self {
+            DualSystem::Total(d) => d.set_preconditioner(kind, n_equality),
+            DualSystem::Classical { dual, reduced, .. } => {
+                dual.set_preconditioner(kind, reduced.n_equality)
+            }
+        }
+    }
+
     /// The dual problem actually solved.
     pub fn dual(&self) -> &Dual {
         match self {

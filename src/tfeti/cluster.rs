@@ -132,6 +132,11 @@ impl Cluster {
         self.subs.get(s).cloned()
     }
 
+    /// The rows of `B` that touch subdomain `s`, in local form.
+    pub fn local_rows(&self, s: usize) -> &LocalRows {
+        &self.local[s]
+    }
+
     /// Kernel dimension in all (the coarse space).
     pub fn kernel_dim(&self) -> usize {
         self.offset[self.subs.len()]

@@ -9,6 +9,8 @@
 
 use super::cluster::Cluster;
 use super::error::CoarseError;
+use super::precond::{Built, DualPreconditioner, Kind};
+use super::schur::SchurForm;
 use crate::qp::{Equality, Operator};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
@@ -33,6 +35,8 @@ pub struct Dual {
     proj: Mutex<(Vec<f64>, Vec<f64>)>,
     /// Applications of `F` so far.
     f_applications: AtomicUsize,
+    /// The dual preconditioner, when one was asked for.
+    precond: Option<DualPreconditioner>,
 }
 
 impl Dual {
@@ -72,6 +76,7 @@ impl Dual {
             l,
             proj,
             f_applications: AtomicUsize::new(0),
+            precond: None,
         })
     }
 
@@ -93,6 +98,28 @@ impl Dual {
     /// (subdomain, mode) of coarse index `i`.
     pub fn mode(&self, i: usize) -> (usize, usize) {
         self.cluster.mode(i)
+    }
+
+    /// Builds the dual preconditioner `kind` (None: none) for a problem whose
+    /// first `n_equality` rows are equalities; what was built.
+    pub fn set_preconditioner(&mut self, kind: Option<Kind>, n_equality: usize) -> Option<Built> {
+        self.set_preconditioner_as(kind, n_equality, SchurForm::Auto)
+    }
+
+    /// [`Dual::set_preconditioner`] with the form of the Schur complements forced.
+    pub fn set_preconditioner_as(
+        &mut self,
+        kind: Option<Kind>,
+        n_equality: usize,
+        form: SchurForm,
+    ) -> Option<Built> {
+        self.precond = kind.map(|k| DualPreconditioner::new(&self.cluster, k, n_equality, form));
+        self.precond.as_ref().map(|p| p.built().clone())
+    }
+
+    /// The dual preconditioner, if one was built.
+    pub fn preconditioner(&self) -> Option<&DualPreconditioner> {
+        self.precond.as_ref()
     }
 
     /// Applications of `F` so far.

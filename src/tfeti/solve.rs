@@ -10,8 +10,9 @@
 
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
+use super::precond::ProjectedM;
 use super::reconstruct::reconstruct;
-use crate::qp::{estimate_norm, smalbe, QpInfo, SmalbeSettings, Status};
+use crate::qp::{estimate_norm, smalbe_preconditioned, Operator, QpInfo, SmalbeSettings, Status};
 
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
@@ -78,7 +79,9 @@ pub fn dual_solve_from(
     if n_equality == m {
         // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
         // Im P = ker G~, so the constraint holds without an outer loop.
-        let (lhat, info) = projected_cg(dual, &b, settings);
+        let precond = dual.preconditioner().map(|m| ProjectedM::new(dual, m, 1.0));
+        let precond = precond.as_ref().map(|m| m as &dyn Operator);
+        let (lhat, info) = projected_cg(dual, &b, settings, precond);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
         let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
         return Ok(DualSolution {
@@ -110,8 +113,14 @@ pub fn dual_solve_from(
         }
         _ => vec![0.0; m],
     };
-    let info = smalbe(
+    // The preconditioner approximates the inverse of the scaled Hessian
+    // P F P / ||P F P||: ||P F P|| P M P.
+    let precond = dual
+        .preconditioner()
+        .map(|m| ProjectedM::new(dual, m, 1.0 / scale));
+    let info = smalbe_preconditioned(
         &ProjectedF::new(dual, scale),
+        precond.as_ref().map(|m| m as &dyn Operator),
         &b,
         &lower_bounds,
         &g,
@@ -139,12 +148,19 @@ pub fn dual_solve_from(
     })
 }
 
-/// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`.
+/// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;
+/// with `precond` (`P M P`) the ordinary preconditioned CG, the test still on
+/// the plain residual.
 ///
 /// # Reference
 /// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
 /// exact in Im P, so plain CG is the inner solver and no outer loop is needed).
-fn projected_cg(dual: &Dual, b: &[f64], settings: &SmalbeSettings) -> (Vec<f64>, QpInfo) {
+fn projected_cg(
+    dual: &Dual,
+    b: &[f64],
+    settings: &SmalbeSettings,
+    precond: Option<&dyn Operator>,
+) -> (Vec<f64>, QpInfo) {
     let m = b.len();
     let a = ProjectedF::new(dual, 1.0);
     let bnorm = norm(b);
@@ -163,9 +179,23 @@ fn projected_cg(dual: &Dual, b: &[f64], settings: &SmalbeSettings) -> (Vec<f64>,
         return (x, info);
     }
     let mut r = b.to_vec();
-    let mut p = r.clone();
+    let mut z = r.clone();
+    // z = P M P r, or r when M gives no descent (round-off, semidefinite M).
+    let precondition = |r: &[f64], z: &mut [f64]| {
+        if let Some(pm) = precond {
+            pm.apply(r, z);
+            let rz: f64 = r.iter().zip(z.iter()).map(|(a, b)| a * b).sum();
+            if rz > 0.0 && rz.is_finite() {
+                return;
+            }
+        }
+        z.copy_from_slice(r);
+    };
+    precondition(&r, &mut z);
+    let mut p = z.clone();
     let mut ap = vec![0.0; m];
     let mut rr: f64 = r.iter().map(|v| v * v).sum();
+    let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
     while rr.sqrt() > settings.tolerance * bnorm {
         if info.hessian_applications >= settings.max_hessian {
             info.status = Status::MaxIterations;
@@ -179,16 +209,18 @@ fn projected_cg(dual: &Dual, b: &[f64], settings: &SmalbeSettings) -> (Vec<f64>,
             info.status = Status::Breakdown(format!("p^T A p = {pap:e} in projected CG"));
             break;
         }
-        let alpha = rr / pap;
+        let alpha = rz / pap;
         for k in 0..m {
             x[k] += alpha * p[k];
             r[k] -= alpha * ap[k];
         }
-        let rr_new: f64 = r.iter().map(|v| v * v).sum();
-        let beta = rr_new / rr;
-        rr = rr_new;
+        rr = r.iter().map(|v| v * v).sum();
+        precondition(&r, &mut z);
+        let rz_new: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+        let beta = rz_new / rz;
+        rz = rz_new;
         for k in 0..m {
-            p[k] = r[k] + beta * p[k];
+            p[k] = z[k] + beta * p[k];
         }
         info.history.push(rr.sqrt() / bnorm);
     }

@@ -128,6 +128,17 @@ impl UpperCsc {
         }
     }
 
+    /// Every entry `(row, col, value)` of the symmetric matrix, both triangles.
+    pub fn entries(&self) -> impl Iterator<Item = (usize, usize, f64)> + '_ {
+        (0..self.n).flat_map(move |c| {
+            (self.col_ptr[c]..self.col_ptr[c + 1]).flat_map(move |k| {
+                let (r, v) = (self.row_idx[k], self.values[k]);
+                let mirror = (r != c).then_some((c, r, v));
+                std::iter::once((r, c, v)).chain(mirror)
+            })
+        })
+    }
+
     /// faer's view of the pattern.
     pub fn symbolic(&self) -> SymbolicSparseColMatRef<'_, usize> {
         // The pattern is built sorted and in bounds by construction.

@@ -21,6 +21,7 @@
 
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
+use super::schur::{Schur, SchurForm};
 use super::sparse::{ldlt_solve, llt_solve, symbolic_amd, UpperCsc};
 use crate::fem::Element;
 use crate::model::SubdomainMesh;
@@ -398,6 +399,28 @@ impl Subdomain {
     /// Whether the symbolic factorization was reused from an earlier build.
     pub fn symbolic_reused(&self) -> bool {
         self.symbolic_reused
+    }
+
+    /// `K_bb`: the stiffness on the dofs `boundary` (sorted, distinct), the
+    /// lumped preconditioner's local operator.
+    pub fn boundary_stiffness(&self, boundary: &[usize]) -> UpperCsc {
+        let mut in_b = vec![usize::MAX; self.n];
+        for (j, &d) in boundary.iter().enumerate() {
+            in_b[d] = j;
+        }
+        self.k.without(&in_b, boundary.len())
+    }
+
+    /// The Schur complement of the stiffness on the dofs `boundary` (sorted,
+    /// distinct; classical FETI's eliminated dofs are not in the interior),
+    /// the Dirichlet preconditioner's local operator. Fails, saying why, when
+    /// the interior block is singular.
+    pub fn schur(&self, boundary: &[usize], form: SchurForm) -> Result<Schur, String> {
+        let excluded: &[usize] = match &self.kind {
+            Kind::Total => &[],
+            Kind::Classical { eliminated, .. } => eliminated,
+        };
+        Schur::new(&self.k, boundary, excluded, &self.r, self.kdim, form)
     }
 
     /// `x <- K^+ x`.

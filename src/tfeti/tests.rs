@@ -5,7 +5,9 @@
 
 use super::cluster::Cluster;
 use super::dual::Dual;
+use super::precond::{Kind, ProjectedM};
 use super::rows::LocalRows;
+use super::schur::SchurForm;
 use super::solve::dual_solve_from;
 use super::subdomain::tests::{grid, rand_vec};
 use super::subdomain::{Geometry, Subdomain};
@@ -212,13 +214,28 @@ fn the_dual_solve_and_reconstruction_equal_a_direct_solve() {
         }
     });
     let x = kkt.partial_piv_lu().solve(&rhs);
-    let dual = Dual::new(cluster).expect("coarse space");
+    let mut dual = Dual::new(cluster).expect("coarse space");
     let settings = SmalbeSettings {
         tolerance: 1e-12,
         ..SmalbeSettings::default()
     };
-    let sol =
-        dual_solve_from(&dual, &[&f0, &f1], &c, m, &settings, None, &mut |_| {}).expect("solves");
+    for kind in [None, Some(Kind::Lumped), Some(Kind::Dirichlet)] {
+        dual.set_preconditioner(kind, m);
+        let sol = dual_solve_from(&dual, &[&f0, &f1], &c, m, &settings, None, &mut |_| {})
+            .expect("solves");
+        check_against(&sol, &x, n0, n, m, kind);
+    }
+}
+
+/// The dual solution against the direct solve `x = [u; lambda]`.
+fn check_against(
+    sol: &super::solve::DualSolution,
+    x: &Mat<f64>,
+    n0: usize,
+    n: usize,
+    m: usize,
+    kind: Option<Kind>,
+) {
     let umax = (0..n).map(|i| x[(i, 0)].abs()).fold(0.0, f64::max);
     for i in 0..n {
         let u = if i < n0 {
@@ -228,7 +245,7 @@ fn the_dual_solve_and_reconstruction_equal_a_direct_solve() {
         };
         assert!(
             (u - x[(i, 0)]).abs() < 1e-8 * umax,
-            "u[{i}] = {u} vs {}",
+            "{kind:?}: u[{i}] = {u} vs {}",
             x[(i, 0)]
         );
     }
@@ -236,9 +253,208 @@ fn the_dual_solve_and_reconstruction_equal_a_direct_solve() {
     for i in 0..m {
         assert!(
             (sol.lambda[i] - x[(n + i, 0)]).abs() < 1e-8 * lmax,
-            "lambda[{i}] = {} vs {}",
+            "{kind:?}: lambda[{i}] = {} vs {}",
             sol.lambda[i],
             x[(n + i, 0)]
         );
     }
+}
+
+/// Four 3 x 3 element blocks in a 2 x 2 arrangement on `[0, 2]^2`: gluing
+/// chains as `model::rows` builds them (four copies at the cross point, three
+/// rows per component, each normalized), and the bottom nodes held on their
+/// first copy (so a Dirichlet row overlaps a gluing row where two blocks meet
+/// at the bottom). All rows are equalities.
+fn four_blocks() -> (Cluster, Vec<Row>) {
+    let h = 3;
+    let mut subs = Vec::new();
+    for (ox, oy) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
+        let mut mesh = grid(h, h, 0.0);
+        for c in mesh.coords.chunks_exact_mut(2) {
+            c[0] += ox;
+            c[1] += oy;
+        }
+        subs.push(Arc::new(
+            Subdomain::total(&Geometry::of(&mesh)).expect("factorizes"),
+        ));
+    }
+    let s = std::f64::consts::FRAC_1_SQRT_2;
+    let mut rows = Vec::new();
+    for j in 0..=2 * h {
+        for i in 0..=2 * h {
+            // Copies in subdomain order: (subdomain, local node).
+            let mut copies = Vec::new();
+            for (sub, (bx, by)) in [(0, 0), (1, 0), (0, 1), (1, 1)].into_iter().enumerate() {
+                let (li, lj) = (
+                    i as isize - (bx * h) as isize,
+                    j as isize - (by * h) as isize,
+                );
+                if (0..=h as isize).contains(&li) && (0..=h as isize).contains(&lj) {
+                    copies.push((sub, lj as usize * (h + 1) + li as usize));
+                }
+            }
+            for w in copies.windows(2) {
+                let ((a, l), (b, m)) = (w[0], w[1]);
+                for comp in 0..2 {
+                    rows.push(vec![(a, 2 * l + comp, s), (b, 2 * m + comp, -s)]);
+                }
+            }
+            if j == 0 {
+                let (a, l) = copies[0];
+                for comp in 0..2 {
+                    rows.push(vec![(a, 2 * l + comp, 1.0)]);
+                }
+            }
+        }
+    }
+    let m = rows.len();
+    let local = LocalRows::split(subs.len(), rows.clone());
+    (Cluster::new(subs, local, m), rows)
+}
+
+/// Dense `B` over all subdomains' dofs (subdomain order) and the offsets.
+fn dense_b_all(cluster: &Cluster, rows: &[Row]) -> (Mat<f64>, Vec<usize>) {
+    let mut offsets = vec![0];
+    for s in 0..cluster.len() {
+        offsets.push(offsets[s] + cluster.dofs(s));
+    }
+    let mut b = Mat::<f64>::zeros(rows.len(), offsets[cluster.len()]);
+    for (i, row) in rows.iter().enumerate() {
+        for &(s, d, v) in row {
+            b[(i, offsets[s] + d)] += v;
+        }
+    }
+    (b, offsets)
+}
+
+/// The dense Schur complement of `k` on `b` (the rest is the interior).
+fn dense_schur(k: &Mat<f64>, b: &[usize]) -> Mat<f64> {
+    let n = k.nrows();
+    let i: Vec<usize> = (0..n).filter(|d| !b.contains(d)).collect();
+    let kbb = Mat::<f64>::from_fn(b.len(), b.len(), |p, q| k[(b[p], b[q])]);
+    let kbi = Mat::<f64>::from_fn(b.len(), i.len(), |p, q| k[(b[p], i[q])]);
+    let kii = Mat::<f64>::from_fn(i.len(), i.len(), |p, q| k[(i[p], i[q])]);
+    &kbb - &kbi * kii.partial_piv_lu().inverse() * kbi.transpose()
+}
+
+/// A subdomain's dense local operator from its `K_s` and touched dofs.
+type LocalBlock = dyn Fn(&Mat<f64>, &[usize]) -> Mat<f64>;
+
+/// `P W B M_loc B^T W P` densely: `W = (B B^T)^-1` (all rows are equalities),
+/// `M_loc` block diagonal with `local(s, K_s, touched dofs)` on the touched
+/// dofs, `P` the orthogonal projector onto `ker G`, `G = R^T B^T`.
+fn dense_preconditioner(
+    cluster: &Cluster,
+    rows: &[Row],
+    local: &LocalBlock,
+    scaled: bool,
+) -> Mat<f64> {
+    let (b, off) = dense_b_all(cluster, rows);
+    let n = b.ncols();
+    let mut mloc = Mat::<f64>::zeros(n, n);
+    let mut r = Mat::<f64>::zeros(n, 3 * cluster.len());
+    for s in 0..cluster.len() {
+        let sub = cluster.subdomain(s);
+        let mut touched: Vec<usize> = rows
+            .iter()
+            .flatten()
+            .filter(|e| e.0 == s)
+            .map(|e| e.1)
+            .collect();
+        touched.sort_unstable();
+        touched.dedup();
+        let ms = local(&dense_k(sub), &touched);
+        for (p, &dp) in touched.iter().enumerate() {
+            for (q, &dq) in touched.iter().enumerate() {
+                mloc[(off[s] + dp, off[s] + dq)] = ms[(p, q)];
+            }
+        }
+        for j in 0..3 {
+            for (d, v) in sub.kernel_column(j).iter().enumerate() {
+                r[(off[s] + d, 3 * s + j)] = *v;
+            }
+        }
+    }
+    let w = if scaled {
+        (&b * b.transpose()).partial_piv_lu().inverse()
+    } else {
+        Mat::<f64>::identity(rows.len(), rows.len())
+    };
+    let m = &w * &b * &mloc * b.transpose() * &w;
+    let g = r.transpose() * b.transpose();
+    let q = g.transpose() * (&g * g.transpose()).partial_piv_lu().inverse() * &g;
+    let p = Mat::<f64>::identity(rows.len(), rows.len()) - q;
+    &p * m * &p
+}
+
+/// `max |P M P x - reference x| / max |reference x|` over a few random `x`.
+fn preconditioner_error(dual: &Dual, reference: &Mat<f64>) -> f64 {
+    use crate::qp::Operator;
+    let m = dual.multipliers();
+    let pm = ProjectedM::new(dual, dual.preconditioner().expect("built"), 1.0);
+    let mut worst = 0.0f64;
+    for seed in 1..4 {
+        let x = rand_vec(m, seed);
+        let mut y = vec![0.0; m];
+        pm.apply(&x, &mut y);
+        let yr = reference * Mat::<f64>::from_fn(m, 1, |i, _| x[i]);
+        let scale = (0..m).map(|i| yr[(i, 0)].abs()).fold(0.0, f64::max);
+        let diff = (0..m)
+            .map(|i| (y[i] - yr[(i, 0)]).abs())
+            .fold(0.0, f64::max);
+        worst = worst.max(diff / scale);
+    }
+    worst
+}
+
+#[test]
+fn the_lumped_preconditioner_equals_p_w_b_k_bt_w_p() {
+    let (cluster, rows) = four_blocks();
+    let m = rows.len();
+    let k_bb =
+        |k: &Mat<f64>, b: &[usize]| Mat::<f64>::from_fn(b.len(), b.len(), |p, q| k[(b[p], b[q])]);
+    let reference = dense_preconditioner(&cluster, &rows, &k_bb, true);
+    // Where more than two copies meet (and a support overlaps a gluing row),
+    // W = (B B^T)^-1 is not the identity: the test sees the scaling.
+    let unscaled = dense_preconditioner(&cluster, &rows, &k_bb, false);
+    let mut dual = Dual::new(cluster).expect("coarse space");
+    let built = dual
+        .set_preconditioner(Some(Kind::Lumped), m)
+        .expect("built");
+    assert!(built.scaled && built.lumped == 4, "{built:?}");
+    let err = preconditioner_error(&dual, &reference);
+    assert!(err < 1e-10, "lumped: relative error {err:e}");
+    let without_w = preconditioner_error(&dual, &unscaled);
+    assert!(without_w > 1e-2, "unscaled differs by {without_w:e} only");
+}
+
+#[test]
+fn the_dirichlet_preconditioner_equals_p_w_b_s_bt_w_p_dense_and_implicit() {
+    let (cluster, rows) = four_blocks();
+    let m = rows.len();
+    let reference = dense_preconditioner(&cluster, &rows, &dense_schur, true);
+    let mut dual = Dual::new(cluster).expect("coarse space");
+    for (form, dense) in [(SchurForm::Dense, 4), (SchurForm::Implicit, 0)] {
+        let built = dual
+            .set_preconditioner_as(Some(Kind::Dirichlet), m, form)
+            .expect("built");
+        assert_eq!(
+            (built.dense, built.implicit, built.lumped),
+            (dense, 4 - dense, 0)
+        );
+        let err = preconditioner_error(&dual, &reference);
+        assert!(err < 1e-10, "{form:?}: relative error {err:e}");
+    }
+}
+
+#[test]
+fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
+    // Only the y components of the bottom nodes: the x translation vanishes
+    // there, so K_ii is singular.
+    let sub = Subdomain::total(&Geometry::of(&grid(3, 3, 0.0))).expect("factorizes");
+    let bottom_y: Vec<usize> = (0..4).map(|i| 2 * i + 1).collect();
+    let err = sub.schur(&bottom_y, SchurForm::Auto).expect_err("singular");
+    assert!(err.contains("rigid motion"), "{err}");
+    let bottom: Vec<usize> = (0..8).collect();
+    assert!(sub.schur(&bottom, SchurForm::Auto).is_ok());
 }

@@ -1,0 +1,319 @@
+//! Dual preconditioners: lumped `M = W (sum_s B_s K_s B_s^T) W` and Dirichlet
+//! `M = W (sum_s B_s S_s B_s^T) W` (`S_s` the Schur complement of `K_s` on the
+//! dofs that `B_s` touches), used projected, `P M P`.
+//!
+//! # Scaling where more than two subdomains meet
+//! The gluing rows of a node with `k` copies are a chain of `k - 1` rows
+//! (`u_1 - u_2`, `u_2 - u_3`, ...; see `model::rows`), each normalized to unit
+//! norm, so neighbouring rows of a chain overlap (`B B^T` has `-1/2` off the
+//! diagonal), and so do a Dirichlet row and the gluing rows of the copy it
+//! holds. Instead of multiplicity scaling (which fits fully redundant Boolean
+//! gluing, not these chains) we use the rows' orthonormality: with
+//! `T = (B_E B_E^T)^{-1/2}` the rows `T B_E` are orthonormal and span the same
+//! constraints, and the lumped/Dirichlet preconditioner for orthonormal rows
+//! needs no scaling; written in our multipliers it is `W B S B^T W` with
+//! `W = (B_E B_E^T)^{-1}` (Rixen and Farhat's `B B^T` scaling). `B_E B_E^T` is
+//! block diagonal by node (plus ties), so its sparse Cholesky factor is small
+//! and replicated like the coarse factor. Contact rows keep weight 1: they are
+//! bound-constrained, and on the interfaces we mesh they do not overlap gluing
+//! rows except at the few nodes where a contact face meets a subdomain corner.
+//! Where only two subdomains meet, `W = I` and both readings agree.
+//!
+//! # Reference
+//! D. Rixen, C. Farhat, *A simple and efficient extension of a class of
+//! substructure based preconditioners to heterogeneous structural mechanics
+//! problems*, IJNME 1999; Dostál et al., preconditioning in face (MPRGP).
+
+use super::cluster::Cluster;
+use super::dual::Dual;
+use super::schur::{Schur, SchurForm};
+use super::sparse::{llt_solve, symbolic_amd, UpperCsc};
+use crate::qp::Operator;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::{Par, Side};
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::sync::Mutex;
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    match m.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    }
+}
+
+/// Which dual preconditioner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Kind {
+    Lumped,
+    Dirichlet,
+}
+
+/// What was built, for reports and tests.
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Built {
+    /// Subdomains with a dense explicit `S_s`.
+    pub dense: usize,
+    /// Subdomains with `S_s` applied by solves with the interior factor.
+    pub implicit: usize,
+    /// Subdomains lumped: all of them for `lumped`; for `dirichlet`, those whose
+    /// interior block is singular (the rows touch too few of their dofs).
+    pub lumped: usize,
+    /// Whether the equality rows are scaled by `(B_E B_E^T)^-1` (false when that
+    /// Gram matrix is singular: redundant equality rows).
+    pub scaled: bool,
+}
+
+enum Local {
+    Lumped(UpperCsc),
+    Schur(Box<Schur>),
+}
+
+struct BlockWork {
+    xb: Vec<f64>,
+    yb: Vec<f64>,
+    yl: Vec<f64>,
+}
+
+/// One subdomain's `B_s M_s B_s^T` on its local rows.
+struct Block {
+    /// Global row of each local row.
+    rows: Vec<usize>,
+    /// (local row, index among the touched dofs, coefficient).
+    entries: Vec<(usize, usize, f64)>,
+    op: Local,
+    work: Mutex<BlockWork>,
+}
+
+impl Block {
+    /// `yl = B_s M_s B_s^T t` at the block's rows (`t` global).
+    fn apply(&self, t: &[f64]) {
+        let mut guard = lock(&self.work);
+        let BlockWork { xb, yb, yl } = &mut *guard;
+        xb.iter_mut().for_each(|v| *v = 0.0);
+        for &(k, j, v) in &self.entries {
+            xb[j] += v * t[self.rows[k]];
+        }
+        match &self.op {
+            Local::Lumped(k) => k.mul(xb, yb),
+            Local::Schur(s) => s.apply(xb, yb),
+        }
+        yl.iter_mut().for_each(|v| *v = 0.0);
+        for &(k, j, v) in &self.entries {
+            yl[k] += v * yb[j];
+        }
+    }
+}
+
+/// `W = (B_E B_E^T)^-1` on the first `n` (equality) rows.
+struct Scaling {
+    n: usize,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    buf: Mutex<MemBuffer>,
+}
+
+impl Scaling {
+    /// From the cluster's rows; None when `B_E B_E^T` is not positive definite.
+    fn new(cluster: &Cluster, n: usize) -> Option<Scaling> {
+        if n == 0 {
+            return None;
+        }
+        // B_E B_E^T = sum_s B_s B_s^T: rows overlap only through a shared dof
+        // of one subdomain. Upper triangle, summed in subdomain order.
+        let mut triplets = Vec::new();
+        for s in 0..cluster.len() {
+            let lr = cluster.local_rows(s);
+            let mut by_dof: BTreeMap<usize, Vec<(usize, f64)>> = BTreeMap::new();
+            for &(k, d, v) in &lr.entries {
+                let row = lr.rows[k];
+                if row < n {
+                    by_dof.entry(d).or_default().push((row, v));
+                }
+            }
+            for list in by_dof.values() {
+                for &(r1, v1) in list {
+                    for &(r2, v2) in list {
+                        if r1 <= r2 {
+                            triplets.push(Triplet::new(r1, r2, v1 * v2));
+                        }
+                    }
+                }
+            }
+        }
+        let gram = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
+        let a = SparseColMatRef::new(gram.symbolic(), gram.val());
+        let symbolic = symbolic_amd(a.symbolic()).ok()?;
+        let mut l_values = vec![0.0; symbolic.len_val()];
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+        ]);
+        let mut buf = MemBuffer::new(req);
+        symbolic
+            .factorize_numeric_llt(
+                &mut l_values,
+                a,
+                Side::Upper,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut buf),
+                Default::default(),
+            )
+            .ok()?;
+        // The rows are normalized, so the diagonal is 1; a pivot far below it
+        // means dependent rows, and W would amplify round-off.
+        let scaling = Scaling {
+            n,
+            symbolic,
+            l_values,
+            buf: Mutex::new(buf),
+        };
+        let mut probe = vec![1.0; n];
+        scaling.solve(&mut probe);
+        let worst = probe.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        (worst.is_finite() && worst < 1e6).then_some(scaling)
+    }
+
+    /// `x[..n] <- (B_E B_E^T)^-1 x[..n]`.
+    fn solve(&self, x: &mut [f64]) {
+        let mut buf = lock(&self.buf);
+        llt_solve(&self.symbolic, &self.l_values, &mut x[..self.n], &mut buf);
+    }
+}
+
+/// `M = W (sum_s B_s M_s B_s^T) W` over the subdomains of one cluster.
+pub struct DualPreconditioner {
+    kind: Kind,
+    /// One per subdomain of the cluster, in its order.
+    blocks: Vec<Block>,
+    scaling: Option<Scaling>,
+    work: Mutex<Vec<f64>>,
+    built: Built,
+}
+
+impl DualPreconditioner {
+    /// Builds every subdomain's block (in parallel) and the scaling of the
+    /// first `n_equality` rows.
+    pub fn new(cluster: &Cluster, kind: Kind, n_equality: usize, form: SchurForm) -> Self {
+        let blocks: Vec<Block> = cluster.map(|s, sub| {
+            let lr = cluster.local_rows(s);
+            let mut boundary: Vec<usize> = lr.entries.iter().map(|e| e.1).collect();
+            boundary.sort_unstable();
+            boundary.dedup();
+            let entries = lr
+                .entries
+                .iter()
+                .map(|&(k, d, v)| (k, boundary.partition_point(|&b| b < d), v))
+                .collect();
+            let op = match kind {
+                Kind::Lumped => Local::Lumped(sub.boundary_stiffness(&boundary)),
+                Kind::Dirichlet => match sub.schur(&boundary, form) {
+                    Ok(s) => Local::Schur(Box::new(s)),
+                    Err(_) => Local::Lumped(sub.boundary_stiffness(&boundary)),
+                },
+            };
+            let nb = boundary.len();
+            Block {
+                rows: lr.rows.clone(),
+                entries,
+                op,
+                work: Mutex::new(BlockWork {
+                    xb: vec![0.0; nb],
+                    yb: vec![0.0; nb],
+                    yl: vec![0.0; lr.rows.len()],
+                }),
+            }
+        });
+        let scaling = Scaling::new(cluster, n_equality.min(cluster.multipliers()));
+        let mut built = Built {
+            scaled: scaling.is_some(),
+            ..Built::default()
+        };
+        for b in &blocks {
+            match &b.op {
+                Local::Lumped(_) => built.lumped += 1,
+                Local::Schur(s) if s.is_dense() => built.dense += 1,
+                Local::Schur(_) => built.implicit += 1,
+            }
+        }
+        DualPreconditioner {
+            kind,
+            blocks,
+            scaling,
+            work: Mutex::new(vec![0.0; cluster.multipliers()]),
+            built,
+        }
+    }
+
+    pub fn kind(&self) -> Kind {
+        self.kind
+    }
+
+    pub fn built(&self) -> &Built {
+        &self.built
+    }
+
+    /// `y = M x` (unprojected): blocks in parallel, summed in subdomain order.
+    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut t = lock(&self.work);
+        t.copy_from_slice(x);
+        if let Some(w) = &self.scaling {
+            w.solve(&mut t);
+        }
+        let t: &[f64] = &t;
+        self.blocks.par_iter().for_each(|b| b.apply(t));
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for b in &self.blocks {
+            let guard = lock(&b.work);
+            for (k, &row) in b.rows.iter().enumerate() {
+                y[row] += guard.yl[k];
+            }
+        }
+        if let Some(w) = &self.scaling {
+            w.solve(y);
+        }
+    }
+}
+
+/// `scale P M P`, the preconditioner of `P F P / scale'` handed to the QP
+/// solvers (`scale` makes it an approximate inverse of the scaled Hessian, which
+/// matters where SMALBE adds `(1/rho) (I - P)` to it).
+pub struct ProjectedM<'a> {
+    dual: &'a Dual,
+    m: &'a DualPreconditioner,
+    scale: f64,
+    work: Mutex<Vec<f64>>,
+}
+
+impl<'a> ProjectedM<'a> {
+    pub fn new(dual: &'a Dual, m: &'a DualPreconditioner, scale: f64) -> Self {
+        ProjectedM {
+            dual,
+            m,
+            scale,
+            work: Mutex::new(vec![0.0; dual.multipliers()]),
+        }
+    }
+}
+
+impl Operator for ProjectedM<'_> {
+    fn dim(&self) -> usize {
+        self.dual.multipliers()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut guard = lock(&self.work);
+        let t = &mut *guard;
+        t.copy_from_slice(x);
+        self.dual.project(t);
+        self.m.apply(t, y);
+        self.dual.project(y);
+        let scale = self.scale;
+        y.iter_mut().for_each(|v| *v *= scale);
+    }
+}

@@ -1,0 +1,262 @@
+//! The Schur complement of a subdomain's stiffness on the dofs that `B`
+//! touches, `S = K_bb - K_bi K_ii^-1 K_ib` (the Dirichlet preconditioner's
+//! local operator), held either as a dense matrix or as the factor of `K_ii`
+//! with the couplings, whichever moves fewer bytes per application.
+//!
+//! `K_ii` (the interior, every dof that `B` does not touch) is SPD exactly when
+//! no rigid motion of the subdomain vanishes on the touched dofs: a vector `v`
+//! with `v^T K_ii v = 0` extended by zero is in `ker K`. That is checked on the
+//! kernel basis before factorizing, so a subdomain touched too little (one
+//! node, or one component along a line) is reported, not factorized singular.
+
+use super::sparse::{llt_solve, symbolic_amd, UpperCsc};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
+use faer::sparse::linalg::matmul::sparse_dense_matmul;
+use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+use std::sync::Mutex;
+
+/// How to hold `S`: chosen by bytes moved per application, or forced (tests).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SchurForm {
+    /// Dense when `nb^2` values are fewer than what the implicit form reads
+    /// (the factor of `K_ii` twice and the couplings).
+    Auto,
+    Dense,
+    Implicit,
+}
+
+/// Work space of one implicit application.
+struct Work {
+    buf: MemBuffer,
+    interior: Vec<f64>,
+}
+
+/// `S` of one subdomain on its touched dofs `b` (in the order given).
+pub struct Schur(Held);
+
+enum Held {
+    Dense(Mat<f64>),
+    Implicit(Box<Implicit>),
+}
+
+/// `S` applied as `K_bb x - K_bi K_ii^-1 K_ib x`.
+struct Implicit {
+    k_bb: UpperCsc,
+    /// `K_ib`, interior x touched.
+    k_ib: SparseColMat<usize, f64>,
+    symbolic: SymbolicCholesky<usize>,
+    l_values: Vec<f64>,
+    work: Mutex<Work>,
+}
+
+impl std::fmt::Debug for Schur {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match &self.0 {
+            Held::Dense(s) => write!(f, "Schur::Dense({})", s.nrows()),
+            Held::Implicit(i) => write!(f, "Schur::Implicit({})", i.k_bb.n),
+        }
+    }
+}
+
+impl Schur {
+    /// `S` of `k` on the dofs `boundary` (sorted, distinct), without the dofs
+    /// `excluded` (classical FETI's eliminated ones, sorted); `kernel` is the
+    /// orthonormal basis of `ker K` (column-major, `kdim` columns). Fails, saying
+    /// why, when `K_ii` is singular.
+    pub fn new(
+        k: &UpperCsc,
+        boundary: &[usize],
+        excluded: &[usize],
+        kernel: &[f64],
+        kdim: usize,
+        form: SchurForm,
+    ) -> Result<Schur, String> {
+        let n = k.n;
+        let nb = boundary.len();
+        if !kernel_seen(kernel, kdim, n, boundary) {
+            return Err("a rigid motion vanishes on the dofs that the rows touch".into());
+        }
+        // Index of each dof in b and in the interior.
+        let mut in_b = vec![usize::MAX; n];
+        for (j, &d) in boundary.iter().enumerate() {
+            in_b[d] = j;
+        }
+        let mut in_i = vec![usize::MAX; n];
+        let mut ni = 0;
+        for d in 0..n {
+            if in_b[d] == usize::MAX && excluded.binary_search(&d).is_err() {
+                in_i[d] = ni;
+                ni += 1;
+            }
+        }
+        let k_bb = k.without(&in_b, nb);
+        let k_ii = k.without(&in_i, ni);
+        let triplets: Vec<Triplet<usize, usize, f64>> = k
+            .entries()
+            .filter(|&(r, c, _)| in_i[r] != usize::MAX && in_b[c] != usize::MAX)
+            .map(|(r, c, v)| Triplet::new(in_i[r], in_b[c], v))
+            .collect();
+        let k_ib = SparseColMat::try_new_from_triplets(ni, nb, &triplets)
+            .map_err(|e| format!("K_ib: {e:?}"))?;
+        if ni == 0 {
+            return Ok(Schur(Held::Dense(dense_upper(&k_bb))));
+        }
+        let a = SparseColMatRef::new(k_ii.symbolic(), &k_ii.values);
+        let symbolic = symbolic_amd(a.symbolic())?;
+        let mut l_values = vec![0.0; symbolic.len_val()];
+        let rhs_cols = if form == SchurForm::Implicit { 1 } else { nb };
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(rhs_cols.max(1), Par::Seq),
+        ]);
+        let mut buf = MemBuffer::new(req);
+        symbolic
+            .factorize_numeric_llt(
+                &mut l_values,
+                a,
+                Side::Upper,
+                LltRegularization::default(),
+                Par::Seq,
+                MemStack::new(&mut buf),
+                Default::default(),
+            )
+            .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
+        let implicit_reads = 2 * l_values.len() + 2 * k_ib.compute_nnz() + k_bb.values.len();
+        let dense = match form {
+            SchurForm::Dense => true,
+            SchurForm::Implicit => false,
+            SchurForm::Auto => nb * nb <= implicit_reads,
+        };
+        if !dense {
+            return Ok(Schur(Held::Implicit(Box::new(Implicit {
+                k_bb,
+                k_ib,
+                symbolic,
+                l_values,
+                work: Mutex::new(Work {
+                    buf,
+                    interior: vec![0.0; ni],
+                }),
+            }))));
+        }
+        // S = K_bb - K_ib^T (K_ii^-1 K_ib), all nb columns in one blocked solve.
+        let mut x = Mat::<f64>::zeros(ni, nb);
+        for (i, j, v) in triplets.iter().map(|t| (t.row, t.col, t.val)) {
+            x[(i, j)] += v;
+        }
+        let mut buf = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(nb, Par::Seq));
+        LltRef::<usize, f64>::new(&symbolic, &l_values).solve_in_place_with_conj(
+            Conj::No,
+            x.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut buf),
+        );
+        let mut s = dense_upper(&k_bb);
+        sparse_dense_matmul(
+            s.as_mut(),
+            Accum::Add,
+            k_ib.as_ref().transpose(),
+            x.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+        Ok(Schur(Held::Dense(s)))
+    }
+
+    /// Size of `b`.
+    pub fn dim(&self) -> usize {
+        match &self.0 {
+            Held::Dense(s) => s.nrows(),
+            Held::Implicit(i) => i.k_bb.n,
+        }
+    }
+
+    /// Whether `S` is held as a dense matrix.
+    pub fn is_dense(&self) -> bool {
+        matches!(self.0, Held::Dense(_))
+    }
+
+    /// `y = S x` on the touched dofs.
+    pub fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let nb = x.len();
+        match &self.0 {
+            Held::Dense(s) => {
+                let mut yv = MatMut::from_column_major_slice_mut(y, nb, 1);
+                faer::linalg::matmul::matmul(
+                    yv.as_mut(),
+                    Accum::Replace,
+                    s.as_ref(),
+                    MatRef::from_column_major_slice(x, nb, 1),
+                    1.0,
+                    Par::Seq,
+                );
+            }
+            Held::Implicit(i) => {
+                let Implicit {
+                    k_bb,
+                    k_ib,
+                    symbolic,
+                    l_values,
+                    work,
+                } = &**i;
+                let mut guard = match work.lock() {
+                    Ok(g) => g,
+                    Err(p) => p.into_inner(),
+                };
+                let Work { buf, interior } = &mut *guard;
+                let ni = interior.len();
+                k_bb.mul(x, y);
+                sparse_dense_matmul(
+                    MatMut::from_column_major_slice_mut(interior, ni, 1),
+                    Accum::Replace,
+                    k_ib.as_ref(),
+                    MatRef::from_column_major_slice(x, nb, 1),
+                    1.0,
+                    Par::Seq,
+                );
+                llt_solve(symbolic, l_values, interior, buf);
+                sparse_dense_matmul(
+                    MatMut::from_column_major_slice_mut(y, nb, 1),
+                    Accum::Add,
+                    k_ib.as_ref().transpose(),
+                    MatRef::from_column_major_slice(interior, ni, 1),
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+        }
+    }
+}
+
+/// The dense symmetric matrix of an upper triangle.
+fn dense_upper(a: &UpperCsc) -> Mat<f64> {
+    let mut m = Mat::<f64>::zeros(a.n, a.n);
+    for (r, c, v) in a.entries() {
+        m[(r, c)] += v;
+    }
+    m
+}
+
+/// Whether every kernel vector is seen on `dofs`: `R_b^T R_b` (the kernel
+/// basis restricted to `dofs`) is positive definite, its smallest eigenvalue
+/// above round-off (the columns are orthonormal, so 1 is the scale).
+fn kernel_seen(kernel: &[f64], kdim: usize, n: usize, dofs: &[usize]) -> bool {
+    if kdim == 0 {
+        return true;
+    }
+    let gram = Mat::<f64>::from_fn(kdim, kdim, |i, j| {
+        dofs.iter()
+            .map(|&d| kernel[i * n + d] * kernel[j * n + d])
+            .sum()
+    });
+    match gram.self_adjoint_eigen(Side::Lower) {
+        Ok(evd) => {
+            let s = evd.S();
+            (0..kdim).all(|i| s[i] > 1e-10)
+        }
+        Err(_) => false,
+    }
+}
