@@ -11,6 +11,7 @@ pub mod diag;
 pub mod expr;
 pub mod parse;
 pub mod scene;
+pub mod suggest;
 pub mod units;
 
 pub use check::{compile, CheckOptions};

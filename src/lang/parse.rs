@@ -467,7 +467,7 @@ fn syntax_error(src: &str, offset: usize, err: &pest::error::Error<Rule>) -> Dia
             .strip_prefix("name `")
             .and_then(|w| w.strip_suffix('`'))
         {
-            let help = crate::lang::check::did_you_mean(word, ITEM_KEYWORDS.iter().copied())
+            let help = super::suggest::did_you_mean(word, ITEM_KEYWORDS.iter().copied())
                 .unwrap_or_else(|| {
                     format!(
                         "items start with {}",

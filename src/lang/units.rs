@@ -162,7 +162,7 @@ pub fn is_unit(name: &str) -> bool {
 /// (`mn` -> `mm`); else the nearest within two edits.
 pub fn nearest_units(name: &str) -> Vec<&'static str> {
     let names = UNITS.iter().map(|u| u.0);
-    let d = |u: &str| crate::lang::check::distance(name, u);
+    let d = |u: &str| super::suggest::distance(name, u);
     let mut near: Vec<&'static str> = names
         .clone()
         .filter(|u| u.eq_ignore_ascii_case(name))

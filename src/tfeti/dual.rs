@@ -248,3 +248,41 @@ impl Equality for Orthonormal<'_> {
         self.0.cluster.apply_gt(z, x);
     }
 }
+
+/// `scale P M P`, the preconditioner of `P F P / scale'` handed to the QP
+/// solvers (`scale` makes it an approximate inverse of the scaled Hessian, which
+/// matters where SMALBE adds `(1/rho) (I - P)` to it).
+pub struct ProjectedM<'a> {
+    dual: &'a Dual,
+    m: &'a DualPreconditioner,
+    scale: f64,
+    work: Mutex<Vec<f64>>,
+}
+
+impl<'a> ProjectedM<'a> {
+    pub fn new(dual: &'a Dual, m: &'a DualPreconditioner, scale: f64) -> Self {
+        ProjectedM {
+            dual,
+            m,
+            scale,
+            work: Mutex::new(vec![0.0; dual.multipliers()]),
+        }
+    }
+}
+
+impl Operator for ProjectedM<'_> {
+    fn dim(&self) -> usize {
+        self.dual.multipliers()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut guard = lock(&self.work);
+        let t = &mut *guard;
+        t.copy_from_slice(x);
+        self.dual.project(t);
+        self.m.apply(t, y);
+        self.dual.project(y);
+        let scale = self.scale;
+        y.iter_mut().for_each(|v| *v *= scale);
+    }
+}

@@ -8,9 +8,9 @@
 //! F = B K^+ B^T,  d = B K^+ f - c,  G = R^T B^T,  e = R^T f
 //! ```
 
+use super::dual::ProjectedM;
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
-use super::precond::ProjectedM;
 use super::reconstruct::reconstruct;
 use crate::qp::{estimate_norm, smalbe_preconditioned, Operator, QpInfo, SmalbeSettings, Status};
 

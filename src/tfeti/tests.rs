@@ -5,7 +5,8 @@
 
 use super::cluster::Cluster;
 use super::dual::Dual;
-use super::precond::{Kind, ProjectedM};
+use super::dual::ProjectedM;
+use super::precond::Kind;
 use super::rows::LocalRows;
 use super::schur::SchurForm;
 use super::solve::dual_solve_from;

@@ -1,6 +1,5 @@
 //! Fields of a block: which are known, which are required, and their values' shapes.
 
-use super::names;
 use super::{quote_list, Checker};
 use crate::lang::ast::{Block, Expr, Field, Span, Value};
 use crate::lang::diag::Diagnostic;
@@ -113,7 +112,7 @@ impl<'a> Checker<'a> {
             if !spec.iter().any(|s| s.name == name) {
                 let known: Vec<&str> = spec.iter().map(|s| s.name).collect();
                 let help = unknown_hint(name)
-                    .or_else(|| names::did_you_mean(name, known.iter().copied()))
+                    .or_else(|| crate::lang::suggest::did_you_mean(name, known.iter().copied()))
                     .unwrap_or_else(|| format!("the fields of {what} are {}", quote_list(&known)));
                 // A misspelt required field is not also reported as missing: the
                 // hint names the field it was meant to be.

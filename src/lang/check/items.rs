@@ -772,7 +772,7 @@ impl<'a> Checker<'a> {
             }
             None => {
                 let names: Vec<&str> = faces.iter().map(|f| f.name()).collect();
-                let help = super::names::did_you_mean(&face.name, names.iter().copied())
+                let help = crate::lang::suggest::did_you_mean(&face.name, names.iter().copied())
                     .unwrap_or_else(|| format!("the faces are {}", quote_list(&names)));
                 self.error(
                     Diagnostic::new(
@@ -1040,7 +1040,9 @@ impl<'a> Checker<'a> {
         .label(name.span, format!("expected {}", quote_or(allowed)));
         if name.name == "uz" {
             d = d.help("`uz` exists only in 3D scenes");
-        } else if let Some(s) = super::names::did_you_mean(&name.name, allowed.iter().copied()) {
+        } else if let Some(s) =
+            crate::lang::suggest::did_you_mean(&name.name, allowed.iter().copied())
+        {
             d = d.help(s);
         }
         self.error(d);
@@ -1393,7 +1395,7 @@ impl<'a> Checker<'a> {
             format!("`{}` cannot be `{found}`", fl.name.name),
         )
         .label(e.span, format!("expected {}", quote_or(&names)));
-        if let Some(s) = super::names::did_you_mean(found, names.iter().copied()) {
+        if let Some(s) = crate::lang::suggest::did_you_mean(found, names.iter().copied()) {
             d = d.help(s);
         }
         self.error(d);

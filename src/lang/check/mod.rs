@@ -11,8 +11,8 @@ mod items;
 mod names;
 mod values;
 
+pub use super::suggest::{did_you_mean, distance, suggest};
 pub use budget::{bytes, estimate, parse_bytes, MemoryEstimate};
-pub use names::{did_you_mean, distance, suggest};
 
 use super::ast::{File, Ident, Item, ItemKind, Span};
 use super::diag::{self, Diagnostic};
@@ -160,7 +160,8 @@ impl<'a> Checker<'a> {
             .copied()
             .find(|k| *k != kind && self.table(*k).get(name).is_some());
         let table = self.table(kind);
-        let suggestion = names::did_you_mean(name, table.names.iter().map(String::as_str));
+        let suggestion =
+            crate::lang::suggest::did_you_mean(name, table.names.iter().map(String::as_str));
         let d = match (other, suggestion) {
             (Some(other), None) => Diagnostic::new(
                 "cso::wrong-kind",

@@ -250,7 +250,9 @@ impl<'a> Checker<'a> {
             .iter()
             .find(|k| self.table(**k).get(name).is_some())
             .copied();
-        if let Some(s) = super::names::did_you_mean(name, candidates.iter().map(String::as_str)) {
+        if let Some(s) =
+            crate::lang::suggest::did_you_mean(name, candidates.iter().map(String::as_str))
+        {
             d = d.help(s);
         } else if let Some(k) = other {
             d = d.help(format!("`{name}` is {}, not a number", k.article()));
@@ -350,14 +352,15 @@ impl<'a> Checker<'a> {
             let origin = format!("--set {name}={text}");
             let Some(i) = self.table(Kind::Let).get(name) else {
                 let lets = &self.table(Kind::Let).names;
-                let help = super::names::did_you_mean(name, lets.iter().map(String::as_str))
-                    .unwrap_or_else(|| {
-                        if lets.is_empty() {
-                            "this scene has no `let` constants".to_string()
-                        } else {
-                            format!("its constants are {}", super::quote_list(lets))
-                        }
-                    });
+                let help =
+                    crate::lang::suggest::did_you_mean(name, lets.iter().map(String::as_str))
+                        .unwrap_or_else(|| {
+                            if lets.is_empty() {
+                                "this scene has no `let` constants".to_string()
+                            } else {
+                                format!("its constants are {}", super::quote_list(lets))
+                            }
+                        });
                 let offset = "--set ".len();
                 self.error(
                     Diagnostic::new(
@@ -552,7 +555,7 @@ impl<'a> Checker<'a> {
                 let known = [
                     "sqrt", "abs", "exp", "ln", "sin", "cos", "tan", "min", "max", "bezier",
                 ];
-                let help = super::names::did_you_mean(name, known)
+                let help = crate::lang::suggest::did_you_mean(name, known)
                     .unwrap_or_else(|| format!("the functions are {}", super::quote_list(&known)));
                 self.error(
                     Diagnostic::new("cso::unknown-name", format!("unknown function `{name}`"))
@@ -737,7 +740,7 @@ impl<'a> Checker<'a> {
                 .iter()
                 .find(|k| self.table(**k).get(name).is_some())
                 .map_or("unknown".to_string(), |k| k.article());
-            let help = super::names::did_you_mean(
+            let help = crate::lang::suggest::did_you_mean(
                 name,
                 self.designs.iter().map(|g| g.name.as_str()),
             )
