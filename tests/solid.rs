@@ -252,7 +252,7 @@ fn floating_brick_held_by_contact_and_symmetry_agrees_with_the_reference() {
     let problem = lower(&scene, &[]).expect("lowers");
     let touched = primary_nodes_per_contact_row(&problem);
     assert!(
-        touched.iter().any(|&n| n == 4) && touched.iter().any(|&n| n == 2),
+        touched.contains(&4) && touched.contains(&2),
         "primary nodes per contact row: {touched:?}"
     );
     check_method("floating3d", FLOATING, SolverMethod::Tfeti, 1e-8, 1e-6);
@@ -382,6 +382,18 @@ fn coarse_hertz3d_equals_an_exact_sparse_solve() {
 fn hertz3d_equals_an_exact_sparse_solve_and_meets_the_kkt_conditions() {
     let x = against_exact("hertz3d", &example_src("hertz3d"), 1e-8, 1e-6);
     assert_exact("hertz3d", &x);
+}
+
+/// Issue 13 asks for energy and contact force equal to an exact solve to 1e-6
+/// with the solver at tolerance 1e-6 (the scene's own setting). hertz3d does
+/// not meet that: measured energy 2.7e-5 and force 2.4e-5 off (2500.059 N for
+/// 2500 N); at 1e-8 it does (above). The tolerance is relative to the dual
+/// problem scaled by `||PFP||`, so this is what 1e-6 buys, not a wrong answer.
+#[test]
+#[ignore = "fails: at the scene's tolerance 1e-6, hertz3d's energy and force are 3e-5 off an exact solve (issue 13 asks 1e-6)"]
+fn hertz3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
+    let x = against_exact("hertz3d", &example_src("hertz3d"), 1e-6, 1e-3);
+    assert_exact("hertz3d (tolerance 1e-6)", &x);
 }
 
 // --- Hertz contact in 3D against the analytic solution. ---
