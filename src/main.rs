@@ -56,7 +56,7 @@ struct Cli {
 enum Command {
     /// Parse and check scenes; report every error with its place and a fix.
     Check(Check),
-    /// Solve the contact state of a 2D scene by Total FETI (SMALBE + MPRGP).
+    /// Solve the contact state of a scene (2D or 3D) by Total FETI (SMALBE + MPRGP).
     Solve(Solve),
     /// Gradients of the objective and constraints with respect to the design variables.
     Sensitivity(Sensitivity),

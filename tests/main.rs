@@ -11,6 +11,7 @@ mod hard;
 mod optimize;
 mod reference;
 mod sensitivity;
+mod solid;
 mod state;
 
 use std::path::{Path, PathBuf};

@@ -7,8 +7,9 @@
 //! min 1/2 u^T K u - f^T u   s.t.  B_E u = c_E,  B_I u <= c_I
 //! ```
 //!
-//! is solved by a primal-dual active-set loop on the dense KKT system with LU.
-//! Only the element stiffness (`quad_stiffness`) is shared with the solver.
+//! is solved by a primal-dual active-set loop on the KKT system: dense LU for
+//! small scenes, faer's sparse LU for the full-size 3D examples.
+//! Only the element stiffness (`Element::stiffness`) is shared with the solver.
 //! TFETI must agree with it in every copy of every grid node, in the active set
 //! and in the multipliers of the rows both formulations share.
 
@@ -18,28 +19,52 @@ use cso::lang::{compile, Scene};
 use cso::model::{lower, Problem, RowKind};
 use cso::state::{solve, State};
 use faer::linalg::solvers::Solve;
+use faer::sparse::{SparseColMat, Triplet};
 use faer::Mat;
 
 /// One non-gluing row of `B` over the global grid dofs.
-struct GlobalRow {
+pub(crate) struct GlobalRow {
     /// Index of the row in `problem.rows` (and in TFETI's `lambda`).
-    index: usize,
-    entries: Vec<(usize, f64)>,
-    c: f64,
+    pub index: usize,
+    pub entries: Vec<(usize, f64)>,
+    pub c: f64,
 }
 
 /// The undecomposed problem.
-struct Global {
+pub(crate) struct Global {
     /// First global dof of each body.
-    offsets: Vec<usize>,
-    n: usize,
-    k: Mat<f64>,
-    f: Vec<f64>,
-    equalities: Vec<GlobalRow>,
-    contacts: Vec<GlobalRow>,
+    pub offsets: Vec<usize>,
+    pub n: usize,
+    /// The global stiffness, both triangles, one entry per (row, column), sorted
+    /// by column then row.
+    pub k: Vec<(usize, usize, f64)>,
+    pub f: Vec<f64>,
+    pub equalities: Vec<GlobalRow>,
+    pub contacts: Vec<GlobalRow>,
 }
 
-fn compile_scene(src: &str) -> Scene {
+impl Global {
+    /// `K u`.
+    pub fn apply_k(&self, u: &[f64]) -> Vec<f64> {
+        let mut y = vec![0.0; self.n];
+        for &(i, j, v) in &self.k {
+            y[i] += v * u[j];
+        }
+        y
+    }
+
+    /// `1/2 u^T K u`.
+    pub fn energy(&self, u: &[f64]) -> f64 {
+        0.5 * self
+            .apply_k(u)
+            .iter()
+            .zip(u)
+            .map(|(a, b)| a * b)
+            .sum::<f64>()
+    }
+}
+
+pub(crate) fn compile_scene(src: &str) -> Scene {
     match compile(src, &options()) {
         Ok(s) => s,
         Err(d) => panic!("{}", cso::lang::diag::render(&d, "reference.cso", src)),
@@ -71,7 +96,7 @@ fn cell(grid: &cso::model::grid::Grid, [i, j, k]: [usize; 3]) -> Vec<usize> {
     }
 }
 
-fn assemble(problem: &Problem) -> Global {
+pub(crate) fn assemble(problem: &Problem) -> Global {
     let dim = problem.dim;
     let mut offsets = Vec::new();
     let mut n = 0;
@@ -79,7 +104,7 @@ fn assemble(problem: &Problem) -> Global {
         offsets.push(n);
         n += dim * b.coords.len();
     }
-    let mut k = Mat::<f64>::zeros(n, n);
+    let mut k: Vec<(usize, usize, f64)> = Vec::new();
     let mut f = vec![0.0; n];
     // Every element of every body exactly once.
     let mut seen: Vec<Vec<bool>> = problem
@@ -117,7 +142,7 @@ fn assemble(problem: &Problem) -> Global {
             let nd = dofs.len();
             for a in 0..nd {
                 for b in 0..nd {
-                    k[(dofs[a], dofs[b])] += ke[a * nd + b];
+                    k.push((dofs[a], dofs[b], ke[a * nd + b]));
                 }
             }
         }
@@ -131,6 +156,16 @@ fn assemble(problem: &Problem) -> Global {
             "body {b}: some elements belong to no subdomain"
         );
     }
+    // Sum duplicates.
+    k.sort_unstable_by_key(|&(i, j, _)| (j, i));
+    let mut merged: Vec<(usize, usize, f64)> = Vec::with_capacity(k.len() / 4);
+    for (i, j, v) in k {
+        match merged.last_mut() {
+            Some(last) if last.0 == i && last.1 == j => last.2 += v,
+            _ => merged.push((i, j, v)),
+        }
+    }
+    let k = merged;
     let mut equalities = Vec::new();
     let mut contacts = Vec::new();
     for (index, row) in problem.rows.iter().enumerate() {
@@ -173,14 +208,28 @@ fn assemble(problem: &Problem) -> Global {
 }
 
 /// The reference solution.
-struct Reference {
+pub(crate) struct Reference {
     /// Global grid dofs.
-    u: Vec<f64>,
+    pub u: Vec<f64>,
     /// Multipliers by index of `problem.rows` (0 for gluing and inactive rows).
-    mult: Vec<f64>,
+    pub mult: Vec<f64>,
     /// Active contact rows (indices of `problem.rows`), sorted.
-    active: Vec<usize>,
-    iterations: usize,
+    pub active: Vec<usize>,
+    pub iterations: usize,
+}
+
+impl Reference {
+    /// Total normal force of each contact of the scene: `sum lambda_i / scale_i`
+    /// over its rows (as the report computes it from TFETI's multipliers).
+    pub fn contact_forces(&self, problem: &Problem, n_contacts: usize) -> Vec<f64> {
+        let mut f = vec![0.0; n_contacts];
+        for (i, row) in problem.rows.iter().enumerate() {
+            if let RowKind::Contact { contact, .. } = row.kind {
+                f[contact] += self.mult[i] / row.scale;
+            }
+        }
+        f
+    }
 }
 
 fn dot(r: &GlobalRow, u: &[f64]) -> f64 {
@@ -198,10 +247,10 @@ fn kkt_solve(g: &Global, active: &[usize]) -> (Vec<f64>, Vec<f64>) {
     let m = g.n + rows.len();
     let mut a = Mat::<f64>::zeros(m, m);
     let mut b = Mat::<f64>::zeros(m, 1);
+    for &(i, j, v) in &g.k {
+        a[(i, j)] = v;
+    }
     for i in 0..g.n {
-        for j in 0..g.n {
-            a[(i, j)] = g.k[(i, j)];
-        }
         b[(i, 0)] = g.f[i];
     }
     for (r, row) in rows.iter().enumerate() {
@@ -232,22 +281,100 @@ fn kkt_solve(g: &Global, active: &[usize]) -> (Vec<f64>, Vec<f64>) {
     (u, l)
 }
 
+/// [`kkt_solve`] with faer's sparse LU (partial pivoting), one step of
+/// iterative refinement and the same residual check. The rows of `B` are
+/// scaled by the mean diagonal of `K` so that pivoting sees comparable numbers.
+fn sparse_kkt_solve(g: &Global, active: &[usize]) -> (Vec<f64>, Vec<f64>) {
+    let rows: Vec<&GlobalRow> = g
+        .equalities
+        .iter()
+        .chain(active.iter().map(|&a| &g.contacts[a]))
+        .collect();
+    let n = g.n;
+    let m = n + rows.len();
+    let diag: Vec<f64> =
+        g.k.iter()
+            .filter(|e| e.0 == e.1)
+            .map(|e| e.2.abs())
+            .collect();
+    let s = diag.iter().sum::<f64>() / diag.len().max(1) as f64;
+    let mut trip: Vec<Triplet<usize, usize, f64>> =
+        g.k.iter().map(|&(i, j, v)| Triplet::new(i, j, v)).collect();
+    let mut b = Mat::<f64>::zeros(m, 1);
+    for i in 0..n {
+        b[(i, 0)] = g.f[i];
+    }
+    for (r, row) in rows.iter().enumerate() {
+        for &(d, v) in &row.entries {
+            trip.push(Triplet::new(n + r, d, s * v));
+            trip.push(Triplet::new(d, n + r, s * v));
+        }
+        b[(n + r, 0)] = s * row.c;
+    }
+    let a = SparseColMat::<usize, f64>::try_new_from_triplets(m, m, &trip).expect("KKT matrix");
+    let lu = a.sp_lu().expect("sparse LU of the KKT matrix");
+    let residual = |x: &Mat<f64>| {
+        let mut r = b.clone();
+        let mut scale = (0..m).fold(0.0f64, |acc, i| acc.max(b[(i, 0)].abs()));
+        for t in &trip {
+            let ax = t.val * x[(t.col, 0)];
+            r[(t.row, 0)] -= ax;
+            scale = scale.max(ax.abs());
+        }
+        (r, scale)
+    };
+    let mut x = lu.solve(&b);
+    let (r, _) = residual(&x);
+    let dx = lu.solve(&r);
+    for i in 0..m {
+        x[(i, 0)] += dx[(i, 0)];
+    }
+    let (r, scale) = residual(&x);
+    let res = (0..m).fold(0.0f64, |acc, i| acc.max(r[(i, 0)].abs()));
+    assert!(
+        res.is_finite() && res <= 1e-9 * scale,
+        "the KKT matrix is singular for this active set (residual {res:e}, scale {scale:e})"
+    );
+    let u = (0..n).map(|i| x[(i, 0)]).collect();
+    let l = (n..m).map(|i| s * x[(i, 0)]).collect();
+    (u, l)
+}
+
 /// Primal-dual active set (Hintermüller, Ito, Kunisch): with the KKT system solved
 /// exactly, a row stays active while its multiplier is positive and becomes active
 /// when it is violated. Starts with every contact active, so that bodies held only
 /// by contact have a nonsingular system.
-fn reference_solve(problem: &Problem, g: &Global) -> Reference {
+pub(crate) fn reference_solve(problem: &Problem, g: &Global) -> Reference {
+    active_set(problem, g, kkt_solve)
+}
+
+/// The same reference with the KKT systems solved by sparse LU (scenes too
+/// large for dense matrices).
+pub(crate) fn sparse_reference_solve(problem: &Problem, g: &Global) -> Reference {
+    active_set(problem, g, sparse_kkt_solve)
+}
+
+/// The active-set loop over a KKT solver.
+fn active_set(
+    problem: &Problem,
+    g: &Global,
+    kkt: impl Fn(&Global, &[usize]) -> (Vec<f64>, Vec<f64>),
+) -> Reference {
     let mut active: Vec<usize> = (0..g.contacts.len()).collect();
     for it in 1..=100 {
-        let (u, l) = kkt_solve(g, &active);
+        let (u, l) = kkt(g, &active);
         let ne = g.equalities.len();
         let mut lam = vec![0.0; g.contacts.len()];
         for (k, &a) in active.iter().enumerate() {
             lam[a] = l[ne + k];
         }
+        let mut is_active = vec![false; g.contacts.len()];
+        for &a in &active {
+            is_active[a] = true;
+        }
         let next: Vec<usize> = (0..g.contacts.len())
             .filter(|&i| {
-                if active.contains(&i) {
+                if is_active[i] {
                     lam[i] > 0.0
                 } else {
                     dot(&g.contacts[i], &u) > g.contacts[i].c
@@ -286,20 +413,26 @@ fn reference_solve(problem: &Problem, g: &Global) -> Reference {
 
 /// How far a decomposed solution is from the reference.
 #[derive(Debug)]
-struct Diff {
+pub(crate) struct Diff {
     /// `max ||u_copy - u_ref||` over every copy of every grid node, relative to
     /// `max ||u_ref||` over the nodes.
-    u: f64,
+    pub u: f64,
     /// Where the largest difference is: (body, grid node).
-    worst: (usize, usize),
+    pub worst: (usize, usize),
     /// `max |l - l_ref|` over the rows both formulations share (all but gluing),
     /// relative to `max |l_ref|` over them.
-    mult: f64,
+    pub mult: f64,
     /// Contact rows active in one solution only.
-    active_mismatch: Vec<usize>,
+    pub active_mismatch: Vec<usize>,
 }
 
-fn compare(problem: &Problem, g: &Global, u: &[Vec<f64>], lambda: &[f64], r: &Reference) -> Diff {
+pub(crate) fn compare(
+    problem: &Problem,
+    g: &Global,
+    u: &[Vec<f64>],
+    lambda: &[f64],
+    r: &Reference,
+) -> Diff {
     let dim = problem.dim;
     let mut umax = 0.0f64;
     let mut diff = (0.0f64, (0, 0));
@@ -347,7 +480,7 @@ fn compare(problem: &Problem, g: &Global, u: &[Vec<f64>], lambda: &[f64], r: &Re
 
 /// Lowers and solves a scene both ways at the initial design (TFETI or
 /// classical FETI as `method` says).
-fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
+pub(crate) fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
     both_with(src, method, Preconditioner::None)
 }
 
@@ -381,13 +514,13 @@ fn both_with(
 
 /// Asserts agreement of TFETI and of classical FETI with the reference, with
 /// every dual preconditioner.
-fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
+pub(crate) fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
     for p in [
         Preconditioner::None,
         Preconditioner::Lumped,
         Preconditioner::Dirichlet,
     ] {
-        check_method(
+        check_method_with(
             &format!("{name} ({p:?})"),
             src,
             SolverMethod::Tfeti,
@@ -395,7 +528,7 @@ fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
             tol_u,
             tol_mult,
         );
-        check_method(
+        check_method_with(
             &format!("{name} (FETI, {p:?})"),
             src,
             SolverMethod::Feti,
@@ -406,8 +539,19 @@ fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
     }
 }
 
+/// Asserts agreement without a preconditioner and returns the differences.
+pub(crate) fn check_method(
+    name: &str,
+    src: &str,
+    method: SolverMethod,
+    tol_u: f64,
+    tol_mult: f64,
+) -> Diff {
+    check_method_with(name, src, method, Preconditioner::None, tol_u, tol_mult)
+}
+
 /// Asserts agreement and returns the differences for the report.
-fn check_method(
+fn check_method_with(
     name: &str,
     src: &str,
     method: SolverMethod,
@@ -605,6 +749,27 @@ fn reference_agrees_with_tfeti_and_feti_on_a_floating_punch() {
 #[test]
 fn reference_agrees_with_tfeti_and_feti_on_a_rigid_plane() {
     check("plane", OBSTACLE, 1e-6, 1e-5);
+}
+
+#[test]
+fn sparse_and_dense_references_agree() {
+    // The sparse KKT solve (used for the full-size 3D examples) against the
+    // dense one, on a scene where the active set has to move.
+    let scene = compile_scene(SEMICOERCIVE);
+    let problem = lower(&scene, &[]).expect("lowers");
+    let g = assemble(&problem);
+    let dense = reference_solve(&problem, &g);
+    let sparse = sparse_reference_solve(&problem, &g);
+    assert_eq!(dense.active, sparse.active);
+    assert_eq!(dense.iterations, sparse.iterations);
+    let umax = dense.u.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let lmax = dense.mult.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for (a, b) in dense.u.iter().zip(&sparse.u) {
+        assert!((a - b).abs() <= 1e-12 * umax, "u: {a} vs {b}");
+    }
+    for (a, b) in dense.mult.iter().zip(&sparse.mult) {
+        assert!((a - b).abs() <= 1e-10 * lmax, "multiplier: {a} vs {b}");
+    }
 }
 
 #[test]

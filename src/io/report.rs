@@ -16,7 +16,8 @@
 //! - `contacts`: per contact total normal force, active count and per node
 //!   `x`, `y`, `gap` (after deformation), `multiplier` (normal force, N) and
 //!   `pressure` (force over the node's tributary area);
-//! - `probes`: `ux`, `uy` at the node nearest to each probe point.
+//! - `probes`: `ux`, `uy` (and `uz`, `z` in 3D) at the node nearest to each probe point;
+//!   contact nodes carry `z` in 3D too.
 
 use crate::fem::hex::{hex_strain_at, isotropic};
 use crate::fem::quad::{plane_strain, quad_strain_at};
@@ -371,9 +372,11 @@ impl Report {
             );
         }
         for p in &self.probes {
+            let uz =
+                p.uz.map_or(String::new(), |uz| format!(", uz {} m", disp(uz)));
             let _ = writeln!(
                 o,
-                "  probe {:<10} ux {} m, uy {} m",
+                "  probe {:<10} ux {} m, uy {} m{uz}",
                 p.name,
                 disp(p.ux),
                 disp(p.uy)
