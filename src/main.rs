@@ -299,8 +299,14 @@ fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
             (Err(vec![d]), lossy)
         }
     };
+    let name = path.display().to_string();
+    if let Ok(scene) = &checked {
+        // Warnings go to stderr (rendered, also with --json: stdout is the JSON).
+        if !scene.warnings.is_empty() {
+            err!("{}", diag::render(&scene.warnings, &name, &src));
+        }
+    }
     checked.map_err(|diags| {
-        let name = path.display().to_string();
         if json {
             let errors = diag::to_json(&diags, &name, &src);
             let doc = serde_json::json!({ "file": name, "errors": errors });
@@ -311,7 +317,7 @@ fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
         } else {
             err!("{}", diag::render(&diags, &name, &src));
         }
-        let n = diags.len();
+        let n = diags.iter().filter(|d| d.is_error()).count();
         let s = if n == 1 { "" } else { "s" };
         fail(EXIT_SCENE, format!("{name} has {n} error{s}"))
     })

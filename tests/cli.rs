@@ -407,3 +407,26 @@ fn progress_is_plain_lines_when_stderr_is_not_a_terminal_and_quiet_silences_it()
     assert_eq!(code, 0, "{err}");
     assert!(err.is_empty(), "{err}");
 }
+
+#[test]
+fn a_constant_objective_is_an_error_and_a_constant_constraint_a_warning() {
+    // Issue 19 item 3: compliance of a scene loaded only by displacements is 0.
+    let (code, _, err) = cso(&[
+        "check",
+        "tests/diagnostics/a5_compliance_without_forces.cso",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the objective is identically 0 on this scene"),
+        "{err}"
+    );
+    // A warning is printed and the scene still checks.
+    let path = "tests/warnings/01_constraint_on_a_body_the_design_does_not_move.cso";
+    let (code, out, err) = cso(&["check", path]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("ok "), "{out}");
+    assert!(
+        err.contains("⚠ this constraint does not change with the design"),
+        "{err}"
+    );
+}

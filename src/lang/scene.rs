@@ -56,6 +56,8 @@ pub struct Scene {
     pub solver: SolverSettings,
     pub sensitivity: SensitivitySettings,
     pub optimize: OptimizeSettings,
+    /// What the checker warns about (the scene checks; the user should look).
+    pub warnings: Vec<super::diag::Diagnostic>,
 }
 
 impl Scene {

@@ -27,6 +27,7 @@ impl<'a> Checker<'a> {
                     }
                     first_minimize = Some(item.span);
                     if let Some((f, _)) = self.functional(expr) {
+                        self.objective_at = Some(expr.span);
                         scene.objective = Some(Objective {
                             functional: f,
                             text: self.text(expr.span).to_string(),
@@ -35,6 +36,7 @@ impl<'a> Checker<'a> {
                 }
                 ItemKind::SubjectTo { expr } => {
                     if let Some(c) = self.constraint(expr) {
+                        self.constraint_at.push(expr.span);
                         scene.constraints.push(c);
                     }
                 }

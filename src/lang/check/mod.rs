@@ -5,6 +5,7 @@
 //! without repeating the error. Only a scene with no error at all is returned.
 
 mod budget;
+mod constant;
 mod fields;
 mod functional;
 mod items;
@@ -33,18 +34,20 @@ pub struct CheckOptions {
 }
 
 /// Parses and checks a source text. Every error of the file is reported, sorted by
-/// position.
+/// position, with the warnings among them; a scene with warnings only checks and
+/// carries them in [`Scene::warnings`].
 pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>> {
     let (file, mut diags) = parse_file(src);
     let mut checker = Checker::new(src, &file, opts);
     checker.syntax_errors = !diags.is_empty();
-    let scene = checker.run();
+    let mut scene = checker.run();
     diags.extend(checker.diags);
-    if diags.is_empty() {
-        Ok(scene)
-    } else {
-        diag::sort(&mut diags);
+    diag::sort(&mut diags);
+    if diags.iter().any(Diagnostic::is_error) {
         Err(diags)
+    } else {
+        scene.warnings = diags;
+        Ok(scene)
     }
 }
 
@@ -101,6 +104,10 @@ pub(crate) struct Checker<'a> {
     body_spans: Vec<BodySpans>,
     /// The parser reported errors: checks of the whole scene would guess.
     syntax_errors: bool,
+    /// Where the objective is written (its expression), once checked.
+    objective_at: Option<Span>,
+    /// Where each checked constraint is written, in `scene.constraints` order.
+    constraint_at: Vec<Span>,
 }
 
 impl<'a> Checker<'a> {
@@ -125,6 +132,8 @@ impl<'a> Checker<'a> {
             obstacles: Vec::new(),
             body_spans: Vec::new(),
             syntax_errors: false,
+            objective_at: None,
+            constraint_at: Vec::new(),
         }
     }
 
@@ -312,6 +321,7 @@ impl<'a> Checker<'a> {
             solver: SolverSettings::default(),
             sensitivity: SensitivitySettings::default(),
             optimize: OptimizeSettings::default(),
+            warnings: Vec::new(),
         };
         let file = self.file;
         // Definitions first (in file order within each kind), then what uses them.
@@ -439,7 +449,7 @@ impl<'a> Checker<'a> {
     /// Checks that need the whole scene: gravity needs densities, constraints need
     /// an objective, the size fits the machine, the faces do not cross.
     fn whole_scene(&mut self, scene: &Scene) {
-        if !self.diags.is_empty() || self.syntax_errors {
+        if self.diags.iter().any(Diagnostic::is_error) || self.syntax_errors {
             return;
         }
         let est = budget::estimate(scene);
@@ -482,6 +492,7 @@ impl<'a> Checker<'a> {
             }
         }
         self.faces_do_not_cross(scene);
+        self.constant_functionals(scene);
     }
 }
 
