@@ -430,3 +430,70 @@ fn a_constant_objective_is_an_error_and_a_constant_constraint_a_warning() {
         "{err}"
     );
 }
+
+/// `python3` with meshio (CI sets CSO_PYTHON to the system one that has it).
+fn python_with_meshio() -> Option<String> {
+    let python = std::env::var("CSO_PYTHON").unwrap_or_else(|_| "python3".to_string());
+    let ok = Command::new(&python)
+        .args(["-c", "import meshio"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok.then_some(python)
+}
+
+#[test]
+fn solve_writes_binary_vtu_that_meshio_reads() {
+    let dir = std::env::temp_dir().join(format!("cso-solve-vtu-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let dir_s = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&["--quiet", "solve", "examples/two_blocks.cso", "-o", &dir_s]);
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
+            .expect("JSON");
+    for body in ["base", "punch"] {
+        let vtu = std::fs::read_to_string(dir.join(format!("{body}.vtu"))).expect("vtu");
+        assert!(vtu.contains("header_type=\"UInt64\""), "{body}");
+        assert!(vtu.contains("format=\"binary\""), "{body}");
+        assert!(!vtu.contains("format=\"ascii\""), "{body}");
+    }
+    let Some(python) = python_with_meshio() else {
+        eprintln!(
+            "SKIPPED: reading the VTU back needs python3 with meshio (apt install python3-meshio)"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        return;
+    };
+    let script = r#"
+import sys, meshio, numpy as np
+for name in sys.argv[2:]:
+    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
+    u = m.point_data["displacement"]
+    vm = m.cell_data["von Mises"][0]
+    assert m.cells[0].type == "quad"
+    assert np.isfinite(u).all() and np.isfinite(vm).all()
+    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
+"#;
+    let out = Command::new(&python)
+        .args(["-c", script, &dir_s, "base", "punch"])
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+    // two_blocks: base 48 x 16 elements, punch 16 x 16 (49 x 17 and 17 x 17 nodes).
+    assert_eq!(lines[0][..3], ["base", "833", "768"], "{text}");
+    assert_eq!(lines[1][..3], ["punch", "289", "256"], "{text}");
+    for (k, line) in lines.iter().enumerate() {
+        let u: f64 = line[3].parse().expect("a number");
+        let expect = report["bodies"][k]["max_abs_u"]
+            .as_f64()
+            .expect("max_abs_u");
+        assert!((u - expect).abs() <= 1e-12 * expect, "{line:?} vs {expect}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -57,12 +57,18 @@ fn warnings_are_rendered_and_do_not_stop_the_scene() {
             .to_string();
         let scene = match compile(&src, &options()) {
             Ok(s) => s,
-            Err(d) => panic!("{file} is meant to check: {}", diag::render(&d, &file, &src)),
+            Err(d) => panic!(
+                "{file} is meant to check: {}",
+                diag::render(&d, &file, &src)
+            ),
         };
         assert!(!scene.warnings.is_empty(), "{file} is meant to warn");
         for d in &scene.warnings {
             assert!(!d.is_error(), "{file}: only warnings");
-            assert!(!d.labels.is_empty(), "{file}: every warning points somewhere");
+            assert!(
+                !d.labels.is_empty(),
+                "{file}: every warning points somewhere"
+            );
         }
         let rendered = diag::render(&scene.warnings, &file, &src);
         insta::assert_snapshot!(format!("warn_{stem}"), rendered);

@@ -21,7 +21,7 @@
 use crate::fem::quad::{plane_strain, quad_strain_at};
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
-use crate::io::vtu::{vtu_string, CellType, Field, VtuMesh};
+use crate::io::vtu::{vtu_string, CellType, Encoding, Field, VtuMesh};
 use crate::lang::diag::{num, round6};
 use crate::lang::scene::Scene;
 use crate::model::{RowCounts, RowKind};
@@ -446,9 +446,10 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
             }
         }
     }
+    let connectivity = cells.concat();
     let mesh = VtuMesh {
         points: &points,
-        cells: &cells,
+        connectivity: &connectivity,
         cell_type: CellType::Quad,
     };
     let vtu = vtu_string(
@@ -462,6 +463,7 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
             ("von Mises", Field::Scalar(&von_mises)),
             ("subdomain", Field::Int(&subdomain)),
         ],
+        Encoding::Binary,
     );
     BodyFields {
         disp,

@@ -82,7 +82,11 @@ impl Facts {
         let mut displacement = false;
         let mut filters = false;
         for c in &scene.conditions {
-            filters |= c.selection().filter.as_ref().is_some_and(|f| f.uses_design());
+            filters |= c
+                .selection()
+                .filter
+                .as_ref()
+                .is_some_and(|f| f.uses_design());
             match c {
                 Condition::Traction { value, .. } => force |= value.iter().any(|v| *v != 0.0),
                 Condition::Pressure { value, .. } => force |= *value != 0.0,
@@ -328,7 +332,10 @@ impl Checker<'_> {
             .collect();
         match names.len() {
             0 => "the scene has no design variables".into(),
-            1 => format!("the design variable {} moves nothing this measures", names[0]),
+            1 => format!(
+                "the design variable {} moves nothing this measures",
+                names[0]
+            ),
             _ => format!(
                 "the design variables {} move nothing this measures",
                 names.join(", ")
@@ -370,7 +377,10 @@ impl Checker<'_> {
     fn with_zero_labels(&self, mut d: Diagnostic, leaves: &[Leaf], facts: &Facts) -> Diagnostic {
         if leaves.iter().any(|l| l.why == Why::NoForce) && facts.displacement {
             if let Some(s) = self.displace_spans().first() {
-                d = d.label(*s, "a prescribed displacement: it does no work in `compliance`");
+                d = d.label(
+                    *s,
+                    "a prescribed displacement: it does no work in `compliance`",
+                );
             }
         }
         d
@@ -404,10 +414,13 @@ impl Checker<'_> {
         for l in leaves {
             d = d.label(l.span, self.why_text(scene, l.why));
         }
-        let example = self.designs.first().map_or("h".to_string(), |g| match g.size {
-            Some(_) => format!("{}[0]", g.name),
-            None => g.name.clone(),
-        });
+        let example = self
+            .designs
+            .first()
+            .map_or("h".to_string(), |g| match g.size {
+                Some(_) => format!("{}[0]", g.name),
+                None => g.name.clone(),
+            });
         let help = format!(
             "{}; use the design in the geometry of what the objective measures \
              (e.g. `bottom = 1 + {example}`), or minimize something it changes",
