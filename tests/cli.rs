@@ -457,6 +457,16 @@ fn solve_writes_binary_vtu_that_meshio_reads() {
         assert!(vtu.contains("format=\"binary\""), "{body}");
         assert!(!vtu.contains("format=\"ascii\""), "{body}");
     }
+    // What a user reads on the deformed plot: the title says it is magnified,
+    // axes and colour bar carry units (tick numbers left out: they are data).
+    let svg = std::fs::read_to_string(dir.join("deformed.svg")).expect("svg");
+    let texts: Vec<&str> = svg
+        .split("</text>")
+        .filter_map(|t| t.rsplit_once('>').map(|(_, t)| t.trim()))
+        .filter(|t| !t.is_empty() && t.parse::<f64>().is_err())
+        .collect();
+    insta::assert_snapshot!("deformed_svg_texts", texts.join("\n"));
+    assert!(svg.len() < 400_000, "{} bytes", svg.len());
     let Some(python) = python_with_meshio() else {
         eprintln!(
             "SKIPPED: reading the VTU back needs python3 with meshio (apt install python3-meshio)"

@@ -473,6 +473,38 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
     }
 }
 
+/// How much the deformed plot magnifies displacements: the largest becomes
+/// about 5% of the scene's size, rounded to two significant digits so that the
+/// title reads `displacements x 250`, not `x 247.3156`; 0 without displacement.
+pub fn magnification(size: f64, umax: f64) -> f64 {
+    if !(umax > 0.0 && size > 0.0 && size.is_finite()) {
+        return 0.0;
+    }
+    let m = 0.05 * size / umax;
+    let unit = 10f64.powf(m.log10().floor() - 1.0);
+    let r = (m / unit).round() * unit;
+    if r.is_finite() && r > 0.0 {
+        round6(r)
+    } else {
+        m
+    }
+}
+
+/// The title of `deformed.svg`: what is coloured, and that the shape is
+/// magnified (a magnified roller seems to pass through its floor otherwise).
+pub fn deformed_title(scene: &str, magnify: f64) -> String {
+    if magnify == 1.0 {
+        format!("{scene}: von Mises stress on the deformed shape (true scale)")
+    } else if magnify > 0.0 {
+        format!(
+            "{scene}: von Mises stress, deformed shape with displacements x {}",
+            num(magnify)
+        )
+    } else {
+        format!("{scene}: von Mises stress (no displacement)")
+    }
+}
+
 /// Writes `report.json`, `BODY.vtu` per body, `contact_NAME.svg` per contact and
 /// `deformed.svg`, each atomically.
 pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
@@ -497,8 +529,7 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         }
     }
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    // Deformed shape magnified so the largest displacement is 5% of the scene.
-    let magnify = if umax > 0.0 { 0.05 * size / umax } else { 0.0 };
+    let magnify = magnification(size, umax);
     for (b, body) in p.bodies.iter().enumerate() {
         let BodyFields {
             disp,
@@ -538,13 +569,16 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         .collect();
         outline.push(ring);
     }
-    let title = format!(
-        "{}: deformed (x{}), von Mises stress",
-        scene.name,
-        num(round6(magnify))
-    );
-    let svg = mesh_plot(&title, &all_points, &all_cells, Some(&all_vm), &outline)
-        .map_err(std::io::Error::other)?;
+    let title = deformed_title(&scene.name, magnify);
+    let svg = mesh_plot(
+        &title,
+        &all_points,
+        &all_cells,
+        Some(&all_vm),
+        &outline,
+        "von Mises (Pa)",
+    )
+    .map_err(std::io::Error::other)?;
     write_atomic(&dir.join("deformed.svg"), svg.as_bytes())?;
     for c in &report.contacts {
         let x: Vec<f64> = c.nodes.iter().map(|n| n.x).collect();
@@ -565,4 +599,30 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_deformed_plot_says_how_much_it_magnifies() {
+        assert_eq!(magnification(1.0, 0.0002), 250.0);
+        assert_eq!(magnification(3.0, 0.0123), 12.0);
+        assert_eq!(magnification(2.0, 0.1), 1.0);
+        assert_eq!(magnification(1.0, 0.0), 0.0);
+        assert_eq!(magnification(f64::NAN, 1.0), 0.0);
+        assert_eq!(
+            deformed_title("hertz", 250.0),
+            "hertz: von Mises stress, deformed shape with displacements x 250"
+        );
+        assert_eq!(
+            deformed_title("s", 1.0),
+            "s: von Mises stress on the deformed shape (true scale)"
+        );
+        assert_eq!(
+            deformed_title("s", 0.0),
+            "s: von Mises stress (no displacement)"
+        );
+    }
 }
