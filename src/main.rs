@@ -300,7 +300,9 @@ fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
         }
     };
     let name = path.display().to_string();
-    if let Ok(scene) = &checked {
+    let mut checked = checked;
+    if let Ok(scene) = &mut checked {
+        scene.source.path = Some(name.clone());
         // Warnings go to stderr (rendered, also with --json: stdout is the JSON).
         if !scene.warnings.is_empty() {
             err!("{}", diag::render(&scene.warnings, &name, &src));
@@ -557,7 +559,9 @@ impl Sensitivity {
         })?;
         outln!("{}", tables::gradient(&scene, &g));
         if let Some(dir) = &self.out {
-            let json = serde_json::to_string_pretty(&g)
+            let header = cso::io::provenance::Header::of(&scene, "sensitivity", &[("time", "s")])
+                .with_units(cso::io::provenance::scene_units(&scene));
+            let json = cso::io::provenance::to_json(&header, &g)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
             write_files(dir, &[("sensitivity.json", json)])
                 .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
@@ -579,7 +583,7 @@ impl Sensitivity {
             })
             .map_err(|e| fail(EXIT_SCENE, e))?;
         outln!("{}", output::study_summary(&study));
-        write_into(self.out.as_deref(), || output::study_files(&study))?;
+        write_into(self.out.as_deref(), || output::study_files(scene, &study))?;
         if let Some(dir) = &self.out {
             outln!("study written to {}", dir.display());
         }
@@ -601,7 +605,9 @@ impl Compare {
             let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
             let md = sweep.markdown();
             outln!("{md}");
-            return write_into(self.out.as_deref(), || output::eps_sweep_files(&sweep, &md));
+            return write_into(self.out.as_deref(), || {
+                output::eps_sweep_files(&scene, &sweep, &md)
+            });
         }
         let bar = Progress::ticking(
             "compare",
@@ -611,7 +617,9 @@ impl Compare {
         bar.finish();
         let md = c.markdown(true);
         outln!("{md}");
-        write_into(self.out.as_deref(), || output::comparison_files(&c, &md))?;
+        write_into(self.out.as_deref(), || {
+            output::comparison_files(&scene, &c, &md)
+        })?;
         // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
         // means the scene cannot be solved.
         c.tfeti.map(|_| ()).map_err(|_| EXIT_SCENE)

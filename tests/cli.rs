@@ -507,3 +507,74 @@ for name in sys.argv[2:]:
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn optimize_names_the_design_and_writes_a_best_scene_that_solves_again() {
+    // scont2d with a `let` that `--set` overrides and bounds with units, so the
+    // rewritten scene must carry both.
+    let path = scene_with("scont2d.cso", "", "best-scene");
+    let src = std::fs::read_to_string(&path)
+        .expect("scene")
+        .replace("max_iterations = 30", "max_iterations = 2")
+        .replace("lower = 0, upper = 0.1", "lower = 0 m, upper = 100 mm")
+        .replace(
+            "traction punch.top = (0, -5)",
+            "let P = 5\ntraction punch.top = (0, -P)",
+        );
+    std::fs::write(&path, &src).expect("scene");
+    let dir = std::env::temp_dir().join(format!("cso-best-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (p, d) = (path.to_string_lossy(), dir.to_string_lossy());
+    let (code, out, err) = cso(&["--quiet", "--set", "P=6", "optimize", &p, "-o", &d]);
+    assert_eq!(code, 0, "{out}{err}");
+    let history: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("history.json")).expect("history"))
+            .expect("JSON");
+    assert_eq!(history["schema_version"], 1);
+    assert_eq!(history["kind"], "history");
+    assert_eq!(history["input"], p.as_ref());
+    assert_eq!(history["overrides"][0], "P=6");
+    assert_eq!(history["units"]["objective"], "J");
+    assert_eq!(history["units"]["design.a[0]"], "m");
+    let vars = history["design_variables"]
+        .as_array()
+        .expect("named design");
+    assert_eq!(vars.len(), 6);
+    assert_eq!(vars[2]["name"], "a[2]");
+    assert_eq!(vars[2]["unit"], "m");
+    assert_eq!(vars[2]["upper"], 0.1);
+    let best: Vec<f64> = vars
+        .iter()
+        .map(|v| v["best"].as_f64().expect("a best value"))
+        .collect();
+    let objective = history["best_objective"].as_f64().expect("best objective");
+
+    // best.cso: the input with the best values as `init` and P = 6 written in.
+    let best_path = dir.join("best.cso");
+    let text = std::fs::read_to_string(&best_path).expect("best.cso");
+    assert!(
+        text.starts_with("# The best feasible design of `cso optimize`"),
+        "{text}"
+    );
+    assert!(text.contains("let P = 6\n"), "{text}");
+    let scene = cso::lang::compile(&text, &crate::options()).expect("best.cso checks");
+    // serde_json reads floats to within an ulp; best.cso's text is exact.
+    for (a, b) in scene.design_init().iter().zip(&best) {
+        assert!((a - b).abs() <= 1e-15 * b.abs(), "{a} vs {b}");
+    }
+    assert_eq!(scene.design.len(), best.len());
+    let (code, out, err) = cso(&["solve", &best_path.to_string_lossy()]);
+    assert_eq!(code, 0, "{out}{err}");
+    let compliance: f64 = out
+        .split("compliance ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the summary gives the compliance");
+    assert!(
+        (compliance - objective).abs() <= 1e-5 * objective,
+        "{compliance} vs {objective}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&path);
+}

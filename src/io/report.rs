@@ -2,6 +2,8 @@
 //! one `.vtu` per body for ParaView and SVG plots.
 //!
 //! # `report.json` (all values SI: m, N, Pa, J, s)
+//! Its JSON Schema is docs/report.schema.json (checked by tests/schema.rs); the
+//! header every JSON file starts with is [`super::provenance`]'s.
 //! - `scene`, `sizes`: primal unknowns and multipliers (the seed's "Primal/Dual
 //!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros,
 //!   `factorizations` (subdomains factorized `symbolic`ally, `numeric`ally, and
@@ -21,6 +23,7 @@
 use crate::fem::quad::{plane_strain, quad_strain_at};
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
+use crate::io::provenance::{self, Header, SOLVE_UNITS};
 use crate::io::vtu::{vtu_string, CellType, Encoding, Field, VtuMesh};
 use crate::lang::diag::{num, round6};
 use crate::lang::scene::Scene;
@@ -509,7 +512,8 @@ pub fn deformed_title(scene: &str, magnify: f64) -> String {
 /// `deformed.svg`, each atomically.
 pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let json = serde_json::to_string_pretty(report).map_err(std::io::Error::other)?;
+    let header = Header::of(scene, "report", SOLVE_UNITS);
+    let json = provenance::to_json(&header, report).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("report.json"), json.as_bytes())?;
     let p = &state.problem;
     let mut outline = Vec::new();

@@ -42,6 +42,17 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
     checker.syntax_errors = !diags.is_empty();
     let mut scene = checker.run();
     diags.extend(checker.diags);
+    scene.source = Source {
+        path: None,
+        sha256: sha256_hex(src.as_bytes()),
+        overrides: opts
+            .overrides
+            .iter()
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect(),
+        text: src.into(),
+        edits: std::mem::take(&mut checker.edits),
+    };
     diag::sort(&mut diags);
     if diags.iter().any(Diagnostic::is_error) {
         Err(diags)
@@ -49,6 +60,17 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
         scene.warnings = diags;
         Ok(scene)
     }
+}
+
+/// SHA-256 of `bytes` as lowercase hex (sha2: a standard digest that is the
+/// same on every machine, unlike std's hashers, which may change between
+/// releases).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// The state of a `let` while the checker resolves it on first use.
@@ -108,6 +130,8 @@ pub(crate) struct Checker<'a> {
     objective_at: Option<Span>,
     /// Where each checked constraint is written, in `scene.constraints` order.
     constraint_at: Vec<Span>,
+    /// Places of the text to rewrite for another design (see [`Source`]).
+    edits: Vec<Edit>,
 }
 
 impl<'a> Checker<'a> {
@@ -134,6 +158,7 @@ impl<'a> Checker<'a> {
             syntax_errors: false,
             objective_at: None,
             constraint_at: Vec::new(),
+            edits: Vec::new(),
         }
     }
 
@@ -322,6 +347,7 @@ impl<'a> Checker<'a> {
             sensitivity: SensitivitySettings::default(),
             optimize: OptimizeSettings::default(),
             warnings: Vec::new(),
+            source: Source::default(),
         };
         let file = self.file;
         // Definitions first (in file order within each kind), then what uses them.
