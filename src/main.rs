@@ -473,7 +473,20 @@ impl Compile {
         let scene = load_as(&self.file, opts, self.json)?;
         let summary = cso::io::summary::summarize_with_operators(&scene);
         if self.json {
-            let s = serde_json::to_string_pretty(&summary)
+            // The scene's warnings come with it, as `check` would print them.
+            #[derive(serde::Serialize)]
+            struct WithWarnings<'a> {
+                #[serde(flatten)]
+                summary: &'a cso::io::summary::Summary,
+                warnings: Vec<diag::JsonDiagnostic>,
+            }
+            let name = self.file.display().to_string();
+            let src = scene.source.text.as_ref();
+            let doc = WithWarnings {
+                summary: &summary,
+                warnings: diag::to_json(&scene.warnings, &name, src),
+            };
+            let s = serde_json::to_string_pretty(&doc)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
             outln!("{s}");
         } else {

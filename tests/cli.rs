@@ -578,3 +578,17 @@ fn optimize_names_the_design_and_writes_a_best_scene_that_solves_again() {
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&path);
 }
+
+#[test]
+fn compile_json_carries_the_warnings() {
+    let path = "tests/warnings/03_constraint_that_always_holds.cso";
+    let (code, out, err) = cso(&["compile", "--json", path]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON on stdout");
+    assert_eq!(v["warnings"][0]["code"], "cso::constant-constraint");
+    assert_eq!(v["warnings"][0]["severity"], "warning");
+    assert_eq!(v["warnings"][0]["labels"][0]["line"], 11);
+    let (_, out, _) = cso(&["compile", "--json", "examples/two_blocks.cso"]);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON on stdout");
+    assert_eq!(v["warnings"], serde_json::json!([]));
+}
