@@ -309,8 +309,16 @@ fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
             (Err(vec![d]), lossy)
         }
     };
+    let name = path.display().to_string();
+    let mut checked = checked;
+    if let Ok(scene) = &mut checked {
+        scene.source.path = Some(name.clone());
+        // Warnings go to stderr (rendered, also with --json: stdout is the JSON).
+        if !scene.warnings.is_empty() {
+            err!("{}", diag::render(&scene.warnings, &name, &src));
+        }
+    }
     checked.map_err(|diags| {
-        let name = path.display().to_string();
         if json {
             let errors = diag::to_json(&diags, &name, &src);
             let doc = serde_json::json!({ "file": name, "errors": errors });
@@ -321,7 +329,7 @@ fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
         } else {
             err!("{}", diag::render(&diags, &name, &src));
         }
-        let n = diags.len();
+        let n = diags.iter().filter(|d| d.is_error()).count();
         let s = if n == 1 { "" } else { "s" };
         fail(EXIT_SCENE, format!("{name} has {n} error{s}"))
     })
@@ -483,7 +491,20 @@ impl Compile {
         let scene = load_as(&self.file, opts, self.json)?;
         let summary = cso::io::summary::summarize_with_operators(&scene);
         if self.json {
-            let s = serde_json::to_string_pretty(&summary)
+            // The scene's warnings come with it, as `check` would print them.
+            #[derive(serde::Serialize)]
+            struct WithWarnings<'a> {
+                #[serde(flatten)]
+                summary: &'a cso::io::summary::Summary,
+                warnings: Vec<diag::JsonDiagnostic>,
+            }
+            let name = self.file.display().to_string();
+            let src = scene.source.text.as_ref();
+            let doc = WithWarnings {
+                summary: &summary,
+                warnings: diag::to_json(&scene.warnings, &name, src),
+            };
+            let s = serde_json::to_string_pretty(&doc)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
             outln!("{s}");
         } else {
@@ -575,7 +596,9 @@ impl Sensitivity {
         })?;
         outln!("{}", tables::gradient(&scene, &g));
         if let Some(dir) = &self.out {
-            let json = serde_json::to_string_pretty(&g)
+            let header = cso::io::provenance::Header::of(&scene, "sensitivity", &[("time", "s")])
+                .with_units(cso::io::provenance::scene_units(&scene));
+            let json = cso::io::provenance::to_json(&header, &g)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
             write_files(dir, &[("sensitivity.json", json)])
                 .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
@@ -597,7 +620,7 @@ impl Sensitivity {
             })
             .map_err(|e| fail(EXIT_SCENE, e))?;
         outln!("{}", output::study_summary(&study));
-        write_into(self.out.as_deref(), || output::study_files(&study))?;
+        write_into(self.out.as_deref(), || output::study_files(scene, &study))?;
         if let Some(dir) = &self.out {
             outln!("study written to {}", dir.display());
         }
@@ -619,7 +642,9 @@ impl Compare {
             let sweep = sweep.map_err(|e| fail(EXIT_SCENE, format!("TFETI: {e}")))?;
             let md = sweep.markdown();
             outln!("{md}");
-            return write_into(self.out.as_deref(), || output::eps_sweep_files(&sweep, &md));
+            return write_into(self.out.as_deref(), || {
+                output::eps_sweep_files(&scene, &sweep, &md)
+            });
         }
         let bar = Progress::ticking(
             "compare",
@@ -629,7 +654,9 @@ impl Compare {
         bar.finish();
         let md = c.markdown(true);
         outln!("{md}");
-        write_into(self.out.as_deref(), || output::comparison_files(&c, &md))?;
+        write_into(self.out.as_deref(), || {
+            output::comparison_files(&scene, &c, &md)
+        })?;
         // A FETI failure (a wrong eps) is a result of the comparison; a TFETI one
         // means the scene cannot be solved.
         c.tfeti.map(|_| ()).map_err(|_| EXIT_SCENE)

@@ -309,59 +309,6 @@ fn zero_threads_is_refused_at_the_command_line() {
 }
 
 #[test]
-fn the_preconditioner_is_chosen_on_the_command_line() {
-    let (code, out, err) = cso(&[
-        "solve",
-        "examples/semicoercive2d.cso",
-        "--preconditioner",
-        "dirichlet",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    // It is used: another count of Hessian applications than the scene's `none`.
-    let (_, plain, _) = cso(&["solve", "examples/semicoercive2d.cso"]);
-    let hessian = |s: &str| {
-        s.lines()
-            .find(|l| l.contains("Hessian applications"))
-            .map(str::to_string)
-    };
-    assert!(
-        hessian(&out).is_some() && hessian(&out) != hessian(&plain),
-        "{out}{plain}"
-    );
-    let (code, _, err) = cso(&[
-        "solve",
-        "examples/two_blocks.cso",
-        "--preconditioner",
-        "jacobi",
-    ]);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("dirichlet"), "{err}");
-    let (code, out, err) = cso(&[
-        "bench",
-        "scaling",
-        "--hh",
-        "2",
-        "--max-cuts",
-        "2x1",
-        "--threads",
-        "1",
-        "--preconditioner",
-        "none,lumped",
-    ]);
-    assert_eq!(code, 0, "{err}");
-    let rows: Vec<&str> = out.lines().skip(3).collect();
-    assert_eq!(rows.len(), 2, "{out}");
-    assert!(
-        rows[0].starts_with("| 2 | 2x1 | 3 |") && rows[0].ends_with("| none |"),
-        "{out}"
-    );
-    assert!(
-        rows[1].starts_with("| 2 | 2x1 | 3 |") && rows[1].ends_with("| lumped |"),
-        "{out}"
-    );
-}
-
-#[test]
 fn the_memory_limit_can_be_set_or_lifted() {
     let scene = "examples/two_blocks.cso";
     let (code, _, err) = cso(&["--memory-limit", "1KiB", "check", scene]);
@@ -461,6 +408,191 @@ fn progress_is_plain_lines_when_stderr_is_not_a_terminal_and_quiet_silences_it()
     assert!(err.is_empty(), "{err}");
 }
 
+#[test]
+fn a_constant_objective_is_an_error_and_a_constant_constraint_a_warning() {
+    // Issue 19 item 3: compliance of a scene loaded only by displacements is 0.
+    let (code, _, err) = cso(&[
+        "check",
+        "tests/diagnostics/a5_compliance_without_forces.cso",
+    ]);
+    assert_eq!(code, 1, "{err}");
+    assert!(
+        err.contains("the objective is identically 0 on this scene"),
+        "{err}"
+    );
+    // A warning is printed and the scene still checks.
+    let path = "tests/warnings/01_constraint_on_a_body_the_design_does_not_move.cso";
+    let (code, out, err) = cso(&["check", path]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("ok "), "{out}");
+    assert!(
+        err.contains("⚠ this constraint does not change with the design"),
+        "{err}"
+    );
+}
+
+/// `python3` with meshio (CI sets CSO_PYTHON to the system one that has it).
+fn python_with_meshio() -> Option<String> {
+    let python = std::env::var("CSO_PYTHON").unwrap_or_else(|_| "python3".to_string());
+    let ok = Command::new(&python)
+        .args(["-c", "import meshio"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    ok.then_some(python)
+}
+
+#[test]
+fn solve_writes_binary_vtu_that_meshio_reads() {
+    let dir = std::env::temp_dir().join(format!("cso-solve-vtu-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let dir_s = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&["--quiet", "solve", "examples/two_blocks.cso", "-o", &dir_s]);
+    assert_eq!(code, 0, "{err}");
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
+            .expect("JSON");
+    for body in ["base", "punch"] {
+        let vtu = std::fs::read_to_string(dir.join(format!("{body}.vtu"))).expect("vtu");
+        assert!(vtu.contains("header_type=\"UInt64\""), "{body}");
+        assert!(vtu.contains("format=\"binary\""), "{body}");
+        assert!(!vtu.contains("format=\"ascii\""), "{body}");
+    }
+    // What a user reads on the deformed plot: the title says it is magnified,
+    // axes and colour bar carry units (tick numbers left out: they are data).
+    let svg = std::fs::read_to_string(dir.join("deformed.svg")).expect("svg");
+    let texts: Vec<&str> = svg
+        .split("</text>")
+        .filter_map(|t| t.rsplit_once('>').map(|(_, t)| t.trim()))
+        .filter(|t| !t.is_empty() && t.parse::<f64>().is_err())
+        .collect();
+    insta::assert_snapshot!("deformed_svg_texts", texts.join("\n"));
+    assert!(svg.len() < 400_000, "{} bytes", svg.len());
+    let Some(python) = python_with_meshio() else {
+        eprintln!(
+            "SKIPPED: reading the VTU back needs python3 with meshio (apt install python3-meshio)"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        return;
+    };
+    let script = r#"
+import sys, meshio, numpy as np
+for name in sys.argv[2:]:
+    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
+    u = m.point_data["displacement"]
+    vm = m.cell_data["von Mises"][0]
+    assert m.cells[0].type == "quad"
+    assert np.isfinite(u).all() and np.isfinite(vm).all()
+    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
+"#;
+    let out = Command::new(&python)
+        .args(["-c", script, &dir_s, "base", "punch"])
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+    // two_blocks: base 48 x 16 elements, punch 16 x 16 (49 x 17 and 17 x 17 nodes).
+    assert_eq!(lines[0][..3], ["base", "833", "768"], "{text}");
+    assert_eq!(lines[1][..3], ["punch", "289", "256"], "{text}");
+    for (k, line) in lines.iter().enumerate() {
+        let u: f64 = line[3].parse().expect("a number");
+        let expect = report["bodies"][k]["max_abs_u"]
+            .as_f64()
+            .expect("max_abs_u");
+        assert!((u - expect).abs() <= 1e-12 * expect, "{line:?} vs {expect}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn optimize_names_the_design_and_writes_a_best_scene_that_solves_again() {
+    // scont2d with a `let` that `--set` overrides and bounds with units, so the
+    // rewritten scene must carry both.
+    let path = scene_with("scont2d.cso", "", "best-scene");
+    let src = std::fs::read_to_string(&path)
+        .expect("scene")
+        .replace("max_iterations = 30", "max_iterations = 2")
+        .replace("lower = 0, upper = 0.1", "lower = 0 m, upper = 100 mm")
+        .replace(
+            "traction punch.top = (0, -5)",
+            "let P = 5\ntraction punch.top = (0, -P)",
+        );
+    std::fs::write(&path, &src).expect("scene");
+    let dir = std::env::temp_dir().join(format!("cso-best-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (p, d) = (path.to_string_lossy(), dir.to_string_lossy());
+    let (code, out, err) = cso(&["--quiet", "--set", "P=6", "optimize", &p, "-o", &d]);
+    assert_eq!(code, 0, "{out}{err}");
+    let history: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("history.json")).expect("history"))
+            .expect("JSON");
+    assert_eq!(history["schema_version"], 1);
+    assert_eq!(history["kind"], "history");
+    assert_eq!(history["input"], p.as_ref());
+    assert_eq!(history["overrides"][0], "P=6");
+    assert_eq!(history["units"]["objective"], "J");
+    assert_eq!(history["units"]["design.a[0]"], "m");
+    let vars = history["design_variables"]
+        .as_array()
+        .expect("named design");
+    assert_eq!(vars.len(), 6);
+    assert_eq!(vars[2]["name"], "a[2]");
+    assert_eq!(vars[2]["unit"], "m");
+    assert_eq!(vars[2]["upper"], 0.1);
+    let best: Vec<f64> = vars
+        .iter()
+        .map(|v| v["best"].as_f64().expect("a best value"))
+        .collect();
+    let objective = history["best_objective"].as_f64().expect("best objective");
+
+    // best.cso: the input with the best values as `init` and P = 6 written in.
+    let best_path = dir.join("best.cso");
+    let text = std::fs::read_to_string(&best_path).expect("best.cso");
+    assert!(
+        text.starts_with("# The best feasible design of `cso optimize`"),
+        "{text}"
+    );
+    assert!(text.contains("let P = 6\n"), "{text}");
+    let scene = cso::lang::compile(&text, &crate::options()).expect("best.cso checks");
+    // serde_json reads floats to within an ulp; best.cso's text is exact.
+    for (a, b) in scene.design_init().iter().zip(&best) {
+        assert!((a - b).abs() <= 1e-15 * b.abs(), "{a} vs {b}");
+    }
+    assert_eq!(scene.design.len(), best.len());
+    let (code, out, err) = cso(&["solve", &best_path.to_string_lossy()]);
+    assert_eq!(code, 0, "{out}{err}");
+    let compliance: f64 = out
+        .split("compliance ")
+        .nth(1)
+        .and_then(|s| s.split(' ').next())
+        .and_then(|s| s.parse().ok())
+        .expect("the summary gives the compliance");
+    assert!(
+        (compliance - objective).abs() <= 1e-5 * objective,
+        "{compliance} vs {objective}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn compile_json_carries_the_warnings() {
+    let path = "tests/warnings/03_constraint_that_always_holds.cso";
+    let (code, out, err) = cso(&["compile", "--json", path]);
+    assert_eq!(code, 0, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON on stdout");
+    assert_eq!(v["warnings"][0]["code"], "cso::constant-constraint");
+    assert_eq!(v["warnings"][0]["severity"], "warning");
+    assert_eq!(v["warnings"][0]["labels"][0]["line"], 11);
+    let (_, out, _) = cso(&["compile", "--json", "examples/two_blocks.cso"]);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON on stdout");
+    assert_eq!(v["warnings"], serde_json::json!([]));
+}
+
 /// A copy of an example with text replaced, in the target folder.
 fn scene_replacing(example: &str, from: &str, to: &str, tag: &str) -> std::path::PathBuf {
     let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
@@ -547,4 +679,121 @@ fn scene_replacing_in(path: &std::path::Path, from: &str, to: &str) -> std::path
     assert!(src.contains(from), "no `{from}`");
     std::fs::write(path, src.replace(from, to)).expect("writable");
     path.to_path_buf()
+}
+
+#[test]
+fn the_preconditioner_is_chosen_on_the_command_line() {
+    let (code, out, err) = cso(&[
+        "solve",
+        "examples/semicoercive2d.cso",
+        "--preconditioner",
+        "dirichlet",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // It is used: another count of Hessian applications than the scene's `none`.
+    let (_, plain, _) = cso(&["solve", "examples/semicoercive2d.cso"]);
+    let hessian = |s: &str| {
+        s.lines()
+            .find(|l| l.contains("Hessian applications"))
+            .map(str::to_string)
+    };
+    assert!(
+        hessian(&out).is_some() && hessian(&out) != hessian(&plain),
+        "{out}{plain}"
+    );
+    let (code, _, err) = cso(&[
+        "solve",
+        "examples/two_blocks.cso",
+        "--preconditioner",
+        "jacobi",
+    ]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("dirichlet"), "{err}");
+    let (code, out, err) = cso(&[
+        "bench",
+        "scaling",
+        "--hh",
+        "2",
+        "--max-cuts",
+        "2x1",
+        "--threads",
+        "1",
+        "--preconditioner",
+        "none,lumped",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<&str> = out.lines().skip(3).collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    assert!(
+        rows[0].starts_with("| 2 | 2x1 | 3 |") && rows[0].ends_with("| none |"),
+        "{out}"
+    );
+    assert!(
+        rows[1].starts_with("| 2 | 2x1 | 3 |") && rows[1].ends_with("| lumped |"),
+        "{out}"
+    );
+}
+
+#[test]
+fn a_3d_solve_writes_hexahedra_that_meshio_reads_and_a_pressure_map() {
+    let dir = std::env::temp_dir().join(format!("cso-solve-vtu3d-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let dir_s = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&[
+        "--quiet",
+        "solve",
+        "examples/semicoercive3d.cso",
+        "-o",
+        &dir_s,
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let map = std::fs::read_to_string(dir.join("contact_seat_map.svg")).expect("map");
+    assert!(
+        map.contains("contact pressure (Pa) on `brick.bottom`, seen along z"),
+        "{}",
+        &map[..map.len().min(600)]
+    );
+    assert!(
+        !dir.join("deformed.svg").exists(),
+        "deformed.svg is 2D only"
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
+            .expect("JSON");
+    let Some(python) = python_with_meshio() else {
+        eprintln!("SKIPPED: reading the 3D VTU back needs python3 with meshio");
+        let _ = std::fs::remove_dir_all(&dir);
+        return;
+    };
+    let script = r#"
+import sys, meshio, numpy as np
+for name in sys.argv[2:]:
+    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
+    u = m.point_data["displacement"]
+    assert m.cells[0].type == "hexahedron"
+    assert np.isfinite(u).all() and np.isfinite(m.cell_data["von Mises"][0]).all()
+    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
+"#;
+    let out = Command::new(&python)
+        .args(["-c", script, &dir_s, "base", "brick"])
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
+    // base 12 x 12 x 8 elements (13 x 13 x 9 nodes), brick 4 x 4 x 8 (5 x 5 x 9).
+    assert_eq!(lines[0][..3], ["base", "1521", "1152"], "{text}");
+    assert_eq!(lines[1][..3], ["brick", "225", "128"], "{text}");
+    for (k, line) in lines.iter().enumerate() {
+        let u: f64 = line[3].parse().expect("a number");
+        let expect = report["bodies"][k]["max_abs_u"]
+            .as_f64()
+            .expect("max_abs_u");
+        assert!((u - expect).abs() <= 1e-12 * expect, "{line:?} vs {expect}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -300,3 +300,26 @@ fn a_dimension_error_points_at_the_let_that_gave_the_dimension() {
         d[0].labels
     );
 }
+
+#[test]
+fn a_scene_written_again_with_a_design_reads_back_that_design_exactly() {
+    let src = std::fs::read_to_string(crate::root().join("examples/scont2d.cso")).expect("example");
+    let s = compile(&src, &options()).expect("checks");
+    let x = [
+        0.1 / 3.0,
+        1e-17,
+        0.0,
+        0.07,
+        2.0 / 3.0 * 0.1,
+        0.099_999_999_999_999_99,
+    ];
+    let again = compile(&s.source.with_design(&x), &options()).expect("checks again");
+    assert_eq!(again.design_init(), x);
+    // Only the `init` changed: the bounds and the rest of the text are the same.
+    assert_eq!(again.design[0].upper, 0.1);
+    assert_eq!(
+        s.source.with_design(&s.design_init()).lines().count(),
+        src.lines().count()
+    );
+    assert_eq!(s.source.sha256.len(), 64);
+}

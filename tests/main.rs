@@ -10,6 +10,7 @@ mod fuzz;
 mod hard;
 mod optimize;
 mod reference;
+mod schema;
 mod sensitivity;
 mod solid;
 mod state;

@@ -212,7 +212,6 @@ pub struct Manifest {
     pub format: &'static str,
     pub problem: &'static str,
     pub conventions: Vec<&'static str>,
-    pub units: &'static str,
     pub primal: usize,
     pub equalities: usize,
     pub inequalities: usize,
@@ -227,12 +226,16 @@ pub struct Manifest {
 }
 
 /// The files of an export: `(name, bytes)`, the manifest last.
+///
+/// # Errors
+/// When the manifest cannot be serialized (a bug).
 pub fn files(
     qp: &Qp,
     format: Format,
+    header: &crate::io::provenance::Header,
     scene: &str,
     design: Vec<(String, f64)>,
-) -> Vec<(String, Vec<u8>)> {
+) -> Result<Vec<(String, Vec<u8>)>, serde_json::Error> {
     let ext = match format {
         Format::Petsc => "bin",
         Format::Mm => "mtx",
@@ -294,7 +297,6 @@ pub fn files(
             "KKT: K u - f + B_E^T lambda_E + B_I^T lambda_I = 0, lambda_I >= 0, lambda_I (B_I u - c_I) = 0",
             "R: orthonormal columns spanning the kernel of each diagonal block of K",
         ],
-        units: "SI: m, N, Pa",
         primal: qp.k.nrows,
         equalities: qp.b_eq.nrows,
         inequalities: qp.b_in.nrows,
@@ -305,9 +307,9 @@ pub fn files(
         rows: qp.rows.clone(),
         design,
     };
-    let json = serde_json::to_vec_pretty(&manifest).unwrap_or_default();
-    out.push(("manifest.json".to_string(), json));
-    out
+    let json = crate::io::provenance::to_json(header, &manifest)?;
+    out.push(("manifest.json".to_string(), json.into_bytes()));
+    Ok(out)
 }
 
 /// Exports the state problem of `scene` at `design`: lowered and factorized
@@ -325,7 +327,14 @@ pub fn export(
         .zip(design)
         .map(|(d, v)| (d.name.clone(), *v))
         .collect();
-    Ok(files(&qp, format, &scene.name, named))
+    let header = crate::io::provenance::Header::of(
+        scene,
+        "export",
+        &[("length", "m"), ("force", "N"), ("pressure", "Pa")],
+    );
+    files(&qp, format, &header, &scene.name, named).map_err(|e| {
+        crate::state::SolveError::Unsupported(format!("cannot write the manifest: {e}"))
+    })
 }
 
 /// Checks, before anything is computed, that `dir` can take an export: a

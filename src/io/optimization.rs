@@ -9,11 +9,13 @@
 
 use super::atomic::write_atomic;
 use super::plot::{line_chart, Series};
+use super::provenance::{scene_units, to_json, Header};
 use super::report::{body_fields, write_all, Report};
 use super::vtu::pvd_string;
 use crate::lang::Scene;
 use crate::opt::Optimization;
 use crate::state::State;
+use serde::Serialize;
 use std::fmt;
 use std::io;
 use std::path::{Path, PathBuf};
@@ -92,8 +94,12 @@ impl DesignSeries {
 /// design's full report (its state solved again: the run keeps no states).
 pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let json = serde_json::to_string_pretty(run).map_err(io::Error::other)?;
+    let header = Header::of(scene, "history", &[("time", "s")]).with_units(scene_units(scene));
+    let json = to_json(&header, &history(scene, run)).map_err(io::Error::other)?;
     write_atomic(&dir.join("history.json"), json.as_bytes())?;
+    if let Some(text) = best_scene(scene, run) {
+        write_atomic(&dir.join("best.cso"), text.as_bytes())?;
+    }
     let iters: Vec<f64> = run.history.iter().map(|h| h.iteration as f64).collect();
     let obj: Vec<f64> = run.history.iter().map(|h| h.objective).collect();
     let svg = line_chart(
@@ -146,6 +152,73 @@ pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
         write_all(dir, &best, &state, &report)?;
     }
     Ok(())
+}
+
+/// One design variable in history.json: its name next to its values.
+#[derive(Serialize)]
+pub struct DesignEntry<'a> {
+    pub name: &'a str,
+    /// SI unit when its bounds were written with units; null: plain numbers.
+    pub unit: Option<&'a str>,
+    pub lower: f64,
+    pub upper: f64,
+    pub initial: f64,
+    /// At the best feasible design; null when none was found.
+    pub best: Option<f64>,
+}
+
+/// history.json: the run, and the design variables by name with their bounds,
+/// initial and best values.
+#[derive(Serialize)]
+pub struct History<'a> {
+    #[serde(flatten)]
+    pub run: &'a Optimization,
+    pub best_iteration: Option<usize>,
+    pub best_objective: Option<f64>,
+    pub design_variables: Vec<DesignEntry<'a>>,
+}
+
+/// The body of history.json.
+pub fn history<'a>(scene: &'a Scene, run: &'a Optimization) -> History<'a> {
+    let best = run.best.and_then(|b| run.history.get(b));
+    History {
+        run,
+        best_iteration: best.map(|it| it.iteration),
+        best_objective: best.map(|it| it.objective),
+        design_variables: scene
+            .design
+            .iter()
+            .enumerate()
+            .map(|(i, d)| DesignEntry {
+                name: &d.name,
+                unit: d.unit.as_deref(),
+                lower: d.lower,
+                upper: d.upper,
+                initial: d.init,
+                best: best.and_then(|it| it.design.get(i).copied()),
+            })
+            .collect(),
+    }
+}
+
+/// `best.cso`: the input scene with the best feasible design as the design
+/// items' `init` (and `--set` values written into their `let`s), a scene that
+/// `cso solve` solves at that design; None without a feasible design or source
+/// text.
+pub fn best_scene(scene: &Scene, run: &Optimization) -> Option<String> {
+    let it = run.best.and_then(|b| run.history.get(b))?;
+    if scene.source.text.is_empty() {
+        return None;
+    }
+    let from = scene.source.path.as_deref().unwrap_or("the input scene");
+    Some(format!(
+        "# The best feasible design of `cso optimize` on {from} (iteration {}, objective {}),\n\
+         # written by cso {}: the input with the design's values as `init`.\n{}",
+        it.iteration,
+        crate::lang::diag::num(it.objective),
+        env!("CARGO_PKG_VERSION"),
+        scene.source.with_design(&it.design)
+    ))
 }
 
 /// `shape_BODY_FACE.svg`: every curved, design-dependent face at the first,

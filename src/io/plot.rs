@@ -68,8 +68,8 @@ const PALETTE: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 
-/// A line chart of several series, each a polyline, with a legend when any
-/// series has a name.
+/// A line chart of several series, each a polyline, with a legend in a column
+/// right of the chart (never over the data) when any series has a name.
 ///
 /// With `log_x`/`log_y` the axis is logarithmic and points with a non-positive
 /// coordinate on it are skipped (a residual that reached exactly zero has no
@@ -126,23 +126,60 @@ pub fn line_chart(
         y_label,
     };
 
+    // The legend gets its own column right of the chart, so it never covers
+    // data (inside the plot it hid the study's cheapest points).
+    let longest = names.iter().map(|n| n.chars().count()).max().unwrap_or(0);
+    let legend_w = if longest == 0 {
+        0
+    } else {
+        (LEGEND_PAD + LEGEND_CHAR * longest as u32).min(LEGEND_MAX)
+    };
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, LINE_SIZE).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
+        let size = (LINE_SIZE.0 + legend_w, LINE_SIZE.1);
+        let full = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        full.fill(&WHITE).map_err(draw_err)?;
+        let (root, legend) = full.split_horizontally(LINE_SIZE.0);
         // Linear and log axes are different coordinate types in plotters, so
         // each combination is its own instance of the generic drawing code.
         match (log_x, log_y) {
-            (false, false) => draw_lines(&root, xr, yr, &text, &lines, &names),
-            (true, false) => draw_lines(&root, xr.log_scale(), yr, &text, &lines, &names),
-            (false, true) => draw_lines(&root, xr, yr.log_scale(), &text, &lines, &names),
-            (true, true) => {
-                draw_lines(&root, xr.log_scale(), yr.log_scale(), &text, &lines, &names)
-            }
+            (false, false) => draw_lines(&root, xr, yr, &text, &lines),
+            (true, false) => draw_lines(&root, xr.log_scale(), yr, &text, &lines),
+            (false, true) => draw_lines(&root, xr, yr.log_scale(), &text, &lines),
+            (true, true) => draw_lines(&root, xr.log_scale(), yr.log_scale(), &text, &lines),
         }?;
-        root.present().map_err(draw_err)?;
+        if legend_w > 0 {
+            draw_legend(&legend, &names).map_err(draw_err)?;
+        }
+        full.present().map_err(draw_err)?;
     }
     Ok(svg)
+}
+
+/// Width of the legend column: padding, and per character of the longest name
+/// (plotters' estimate of the font), at most [`LEGEND_MAX`].
+const LEGEND_PAD: u32 = 50;
+const LEGEND_CHAR: u32 = 9;
+const LEGEND_MAX: u32 = 400;
+
+/// The legend column: a swatch and the name of each named series, from the
+/// top of the plotting area down.
+fn draw_legend(
+    area: &DrawingArea<SVGBackend, Shift>,
+    names: &[&str],
+) -> Result<(), DrawingAreaErrorKind<<SVGBackend<'static> as DrawingBackend>::ErrorType>> {
+    let style = TextStyle::from((FONT, LABEL_SIZE).into_font()).color(&BLACK);
+    let mut y = 60;
+    for (i, name) in names.iter().enumerate() {
+        if name.is_empty() {
+            continue;
+        }
+        let color = PALETTE[i % PALETTE.len()];
+        area.draw(&Rectangle::new([(8, y - 5), (24, y + 5)], color.filled()))?;
+        area.draw(&Text::new(name.to_string(), (32, y - 8), style.clone()))?;
+        y += 24;
+    }
+    Ok(())
 }
 
 /// The texts around a chart.
@@ -159,7 +196,6 @@ fn draw_lines<X, Y>(
     y: Y,
     text: &ChartText,
     lines: &[Vec<(f64, f64)>],
-    names: &[&str],
 ) -> Result<(), PlotError>
 where
     X: AsRangedCoord<Value = f64>,
@@ -186,29 +222,10 @@ where
         .draw()
         .map_err(draw_err)?;
 
-    let mut any_legend = false;
-    for (i, (line, name)) in lines.iter().zip(names).enumerate() {
+    for (i, line) in lines.iter().enumerate() {
         let color = PALETTE[i % PALETTE.len()];
-        let anno = chart
-            .draw_series(LineSeries::new(line.iter().copied(), color.stroke_width(2)))
-            .map_err(draw_err)?;
-        if !name.is_empty() {
-            any_legend = true;
-            // A filled swatch rather than plotters' default line sample keeps
-            // the SVG at exactly one <polyline> per series.
-            anno.label(*name).legend(move |(x, y)| {
-                Rectangle::new([(x, y - 5), (x + 16, y + 5)], color.filled())
-            });
-        }
-    }
-    if any_legend {
         chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, LABEL_SIZE))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK.mix(0.4))
-            .draw()
+            .draw_series(LineSeries::new(line.iter().copied(), color.stroke_width(2)))
             .map_err(draw_err)?;
     }
     Ok(())
@@ -295,18 +312,31 @@ fn tick_label(v: f64) -> String {
 const MESH_WIDTH: u32 = 800;
 const COLORBAR_WIDTH: u32 = 110;
 const MESH_MARGIN: u32 = 15;
-const MESH_X_LABELS: u32 = 35;
-const MESH_Y_LABELS: u32 = 60;
+const MESH_X_LABELS: u32 = 55;
+const MESH_Y_LABELS: u32 = 80;
 /// Fill of cells without a value, or whose value is not finite.
 const NO_VALUE: RGBColor = RGBColor(225, 225, 225);
 const EDGE: RGBColor = RGBColor(60, 60, 60);
 const OUTLINE: RGBColor = RGBColor(150, 150, 150);
 
+/// Meshes with more cells than this are drawn as one embedded image (a PNG of
+/// the cells' colours) instead of one polygon per cell: a 640 x 640 mesh would
+/// otherwise write 400,000 polygons (80 MB) that no viewer can show apart.
+pub const MAX_VECTOR_CELLS: usize = 4096;
+
+/// Pixels of the embedded image per SVG pixel (sharp on high-density screens).
+const RASTER_SCALE: f64 = 2.0;
+
 /// A picture of a quadrilateral mesh with equal scales on both axes (so shapes
-/// and gaps look as they are), each cell filled by the colour of its value
-/// under a viridis map with a colour bar, or light grey without values.
-/// `outline` polylines (the undeformed body, an obstacle) are drawn over the
-/// cells as thin grey lines.
+/// and gaps look as they are), axes in metres, each cell filled by the colour of
+/// its value under a viridis map with a colour bar labelled with `unit`, or
+/// light grey without values. `outline` polylines (the undeformed body, an
+/// obstacle) are drawn over the cells as thin grey lines.
+///
+/// Up to [`MAX_VECTOR_CELLS`] cells, each cell is a polygon with a dark border;
+/// beyond, the cells are rasterized into one embedded PNG under the axes and
+/// outlines (no borders: they would be a solid blot), so the file stays small
+/// whatever the mesh.
 ///
 /// Cells with a non-finite corner (or one beyond 1e300) are skipped; a
 /// non-finite value is drawn grey and left out of the colour scale.
@@ -320,6 +350,7 @@ pub fn mesh_plot(
     cells: &[[usize; 4]],
     values: Option<&[f64]>,
     outline: &[Vec<[f64; 2]>],
+    unit: &str,
 ) -> Result<String, PlotError> {
     if let Some(v) = values {
         if v.len() != cells.len() {
@@ -375,6 +406,8 @@ pub fn mesh_plot(
     let plot_h = (plot_w * aspect).clamp(150.0, 800.0);
     let height = plot_h as u32 + 2 * MESH_MARGIN + MESH_X_LABELS + 50;
 
+    let raster = drawn.len() > MAX_VECTOR_CELLS;
+    let mut image = None;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, (MESH_WIDTH, height)).into_drawing_area();
@@ -398,10 +431,14 @@ pub fn mesh_plot(
             .plotting_area()
             .dim_in_pixel();
         let (xr, yr) = equal_aspect([x0, x1], [y0, y1], (w, h));
+        let (xs, ys) = ([xr.start, xr.end], [yr.start, yr.end]);
         let mut chart = builder().build_cartesian_2d(xr, yr).map_err(draw_err)?;
         chart
             .configure_mesh()
             .disable_mesh()
+            .x_desc("x (m)")
+            .y_desc("y (m)")
+            .axis_desc_style((FONT, LABEL_SIZE))
             .label_style((FONT, LABEL_SIZE))
             .x_label_formatter(&|v| tick_label(*v))
             .y_label_formatter(&|v| tick_label(*v))
@@ -426,20 +463,40 @@ pub fn mesh_plot(
                 .map(|&i| (points[i][0], points[i][1]))
                 .collect()
         };
-        chart
-            .draw_series(
-                drawn
-                    .iter()
-                    .map(|&c| Polygon::new(corners(c), fill(c).filled())),
-            )
-            .map_err(draw_err)?;
-        chart
-            .draw_series(drawn.iter().map(|&c| {
-                let mut ring = corners(c);
-                ring.push(ring[0]);
-                PathElement::new(ring, EDGE.stroke_width(1))
-            }))
-            .map_err(draw_err)?;
+        if raster {
+            // The plotting area in SVG pixels, from the chart's own mapping.
+            let (ax, ay) = chart.backend_coord(&(xs[0], ys[1]));
+            let (bx, by) = chart.backend_coord(&(xs[1], ys[0]));
+            let (wpx, hpx) = ((bx - ax).max(1), (by - ay).max(1));
+            let mut r = Raster::new(
+                (f64::from(wpx) * RASTER_SCALE) as usize,
+                (f64::from(hpx) * RASTER_SCALE) as usize,
+            );
+            let (sx, sy) = (r.w as f64 / (xs[1] - xs[0]), r.h as f64 / (ys[1] - ys[0]));
+            let px = |i: usize| [(points[i][0] - xs[0]) * sx, (ys[1] - points[i][1]) * sy];
+            for &c in &drawn {
+                let [a, b, cc, d] = cells[c].map(px);
+                let colour = fill(c);
+                r.triangle([a, b, cc], colour);
+                r.triangle([a, cc, d], colour);
+            }
+            image = Some((ax, ay, wpx, hpx, r.png()));
+        } else {
+            chart
+                .draw_series(
+                    drawn
+                        .iter()
+                        .map(|&c| Polygon::new(corners(c), fill(c).filled())),
+                )
+                .map_err(draw_err)?;
+            chart
+                .draw_series(drawn.iter().map(|&c| {
+                    let mut ring = corners(c);
+                    ring.push(ring[0]);
+                    PathElement::new(ring, EDGE.stroke_width(1))
+                }))
+                .map_err(draw_err)?;
+        }
         chart
             .draw_series(outline.iter().map(|line| {
                 let pts = line.iter().filter(|p| finite(p)).map(|p| (p[0], p[1]));
@@ -448,11 +505,123 @@ pub fn mesh_plot(
             .map_err(draw_err)?;
 
         if let Some((lo, hi)) = scale {
-            draw_colorbar(&bar_area, lo, hi, h).map_err(draw_err)?;
+            draw_colorbar(&bar_area, lo, hi, h, unit).map_err(draw_err)?;
         }
         root.present().map_err(draw_err)?;
     }
+    if let Some((x, y, w, h, png)) = image {
+        // Under everything but the white background: the first element.
+        let at = svg
+            .find("<rect")
+            .and_then(|r| svg[r..].find("/>").map(|e| r + e + 2))
+            .unwrap_or(0);
+        let mut tag = format!(
+            "\n<image x=\"{x}\" y=\"{y}\" width=\"{w}\" height=\"{h}\" \
+             preserveAspectRatio=\"none\" href=\"data:image/png;base64,"
+        );
+        super::vtu::base64_into(&mut tag, &png);
+        tag.push_str("\"/>");
+        svg.insert_str(at, &tag);
+    }
     Ok(svg)
+}
+
+/// An RGBA image that cells are painted into (transparent where none is).
+struct Raster {
+    w: usize,
+    h: usize,
+    rgba: Vec<u8>,
+}
+
+impl Raster {
+    fn new(w: usize, h: usize) -> Raster {
+        let (w, h) = (w.clamp(1, 4096), h.clamp(1, 4096));
+        Raster {
+            w,
+            h,
+            rgba: vec![0; w * h * 4],
+        }
+    }
+
+    /// Paints the pixels whose centres lie in the triangle `p` (pixel units,
+    /// y down), edges included, so that cells tiling a body leave no gaps.
+    fn triangle(&mut self, p: [[f64; 2]; 3], c: RGBColor) {
+        let area =
+            (p[1][0] - p[0][0]) * (p[2][1] - p[0][1]) - (p[2][0] - p[0][0]) * (p[1][1] - p[0][1]);
+        if !area.is_finite() || area == 0.0 {
+            return;
+        }
+        let lo = |k: usize| p.iter().map(|q| q[k]).fold(f64::INFINITY, f64::min);
+        let hi = |k: usize| p.iter().map(|q| q[k]).fold(f64::NEG_INFINITY, f64::max);
+        let clamp = |v: f64, n: usize| (v.max(0.0) as usize).min(n);
+        let (i0, i1) = (clamp(lo(0) - 0.5, self.w), clamp(hi(0) + 0.5, self.w));
+        let (j0, j1) = (clamp(lo(1) - 0.5, self.h), clamp(hi(1) + 0.5, self.h));
+        let sign = area.signum();
+        let edge = |a: [f64; 2], b: [f64; 2], x: f64, y: f64| {
+            sign * ((b[0] - a[0]) * (y - a[1]) - (b[1] - a[1]) * (x - a[0]))
+        };
+        for j in j0..j1 {
+            let y = j as f64 + 0.5;
+            for i in i0..i1 {
+                let x = i as f64 + 0.5;
+                if edge(p[0], p[1], x, y) >= 0.0
+                    && edge(p[1], p[2], x, y) >= 0.0
+                    && edge(p[2], p[0], x, y) >= 0.0
+                {
+                    let k = 4 * (j * self.w + i);
+                    self.rgba[k..k + 4].copy_from_slice(&[c.0, c.1, c.2, 255]);
+                }
+            }
+        }
+    }
+
+    /// The image as a PNG file: 8-bit RGBA, no filter, zlib by miniz_oxide.
+    fn png(&self) -> Vec<u8> {
+        let mut raw = Vec::with_capacity((self.w * 4 + 1) * self.h);
+        for row in self.rgba.chunks(self.w * 4) {
+            raw.push(0);
+            raw.extend_from_slice(row);
+        }
+        let mut out = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut header = Vec::with_capacity(13);
+        header.extend_from_slice(&(self.w as u32).to_be_bytes());
+        header.extend_from_slice(&(self.h as u32).to_be_bytes());
+        header.extend_from_slice(&[8, 6, 0, 0, 0]);
+        png_chunk(&mut out, b"IHDR", &header);
+        png_chunk(
+            &mut out,
+            b"IDAT",
+            &miniz_oxide::deflate::compress_to_vec_zlib(&raw, 6),
+        );
+        png_chunk(&mut out, b"IEND", &[]);
+        out
+    }
+}
+
+/// One PNG chunk: length, type, data, CRC-32 of type and data.
+fn png_chunk(out: &mut Vec<u8>, kind: &[u8; 4], data: &[u8]) {
+    out.extend_from_slice(&(data.len() as u32).to_be_bytes());
+    out.extend_from_slice(kind);
+    out.extend_from_slice(data);
+    let crc = crc32(kind.iter().chain(data));
+    out.extend_from_slice(&crc.to_be_bytes());
+}
+
+/// CRC-32 (IEEE, reflected, as PNG and zip use it), bit by bit: the images are
+/// small enough that a table buys nothing.
+fn crc32<'a>(bytes: impl Iterator<Item = &'a u8>) -> u32 {
+    let mut crc = 0xFFFF_FFFFu32;
+    for &b in bytes {
+        crc ^= u32::from(b);
+        for _ in 0..8 {
+            crc = if crc & 1 == 1 {
+                0xEDB8_8320 ^ (crc >> 1)
+            } else {
+                crc >> 1
+            };
+        }
+    }
+    !crc
 }
 
 /// Ranges containing `[x0, x1] x [y0, y1]` (with a small margin), centred,
@@ -483,10 +652,13 @@ fn draw_colorbar(
     lo: f64,
     hi: f64,
     plot_h: u32,
+    unit: &str,
 ) -> Result<(), DrawingAreaErrorKind<<SVGBackend<'static> as DrawingBackend>::ErrorType>> {
     const STEPS: i32 = 64;
-    let top = MESH_MARGIN as i32;
-    let bar_h = (plot_h as i32).max(STEPS);
+    // Room for the unit above the bar.
+    const UNIT_H: i32 = 24;
+    let top = MESH_MARGIN as i32 + UNIT_H;
+    let bar_h = (plot_h as i32 - UNIT_H).max(STEPS);
     let (x0, x1) = (10, 30);
     for k in 0..STEPS {
         let t = 1.0 - (f64::from(k) + 0.5) / f64::from(STEPS);
@@ -499,6 +671,13 @@ fn draw_colorbar(
         BLACK.stroke_width(1),
     ))?;
     let style = TextStyle::from((FONT, LABEL_SIZE).into_font()).color(&BLACK);
+    if !unit.is_empty() {
+        area.draw(&Text::new(
+            unit.to_string(),
+            (x0, top - UNIT_H + 2),
+            style.clone(),
+        ))?;
+    }
     let mid = 0.5 * (lo + hi);
     for (v, y) in [(hi, top), (mid, top + bar_h / 2), (lo, top + bar_h)] {
         area.draw(&Text::new(tick_label(v), (x1 + 6, y - 6), style.clone()))?;
@@ -750,6 +929,7 @@ mod tests {
                 &cells,
                 Some(&[1e300, -1e300, 0.0, 1.0]),
                 &[],
+                "",
             )
             .unwrap();
             assert_eq!(shapes(&svg, "polygon").len(), 4, "{scale} {offset}");
@@ -807,6 +987,7 @@ mod tests {
             &cells,
             Some(&[1.0, 2.0, 3.0, 4.0]),
             &outline,
+            "",
         )
         .unwrap();
         assert!(svg.starts_with("<svg"));
@@ -837,7 +1018,7 @@ mod tests {
                 p[0] *= sx;
                 p[1] *= sy;
             }
-            let svg = mesh_plot("aspect", &points, &cells, None, &[]).unwrap();
+            let svg = mesh_plot("aspect", &points, &cells, None, &[], "").unwrap();
             let polys = shapes(&svg, "polygon");
             assert_eq!(polys.len(), 4);
             let p = &polys[0];
@@ -862,22 +1043,202 @@ mod tests {
             &cells,
             Some(&[f64::NAN, 1.0, 1.0, f64::INFINITY]),
             &[],
+            "",
         )
         .unwrap();
         assert_eq!(shapes(&svg, "polygon").len(), 4);
         points[4] = [f64::NAN, 0.0]; // the centre node: every cell touches it
-        let svg = mesh_plot("nan", &points, &cells, None, &[vec![[f64::NAN, 0.0]]]).unwrap();
+        let svg = mesh_plot("nan", &points, &cells, None, &[vec![[f64::NAN, 0.0]]], "").unwrap();
         assert!(shapes(&svg, "polygon").is_empty());
-        let svg = mesh_plot("empty", &[], &[], None, &[]).unwrap();
+        let svg = mesh_plot("empty", &[], &[], None, &[], "").unwrap();
         assert!(svg.starts_with("<svg"));
         assert!(matches!(
-            mesh_plot("bad", &points, &[[0, 1, 2, 99]], None, &[]),
+            mesh_plot("bad", &points, &[[0, 1, 2, 99]], None, &[], ""),
             Err(PlotError::Input(_))
         ));
         assert!(matches!(
-            mesh_plot("bad", &points, &cells, Some(&[1.0]), &[]),
+            mesh_plot("bad", &points, &cells, Some(&[1.0]), &[], ""),
             Err(PlotError::Input(_))
         ));
+    }
+
+    #[test]
+    fn the_legend_sits_right_of_every_data_point() {
+        // Data in the upper right corner, where an inside legend would sit.
+        let x = [1.0, 2.0, 3.0, 4.0];
+        let svg = line_chart(
+            "study",
+            "seconds",
+            "relative error",
+            &[
+                Series {
+                    name: "finite_difference (central, h = 1e-6)",
+                    x: &x,
+                    y: &[1e-3, 1e-2, 1e-1, 1.0],
+                },
+                Series {
+                    name: "semi_analytic",
+                    x: &x,
+                    y: &[1.0, 0.5, 0.9, 0.95],
+                },
+            ],
+            true,
+            true,
+        )
+        .unwrap();
+        let right = series_lines(&svg)
+            .iter()
+            .flatten()
+            .map(|p| p.0)
+            .max()
+            .unwrap();
+        let swatches: Vec<i32> = svg
+            .split("<rect ")
+            .skip(1)
+            .filter(|r| r.contains("fill=\"#1F77B4\"") || r.contains("fill=\"#FF7F0E\""))
+            .map(|r| {
+                let at = r.find("x=\"").unwrap() + 3;
+                r[at..at + r[at..].find('"').unwrap()].parse().unwrap()
+            })
+            .collect();
+        assert_eq!(swatches.len(), 2, "one swatch per named series");
+        assert!(
+            swatches.iter().all(|&x| x > right + 20),
+            "{swatches:?} vs {right}"
+        );
+        assert!(svg.contains(">\nfinite_difference (central, h = 1e-6)\n</text>"));
+        let width: u32 = svg[svg.find("width=\"").unwrap() + 7..]
+            .split('"')
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!(
+            width > LINE_SIZE.0,
+            "the chart keeps its width, the legend adds"
+        );
+    }
+
+    #[test]
+    fn mesh_plot_axes_and_colour_bar_carry_units() {
+        let (points, cells) = grid(2);
+        let svg = mesh_plot(
+            "u",
+            &points,
+            &cells,
+            Some(&[1.0, 2.0, 3.0, 4.0]),
+            &[],
+            "von Mises (Pa)",
+        )
+        .unwrap();
+        for label in ["x (m)", "y (m)", "von Mises (Pa)"] {
+            assert!(svg.contains(&format!(">\n{label}\n</text>")), "{label}");
+        }
+        assert!(!svg.contains("<image"), "small meshes stay vector");
+    }
+
+    /// The embedded PNG of a rasterized mesh plot, decoded: width, height, RGBA.
+    fn embedded_png(svg: &str) -> (usize, usize, Vec<u8>) {
+        let start = svg.find("data:image/png;base64,").expect("an image") + 22;
+        let end = start + svg[start..].find('"').unwrap();
+        let bytes = decode64(&svg[start..end]);
+        assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+        let mut at = 8;
+        let (mut w, mut h, mut idat) = (0, 0, Vec::new());
+        while at < bytes.len() {
+            let len = u32::from_be_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+            let kind = &bytes[at + 4..at + 8];
+            let data = &bytes[at + 8..at + 8 + len];
+            let crc = u32::from_be_bytes(bytes[at + 8 + len..at + 12 + len].try_into().unwrap());
+            assert_eq!(crc, crc32(bytes[at + 4..at + 8 + len].iter()), "CRC");
+            match kind {
+                b"IHDR" => {
+                    w = u32::from_be_bytes(data[..4].try_into().unwrap()) as usize;
+                    h = u32::from_be_bytes(data[4..8].try_into().unwrap()) as usize;
+                    assert_eq!(&data[8..], [8, 6, 0, 0, 0], "8-bit RGBA");
+                }
+                b"IDAT" => idat.extend_from_slice(data),
+                _ => {}
+            }
+            at += 12 + len;
+        }
+        let raw = miniz_oxide::inflate::decompress_to_vec_zlib(&idat).expect("zlib");
+        assert_eq!(raw.len(), (4 * w + 1) * h);
+        let rgba = raw
+            .chunks(4 * w + 1)
+            .flat_map(|row| row[1..].to_vec())
+            .collect();
+        (w, h, rgba)
+    }
+
+    fn decode64(text: &str) -> Vec<u8> {
+        let val = |c: u8| match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            _ => 63,
+        };
+        let mut out = Vec::new();
+        for quad in text.as_bytes().chunks(4) {
+            let pad = quad.iter().filter(|&&c| c == b'=').count();
+            let n = quad
+                .iter()
+                .map(|&c| if c == b'=' { 0 } else { u32::from(val(c)) })
+                .fold(0u32, |n, v| (n << 6) | v);
+            out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+        }
+        out
+    }
+
+    #[test]
+    fn crc32_matches_the_check_value() {
+        assert_eq!(crc32(b"123456789".iter()), 0xCBF4_3926);
+        assert_eq!(crc32(b"".iter()), 0);
+    }
+
+    #[test]
+    fn a_640_x_640_mesh_is_one_small_image_without_gaps() {
+        // Issue 19: this mesh wrote an 82 MB SVG of 409,600 polygons.
+        let (points, cells) = grid(640);
+        let values: Vec<f64> = (0..cells.len()).map(|c| (c % 640) as f64).collect();
+        let outline = vec![vec![
+            [0.0, 0.0],
+            [640.0, 0.0],
+            [640.0, 640.0],
+            [0.0, 640.0],
+            [0.0, 0.0],
+        ]];
+        let svg = mesh_plot("big", &points, &cells, Some(&values), &outline, "Pa").unwrap();
+        assert!(svg.len() < 1_000_000, "{} bytes", svg.len());
+        assert!(shapes(&svg, "polygon").is_empty());
+        assert_eq!(svg.matches("<image ").count(), 1);
+        assert_eq!(
+            shapes_with(&svg, "polyline", "stroke=\"#969696\"").len(),
+            1,
+            "outline"
+        );
+        assert!(svg.contains(">\nx (m)\n</text>") && svg.contains(">\nPa\n</text>"));
+        let (w, h, rgba) = embedded_png(&svg);
+        assert!(w > 500 && h > 500, "{w} x {h}");
+        // The mesh is a square in an equal-aspect frame: its pixels are opaque,
+        // and left (low values) to right (high) runs from viridis' dark end to
+        // its yellow end.
+        let px = |i: usize, j: usize| &rgba[4 * (j * w + i)..4 * (j * w + i) + 4];
+        let (cx, cy) = (w / 2, h / 2);
+        assert_eq!(px(cx, cy)[3], 255);
+        let row: Vec<&[u8]> = (0..w).map(|i| px(i, cy)).filter(|p| p[3] == 255).collect();
+        let opaque = row.len();
+        assert!(opaque > w / 2, "{opaque} of {w}");
+        assert_eq!(row[0][..3], [68, 1, 84]);
+        assert!(
+            row[opaque - 1][0] > 240 && row[opaque - 1][1] > 220,
+            "{:?}",
+            row[opaque - 1]
+        );
+        // No gaps: the opaque pixels of a row are contiguous.
+        let first = (0..w).position(|i| px(i, cy)[3] == 255).unwrap();
+        assert!((first..first + opaque).all(|i| px(i, cy)[3] == 255));
     }
 
     #[test]

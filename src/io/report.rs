@@ -2,6 +2,8 @@
 //! one `.vtu` per body for ParaView and SVG plots.
 //!
 //! # `report.json` (all values SI: m, N, Pa, J, s)
+//! Its JSON Schema is docs/report.schema.json (checked by tests/schema.rs); the
+//! header every JSON file starts with is [`super::provenance`]'s.
 //! - `scene`, `sizes`: primal unknowns and multipliers (the seed's "Primal/Dual
 //!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros,
 //!   `factorizations` (subdomains factorized `symbolic`ally, `numeric`ally, and
@@ -23,7 +25,8 @@ use crate::fem::hex::{hex_strain_at, isotropic};
 use crate::fem::quad::{plane_strain, quad_strain_at};
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
-use crate::io::vtu::{vtu_string, CellType, Field, VtuMesh};
+use crate::io::provenance::{self, Header, SOLVE_UNITS};
+use crate::io::vtu::{vtu_string, CellType, Encoding, Field, VtuMesh};
 use crate::lang::diag::{num, round6};
 use crate::lang::scene::Scene;
 use crate::model::SubdomainMesh;
@@ -484,9 +487,10 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
             }
         }
     }
+    let connectivity = cells.concat();
     let mesh = VtuMesh {
         points: &points,
-        cells: &cells,
+        connectivity: &connectivity,
         cell_type: if p.dim == 2 {
             CellType::Quad
         } else {
@@ -521,6 +525,7 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
             ("contact pressure", Field::Scalar(&pressure)),
         ],
         &cell_fields,
+        Encoding::Binary,
     );
     BodyFields {
         disp,
@@ -530,11 +535,44 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
     }
 }
 
+/// How much the deformed plot magnifies displacements: the largest becomes
+/// about 5% of the scene's size, rounded to two significant digits so that the
+/// title reads `displacements x 250`, not `x 247.3156`; 0 without displacement.
+pub fn magnification(size: f64, umax: f64) -> f64 {
+    if !(umax > 0.0 && size > 0.0 && size.is_finite()) {
+        return 0.0;
+    }
+    let m = 0.05 * size / umax;
+    let unit = 10f64.powf(m.log10().floor() - 1.0);
+    let r = (m / unit).round() * unit;
+    if r.is_finite() && r > 0.0 {
+        round6(r)
+    } else {
+        m
+    }
+}
+
+/// The title of `deformed.svg`: what is coloured, and that the shape is
+/// magnified (a magnified roller seems to pass through its floor otherwise).
+pub fn deformed_title(scene: &str, magnify: f64) -> String {
+    if magnify == 1.0 {
+        format!("{scene}: von Mises stress on the deformed shape (true scale)")
+    } else if magnify > 0.0 {
+        format!(
+            "{scene}: von Mises stress, deformed shape with displacements x {}",
+            num(magnify)
+        )
+    } else {
+        format!("{scene}: von Mises stress (no displacement)")
+    }
+}
+
 /// Writes `report.json`, `BODY.vtu` per body, `contact_NAME.svg` per contact and
 /// (2D) `deformed.svg`, each atomically.
 pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> std::io::Result<()> {
     std::fs::create_dir_all(dir)?;
-    let json = serde_json::to_string_pretty(report).map_err(std::io::Error::other)?;
+    let header = Header::of(scene, "report", SOLVE_UNITS);
+    let json = provenance::to_json(&header, report).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("report.json"), json.as_bytes())?;
     let p = &state.problem;
     let fields: Vec<BodyFields> = (0..p.bodies.len()).map(|b| body_fields(state, b)).collect();
@@ -654,7 +692,7 @@ fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Optio
         "{}: contact pressure (Pa) on `{}`, seen along {} ({} and {} in m)",
         scene.name, sel.text, names[axis], names[a], names[b]
     );
-    mesh_plot(&title, &points, &cells, Some(&values), &[])
+    mesh_plot(&title, &points, &cells, Some(&values), &[], "pressure (Pa)")
         .map(Some)
         .map_err(std::io::Error::other)
 }
@@ -702,7 +740,7 @@ fn deformed_plot(
         }
     }
     let size = (hi[0] - lo[0]).max(hi[1] - lo[1]);
-    let magnify = if umax > 0.0 { 0.05 * size / umax } else { 0.0 };
+    let magnify = magnification(size, umax);
     for (body, f) in p.bodies.iter().zip(fields) {
         let base = all_points.len();
         for (k, c) in body.coords.iter().enumerate() {
@@ -735,11 +773,40 @@ fn deformed_plot(
         .collect();
         outline.push(ring);
     }
-    let title = format!(
-        "{}: deformed (x{}), von Mises stress",
-        scene.name,
-        num(round6(magnify))
-    );
-    mesh_plot(&title, &all_points, &all_cells, Some(&all_vm), &outline)
-        .map_err(std::io::Error::other)
+    let title = deformed_title(&scene.name, magnify);
+    mesh_plot(
+        &title,
+        &all_points,
+        &all_cells,
+        Some(&all_vm),
+        &outline,
+        "von Mises (Pa)",
+    )
+    .map_err(std::io::Error::other)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_deformed_plot_says_how_much_it_magnifies() {
+        assert_eq!(magnification(1.0, 0.0002), 250.0);
+        assert_eq!(magnification(3.0, 0.0123), 12.0);
+        assert_eq!(magnification(2.0, 0.1), 1.0);
+        assert_eq!(magnification(1.0, 0.0), 0.0);
+        assert_eq!(magnification(f64::NAN, 1.0), 0.0);
+        assert_eq!(
+            deformed_title("hertz", 250.0),
+            "hertz: von Mises stress, deformed shape with displacements x 250"
+        );
+        assert_eq!(
+            deformed_title("s", 1.0),
+            "s: von Mises stress on the deformed shape (true scale)"
+        );
+        assert_eq!(
+            deformed_title("s", 0.0),
+            "s: von Mises stress (no displacement)"
+        );
+    }
 }

@@ -3,13 +3,15 @@
 //! Meshes, displacements, stresses, contact pressures and the active set of each
 //! iteration are looked at in ParaView, so they are written in the format it
 //! reads natively. The format is short enough to write by hand (`vtkio` writes
-//! wrong attributes for unstructured pieces), and ASCII keeps the files
-//! diffable and checkable by eye; the cost is size, which matters little at the
-//! mesh sizes one inspects visually.
+//! wrong attributes for unstructured pieces).
+//!
+//! Two encodings of the arrays: [`Encoding::Binary`] (what cso writes: inline
+//! base64, about a third of the ASCII size of a 640 x 640 mesh and exact) and
+//! [`Encoding::Ascii`] (diffable and checkable by eye, for small meshes and tests).
 //!
 //! # Wire format
 //! ```xml
-//! <VTKFile type="UnstructuredGrid" version="0.1" byte_order="LittleEndian">
+//! <VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">
 //!   <UnstructuredGrid><Piece NumberOfPoints=".." NumberOfCells="..">
 //!     <PointData> DataArray per field </PointData>
 //!     <CellData> DataArray per field </CellData>
@@ -18,11 +20,19 @@
 //!   </Piece></UnstructuredGrid>
 //! </VTKFile>
 //! ```
-//! Floats are written so that they read back to the same `f64` (Rust's
-//! shortest round-trip formatting). Non-finite floats are written as `0`: the
-//! caller guarantees finite values, and this last guard exists because a
-//! single `nan` token makes some readers reject the whole file, which would hide
-//! every other field of that iteration. Names are XML-escaped.
+//! A binary `DataArray` (`format="binary"`) holds one base64 block (RFC 4648,
+//! padded) of the little-endian UInt64 byte count of the data followed by the
+//! data, little-endian: VTK's inline binary layout for uncompressed arrays with
+//! `header_type="UInt64"`. ASCII floats are written so that they read back to the
+//! same `f64` (Rust's shortest round-trip formatting). Non-finite floats are
+//! written as `0` in both encodings: the caller guarantees finite values, and this
+//! last guard exists because a single `nan` makes some readers reject the whole
+//! file, which would hide every other field of that iteration. Names are
+//! XML-escaped.
+//!
+//! The mesh is general: points with three coordinates and a flat connectivity of
+//! one cell type (its VTK id and node count), so quadrilaterals (9) and
+//! hexahedra (12) go through the same code.
 
 use std::fmt::Write;
 
@@ -59,9 +69,26 @@ impl CellType {
 #[derive(Debug, Clone, Copy)]
 pub struct VtuMesh<'a> {
     pub points: &'a [[f64; 3]],
-    /// Point indices of each cell, `cell_type.nodes()` of them, in VTK order.
-    pub cells: &'a [Vec<usize>],
+    /// Point indices of every cell, `cell_type.nodes()` per cell, cell after
+    /// cell, each cell in VTK order.
+    pub connectivity: &'a [usize],
     pub cell_type: CellType,
+}
+
+impl VtuMesh<'_> {
+    /// Number of cells (whole cells of the connectivity).
+    pub fn n_cells(&self) -> usize {
+        self.connectivity.len() / self.cell_type.nodes()
+    }
+}
+
+/// How the arrays are written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Encoding {
+    /// Text, one number per token.
+    Ascii,
+    /// Inline base64 of a UInt64 byte count and the little-endian data.
+    Binary,
 }
 
 /// Values attached to every point or every cell.
@@ -89,7 +116,7 @@ impl Field<'_> {
 /// The `.vtu` file for one mesh and its fields.
 ///
 /// The caller guarantees that each point field has one entry per point, each
-/// cell field one per cell, and each cell `cell_type.nodes()` valid point
+/// cell field one per cell, and the connectivity whole cells of valid point
 /// indices: these are facts about the caller's own arrays, not user input.
 /// A field of the wrong length is a bug that debug builds stop on; release
 /// builds leave that field out rather than write a file ParaView rejects.
@@ -97,20 +124,22 @@ pub fn vtu_string(
     mesh: &VtuMesh,
     point_data: &[(&str, Field)],
     cell_data: &[(&str, Field)],
+    encoding: Encoding,
 ) -> String {
     let n_points = mesh.points.len();
-    let n_cells = mesh.cells.len();
+    let per = mesh.cell_type.nodes();
     debug_assert!(
-        mesh.cells
-            .iter()
-            .all(|c| c.len() == mesh.cell_type.nodes() && c.iter().all(|&i| i < n_points)),
-        "cells must have {} valid point indices each",
-        mesh.cell_type.nodes()
+        mesh.connectivity.len() % per == 0 && mesh.connectivity.iter().all(|&i| i < n_points),
+        "the connectivity must be whole cells of {per} valid point indices"
     );
+    let connectivity = &mesh.connectivity[..mesh.n_cells() * per];
+    let n_cells = mesh.n_cells();
 
     let mut s = String::new();
     s.push_str("<?xml version=\"1.0\"?>\n");
-    s.push_str("<VTKFile type=\"UnstructuredGrid\" version=\"0.1\" byte_order=\"LittleEndian\">\n");
+    s.push_str(
+        "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n",
+    );
     s.push_str("  <UnstructuredGrid>\n");
     // `write!` into a String cannot fail; the results are ignored for that reason.
     let _ = writeln!(
@@ -118,47 +147,29 @@ pub fn vtu_string(
         "    <Piece NumberOfPoints=\"{n_points}\" NumberOfCells=\"{n_cells}\">"
     );
 
-    write_fields(&mut s, "PointData", point_data, n_points);
-    write_fields(&mut s, "CellData", cell_data, n_cells);
+    let mut w = Writer { s, encoding };
+    w.fields("PointData", point_data, n_points);
+    w.fields("CellData", cell_data, n_cells);
 
-    s.push_str("      <Points>\n");
-    s.push_str(
-        "        <DataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\" format=\"ascii\">\n",
+    w.s.push_str("      <Points>\n");
+    w.array(
+        "Float64",
+        "Points",
+        3,
+        Values::Floats(mesh.points.as_flattened()),
     );
-    for p in mesh.points {
-        push_floats(&mut s, p);
-    }
-    s.push_str("        </DataArray>\n");
-    s.push_str("      </Points>\n");
+    w.s.push_str("      </Points>\n");
 
-    s.push_str("      <Cells>\n");
-    s.push_str("        <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">\n");
-    for cell in mesh.cells {
-        push_ints(&mut s, cell.iter().map(|&i| i as i64));
-    }
-    s.push_str("        </DataArray>\n");
-    s.push_str("        <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">\n");
-    // Offsets are the running end of each cell's connectivity, so they follow
-    // the actual cell lengths even if a caller mixed lengths by mistake.
-    let mut end = 0i64;
-    for chunk in mesh.cells.chunks(16) {
-        push_ints(
-            &mut s,
-            chunk.iter().map(|c| {
-                end += c.len() as i64;
-                end
-            }),
-        );
-    }
-    s.push_str("        </DataArray>\n");
-    s.push_str("        <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">\n");
-    let id = i64::from(mesh.cell_type.vtk_id());
-    for chunk in mesh.cells.chunks(16) {
-        push_ints(&mut s, chunk.iter().map(|_| id));
-    }
-    s.push_str("        </DataArray>\n");
-    s.push_str("      </Cells>\n");
+    w.s.push_str("      <Cells>\n");
+    let conn: Vec<i64> = connectivity.iter().map(|&i| i as i64).collect();
+    w.array("Int64", "connectivity", 1, Values::Ints(&conn));
+    let offsets: Vec<i64> = (1..=n_cells).map(|c| (c * per) as i64).collect();
+    w.array("Int64", "offsets", 1, Values::Ints(&offsets));
+    let types = vec![mesh.cell_type.vtk_id(); n_cells];
+    w.array("UInt8", "types", 1, Values::Bytes(&types));
+    w.s.push_str("      </Cells>\n");
 
+    let mut s = w.s;
     s.push_str("    </Piece>\n");
     s.push_str("  </UnstructuredGrid>\n");
     s.push_str("</VTKFile>\n");
@@ -187,47 +198,114 @@ pub fn pvd_string(entries: &[(f64, &str)]) -> String {
     s
 }
 
-/// One `<PointData>` or `<CellData>` block; fields whose length is not `n`
-/// are left out (see [`vtu_string`]).
-fn write_fields(s: &mut String, tag: &str, fields: &[(&str, Field)], n: usize) {
-    let _ = writeln!(s, "      <{tag}>");
-    for (name, field) in fields {
-        debug_assert_eq!(field.len(), n, "{tag} field {name:?} has the wrong length");
-        if field.len() != n {
-            continue;
+/// The values of one `DataArray`.
+enum Values<'a> {
+    Floats(&'a [f64]),
+    Ints(&'a [i64]),
+    Bytes(&'a [u8]),
+}
+
+/// The file being written and how its arrays are encoded.
+struct Writer {
+    s: String,
+    encoding: Encoding,
+}
+
+impl Writer {
+    /// One `<PointData>` or `<CellData>` block; fields whose length is not `n`
+    /// are left out (see [`vtu_string`]).
+    fn fields(&mut self, tag: &str, fields: &[(&str, Field)], n: usize) {
+        let _ = writeln!(self.s, "      <{tag}>");
+        for (name, field) in fields {
+            debug_assert_eq!(field.len(), n, "{tag} field {name:?} has the wrong length");
+            if field.len() != n {
+                continue;
+            }
+            match field {
+                Field::Scalar(v) => self.array("Float64", name, 1, Values::Floats(v)),
+                Field::Vector(v) => {
+                    self.array("Float64", name, 3, Values::Floats(v.as_flattened()))
+                }
+                Field::Int(v) => self.array("Int64", name, 1, Values::Ints(v)),
+            }
         }
-        // One-component arrays carry no NumberOfComponents: VTK defaults it to
-        // 1, and meshio then reads a flat array instead of an n x 1 matrix.
-        let (ty, comps) = match field {
-            Field::Scalar(_) => ("Float64", ""),
-            Field::Vector(_) => ("Float64", " NumberOfComponents=\"3\""),
-            Field::Int(_) => ("Int64", ""),
+        let _ = writeln!(self.s, "      </{tag}>");
+    }
+
+    /// One `DataArray`. One-component arrays carry no NumberOfComponents: VTK
+    /// defaults it to 1, and meshio then reads a flat array instead of an n x 1
+    /// matrix.
+    fn array(&mut self, ty: &str, name: &str, comps: usize, values: Values) {
+        let comps = if comps > 1 {
+            format!(" NumberOfComponents=\"{comps}\"")
+        } else {
+            String::new()
+        };
+        let format = match self.encoding {
+            Encoding::Ascii => "ascii",
+            Encoding::Binary => "binary",
         };
         let _ = writeln!(
-            s,
-            "        <DataArray type=\"{ty}\" Name=\"{}\"{comps} format=\"ascii\">",
+            self.s,
+            "        <DataArray type=\"{ty}\" Name=\"{}\"{comps} format=\"{format}\">",
             xml_escape(name)
         );
-        match field {
-            Field::Scalar(v) => {
-                for chunk in v.chunks(8) {
-                    push_floats(s, chunk);
+        match self.encoding {
+            Encoding::Ascii => {
+                let per_line = if comps.is_empty() { 8 } else { 3 };
+                match values {
+                    Values::Floats(v) => {
+                        v.chunks(per_line).for_each(|c| push_floats(&mut self.s, c))
+                    }
+                    Values::Ints(v) => v
+                        .chunks(16)
+                        .for_each(|c| push_ints(&mut self.s, c.iter().copied())),
+                    Values::Bytes(v) => v
+                        .chunks(16)
+                        .for_each(|c| push_ints(&mut self.s, c.iter().map(|&b| i64::from(b)))),
                 }
             }
-            Field::Vector(v) => {
-                for x in *v {
-                    push_floats(s, x);
-                }
-            }
-            Field::Int(v) => {
-                for chunk in v.chunks(16) {
-                    push_ints(s, chunk.iter().copied());
-                }
+            Encoding::Binary => {
+                let data: Vec<u8> = match values {
+                    Values::Floats(v) => v
+                        .iter()
+                        .flat_map(|x| (if x.is_finite() { *x } else { 0.0 }).to_le_bytes())
+                        .collect(),
+                    Values::Ints(v) => v.iter().flat_map(|x| x.to_le_bytes()).collect(),
+                    Values::Bytes(v) => v.to_vec(),
+                };
+                let mut block = Vec::with_capacity(8 + data.len());
+                block.extend_from_slice(&(data.len() as u64).to_le_bytes());
+                block.extend_from_slice(&data);
+                self.s.push_str("          ");
+                base64_into(&mut self.s, &block);
+                self.s.push('\n');
             }
         }
-        s.push_str("        </DataArray>\n");
+        self.s.push_str("        </DataArray>\n");
     }
-    let _ = writeln!(s, "      </{tag}>");
+}
+
+/// Standard base64 (RFC 4648 alphabet, `=` padding), appended to `out`. Twenty
+/// lines instead of a dependency; tested against the RFC's vectors.
+pub fn base64_into(out: &mut String, bytes: &[u8]) {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    out.reserve(bytes.len().div_ceil(3) * 4);
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(ALPHABET[((n >> (18 - 6 * k)) & 63) as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
 }
 
 /// One indented line of floats.
@@ -288,7 +366,7 @@ mod tests {
     use std::process::Command;
 
     /// Two unit quads side by side: points 0..6 on a 3 x 2 grid.
-    fn two_quads() -> (Vec<[f64; 3]>, Vec<Vec<usize>>) {
+    fn two_quads() -> (Vec<[f64; 3]>, Vec<usize>) {
         let points = vec![
             [0.0, 0.0, 0.0],
             [1.0, 0.0, 0.0],
@@ -297,7 +375,7 @@ mod tests {
             [1.0, 1.0, 0.0],
             [2.0, 1.0, 0.0],
         ];
-        let cells = vec![vec![0, 1, 4, 3], vec![1, 2, 5, 4]];
+        let cells = vec![0, 1, 4, 3, 1, 2, 5, 4];
         (points, cells)
     }
 
@@ -316,7 +394,7 @@ mod tests {
         let (points, cells) = two_quads();
         let mesh = VtuMesh {
             points: &points,
-            cells: &cells,
+            connectivity: &cells,
             cell_type: CellType::Quad,
         };
         let ux: Vec<[f64; 3]> = points.iter().map(|p| [0.1 * p[0], 0.0, 0.0]).collect();
@@ -327,9 +405,10 @@ mod tests {
                 ("subdomain", Field::Int(&[0, 1])),
                 ("vm", Field::Scalar(&[1.5, 2.5])),
             ],
+            Encoding::Ascii,
         );
         assert!(xml.starts_with("<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\""));
-        assert!(xml.contains("version=\"0.1\" byte_order=\"LittleEndian\""));
+        assert!(xml.contains("version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\""));
         assert!(xml.contains("<Piece NumberOfPoints=\"6\" NumberOfCells=\"2\">"));
         assert_eq!(
             array_tokens(&xml, "connectivity"),
@@ -357,10 +436,15 @@ mod tests {
         let (points, cells) = two_quads();
         let mesh = VtuMesh {
             points: &points,
-            cells: &cells,
+            connectivity: &cells,
             cell_type: CellType::Quad,
         };
-        let xml = vtu_string(&mesh, &[], &[("p", Field::Scalar(&[f64::NAN, 1e300]))]);
+        let xml = vtu_string(
+            &mesh,
+            &[],
+            &[("p", Field::Scalar(&[f64::NAN, 1e300]))],
+            Encoding::Ascii,
+        );
         assert_eq!(array_tokens(&xml, "p"), ["0", "1e300"]);
         assert!(!xml.to_lowercase().contains("nan"));
         assert!(!xml.contains("inf"));
@@ -371,10 +455,15 @@ mod tests {
         let (points, cells) = two_quads();
         let mesh = VtuMesh {
             points: &points,
-            cells: &cells,
+            connectivity: &cells,
             cell_type: CellType::Quad,
         };
-        let xml = vtu_string(&mesh, &[], &[("a<b> & \"c\"", Field::Int(&[1, 2]))]);
+        let xml = vtu_string(
+            &mesh,
+            &[],
+            &[("a<b> & \"c\"", Field::Int(&[1, 2]))],
+            Encoding::Binary,
+        );
         assert!(xml.contains("Name=\"a&lt;b&gt; &amp; &quot;c&quot;\""));
         let pvd = pvd_string(&[(0.0, "it&0.vtu")]);
         assert!(pvd.contains("file=\"it&amp;0.vtu\""));
@@ -400,23 +489,138 @@ mod tests {
         assert!(empty.contains("<Collection>\n  </Collection>"));
     }
 
+    #[test]
+    fn base64_matches_rfc_4648() {
+        for (plain, coded) in [
+            ("", ""),
+            ("f", "Zg=="),
+            ("fo", "Zm8="),
+            ("foo", "Zm9v"),
+            ("foob", "Zm9vYg=="),
+            ("fooba", "Zm9vYmE="),
+            ("foobar", "Zm9vYmFy"),
+        ] {
+            let mut s = String::new();
+            base64_into(&mut s, plain.as_bytes());
+            assert_eq!(s, coded, "{plain:?}");
+        }
+        let mut s = String::new();
+        base64_into(&mut s, &[0xfb, 0xff, 0xfe]);
+        assert_eq!(s, "+//+");
+    }
+
+    /// Standard base64 back to bytes (the test's own decoder).
+    fn decode64(text: &str) -> Vec<u8> {
+        let val = |c: u8| match c {
+            b'A'..=b'Z' => c - b'A',
+            b'a'..=b'z' => c - b'a' + 26,
+            b'0'..=b'9' => c - b'0' + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => panic!("not base64: {c}"),
+        };
+        let mut out = Vec::new();
+        for quad in text.trim().as_bytes().chunks(4) {
+            let pad = quad.iter().filter(|&&c| c == b'=').count();
+            let n = quad
+                .iter()
+                .map(|&c| if c == b'=' { 0 } else { u32::from(val(c)) })
+                .fold(0u32, |n, v| (n << 6) | v);
+            out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+        }
+        out
+    }
+
+    /// The data of a binary array: checks the UInt64 byte count header.
+    fn binary_array(xml: &str, name: &str) -> Vec<u8> {
+        let tokens = array_tokens(xml, name);
+        assert_eq!(tokens.len(), 1, "one base64 block");
+        let block = decode64(tokens[0]);
+        let n = u64::from_le_bytes(block[..8].try_into().unwrap()) as usize;
+        assert_eq!(
+            n,
+            block.len() - 8,
+            "{name}: the header counts the data bytes"
+        );
+        block[8..].to_vec()
+    }
+
+    #[test]
+    fn binary_arrays_decode_to_the_ascii_values() {
+        let (points, cells) = two_quads();
+        let mesh = VtuMesh {
+            points: &points,
+            connectivity: &cells,
+            cell_type: CellType::Quad,
+        };
+        let u: Vec<[f64; 3]> = points
+            .iter()
+            .map(|p| [0.1 * p[0], -1.0 / 3.0 * p[1], 0.0])
+            .collect();
+        let write = |encoding| {
+            vtu_string(
+                &mesh,
+                &[("u", Field::Vector(&u))],
+                &[
+                    ("vm", Field::Scalar(&[1.5, f64::NAN])),
+                    ("subdomain", Field::Int(&[3, -7])),
+                ],
+                encoding,
+            )
+        };
+        let (ascii, binary) = (write(Encoding::Ascii), write(Encoding::Binary));
+        assert!(binary.contains("header_type=\"UInt64\""));
+        assert_eq!(binary.matches("format=\"binary\"").count(), 7);
+        assert!(!binary.contains("format=\"ascii\""));
+        let floats = |b: Vec<u8>| -> Vec<f64> {
+            b.chunks(8)
+                .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+                .collect()
+        };
+        let ints = |b: Vec<u8>| -> Vec<i64> {
+            b.chunks(8)
+                .map(|c| i64::from_le_bytes(c.try_into().unwrap()))
+                .collect()
+        };
+        for name in ["u", "vm", "Points"] {
+            let text: Vec<f64> = array_tokens(&ascii, name)
+                .iter()
+                .map(|t| t.parse().unwrap())
+                .collect();
+            assert_eq!(floats(binary_array(&binary, name)), text, "{name}");
+        }
+        for name in ["subdomain", "connectivity", "offsets"] {
+            let text: Vec<i64> = array_tokens(&ascii, name)
+                .iter()
+                .map(|t| t.parse().unwrap())
+                .collect();
+            assert_eq!(ints(binary_array(&binary, name)), text, "{name}");
+        }
+        assert_eq!(binary_array(&binary, "types"), [9, 9]);
+        assert_eq!(floats(binary_array(&binary, "vm")), [1.5, 0.0], "NaN is 0");
+    }
+
     /// Runs `script` (Python, with the file path in `sys.argv[1]`) on `xml`
     /// written to a temporary file; `None` when Python or meshio is missing, so
     /// machines without them skip the check instead of failing.
     fn run_meshio(test: &str, xml: &str, script: &str) -> Option<String> {
-        let has_meshio = Command::new("python3")
+        // CI points CSO_PYTHON at the system interpreter that has meshio.
+        let python = std::env::var("CSO_PYTHON").unwrap_or_else(|_| "python3".to_string());
+        let has_meshio = Command::new(&python)
             .args(["-c", "import meshio"])
             .output()
             .map(|o| o.status.success())
             .unwrap_or(false);
         if !has_meshio {
-            eprintln!("skipping {test}: python3 with meshio is not available (pip install meshio)");
+            eprintln!(
+                "SKIPPED {test}: {python} with meshio is not available (apt install python3-meshio)"
+            );
             return None;
         }
         let path: PathBuf =
             std::env::temp_dir().join(format!("cso-vtu-{}-{test}.vtu", std::process::id()));
         crate::io::atomic::write_atomic(&path, xml.as_bytes()).unwrap();
-        let out = Command::new("python3")
+        let out = Command::new(&python)
             .args(["-c", script])
             .arg(&path)
             .output()
@@ -435,21 +639,24 @@ mod tests {
         let (points, cells) = two_quads();
         let mesh = VtuMesh {
             points: &points,
-            cells: &cells,
+            connectivity: &cells,
             cell_type: CellType::Quad,
         };
         let u: Vec<[f64; 3]> = points
             .iter()
             .map(|p| [0.1 * p[0], -1.0 / 3.0 * p[1], 0.0])
             .collect();
-        let xml = vtu_string(
-            &mesh,
-            &[("u", Field::Vector(&u))],
-            &[
-                ("von Mises <MPa> & more", Field::Scalar(&[1.5, f64::NAN])),
-                ("subdomain", Field::Int(&[3, 7])),
-            ],
-        );
+        let write = |encoding| {
+            vtu_string(
+                &mesh,
+                &[("u", Field::Vector(&u))],
+                &[
+                    ("von Mises <MPa> & more", Field::Scalar(&[1.5, f64::NAN])),
+                    ("subdomain", Field::Int(&[3, 7])),
+                ],
+                encoding,
+            )
+        };
         let script = r#"
 import sys, meshio, numpy as np
 m = meshio.read(sys.argv[1])
@@ -464,8 +671,13 @@ assert vm.tolist() == [1.5, 0.0], vm
 assert m.cell_data["subdomain"][0].tolist() == [3, 7]
 print("ok", len(m.points), sum(len(c.data) for c in m.cells))
 "#;
-        if let Some(out) = run_meshio("quads", &xml, script) {
-            assert_eq!(out, "ok 6 2");
+        for (name, encoding) in [
+            ("quads", Encoding::Ascii),
+            ("quads-binary", Encoding::Binary),
+        ] {
+            if let Some(out) = run_meshio(name, &write(encoding), script) {
+                assert_eq!(out, "ok 6 2", "{name}");
+            }
         }
     }
 
@@ -481,9 +693,9 @@ print("ok", len(m.points), sum(len(c.data) for c in m.cells))
             }
         }
         let id = |i: usize, j: usize, k: usize| i + 3 * j + 6 * k;
-        let cells: Vec<Vec<usize>> = (0..2)
-            .map(|i| {
-                vec![
+        let cells: Vec<usize> = (0..2)
+            .flat_map(|i| {
+                [
                     id(i, 0, 0),
                     id(i + 1, 0, 0),
                     id(i + 1, 1, 0),
@@ -497,11 +709,16 @@ print("ok", len(m.points), sum(len(c.data) for c in m.cells))
             .collect();
         let mesh = VtuMesh {
             points: &points,
-            cells: &cells,
+            connectivity: &cells,
             cell_type: CellType::Hexahedron,
         };
         let gap: Vec<f64> = points.iter().map(|p| 1e-7 * p[0] + p[2]).collect();
-        let xml = vtu_string(&mesh, &[("gap", Field::Scalar(&gap))], &[]);
+        let xml = vtu_string(
+            &mesh,
+            &[("gap", Field::Scalar(&gap))],
+            &[],
+            Encoding::Binary,
+        );
         let script = r#"
 import sys, meshio
 m = meshio.read(sys.argv[1])

@@ -15,11 +15,23 @@ pub struct Label {
     pub text: String,
 }
 
-/// An error found in a source text.
+/// Whether a diagnostic stops the scene (an error) or only says something the
+/// user should look at (a warning: the scene still checks).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Severity {
+    #[default]
+    Error,
+    Warning,
+}
+
+/// An error (or a warning) found in a source text.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Diagnostic {
     /// A stable code, e.g. `cso::unknown-name`.
     pub code: &'static str,
+    /// An error (the default) or a warning.
+    pub severity: Severity,
     /// One line: what is wrong.
     pub message: String,
     /// The first label is the primary one (where the error is).
@@ -34,11 +46,24 @@ impl Diagnostic {
     pub fn new(code: &'static str, message: impl Into<String>) -> Self {
         Diagnostic {
             code,
+            severity: Severity::Error,
             message: message.into(),
             labels: Vec::new(),
             help: None,
             origin: None,
         }
+    }
+
+    /// A warning: the scene still checks, but the user should look at this.
+    pub fn warning(code: &'static str, message: impl Into<String>) -> Self {
+        Diagnostic {
+            severity: Severity::Warning,
+            ..Diagnostic::new(code, message)
+        }
+    }
+
+    pub fn is_error(&self) -> bool {
+        self.severity == Severity::Error
     }
 
     /// Adds a labelled span (the first one added is the primary one).
@@ -101,6 +126,13 @@ impl std::error::Error for WithSource<'_> {}
 impl miette::Diagnostic for WithSource<'_> {
     fn code<'b>(&'b self) -> Option<Box<dyn fmt::Display + 'b>> {
         Some(Box::new(self.diag.code))
+    }
+
+    fn severity(&self) -> Option<miette::Severity> {
+        Some(match self.diag.severity {
+            Severity::Error => miette::Severity::Error,
+            Severity::Warning => miette::Severity::Warning,
+        })
     }
 
     fn help<'b>(&'b self) -> Option<Box<dyn fmt::Display + 'b>> {
@@ -208,6 +240,7 @@ pub struct JsonLabel {
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct JsonDiagnostic {
     pub code: &'static str,
+    pub severity: Severity,
     pub message: String,
     /// The first label is the primary one.
     pub labels: Vec<JsonLabel>,
@@ -244,6 +277,7 @@ pub fn to_json(diags: &[Diagnostic], name: &str, text: &str) -> Vec<JsonDiagnost
                 .collect();
             JsonDiagnostic {
                 code: d.code,
+                severity: d.severity,
                 message: d.message.clone(),
                 labels,
                 help: d.help.clone(),

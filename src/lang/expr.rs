@@ -201,6 +201,15 @@ pub enum CmpOp {
 }
 
 impl Cond {
+    /// Does the condition depend on any design variable?
+    pub fn uses_design(&self) -> bool {
+        match self {
+            Cond::Cmp(_, a, b) => a.uses_design() || b.uses_design(),
+            Cond::And(a, b) | Cond::Or(a, b) => a.uses_design() || b.uses_design(),
+            Cond::Not(a) => a.uses_design(),
+        }
+    }
+
     /// Whether a point with these coordinates is kept. Comparisons are exact on
     /// the evaluated values, except `==`/`!=`, which allow `tol` (a fraction of
     /// the body size, so that `x == 1.5` finds the grid line at 1.5).

@@ -56,6 +56,103 @@ pub struct Scene {
     pub solver: SolverSettings,
     pub sensitivity: SensitivitySettings,
     pub optimize: OptimizeSettings,
+    /// What the checker warns about (the scene checks; the user should look).
+    pub warnings: Vec<super::diag::Diagnostic>,
+    /// The text the scene was compiled from, for the files cso writes.
+    pub source: Source,
+}
+
+/// Where a scene comes from: its text and what identifies it in the files cso
+/// writes (the one part of a scene with byte offsets into the text: to write the
+/// scene again with other design values, see [`Source::with_design`]).
+#[derive(Debug, Clone, Default)]
+pub struct Source {
+    /// The file as given on the command line (set by the caller; None for text
+    /// compiled from memory).
+    pub path: Option<String>,
+    /// SHA-256 of the text, lowercase hex: the same text gives the same hash on
+    /// every machine and every run.
+    pub sha256: String,
+    /// `--set NAME=VALUE` overrides, as given.
+    pub overrides: Vec<String>,
+    pub text: std::sync::Arc<str>,
+    /// Byte ranges of the text to replace when writing the scene again: each
+    /// design item's `init` value, and each overridden `let` value.
+    pub edits: Vec<Edit>,
+}
+
+/// A place in the source text that [`Source::with_design`] rewrites.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Edit {
+    /// The `init` value of a design item: entries `first..first + size` of the
+    /// design (`size` None: a scalar), written with `unit` when it has one.
+    Init {
+        start: usize,
+        end: usize,
+        first: usize,
+        size: Option<usize>,
+        unit: Option<String>,
+    },
+    /// The value of a `let` that `--set` replaced, and the value given.
+    Let {
+        start: usize,
+        end: usize,
+        value: String,
+    },
+}
+
+impl Source {
+    /// The scene's text with the design's values as the design items' `init`
+    /// (and `--set` values in their `let`s), so that the text compiles to this
+    /// scene started at `design`. Values are written so that they read back to
+    /// the same `f64`.
+    pub fn with_design(&self, design: &[f64]) -> String {
+        let mut edits: Vec<(usize, usize, String)> = self
+            .edits
+            .iter()
+            .map(|e| match e {
+                Edit::Init {
+                    start,
+                    end,
+                    first,
+                    size,
+                    unit,
+                } => {
+                    let value = |i: usize| {
+                        let v = design.get(i).copied().unwrap_or(f64::NAN);
+                        match unit {
+                            Some(u) => format!("{v:?} {u}"),
+                            None => format!("{v:?}"),
+                        }
+                    };
+                    let text = match size {
+                        None => value(*first),
+                        Some(n) => format!(
+                            "[{}]",
+                            (*first..first + n)
+                                .map(value)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    };
+                    (*start, *end, text)
+                }
+                Edit::Let { start, end, value } => (*start, *end, value.clone()),
+            })
+            .collect();
+        edits.sort_by_key(|e| std::cmp::Reverse(e.0));
+        let mut out = self.text.to_string();
+        for (start, end, text) in edits {
+            if start <= end
+                && end <= out.len()
+                && out.is_char_boundary(start)
+                && out.is_char_boundary(end)
+            {
+                out.replace_range(start..end, &text);
+            }
+        }
+        out
+    }
 }
 
 impl Scene {
@@ -93,6 +190,8 @@ pub struct DesignVar {
     pub init: f64,
     pub lower: f64,
     pub upper: f64,
+    /// SI unit when the bounds were written with units (`m`); None: plain numbers.
+    pub unit: Option<String>,
 }
 
 /// One structured block of one material.
@@ -430,6 +529,8 @@ pub enum Functional {
 pub struct Objective {
     pub functional: Functional,
     pub text: String,
+    /// SI unit of its value when known (`J` for compliance).
+    pub unit: Option<String>,
 }
 
 /// `lhs <= rhs` or `lhs >= rhs`.
@@ -439,6 +540,8 @@ pub struct Constraint {
     pub upper: bool,
     pub rhs: Functional,
     pub text: String,
+    /// SI unit of its two sides when known.
+    pub unit: Option<String>,
 }
 
 /// `solver { method }`: `tfeti` (every support a row, kernels known a priori) or

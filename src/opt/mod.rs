@@ -171,6 +171,7 @@ pub fn optimize_with(
     frozen.objective = Some(crate::lang::scene::Objective {
         functional: freeze(&objective.functional, &eval),
         text: objective.text.clone(),
+        unit: objective.unit.clone(),
     });
     for c in &mut frozen.constraints {
         c.lhs = freeze(&c.lhs, &eval);

@@ -9,6 +9,8 @@ use super::compare::{Comparison, EpsSweep};
 use super::sensitivity::{Study, StudyRun};
 use super::stability::Sweep;
 use crate::io::atomic::Files;
+use crate::io::provenance::{self, Header};
+use crate::lang::Scene;
 use std::fmt::Write as _;
 
 /// The header of a table over H/h and cuts of the scaled scene: the thread
@@ -192,9 +194,18 @@ pub fn study_summary(study: &Study) -> String {
     o
 }
 
+/// Units of the studies' numbers: times in seconds, errors relative (1).
+const STUDY_UNITS: &[(&str, &str)] = &[
+    ("time", "s"),
+    ("error", "1"),
+    ("force", "N"),
+    ("energy", "J"),
+];
+
 /// `cso compare -o DIR`: compare.md (the printed tables) and compare.json.
-pub fn comparison_files(c: &Comparison, md: &str) -> Result<Files, String> {
-    let json = serde_json::to_string_pretty(c).map_err(|e| format!("cannot write JSON: {e}"))?;
+pub fn comparison_files(scene: &Scene, c: &Comparison, md: &str) -> Result<Files, String> {
+    let header = Header::of(scene, "compare", STUDY_UNITS);
+    let json = provenance::to_json(&header, c).map_err(|e| format!("cannot write JSON: {e}"))?;
     Ok(vec![
         ("compare.md".into(), md.as_bytes().to_vec()),
         ("compare.json".into(), json.into_bytes()),
@@ -202,8 +213,10 @@ pub fn comparison_files(c: &Comparison, md: &str) -> Result<Files, String> {
 }
 
 /// `cso compare --eps-sweep -o DIR`: eps.md, eps.json and the chart eps.svg.
-pub fn eps_sweep_files(sweep: &EpsSweep, md: &str) -> Result<Files, String> {
-    let json = serde_json::to_string_pretty(sweep).map_err(|e| e.to_string())?;
+pub fn eps_sweep_files(scene: &Scene, sweep: &EpsSweep, md: &str) -> Result<Files, String> {
+    let header = Header::of(scene, "eps", STUDY_UNITS);
+    let json =
+        provenance::to_json(&header, sweep).map_err(|e| format!("cannot write JSON: {e}"))?;
     let svg = sweep.svg().map_err(|e| e.to_string())?;
     Ok(vec![
         ("eps.md".into(), md.as_bytes().to_vec()),
@@ -213,8 +226,10 @@ pub fn eps_sweep_files(sweep: &EpsSweep, md: &str) -> Result<Files, String> {
 }
 
 /// `cso sensitivity --study -o DIR`: study.json, study.csv and the chart study.svg.
-pub fn study_files(study: &Study) -> Result<Files, String> {
-    let json = serde_json::to_string_pretty(study).unwrap_or_default();
+pub fn study_files(scene: &Scene, study: &Study) -> Result<Files, String> {
+    let header = Header::of(scene, "study", STUDY_UNITS).with_units(provenance::scene_units(scene));
+    let json =
+        provenance::to_json(&header, study).map_err(|e| format!("cannot write JSON: {e}"))?;
     let svg = study
         .svg()
         .map_err(|e| format!("cannot draw the chart: {e}"))?;
@@ -228,7 +243,13 @@ pub fn study_files(study: &Study) -> Result<Files, String> {
 /// `cso bench hard -o DIR`: hard.md (the printed tables), hard.json and one
 /// chart per sweep, `hard-1.svg` ...
 pub fn hard_files(sweeps: &[Sweep], md: &str) -> Result<Files, String> {
-    let json = serde_json::to_string_pretty(sweeps).unwrap_or_default();
+    #[derive(serde::Serialize)]
+    struct Hard<'a> {
+        sweeps: &'a [Sweep],
+    }
+    let header = Header::without_input("hard", STUDY_UNITS);
+    let json = provenance::to_json(&header, &Hard { sweeps })
+        .map_err(|e| format!("cannot write JSON: {e}"))?;
     let mut files: Files = vec![
         ("hard.md".into(), md.as_bytes().to_vec()),
         ("hard.json".into(), json.into_bytes()),

@@ -26,15 +26,18 @@ impl<'a> Checker<'a> {
                         continue;
                     }
                     first_minimize = Some(item.span);
-                    if let Some((f, _)) = self.functional(expr) {
+                    if let Some((f, q)) = self.functional(expr) {
+                        self.objective_at = Some(expr.span);
                         scene.objective = Some(Objective {
                             functional: f,
                             text: self.text(expr.span).to_string(),
+                            unit: unit_of(q),
                         });
                     }
                 }
                 ItemKind::SubjectTo { expr } => {
                     if let Some(c) = self.constraint(expr) {
+                        self.constraint_at.push(expr.span);
                         scene.constraints.push(c);
                     }
                 }
@@ -86,15 +89,16 @@ impl<'a> Checker<'a> {
         let lhs = self.functional(a);
         let rhs = self.functional(b);
         let ((lhs, qa), (rhs, qb)) = (lhs?, rhs?);
-        if qa.plus(qb).is_none() {
+        let Some(q) = qa.plus(qb) else {
             self.mismatch(*op, a, qa, b, qb);
             return None;
-        }
+        };
         Some(Constraint {
             lhs,
             upper,
             rhs,
             text: self.text(e.span).to_string(),
+            unit: unit_of(q),
         })
     }
 
@@ -340,4 +344,9 @@ impl<'a> Checker<'a> {
             }
         }
     }
+}
+
+/// The SI unit of a known, dimensional quantity (`J`, `m`); None otherwise.
+pub(crate) fn unit_of(q: Quantity) -> Option<String> {
+    q.dim().filter(|d| !d.is_none()).map(|d| d.to_string())
 }

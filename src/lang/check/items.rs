@@ -237,6 +237,7 @@ impl<'a> Checker<'a> {
         }
         let count = n.unwrap_or(1);
         let mut quantity = Quantity::Bare;
+        let mut init_at = None;
         let mut values: Vec<Vec<f64>> = Vec::new();
         for key in ["init", "lower", "upper"] {
             let Some(fl) = f.get(key) else {
@@ -247,6 +248,9 @@ impl<'a> Checker<'a> {
                 values.push(vec![f64::NAN; count]);
                 continue;
             };
+            if key == "init" {
+                init_at = Some(e.span);
+            }
             let (vals, q) = self.design_values(e, key, n);
             if let Some(next) = quantity.plus(q) {
                 quantity = next;
@@ -295,6 +299,7 @@ impl<'a> Checker<'a> {
                 init,
                 lower,
                 upper,
+                unit: super::functional::unit_of(quantity),
             });
         }
         let span_of = |key: &str| {
@@ -335,6 +340,15 @@ impl<'a> Checker<'a> {
                 .label(span_of("init"), "must satisfy lower <= init <= upper")
                 .help(format!("{what}; move `init` into [lower, upper]")),
             );
+        }
+        if let Some(at) = init_at {
+            self.edits.push(Edit::Init {
+                start: at.start,
+                end: at.end,
+                first,
+                size: n,
+                unit: super::functional::unit_of(quantity),
+            });
         }
         self.designs.push(DesignGroup {
             name: name.name.clone(),

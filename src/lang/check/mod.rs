@@ -5,6 +5,7 @@
 //! without repeating the error. Only a scene with no error at all is returned.
 
 mod budget;
+mod constant;
 mod fields;
 mod functional;
 mod items;
@@ -33,19 +34,43 @@ pub struct CheckOptions {
 }
 
 /// Parses and checks a source text. Every error of the file is reported, sorted by
-/// position.
+/// position, with the warnings among them; a scene with warnings only checks and
+/// carries them in [`Scene::warnings`].
 pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>> {
     let (file, mut diags) = parse_file(src);
     let mut checker = Checker::new(src, &file, opts);
     checker.syntax_errors = !diags.is_empty();
-    let scene = checker.run();
+    let mut scene = checker.run();
     diags.extend(checker.diags);
-    if diags.is_empty() {
-        Ok(scene)
-    } else {
-        diag::sort(&mut diags);
+    scene.source = Source {
+        path: None,
+        sha256: sha256_hex(src.as_bytes()),
+        overrides: opts
+            .overrides
+            .iter()
+            .map(|(n, v)| format!("{n}={v}"))
+            .collect(),
+        text: src.into(),
+        edits: std::mem::take(&mut checker.edits),
+    };
+    diag::sort(&mut diags);
+    if diags.iter().any(Diagnostic::is_error) {
         Err(diags)
+    } else {
+        scene.warnings = diags;
+        Ok(scene)
     }
+}
+
+/// SHA-256 of `bytes` as lowercase hex (sha2: a standard digest that is the
+/// same on every machine, unlike std's hashers, which may change between
+/// releases).
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
 }
 
 /// The state of a `let` while the checker resolves it on first use.
@@ -101,6 +126,12 @@ pub(crate) struct Checker<'a> {
     body_spans: Vec<BodySpans>,
     /// The parser reported errors: checks of the whole scene would guess.
     syntax_errors: bool,
+    /// Where the objective is written (its expression), once checked.
+    objective_at: Option<Span>,
+    /// Where each checked constraint is written, in `scene.constraints` order.
+    constraint_at: Vec<Span>,
+    /// Places of the text to rewrite for another design (see [`Source`]).
+    edits: Vec<Edit>,
 }
 
 impl<'a> Checker<'a> {
@@ -125,6 +156,9 @@ impl<'a> Checker<'a> {
             obstacles: Vec::new(),
             body_spans: Vec::new(),
             syntax_errors: false,
+            objective_at: None,
+            constraint_at: Vec::new(),
+            edits: Vec::new(),
         }
     }
 
@@ -313,6 +347,8 @@ impl<'a> Checker<'a> {
             solver: SolverSettings::default(),
             sensitivity: SensitivitySettings::default(),
             optimize: OptimizeSettings::default(),
+            warnings: Vec::new(),
+            source: Source::default(),
         };
         let file = self.file;
         // Definitions first (in file order within each kind), then what uses them.
@@ -440,7 +476,7 @@ impl<'a> Checker<'a> {
     /// Checks that need the whole scene: gravity needs densities, constraints need
     /// an objective, the size fits the machine, the faces do not cross.
     fn whole_scene(&mut self, scene: &Scene) {
-        if !self.diags.is_empty() || self.syntax_errors {
+        if self.diags.iter().any(Diagnostic::is_error) || self.syntax_errors {
             return;
         }
         let est = budget::estimate(scene);
@@ -483,6 +519,7 @@ impl<'a> Checker<'a> {
             }
         }
         self.faces_do_not_cross(scene);
+        self.constant_functionals(scene);
     }
 }
 

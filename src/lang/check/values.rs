@@ -376,6 +376,12 @@ impl<'a> Checker<'a> {
                 );
                 continue;
             };
+            let value = self.lets[i].1.span;
+            self.edits.push(crate::lang::scene::Edit::Let {
+                start: value.start,
+                end: value.end,
+                value: text.clone(),
+            });
             let before = self.diags.len();
             let value_start = origin.len() - text.len();
             let parsed = parse_expr(text);
