@@ -441,6 +441,55 @@ fn python_with_meshio() -> Option<String> {
     ok.then_some(python)
 }
 
+/// Reads `BODY.vtu` of each body in `dir` with meshio; asserts the cell type and
+/// finite fields; checks the largest displacement against report.json; returns
+/// (points, cells) per body.
+fn meshio_read_back(
+    python: &str,
+    dir: &std::path::Path,
+    bodies: &[&str],
+    cell: &str,
+) -> Vec<(usize, usize)> {
+    let script = r#"
+import sys, meshio, numpy as np
+for name in sys.argv[3:]:
+    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
+    u = m.point_data["displacement"]
+    assert m.cells[0].type == sys.argv[2], m.cells[0].type
+    assert np.isfinite(u).all() and np.isfinite(m.cell_data["von Mises"][0]).all()
+    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
+"#;
+    let dir_s = dir.to_string_lossy().to_string();
+    let mut args = vec!["-c", script, &dir_s, cell];
+    args.extend(bodies);
+    let out = Command::new(python)
+        .args(&args)
+        .output()
+        .expect("python runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
+            .expect("JSON");
+    let text = String::from_utf8_lossy(&out.stdout).to_string();
+    text.lines()
+        .enumerate()
+        .map(|(k, l)| {
+            let w: Vec<&str> = l.split(' ').collect();
+            assert_eq!(w[0], bodies[k], "{text}");
+            let u: f64 = w[3].parse().expect("a number");
+            let expect = report["bodies"][k]["max_abs_u"]
+                .as_f64()
+                .expect("max_abs_u");
+            assert!((u - expect).abs() <= 1e-12 * expect, "{l} vs {expect}");
+            (w[1].parse().expect("points"), w[2].parse().expect("cells"))
+        })
+        .collect()
+}
+
 #[test]
 fn solve_writes_binary_vtu_that_meshio_reads() {
     let dir = std::env::temp_dir().join(format!("cso-solve-vtu-{}", std::process::id()));
@@ -448,9 +497,6 @@ fn solve_writes_binary_vtu_that_meshio_reads() {
     let dir_s = dir.to_string_lossy().to_string();
     let (code, _, err) = cso(&["--quiet", "solve", "examples/two_blocks.cso", "-o", &dir_s]);
     assert_eq!(code, 0, "{err}");
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
-            .expect("JSON");
     for body in ["base", "punch"] {
         let vtu = std::fs::read_to_string(dir.join(format!("{body}.vtu"))).expect("vtu");
         assert!(vtu.contains("header_type=\"UInt64\""), "{body}");
@@ -474,37 +520,9 @@ fn solve_writes_binary_vtu_that_meshio_reads() {
         let _ = std::fs::remove_dir_all(&dir);
         return;
     };
-    let script = r#"
-import sys, meshio, numpy as np
-for name in sys.argv[2:]:
-    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
-    u = m.point_data["displacement"]
-    vm = m.cell_data["von Mises"][0]
-    assert m.cells[0].type == "quad"
-    assert np.isfinite(u).all() and np.isfinite(vm).all()
-    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
-"#;
-    let out = Command::new(&python)
-        .args(["-c", script, &dir_s, "base", "punch"])
-        .output()
-        .expect("python runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout).to_string();
-    let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
     // two_blocks: base 48 x 16 elements, punch 16 x 16 (49 x 17 and 17 x 17 nodes).
-    assert_eq!(lines[0][..3], ["base", "833", "768"], "{text}");
-    assert_eq!(lines[1][..3], ["punch", "289", "256"], "{text}");
-    for (k, line) in lines.iter().enumerate() {
-        let u: f64 = line[3].parse().expect("a number");
-        let expect = report["bodies"][k]["max_abs_u"]
-            .as_f64()
-            .expect("max_abs_u");
-        assert!((u - expect).abs() <= 1e-12 * expect, "{line:?} vs {expect}");
-    }
+    let counts = meshio_read_back(&python, &dir, &["base", "punch"], "quad");
+    assert_eq!(counts, [(833, 768), (289, 256)]);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -757,43 +775,13 @@ fn a_3d_solve_writes_hexahedra_that_meshio_reads_and_a_pressure_map() {
         !dir.join("deformed.svg").exists(),
         "deformed.svg is 2D only"
     );
-    let report: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(dir.join("report.json")).expect("report"))
-            .expect("JSON");
     let Some(python) = python_with_meshio() else {
         eprintln!("SKIPPED: reading the 3D VTU back needs python3 with meshio");
         let _ = std::fs::remove_dir_all(&dir);
         return;
     };
-    let script = r#"
-import sys, meshio, numpy as np
-for name in sys.argv[2:]:
-    m = meshio.read(sys.argv[1] + "/" + name + ".vtu")
-    u = m.point_data["displacement"]
-    assert m.cells[0].type == "hexahedron"
-    assert np.isfinite(u).all() and np.isfinite(m.cell_data["von Mises"][0]).all()
-    print(name, len(m.points), len(m.cells[0].data), repr(float(np.sqrt((u**2).sum(axis=1)).max())))
-"#;
-    let out = Command::new(&python)
-        .args(["-c", script, &dir_s, "base", "brick"])
-        .output()
-        .expect("python runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = String::from_utf8_lossy(&out.stdout).to_string();
-    let lines: Vec<Vec<&str>> = text.lines().map(|l| l.split(' ').collect()).collect();
     // base 12 x 12 x 8 elements (13 x 13 x 9 nodes), brick 4 x 4 x 8 (5 x 5 x 9).
-    assert_eq!(lines[0][..3], ["base", "1521", "1152"], "{text}");
-    assert_eq!(lines[1][..3], ["brick", "225", "128"], "{text}");
-    for (k, line) in lines.iter().enumerate() {
-        let u: f64 = line[3].parse().expect("a number");
-        let expect = report["bodies"][k]["max_abs_u"]
-            .as_f64()
-            .expect("max_abs_u");
-        assert!((u - expect).abs() <= 1e-12 * expect, "{line:?} vs {expect}");
-    }
+    let counts = meshio_read_back(&python, &dir, &["base", "brick"], "hexahedron");
+    assert_eq!(counts, [(1521, 1152), (225, 128)]);
     let _ = std::fs::remove_dir_all(&dir);
 }
