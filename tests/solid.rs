@@ -571,3 +571,66 @@ fn the_3d_summary_shows_uz_of_probes() {
         .expect("probe line");
     assert!(line.contains("uz"), "{line}");
 }
+
+/// The chart issue 13 asks for: hertz3d's nodal contact pressure against the
+/// distance from the axis, with the Hertz curve `p0 sqrt(1 - r^2 / a^2)`;
+/// written to docs/hertz3d_pressure.svg (regenerate with `--ignored`). The
+/// asserts keep it honest: the total force is P/4, and inside 0.8 a every node's
+/// pressure is within 10% of p0 of the curve.
+#[test]
+#[ignore = "slow: about 25 s (hertz3d), writes docs/hertz3d_pressure.svg"]
+fn hertz3d_pressure_along_the_radius_against_the_analytic_curve() {
+    let (a, p0) = hertz(10e3, 0.05, 210e9, 0.3);
+    let scene = compile_scene(&example_src("hertz3d"));
+    let state = solve(&scene, &scene.design_init(), &mut |_| {}).expect("solves");
+    let report = Report::new(&scene, &state);
+    let c = &report.contacts[0];
+    assert!(
+        (c.total_force - 2500.0).abs() < 1e-3 * 2500.0,
+        "{}",
+        c.total_force
+    );
+    let mut pts: Vec<(f64, f64)> = c
+        .nodes
+        .iter()
+        .map(|n| (n.x.hypot(n.y), n.pressure))
+        .collect();
+    pts.sort_by(|p, q| p.0.total_cmp(&q.0));
+    for &(r, p) in &pts {
+        if r < 0.8 * a {
+            let exact = p0 * (1.0 - r * r / (a * a)).sqrt();
+            assert!(
+                (p - exact).abs() < 0.1 * p0,
+                "r = {r:e}: {p:e} vs {exact:e}"
+            );
+        }
+    }
+    let (r, p): (Vec<f64>, Vec<f64>) = pts.into_iter().map(|(r, p)| (r * 1e3, p / 1e9)).unzip();
+    let rmax = r.iter().fold(0.0f64, |m, v| m.max(*v));
+    let curve_r: Vec<f64> = (0..=200).map(|k| rmax * k as f64 / 200.0).collect();
+    let curve_p: Vec<f64> = curve_r
+        .iter()
+        .map(|&r| p0 / 1e9 * (1.0 - (r * 1e-3 / a).powi(2)).max(0.0).sqrt())
+        .collect();
+    let svg = cso::io::plot::line_chart(
+        "hertz3d: contact pressure against the distance from the axis",
+        "r (mm)",
+        "pressure (GPa)",
+        &[
+            cso::io::plot::Series {
+                name: "cso, nodes of the 24 x 24 x 16 quarter",
+                x: &r,
+                y: &p,
+            },
+            cso::io::plot::Series {
+                name: "Hertz: p0 sqrt(1 - r^2/a^2)",
+                x: &curve_r,
+                y: &curve_p,
+            },
+        ],
+        false,
+        false,
+    )
+    .expect("chart");
+    std::fs::write(root().join("docs/hertz3d_pressure.svg"), svg).expect("writable");
+}
