@@ -42,6 +42,9 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
     checker.syntax_errors = !diags.is_empty();
     let mut scene = checker.run();
     diags.extend(checker.diags);
+    if !diags.iter().any(Diagnostic::is_error) {
+        diags.extend(aspect_warnings(&scene, &checker.body_spans));
+    }
     scene.source = Source {
         path: None,
         sha256: sha256_hex(src.as_bytes()),
@@ -60,6 +63,65 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
         scene.warnings = diags;
         Ok(scene)
     }
+}
+
+/// Elements far from cubes: the sides of the element in the middle column of
+/// each body at the initial design (extent over count along each axis, the
+/// vertical side from the faces there); above 100:1 a warning on `mesh`, since
+/// such elements stiffen in bending (shear locking) and slow the solver down.
+fn aspect_warnings(scene: &Scene, spans: &[BodySpans]) -> Vec<Diagnostic> {
+    let design = scene.design_init();
+    let mut out = Vec::new();
+    for (body, spans) in scene.bodies.iter().zip(spans) {
+        let (Some(at), true) = (spans.mesh, spans.ok) else {
+            continue;
+        };
+        let d = body.mesh.len();
+        if d == 0 || body.mesh.contains(&0) {
+            continue;
+        }
+        let mid: Vec<usize> = body.mesh.iter().map(|n| n / 2).collect();
+        let corner = |step: usize| -> [f64; 3] {
+            let mut idx = [0usize; 3];
+            for a in 0..d {
+                idx[a] = mid[a] + usize::from(a == step);
+            }
+            body.node(idx, &design)
+        };
+        let origin = corner(usize::MAX);
+        let sides: Vec<f64> = (0..d)
+            .map(|a| {
+                let p = corner(a);
+                (0..3)
+                    .map(|k| (p[k] - origin[k]).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            })
+            .collect();
+        let (lo, hi) = sides
+            .iter()
+            .fold((f64::INFINITY, 0.0f64), |(l, h), &s| (l.min(s), h.max(s)));
+        if !(lo > 0.0 && hi.is_finite()) || hi / lo <= 100.0 {
+            continue;
+        }
+        let shape: Vec<String> = sides.iter().map(|s| diag::num(*s)).collect();
+        out.push(
+            Diagnostic::warning(
+                "cso::aspect-ratio",
+                format!(
+                    "the elements of body `{}` are about {:.0}:1",
+                    body.name,
+                    hi / lo
+                ),
+            )
+            .label(at, format!("elements of {} m", shape.join(" x ")))
+            .help(
+                "elements this elongated stiffen in bending and slow the solver down; \
+                 choose counts that make them closer to squares (cubes in 3D)",
+            ),
+        );
+    }
+    out
 }
 
 /// SHA-256 of `bytes` as lowercase hex (sha2: a standard digest that is the
