@@ -379,6 +379,30 @@ mod tests {
         (points, cells)
     }
 
+    /// [`two_quads`] with `u = (x / 10, -y / 3, 0)`, a cell scalar `name` of
+    /// (1.5, NaN) and the subdomain ids given.
+    fn two_quads_vtu(name: &str, subdomains: [i64; 2], encoding: Encoding) -> String {
+        let (points, cells) = two_quads();
+        let mesh = VtuMesh {
+            points: &points,
+            connectivity: &cells,
+            cell_type: CellType::Quad,
+        };
+        let u: Vec<[f64; 3]> = points
+            .iter()
+            .map(|p| [0.1 * p[0], -1.0 / 3.0 * p[1], 0.0])
+            .collect();
+        vtu_string(
+            &mesh,
+            &[("u", Field::Vector(&u))],
+            &[
+                (name, Field::Scalar(&[1.5, f64::NAN])),
+                ("subdomain", Field::Int(&subdomains)),
+            ],
+            encoding,
+        )
+    }
+
     /// The whitespace-separated tokens of the first `DataArray` named `name`.
     fn array_tokens<'s>(xml: &'s str, name: &str) -> Vec<&'s str> {
         let start = xml
@@ -547,27 +571,7 @@ mod tests {
 
     #[test]
     fn binary_arrays_decode_to_the_ascii_values() {
-        let (points, cells) = two_quads();
-        let mesh = VtuMesh {
-            points: &points,
-            connectivity: &cells,
-            cell_type: CellType::Quad,
-        };
-        let u: Vec<[f64; 3]> = points
-            .iter()
-            .map(|p| [0.1 * p[0], -1.0 / 3.0 * p[1], 0.0])
-            .collect();
-        let write = |encoding| {
-            vtu_string(
-                &mesh,
-                &[("u", Field::Vector(&u))],
-                &[
-                    ("vm", Field::Scalar(&[1.5, f64::NAN])),
-                    ("subdomain", Field::Int(&[3, -7])),
-                ],
-                encoding,
-            )
-        };
+        let write = |encoding| two_quads_vtu("vm", [3, -7], encoding);
         let (ascii, binary) = (write(Encoding::Ascii), write(Encoding::Binary));
         assert!(binary.contains("header_type=\"UInt64\""));
         assert_eq!(binary.matches("format=\"binary\"").count(), 7);
@@ -636,27 +640,7 @@ mod tests {
 
     #[test]
     fn meshio_reads_quads() {
-        let (points, cells) = two_quads();
-        let mesh = VtuMesh {
-            points: &points,
-            connectivity: &cells,
-            cell_type: CellType::Quad,
-        };
-        let u: Vec<[f64; 3]> = points
-            .iter()
-            .map(|p| [0.1 * p[0], -1.0 / 3.0 * p[1], 0.0])
-            .collect();
-        let write = |encoding| {
-            vtu_string(
-                &mesh,
-                &[("u", Field::Vector(&u))],
-                &[
-                    ("von Mises <MPa> & more", Field::Scalar(&[1.5, f64::NAN])),
-                    ("subdomain", Field::Int(&[3, 7])),
-                ],
-                encoding,
-            )
-        };
+        let write = |encoding| two_quads_vtu("von Mises <MPa> & more", [3, 7], encoding);
         let script = r#"
 import sys, meshio, numpy as np
 m = meshio.read(sys.argv[1])

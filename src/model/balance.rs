@@ -40,7 +40,8 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
             (c, b.diagonal().max(f64::MIN_POSITIVE))
         })
         .collect();
-    let wrench = |body: usize, x: [f64; 3], d: usize, v: f64| -> Vec<f64> {
+    // Force and moment per unit body size; the first `w` entries are used.
+    let wrench = |body: usize, x: [f64; 3], d: usize, v: f64| -> [f64; 6] {
         let (c, size) = boxes[body];
         let mut f = [0.0; 3];
         f[d % dim] = v;
@@ -51,9 +52,9 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
             r[0] * f[1] - r[1] * f[0],
         ];
         if dim == 2 {
-            vec![f[0], f[1], m[2] / size]
+            [f[0], f[1], m[2] / size, 0.0, 0.0, 0.0]
         } else {
-            vec![f[0], f[1], f[2], m[0] / size, m[1] / size, m[2] / size]
+            [f[0], f[1], f[2], m[0] / size, m[1] / size, m[2] / size]
         }
     };
     let mut load = vec![vec![0.0f64; w]; nb];

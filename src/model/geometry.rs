@@ -193,7 +193,18 @@ pub(crate) fn selected_pieces<P: Piece<D, N>, const D: usize, const N: usize>(
 ) -> Vec<P> {
     let body = &problem.bodies[sel.body];
     let keep: HashSet<usize> = selected_nodes(problem, sel, design).into_iter().collect();
-    let pos = coords::<D>(problem);
+    // Positions of this body only: a piece looks up its own body's nodes.
+    let pos: Vec<Vec<[f64; D]>> = (0..problem.bodies.len())
+        .map(|b| {
+            if b != sel.body {
+                return Vec::new();
+            }
+            body.coords
+                .iter()
+                .map(|c| std::array::from_fn(|a| c[a]))
+                .collect()
+        })
+        .collect();
     P::of_face(sel.body, sel.face, &body.grid)
         .into_iter()
         .filter(|p| p.nodes().iter().all(|n| keep.contains(n)))
@@ -539,31 +550,29 @@ pub(crate) fn nodal_loads<T: Scalar, P: Piece<D, N>, const D: usize, const N: us
             .density
             .unwrap_or(0.0);
         let x = pos[m.body].as_ref();
+        let mut add = |e: &[usize], n: &[f64], det: T| {
+            for (k, nk) in n.iter().enumerate() {
+                for a in 0..D {
+                    f[s][D * e[k] + a] += det * (rho * g[a] * nk) * thickness;
+                }
+            }
+        };
         for e in m.element_nodes() {
-            let gauss: Vec<(Vec<f64>, T)> = if D == 2 {
+            if D == 2 {
                 let xe: [[T; 2]; 4] = std::array::from_fn(|k| {
                     let p = x[m.grid[e[k]]];
                     [p[0], p[1]]
                 });
-                quad_gauss(&xe)
-                    .into_iter()
-                    .map(|(n, det)| (n.to_vec(), det))
-                    .collect()
+                for (n, det) in quad_gauss(&xe) {
+                    add(e, &n, det);
+                }
             } else {
                 let xe: [[T; 3]; 8] = std::array::from_fn(|k| {
                     let p = x[m.grid[e[k]]];
                     [p[0], p[1], p[2]]
                 });
-                hex_gauss(&xe)
-                    .into_iter()
-                    .map(|(n, det)| (n.to_vec(), det))
-                    .collect()
-            };
-            for (n, det) in gauss {
-                for (k, nk) in n.iter().enumerate() {
-                    for a in 0..D {
-                        f[s][D * e[k] + a] += det * (rho * g[a] * nk) * thickness;
-                    }
+                for (n, det) in hex_gauss(&xe) {
+                    add(e, &n, det);
                 }
             }
         }

@@ -169,10 +169,10 @@ pub fn build(
             for by in 0..grid.s[1] {
                 for bx in 0..grid.s[0] {
                     let nodes = grid.nodes_of_block([bx, by, bz]);
-                    let coords = nodes
-                        .iter()
-                        .flat_map(|&g| mesh.coords[g][..dim].to_vec())
-                        .collect();
+                    let mut coords = Vec::with_capacity(dim * nodes.len());
+                    for &g in &nodes {
+                        coords.extend_from_slice(&mesh.coords[g][..dim]);
+                    }
                     let n = nodes.len();
                     subs.push(SubdomainMesh {
                         body: bodies.len(),

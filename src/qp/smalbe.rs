@@ -84,13 +84,17 @@ impl Default for SmalbeSettings {
     }
 }
 
-/// The Hessian of the augmented Lagrangian, `A + rho G^T G`, applied
-/// matrix-free. Its two small buffers are borrowed out of their cells for the
-/// duration of one application, so applying it allocates nothing.
+/// `A + c G^T G`, applied matrix-free: with `c = rho` the Hessian of the
+/// augmented Lagrangian; with `A` a preconditioner of it on `ker G` (zero on
+/// `range G^T`, like `P M P`) and `c = 1/rho`, the preconditioner of that
+/// Hessian, exact on `range G^T` where the Hessian is `rho I` (ESPRESO's
+/// `||PFP|| P M P + (1/rho)(I - P)`). Its two small buffers are borrowed out of
+/// their cells for the duration of one application, so applying it allocates
+/// nothing.
 struct Augmented<'a> {
     a: &'a dyn Operator,
     g: &'a dyn Equality,
-    rho: f64,
+    c: f64,
     /// `G x` (rows of `G`).
     gx: Cell<Vec<f64>>,
     /// `G^T G x`.
@@ -98,11 +102,11 @@ struct Augmented<'a> {
 }
 
 impl<'a> Augmented<'a> {
-    fn new(a: &'a dyn Operator, g: &'a dyn Equality, rho: f64) -> Self {
+    fn new(a: &'a dyn Operator, g: &'a dyn Equality, c: f64) -> Self {
         Self {
             a,
             g,
-            rho,
+            c,
             gx: Cell::new(vec![0.0; g.rows()]),
             gtgx: Cell::new(vec![0.0; a.dim()]),
         }
@@ -120,36 +124,7 @@ impl Operator for Augmented<'_> {
         self.a.apply(x, y);
         self.g.apply(x, &mut gx);
         self.g.apply_t(&gx, &mut gtgx);
-        axpy(self.rho, &gtgx, y);
-        self.gx.set(gx);
-        self.gtgx.set(gtgx);
-    }
-}
-
-/// The preconditioner of the augmented Hessian `A + rho G^T G` from one of
-/// `A` (an approximate inverse on `ker G`, zero on `range G^T`, like `P M P`):
-/// `M + (1/rho) G^T G`, exact on `range G^T` where the Hessian is `rho I`
-/// (ESPRESO's `||PFP|| P M P + (1/rho)(I - P)`).
-struct AugmentedPreconditioner<'a> {
-    m: &'a dyn Operator,
-    g: &'a dyn Equality,
-    rho: f64,
-    gx: Cell<Vec<f64>>,
-    gtgx: Cell<Vec<f64>>,
-}
-
-impl Operator for AugmentedPreconditioner<'_> {
-    fn dim(&self) -> usize {
-        self.m.dim()
-    }
-
-    fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let mut gx = self.gx.take();
-        let mut gtgx = self.gtgx.take();
-        self.m.apply(x, y);
-        self.g.apply(x, &mut gx);
-        self.g.apply_t(&gx, &mut gtgx);
-        axpy(1.0 / self.rho, &gtgx, y);
+        axpy(self.c, &gtgx, y);
         self.gx.set(gx);
         self.gtgx.set(gtgx);
     }
@@ -250,13 +225,7 @@ pub fn smalbe_preconditioned(
     }
     let rho = settings.rho_factor * norm_a;
     let hessian = Augmented::new(a, g, rho);
-    let augmented_precond = precond.map(|p| AugmentedPreconditioner {
-        m: p,
-        g,
-        rho,
-        gx: Cell::new(vec![0.0; m]),
-        gtgx: Cell::new(vec![0.0; n]),
-    });
+    let augmented_precond = precond.map(|p| Augmented::new(p, g, 1.0 / rho));
     let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
     info.hessian_applications += used;
     let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {

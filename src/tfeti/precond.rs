@@ -26,12 +26,10 @@
 
 use super::cluster::Cluster;
 use super::schur::{Schur, SchurForm};
-use super::sparse::{llt_solve, symbolic_amd, UpperCsc};
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
+use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
-use faer::{Par, Side};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::sync::Mutex;
@@ -146,23 +144,7 @@ impl Scaling {
         let gram = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
         let a = SparseColMatRef::new(gram.symbolic(), gram.val());
         let symbolic = symbolic_amd(a.symbolic()).ok()?;
-        let mut l_values = vec![0.0; symbolic.len_val()];
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-        ]);
-        let mut buf = MemBuffer::new(req);
-        symbolic
-            .factorize_numeric_llt(
-                &mut l_values,
-                a,
-                Side::Upper,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut buf),
-                Default::default(),
-            )
-            .ok()?;
+        let (l_values, buf) = llt_numeric(&symbolic, a, 1).ok()?;
         // The rows are normalized, so the diagonal is 1; a pivot far below it
         // means dependent rows, and W would amplify round-off.
         let scaling = Scaling {

@@ -9,9 +9,8 @@
 //! kernel basis before factorizing, so a subdomain touched too little (one
 //! node, or one component along a line) is reported, not factorized singular.
 
-use super::sparse::{llt_solve, symbolic_amd, UpperCsc};
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
+use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use faer::dyn_stack::{MemBuffer, MemStack};
 use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
@@ -106,23 +105,8 @@ impl Schur {
         }
         let a = SparseColMatRef::new(k_ii.symbolic(), &k_ii.values);
         let symbolic = symbolic_amd(a.symbolic())?;
-        let mut l_values = vec![0.0; symbolic.len_val()];
         let rhs_cols = if form == SchurForm::Implicit { 1 } else { nb };
-        let req = StackReq::any_of(&[
-            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-            symbolic.solve_in_place_scratch::<f64>(rhs_cols.max(1), Par::Seq),
-        ]);
-        let mut buf = MemBuffer::new(req);
-        symbolic
-            .factorize_numeric_llt(
-                &mut l_values,
-                a,
-                Side::Upper,
-                LltRegularization::default(),
-                Par::Seq,
-                MemStack::new(&mut buf),
-                Default::default(),
-            )
+        let (l_values, buf) = llt_numeric(&symbolic, a, rhs_cols)
             .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
         let implicit_reads = 2 * l_values.len() + 2 * k_ib.compute_nnz() + k_bb.values.len();
         let dense = match form {

@@ -2,12 +2,14 @@
 //! that TFETI and classical FETI share: the symbolic factorization (once per
 //! pattern) and the solves with a numeric factor.
 
-use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
     SymmetricOrdering,
 };
-use faer::sparse::SymbolicSparseColMatRef;
+use faer::sparse::linalg::LltError;
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
 
 /// Upper triangle of a symmetric sparse matrix in compressed columns.
@@ -175,6 +177,31 @@ pub fn ldlt_solve(
         Par::Seq,
         MemStack::new(buf),
     );
+}
+
+/// The numeric Cholesky factor of `a` (its upper triangle) on `symbolic`, and a
+/// work buffer large enough for solves with up to `rhs` columns.
+pub fn llt_numeric(
+    symbolic: &SymbolicCholesky<usize>,
+    a: SparseColMatRef<'_, usize, f64>,
+    rhs: usize,
+) -> Result<(Vec<f64>, MemBuffer), LltError> {
+    let mut l_values = vec![0.0; symbolic.len_val()];
+    let req = StackReq::any_of(&[
+        symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+        symbolic.solve_in_place_scratch::<f64>(rhs.max(1), Par::Seq),
+    ]);
+    let mut buf = MemBuffer::new(req);
+    symbolic.factorize_numeric_llt(
+        &mut l_values,
+        a,
+        Side::Upper,
+        LltRegularization::default(),
+        Par::Seq,
+        MemStack::new(&mut buf),
+        Default::default(),
+    )?;
+    Ok((l_values, buf))
 }
 
 /// `x <- L^-T L^-1 x` with a faer sparse Cholesky factor.

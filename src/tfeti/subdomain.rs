@@ -22,14 +22,12 @@
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
 use super::schur::{Schur, SchurForm};
-use super::sparse::{ldlt_solve, llt_solve, symbolic_amd, UpperCsc};
+use super::sparse::{ldlt_solve, llt_numeric, llt_solve, symbolic_amd, UpperCsc};
 use crate::fem::Element;
 use crate::model::SubdomainMesh;
-use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
-use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::SparseColMatRef;
-use faer::{Par, Side};
 use std::sync::{Arc, Mutex};
 
 /// Why a subdomain's operators could not be built.
@@ -266,22 +264,7 @@ impl Subdomain {
                         Arc::new(symbolic_amd(a.symbolic()).map_err(SubdomainError::NotPositive)?)
                     }
                 };
-                let mut l_values = vec![0.0; symbolic.len_val()];
-                let req = StackReq::any_of(&[
-                    symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
-                    symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
-                ]);
-                let mut buf = MemBuffer::new(req);
-                symbolic
-                    .factorize_numeric_llt(
-                        &mut l_values,
-                        a,
-                        Side::Upper,
-                        LltRegularization::default(),
-                        Par::Seq,
-                        MemStack::new(&mut buf),
-                        Default::default(),
-                    )
+                let (l_values, buf) = llt_numeric(&symbolic, a, 1)
                     .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
                 let kdim = r.len() / n.max(1);
                 Ok(Subdomain {
