@@ -112,7 +112,12 @@ pub fn setup(scene: &Scene, design: &[f64]) -> Result<Setup, SolveError> {
 /// design perturbation may press them together, and the contact rows then
 /// push them apart), loads no support or contact can carry (force, then force
 /// and moment), and supports that hold a contact node inside what it touches.
-pub fn precheck(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), SolveError> {
+pub fn precheck(
+    scene: &Scene,
+    design: &[f64],
+    problem: &Problem,
+    elimination: Option<&Elimination>,
+) -> Result<(), SolveError> {
     if let Some(p) = problem.penetrations.first() {
         if design == scene.design_init().as_slice() {
             return Err(SolveError::Penetration {
@@ -149,7 +154,10 @@ pub fn precheck(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), 
             ),
         });
     }
-    Elimination::new(problem).check_held_contacts(problem)
+    match elimination {
+        Some(e) => e.check_held_contacts(problem),
+        None => Elimination::new(problem).check_held_contacts(problem),
+    }
 }
 
 /// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
@@ -158,7 +166,7 @@ pub fn precheck(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), 
 pub fn precheck_scene(scene: &Scene) -> Result<Vec<String>, SolveError> {
     let design = scene.design_init();
     let problem = lower(scene, &design).map_err(SolveError::Lower)?;
-    precheck(scene, &design, &problem)?;
+    precheck(scene, &design, &problem, None)?;
     Ok(warnings(scene, &problem))
 }
 
@@ -229,10 +237,10 @@ pub fn setup_reusing(
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
-    precheck(scene, design, &problem)?;
     let lower_time = t0.elapsed().as_secs_f64();
     let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
     let elimination = feti.then(|| Arc::new(Elimination::new(&problem)));
+    precheck(scene, design, &problem, elimination.as_deref())?;
     let kind = |s: usize| match &elimination {
         None => Kind::Total,
         Some(e) => Kind::Classical {
