@@ -12,6 +12,7 @@ mod optimize;
 mod reference;
 mod schema;
 mod sensitivity;
+mod sensitivity3d;
 mod solid;
 mod state;
 

@@ -135,19 +135,22 @@ pub fn face_orientation(face: Face) -> Orientation {
     }
 }
 
-/// Grid node positions of every body at a design, in any number type (node
-/// `(i, j)` at `j * (nx + 1) + i`, like [`super::BodyMesh::coords`]).
-pub fn node_positions<T: Scalar>(scene: &Scene, design: &[T]) -> Vec<Vec<[T; 2]>> {
+/// Grid node positions of every body at a design, in any number type and `D`
+/// coordinates (node `(i, j, k)` at `(k * (ny + 1) + j) * (nx + 1) + i`, like
+/// [`super::BodyMesh::coords`]).
+pub fn node_positions<T: Scalar, const D: usize>(scene: &Scene, design: &[T]) -> Vec<Vec<[T; D]>> {
     scene
         .bodies
         .iter()
         .map(|b| {
-            let (nx, ny) = (b.mesh[0], b.mesh[1]);
-            let mut out = Vec::with_capacity((nx + 1) * (ny + 1));
-            for j in 0..=ny {
-                for i in 0..=nx {
-                    let c = b.node_t([i, j, 0], design);
-                    out.push([c[0], c[1]]);
+            let n: [usize; 3] = std::array::from_fn(|a| if a < D { b.mesh[a] } else { 0 });
+            let mut out = Vec::with_capacity((n[0] + 1) * (n[1] + 1) * (n[2] + 1));
+            for k in 0..=n[2] {
+                for j in 0..=n[1] {
+                    for i in 0..=n[0] {
+                        let c = b.node_t([i, j, k], design);
+                        out.push(std::array::from_fn(|a| c[a]));
+                    }
                 }
             }
             out
@@ -210,11 +213,6 @@ pub(crate) fn selected_pieces<P: Piece<D, N>, const D: usize, const N: usize>(
         .filter(|p| p.nodes().iter().all(|n| keep.contains(n)))
         .filter(|p| p.facet(&pos).measure() != 0.0)
         .collect()
-}
-
-/// The edges of a selection in 2D.
-pub(crate) fn selected_edges(problem: &Problem, sel: &Selection, design: &[f64]) -> Vec<FaceEdge> {
-    selected_pieces(problem, sel, design)
 }
 
 /// Which entries a row keeps. The state's rows leave out facet nodes of weight
@@ -849,7 +847,7 @@ fix b.bottom
         let Condition::Pressure { sel, .. } = &scene.conditions[1] else {
             panic!("the second condition is the pressure");
         };
-        let edges = selected_edges(&problem, sel, &[]);
+        let edges: Vec<FaceEdge> = selected_pieces(&problem, sel, &[]);
         assert_eq!(edges.len(), 4);
         assert!(edges
             .iter()
@@ -874,7 +872,7 @@ fix b.bottom
         let top = problem.bodies[0].face_nodes(Face::Top);
         let edges = &loads[0].pieces;
         let base: Vec<Vec<[f64; 2]>> = coords::<2>(&problem);
-        assert_eq!(node_positions::<f64>(&scene, &[]), base);
+        assert_eq!(node_positions::<f64, 2>(&scene, &[]), base);
         let values = |f: Vec<Vec<f64>>, a: HashMap<usize, f64>| -> Vec<f64> {
             let mut v: Vec<f64> = f.concat();
             v.extend(top.iter().map(|n| a[n]));

@@ -14,7 +14,7 @@ mod rows;
 
 pub use geometry::{FaceEdge, FaceQuad};
 pub use mesh::{BodyMesh, SubdomainMesh};
-pub use rows::{ContactPrimary, Row, RowKind};
+pub use rows::{ContactPrimary, Named, Row, RowKind};
 
 use crate::lang::scene::{Dimension, Scene};
 use std::fmt;

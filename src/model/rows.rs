@@ -73,20 +73,35 @@ pub enum ContactPrimary {
     Obstacle(usize),
 }
 
-/// How a piece is named in a row's kind.
-trait Named {
+/// How a piece is named in a row's kind, and back: the sensitivities evaluate
+/// the state's rows again on the pieces the state chose.
+pub trait Named: Sized {
     fn named(self) -> ContactPrimary;
+    /// The piece a row names, if it is one of this kind.
+    fn of(primary: &ContactPrimary) -> Option<Self>;
 }
 
 impl Named for FaceEdge {
     fn named(self) -> ContactPrimary {
         ContactPrimary::Segment(self)
     }
+    fn of(primary: &ContactPrimary) -> Option<Self> {
+        match primary {
+            ContactPrimary::Segment(e) => Some(*e),
+            _ => None,
+        }
+    }
 }
 
 impl Named for FaceQuad {
     fn named(self) -> ContactPrimary {
         ContactPrimary::Quad(self)
+    }
+    fn of(primary: &ContactPrimary) -> Option<Self> {
+        match primary {
+            ContactPrimary::Quad(q) => Some(*q),
+            _ => None,
+        }
     }
 }
 

@@ -1,7 +1,8 @@
 //! Values of the functionals of `minimize` / `subject to` on a solved state.
 
+use crate::fem::hex::hex_gauss;
 use crate::lang::expr::Arith;
-use crate::lang::scene::{Body, Dimension, Functional, Scene};
+use crate::lang::scene::{Body, Functional, Scene};
 use crate::model::RowKind;
 use crate::num::Scalar;
 use crate::state::State;
@@ -34,6 +35,43 @@ pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
     twice * 0.5
 }
 
+/// Volume of a 3D body's mesh: the sum of its hexahedra's volumes (2x2x2
+/// Gauss integrates a trilinear map's det J exactly), in any number type.
+pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
+    let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
+    let at = |i: usize, j: usize, k: usize| body.node_t([i, j, k], design);
+    let mut volume = T::from(0.0);
+    for k in 0..n[2] {
+        for j in 0..n[1] {
+            for i in 0..n[0] {
+                let hex = [
+                    at(i, j, k),
+                    at(i + 1, j, k),
+                    at(i + 1, j + 1, k),
+                    at(i, j + 1, k),
+                    at(i, j, k + 1),
+                    at(i + 1, j, k + 1),
+                    at(i + 1, j + 1, k + 1),
+                    at(i, j + 1, k + 1),
+                ];
+                for (_, det) in hex_gauss(&hex) {
+                    volume += det;
+                }
+            }
+        }
+    }
+    volume
+}
+
+/// The measure of a body: its area in 2D, its volume in 3D.
+pub fn body_measure<T: Scalar>(body: &Body, design: &[T]) -> T {
+    if body.mesh.len() == 3 {
+        body_volume(body, design)
+    } else {
+        body_area(body, design)
+    }
+}
+
 impl Eval<'_> {
     /// The value of a functional.
     pub fn value(&self, f: &Functional) -> f64 {
@@ -52,11 +90,7 @@ impl Eval<'_> {
                 sum.powf(1.0 / q)
             }
             Functional::Area(b) | Functional::Volume(b) => {
-                if self.scene.dim == Dimension::Two {
-                    body_area(&self.scene.bodies[*b], self.design)
-                } else {
-                    f64::NAN
-                }
+                body_measure(&self.scene.bodies[*b], self.design)
             }
             Functional::Probe(p, comp) => {
                 let (body, node) = self.state.problem.probes[*p];

@@ -9,7 +9,7 @@ pub mod functional;
 pub mod semi;
 
 pub use fd::{check_step, finite_difference, Gradient, GradientError};
-pub use functional::{body_area, Eval};
+pub use functional::{body_area, body_measure, body_volume, Eval};
 pub use semi::{adjoint, adjoint_at, semi_analytic, semi_analytic_at, Sensitivity};
 
 use crate::lang::scene::{Scene, Scheme, SensitivityMethod};

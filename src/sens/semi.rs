@@ -12,16 +12,15 @@
 //! so `u'` solves the same kind of problem with the same `K^+` and `R`: one
 //! assembly and one factorization serve the state and every direction.
 
-use super::functional::body_area;
+use super::functional::body_measure;
 use crate::fem::facet::Facet;
-use crate::fem::quad::{plane_strain, quad_stiffness};
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Scene};
 use crate::model::geometry::{
-    contact_row, face_loads, nodal_loads, node_positions, normalize, obstacle_row, selected_edges,
-    tie_row, tributary_areas, FaceEdge, NormalRow, ObstacleShape, Pattern,
+    contact_row, face_loads, nodal_loads, node_positions, normalize, obstacle_row, selected_pieces,
+    tie_row, tributary_areas, FaceEdge, FaceQuad, NormalRow, ObstacleShape, Pattern, Piece,
 };
-use crate::model::{ContactPrimary, RowKind};
+use crate::model::{ContactPrimary, Named, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
@@ -136,7 +135,11 @@ fn seeded(design: &[f64], i: usize) -> Vec<D> {
 /// the face? The node-to-facet row has a kink there (it switches facet), so its
 /// derivative is one-sided. Sliding means the parameter moves by more than
 /// round-off: `1e-9` of the fastest node's speed over the facet's size.
-fn at_kink<F: Facet<D, 2, 2>>(facet: &F, p: &[D; 2], at: F::Local) -> bool {
+fn at_kink<F: Facet<D, DIM, N>, const DIM: usize, const N: usize>(
+    facet: &F,
+    p: &[D; DIM],
+    at: F::Local,
+) -> bool {
     let speed = facet
         .nodes()
         .iter()
@@ -148,15 +151,15 @@ fn at_kink<F: Facet<D, 2, 2>>(facet: &F, p: &[D; 2], at: F::Local) -> bool {
 }
 
 /// Contact and tie rows at dual coordinates (None for rows that do not move):
-/// the state's rows, evaluated on the facets the state chose.
-fn moving_rows(
+/// the state's rows, evaluated on the facets (pieces `P`) the state chose.
+fn moving_rows<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(
     scene: &Scene,
     state: &State,
-    pos: &[Vec<[D; 2]>],
+    pos: &[Vec<[D; DIM]>],
     design: &[D],
 ) -> (Vec<Option<NormalRow<D>>>, usize) {
     let p = &state.problem;
-    let obstacles: Vec<ObstacleShape<D, 2>> = scene
+    let obstacles: Vec<ObstacleShape<D, DIM>> = scene
         .obstacles
         .iter()
         .map(|o| ObstacleShape::at(o, design))
@@ -173,30 +176,26 @@ fn moving_rows(
                 ..
             } => {
                 let xp = &pos[*body][*node];
-                match primary {
-                    ContactPrimary::Segment(edge) => {
-                        let (e, pr) = contact_row(p, *body, *node, edge, pos, Pattern::Full);
-                        kinks += usize::from(at_kink(&edge.segment(pos), xp, pr.local));
-                        normalize(e, pr.gap)
-                    }
-                    ContactPrimary::Obstacle(o) => {
-                        let (n, gap) = obstacles[*o].normal_gap(xp)?;
-                        normalize(obstacle_row(p, *body, *node, &n), gap)
-                    }
-                    // 3D scenes are refused before any derivative is asked for.
-                    ContactPrimary::Quad(_) => None,
+                if let ContactPrimary::Obstacle(o) = primary {
+                    let (n, gap) = obstacles[*o].normal_gap(xp)?;
+                    return normalize(obstacle_row(p, *body, *node, &n), gap);
                 }
+                let piece = P::of(primary)?;
+                let (e, pr) = contact_row(p, *body, *node, &piece, pos, Pattern::Full);
+                kinks += usize::from(at_kink(&piece.facet(pos), xp, pr.local));
+                normalize(e, pr.gap)
             }
             RowKind::Tie {
                 body,
                 node,
                 comp,
-                facet: ContactPrimary::Segment(segment),
+                facet,
                 ..
             } => {
-                let (e, pr) = tie_row(p, *body, *node, *comp, segment, pos, Pattern::Full);
+                let piece = P::of(facet)?;
+                let (e, pr) = tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
                 let xp = &pos[*body][*node];
-                kinks += usize::from(at_kink(&segment.segment(pos), xp, pr.local));
+                kinks += usize::from(at_kink(&piece.facet(pos), xp, pr.local));
                 normalize(e, D::from(0.0))
             }
             _ => None,
@@ -206,14 +205,14 @@ fn moving_rows(
 }
 
 /// `f'` per subdomain (owner copies, like the loads themselves).
-fn load_derivative(
+fn load_derivative<P: Piece<DIM, N>, const DIM: usize, const N: usize>(
     scene: &Scene,
     state: &State,
-    pos: &[Vec<[D; 2]>],
+    pos: &[Vec<[D; DIM]>],
     design: &[f64],
 ) -> Vec<Vec<f64>> {
     let p = &state.problem;
-    let loads = face_loads::<FaceEdge, 2, 2>(scene, p, design);
+    let loads = face_loads::<P, DIM, N>(scene, p, design);
     nodal_loads(scene, p, &loads, pos)
         .into_iter()
         .map(|f| f.iter().map(|v| v.eps).collect())
@@ -221,27 +220,32 @@ fn load_derivative(
 }
 
 /// `K' u` per subdomain (only elements whose nodes move).
-fn stiffness_derivative_times_u(state: &State, pos: &[Vec<[D; 2]>]) -> Vec<Vec<f64>> {
+fn stiffness_derivative_times_u<const DIM: usize>(
+    state: &State,
+    pos: &[Vec<[D; DIM]>],
+) -> Vec<Vec<f64>> {
     let p = &state.problem;
     p.subdomains
         .iter()
         .enumerate()
         .map(|(s, m)| {
             let mut out = vec![0.0; m.f.len()];
-            let d = plane_strain(m.young, m.poisson);
+            let n = m.element.nodes() * DIM;
+            let mut x = Vec::with_capacity(n);
             for e in m.element_nodes() {
-                let x: [[D; 2]; 4] = std::array::from_fn(|k| pos[m.body][m.grid[e[k]]]);
-                if x.iter().all(|c| c[0].eps == 0.0 && c[1].eps == 0.0) {
+                x.clear();
+                x.extend(e.iter().flat_map(|&k| pos[m.body][m.grid[k]]));
+                if x.iter().all(|c| c.eps == 0.0) {
                     continue;
                 }
-                let Some(ke) = quad_stiffness(&x, &d, m.thickness) else {
+                let Some(ke) = m.element.stiffness(&x, m.young, m.poisson, m.thickness) else {
                     continue;
                 };
-                for a in 0..8 {
-                    let ra = 2 * e[a / 2] + a % 2;
-                    for b in 0..8 {
-                        let cb = 2 * e[b / 2] + b % 2;
-                        out[ra] += ke[a][b].eps * state.u[s][cb];
+                for a in 0..n {
+                    let ra = DIM * e[a / DIM] + a % DIM;
+                    for b in 0..n {
+                        let cb = DIM * e[b / DIM] + b % DIM;
+                        out[ra] += ke[a * n + b].eps * state.u[s][cb];
                     }
                 }
             }
@@ -264,13 +268,6 @@ pub struct Sensitivity<'a> {
 impl<'a> Sensitivity<'a> {
     /// Sets up the sensitivity dual on the state's factorizations.
     pub fn new(scene: &'a Scene, state: &'a State) -> Result<Self, SolveError> {
-        if state.problem.dim != 2 {
-            return Err(SolveError::Unsupported(
-                "semi-analytic and adjoint sensitivities of 3D scenes are not implemented yet; \
-                 use `--method finite_difference`"
-                    .into(),
-            ));
-        }
         let classes = classify(state);
         let mut kept: Vec<usize> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))
@@ -344,14 +341,23 @@ impl<'a> Sensitivity<'a> {
     /// The data of direction `i`: `f_bar = f' - K'u - B'^T l` per subdomain,
     /// `c_bar = c' - B'u` on the kept rows, and what functionals need.
     pub fn rhs(&self, i: usize) -> Rhs {
+        if self.state.problem.dim == 2 {
+            self.rhs_in::<FaceEdge, 2, 2>(i)
+        } else {
+            self.rhs_in::<FaceQuad, 3, 4>(i)
+        }
+    }
+
+    /// [`Self::rhs`] in `DIM` dimensions, on pieces `P`.
+    fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(&self, i: usize) -> Rhs {
         let scene = self.scene;
         let state = self.state;
         let design = scene.design_init();
         let dd = seeded(&design, i);
-        let pos = node_positions(scene, &dd);
-        let fprime = load_derivative(scene, state, &pos, &design);
+        let pos = node_positions::<D, DIM>(scene, &dd);
+        let fprime = load_derivative::<P, DIM, N>(scene, state, &pos, &design);
         let kpu = stiffness_derivative_times_u(state, &pos);
-        let (rows, kinks) = moving_rows(scene, state, &pos, &dd);
+        let (rows, kinks) = moving_rows::<P, DIM, N>(scene, state, &pos, &dd);
         let p = &state.problem;
         let mut fbar: Vec<Vec<f64>> = fprime
             .iter()
@@ -436,7 +442,7 @@ impl<'a> Sensitivity<'a> {
                 Functional::Probe(pr, comp) => {
                     let (body, node) = p.probes[*pr];
                     let (s, l) = p.bodies[body].copies(node)[0];
-                    ju[s][2 * l + comp] += w;
+                    ju[s][p.dim * l + comp] += w;
                 }
                 Functional::ContactForce(c) => {
                     for (r, row) in p.rows.iter().enumerate() {
@@ -572,11 +578,12 @@ impl<'a> Sensitivity<'a> {
                     .sum();
                 sum.powf(1.0 / q)
             }
-            Functional::Area(b) | Functional::Volume(b) => body_area(&self.scene.bodies[*b], dd),
+            Functional::Area(b) | Functional::Volume(b) => body_measure(&self.scene.bodies[*b], dd),
             Functional::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
                 let (s, l) = p.bodies[body].copies(node)[0];
-                D::new(state.u[s][2 * l + comp], dir.u[s][2 * l + comp])
+                let k = p.dim * l + comp;
+                D::new(state.u[s][k], dir.u[s][k])
             }
             _ => D::from(f64::NAN),
         }
@@ -588,9 +595,17 @@ impl<'a> Sensitivity<'a> {
         let state = self.state;
         let p = &state.problem;
         let design = self.scene.design_init();
-        let pos = node_positions(self.scene, dd);
         let sec = &self.scene.contacts[c].secondary;
-        let area = tributary_areas(&selected_edges(p, sec, &design), &pos, self.scene.thickness);
+        let thickness = self.scene.thickness;
+        let area = if p.dim == 2 {
+            let pos = node_positions::<D, 2>(self.scene, dd);
+            let pieces = selected_pieces::<FaceEdge, 2, 2>(p, sec, &design);
+            tributary_areas(&pieces, &pos, thickness)
+        } else {
+            let pos = node_positions::<D, 3>(self.scene, dd);
+            let pieces = selected_pieces::<FaceQuad, 3, 4>(p, sec, &design);
+            tributary_areas(&pieces, &pos, thickness)
+        };
         p.rows
             .iter()
             .enumerate()

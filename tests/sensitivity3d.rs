@@ -1,0 +1,176 @@
+//! 3D shape sensitivities (issue 14): the semi-analytic and adjoint gradients
+//! against each other, against central differences of cso's own solves, and
+//! against central differences of an exact sparse solve of the same discrete
+//! problem (no TFETI, no tolerance); the exact volume derivative; weak contacts.
+
+use crate::options;
+use crate::reference::{assemble, sparse_reference_solve};
+use cso::lang::compile;
+use cso::lang::scene::Scheme;
+use cso::model::lower;
+use cso::sens::{body_volume, finite_difference, Gradient};
+use num_dual::Dual64;
+
+/// A punch with a curved bottom (curvature `c`, width `w`) pressed onto an
+/// elastic base by a prescribed displacement and pushed sideways. Non-matching
+/// meshes, so projections fall inside the base's faces; two subdomains per body.
+/// Functionals of every kind the exact methods differentiate.
+pub(crate) const PUNCH3D: &str = "scene punch3d { dim = 3 }
+material soft { E = 1000, nu = 0.3 }
+design c { init = 0.02, lower = 0, upper = 0.05 }
+design w { init = 1, lower = 0.9, upper = 1.1 }
+body base { material = soft, x = 0 .. 2.05, y = 0 .. 1.05, z = 0 .. 0.5,
+            mesh = 8 x 5 x 2, subdomains = 2 x 1 x 1 }
+body punch { material = soft, x = 0.5 .. 0.5 + w, y = 0.1 .. 0.9, z = 0.5 .. 1,
+             bottom = 0.5 + c * ((2*(x - 0.5)/w - 1)^2 + (2.5*(y - 0.1) - 1)^2),
+             mesh = 4 x 4 x 2, subdomains = 2 x 1 x 1 }
+fix base.bottom
+displace punch.top { ux = 0, uy = 0, uz = -0.01 }
+traction punch.right = (-0.5, 0, 0)
+contact seat { primary = base.top, secondary = punch.bottom }
+probe centre { body = punch, at = (1, 0.5, 0.5) }
+minimize energy + 0.1 * compliance
+subject to contact_force(seat) <= 10
+subject to centre.uz >= -0.02
+subject to volume(punch) <= 1.1
+subject to pressure_norm(seat, 4) <= 100
+";
+
+fn scene(tolerance: f64) -> cso::lang::Scene {
+    let mut s = compile(PUNCH3D, &options()).expect("checks");
+    s.solver.tolerance = tolerance;
+    s
+}
+
+fn largest(g: &[f64]) -> f64 {
+    g.iter().fold(1e-12f64, |a, b| a.max(b.abs()))
+}
+
+fn assert_agree(a: &Gradient, b: &Gradient, rel: f64) {
+    assert_eq!(a.functionals, b.functionals);
+    for k in 0..a.functionals.len() {
+        let scale = largest(&b.gradient[k]);
+        for i in 0..a.design.len() {
+            let (x, y) = (a.gradient[k][i], b.gradient[k][i]);
+            eprintln!(
+                "{} d/d{}: {} {x:.10e}, {} {y:.10e}",
+                a.functionals[k], a.design[i], a.method, b.method
+            );
+            assert!(
+                (x - y).abs() <= rel * scale,
+                "{} d/d{}: {} {x} vs {} {y}",
+                a.functionals[k],
+                a.design[i],
+                a.method,
+                b.method
+            );
+        }
+    }
+}
+
+#[test]
+fn adjoint_and_semi_analytic_agree_to_1e_8_in_3d() {
+    let s = scene(1e-11);
+    let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
+    let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+    assert_eq!(semi.method, "semi_analytic", "no weak contacts, no kinks");
+    assert_eq!(semi.weak, 0);
+    assert!(semi.strong > 0);
+    assert_agree(&semi, &adj, 1e-8);
+}
+
+#[test]
+fn semi_analytic_3d_agrees_with_central_differences_for_every_functional_kind() {
+    let s = scene(1e-10);
+    let semi = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let fd = finite_difference(&s, 1e-6, Scheme::Central).expect("solves");
+    assert!(
+        fd.active_set_changed.is_empty(),
+        "{:?}",
+        fd.active_set_changed
+    );
+    assert_agree(&semi, &fd, 1e-5);
+}
+
+/// Energy and total contact force of the exact sparse solve (undecomposed, an
+/// active-set method on the primal KKT system) at a design.
+fn exact(s: &cso::lang::Scene, design: &[f64]) -> (f64, f64) {
+    let problem = lower(s, design).expect("lowers");
+    let g = assemble(&problem);
+    let r = sparse_reference_solve(&problem, &g);
+    (g.energy(&r.u), r.contact_forces(&problem, 1)[0])
+}
+
+#[test]
+fn energy_and_contact_force_gradients_equal_differences_of_an_exact_solve() {
+    let s = scene(1e-11);
+    let design = s.design_init();
+    let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
+    let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");
+    let energy = cso::lang::scene::Functional::Energy;
+    let force = cso::lang::scene::Functional::ContactForce(0);
+    let h = 1e-6;
+    for i in 0..design.len() {
+        let dir = sens.direction(i, 1e-11).expect("solves");
+        let (mut p, mut m) = (design.clone(), design.clone());
+        p[i] += h;
+        m[i] -= h;
+        let (ep, fp) = exact(&s, &p);
+        let (em, fm) = exact(&s, &m);
+        let de = (ep - em) / (2.0 * h);
+        let df = (fp - fm) / (2.0 * h);
+        let se = sens.derivative(&energy, i, &dir).expect("energy");
+        let sf = sens.derivative(&force, i, &dir).expect("force");
+        eprintln!(
+            "d/d{i}: energy {se:.10e} vs exact {de:.10e}; force {sf:.10e} vs exact {df:.10e}"
+        );
+        assert!(
+            (se - de).abs() <= 1e-5 * de.abs(),
+            "energy d/d{i}: {se} vs {de}"
+        );
+        assert!(
+            (sf - df).abs() <= 1e-5 * df.abs(),
+            "force d/d{i}: {sf} vs {df}"
+        );
+    }
+}
+
+#[test]
+fn the_volume_and_its_derivative_are_exact_on_a_curved_bottom() {
+    // The punch's volume with its bottom interpolated trilinearly from the nodes:
+    // w * 0.8 * 0.5 - c * w * 0.8 * 2 * m, where m = 0.375 is the trapezoid rule's
+    // mean of s^2 over [-1, 1] on 4 intervals (the exact integral's 1/3 is not
+    // what the mesh sees). d/dc = -0.6 w, d/dw = 0.4 - 0.6 c.
+    let s = scene(1e-6);
+    let punch = &s.bodies[1];
+    let (c, w) = (0.02, 1.0);
+    let v = body_volume(punch, &[Dual64::from(c).derivative(), Dual64::from(w)]);
+    assert!((v.re - (0.4 * w - 0.6 * c * w)).abs() < 1e-14, "{}", v.re);
+    assert!((v.eps + 0.6 * w).abs() < 1e-13, "{}", v.eps);
+    let v = body_volume(punch, &[Dual64::from(c), Dual64::from(w).derivative()]);
+    assert!((v.eps - (0.4 - 0.6 * c)).abs() < 1e-13, "{}", v.eps);
+}
+
+#[test]
+fn a_weak_contact_makes_the_3d_derivative_one_sided_and_the_adjoint_refuses() {
+    // A flat punch resting on the base with zero gap and no load: every contact
+    // node is closed and carries no force.
+    let src = "scene weak { dim = 3 }
+material soft { E = 1000, nu = 0.3 }
+design h { init = 1, lower = 0.5, upper = 1.5 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, z = 0 .. 1, mesh = 6 x 2 x 2, subdomains = 2 x 1 x 1 }
+body punch { material = soft, x = 1 .. 2, y = 0 .. 1, z = 1 .. 1 + h, mesh = 2 x 2 x 2 }
+fix base.bottom
+fix punch.top
+contact seat { primary = base.top, secondary = punch.bottom }
+minimize volume(punch)
+";
+    let s = compile(src, &options()).expect("checks");
+    let g = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    assert!(g.method.contains("one-sided"), "{}", g.method);
+    assert!(g.weak > 0);
+    let Err(e) = cso::sens::adjoint(&s, 1e-10) else {
+        panic!("the adjoint must refuse weak contacts");
+    };
+    assert!(e.to_string().contains("weak contacts"), "{e}");
+}
