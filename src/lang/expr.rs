@@ -73,6 +73,10 @@ pub enum Formula {
     Func(Func, Box<Formula>),
     /// `bezier(coefficients, t)`: Bernstein polynomial of degree `n - 1`.
     Bezier(Vec<Formula>, Box<Formula>),
+    /// `bezier2(net, u, v)`: tensor-product Bernstein surface over a square
+    /// control net of `n x n` points, row-major with `u` along a row (point
+    /// `(i, j)` at `j * n + i`).
+    Bezier2(Vec<Formula>, Box<Formula>, Box<Formula>),
 }
 
 /// Where a formula is evaluated: coordinates and design values of one number type.
@@ -129,7 +133,10 @@ impl Formula {
                 }
             }
             Formula::Func(f, a) => f.apply(a.eval(at)),
-            Formula::Bezier(coeffs, t) => bezier(coeffs, t.eval(at), at),
+            Formula::Bezier(coeffs, t) => {
+                casteljau(coeffs.iter().map(|c| c.eval(at)).collect(), t.eval(at))
+            }
+            Formula::Bezier2(net, u, v) => bezier2(net, u.eval(at), v.eval(at), at),
         }
     }
 
@@ -165,13 +172,15 @@ impl Formula {
             Formula::Neg(a) | Formula::Func(_, a) => a.any(pred),
             Formula::Arith(_, a, b) | Formula::Pow(a, b) => a.any(pred) || b.any(pred),
             Formula::Bezier(c, t) => t.any(pred) || c.iter().any(|c| c.any(pred)),
+            Formula::Bezier2(c, u, v) => {
+                u.any(pred) || v.any(pred) || c.iter().any(|c| c.any(pred))
+            }
         }
     }
 }
 
 /// De Casteljau's algorithm: stable for any degree, and it runs on dual numbers.
-fn bezier<T: Scalar>(coeffs: &[Formula], t: T, at: &Point<'_, T>) -> T {
-    let mut b: Vec<T> = coeffs.iter().map(|c| c.eval(at)).collect();
+fn casteljau<T: Scalar>(mut b: Vec<T>, t: T) -> T {
     let one_minus_t = T::from(1.0) - t;
     for level in (1..b.len()).rev() {
         for i in 0..level {
@@ -179,6 +188,23 @@ fn bezier<T: Scalar>(coeffs: &[Formula], t: T, at: &Point<'_, T>) -> T {
         }
     }
     b.first().copied().unwrap_or_else(|| T::from(0.0))
+}
+
+/// The side `n` of a square control net of `len` points, if it is square.
+pub fn net_side(len: usize) -> Option<usize> {
+    let n = (len as f64).sqrt().round() as usize;
+    (n > 0 && n * n == len).then_some(n)
+}
+
+/// A tensor-product Bezier surface: each row of the net along `u`, then the
+/// column of those values along `v`.
+fn bezier2<T: Scalar>(net: &[Formula], u: T, v: T, at: &Point<'_, T>) -> T {
+    let n = net_side(net.len()).unwrap_or(1);
+    let column: Vec<T> = net
+        .chunks(n)
+        .map(|row| casteljau(row.iter().map(|c| c.eval(at)).collect(), u))
+        .collect();
+    casteljau(column, v)
 }
 
 /// A checked condition on node coordinates (a selection filter).
@@ -258,6 +284,32 @@ mod tests {
                 + a[3] * t * t * t;
             assert!((f.eval_f64([t, 0.0, 0.0], &[]) - want).abs() < 1e-15);
         }
+    }
+
+    #[test]
+    fn bezier2_matches_the_tensor_product_bernstein_form() {
+        // 3 x 3 net, degree 2 in u and v: sum_ij B_i(u) B_j(v) a_(j*3+i).
+        let a = [0.1, -0.2, 0.3, 0.05, 0.4, -0.1, 0.0, 0.2, 0.15];
+        let f = Formula::Bezier2(
+            a.iter().map(|v| Formula::Const(*v)).collect(),
+            Box::new(Formula::Coord(0)),
+            Box::new(Formula::Coord(1)),
+        );
+        let b = |t: f64| [(1.0 - t) * (1.0 - t), 2.0 * t * (1.0 - t), t * t];
+        for (u, v) in [(0.0, 0.0), (0.3, 0.8), (1.0, 0.5), (0.5, 1.0), (0.9, 0.1)] {
+            let (bu, bv) = (b(u), b(v));
+            let want: f64 = (0..3)
+                .flat_map(|j| (0..3).map(move |i| (i, j)))
+                .map(|(i, j)| bu[i] * bv[j] * a[j * 3 + i])
+                .sum();
+            assert!((f.eval_f64([u, v, 0.0], &[]) - want).abs() < 1e-15);
+        }
+        // Corners interpolate the net's corners.
+        assert_eq!(f.eval_f64([1.0, 0.0, 0.0], &[]), a[2]);
+        assert_eq!(f.eval_f64([0.0, 1.0, 0.0], &[]), a[6]);
+        assert_eq!(net_side(9), Some(3));
+        assert_eq!(net_side(6), None);
+        assert_eq!(net_side(0), None);
     }
 
     #[test]

@@ -608,6 +608,7 @@ fn reserved(name: &str) -> Option<&'static str> {
             | "min"
             | "max"
             | "bezier"
+            | "bezier2"
             | "compliance"
             | "energy"
             | "contact_force"

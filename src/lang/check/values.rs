@@ -556,10 +556,12 @@ impl<'a> Checker<'a> {
         }
         let arity = match name {
             "min" | "max" | "bezier" => 2,
+            "bezier2" => 3,
             _ if Func::from_name(name).is_some() => 1,
             _ => {
                 let known = [
                     "sqrt", "abs", "exp", "ln", "sin", "cos", "tan", "min", "max", "bezier",
+                    "bezier2",
                 ];
                 let help = crate::lang::suggest::did_you_mean(name, known)
                     .unwrap_or_else(|| format!("the functions are {}", super::quote_list(&known)));
@@ -587,6 +589,9 @@ impl<'a> Checker<'a> {
         }
         if name == "bezier" {
             return self.bezier(&args[0], &args[1]);
+        }
+        if name == "bezier2" {
+            return self.bezier2(&args[0], &args[1], &args[2]);
         }
         if arity == 2 {
             let (fa, qa) = self.formula(&args[0])?;
@@ -643,8 +648,9 @@ impl<'a> Checker<'a> {
         Some((fold(Formula::Func(f, Box::new(a))), q))
     }
 
-    /// `bezier(A, t)`: `A` a design array or a list.
-    fn bezier(&mut self, coeffs: &Expr, t: &Expr) -> Option<(Formula, Quantity)> {
+    /// The control points of `func` (`bezier`, `bezier2`): a design array or a
+    /// list, with their common quantity.
+    fn control_points(&mut self, func: &str, coeffs: &Expr) -> Option<(Vec<Formula>, Quantity)> {
         let (list, q): (Vec<Formula>, Quantity) = match &coeffs.kind {
             ExprKind::Name(n)
                 if self
@@ -695,7 +701,7 @@ impl<'a> Checker<'a> {
                 self.error(
                     Diagnostic::new(
                         "cso::call",
-                        "`bezier` needs a design array or a list of coefficients",
+                        format!("`{func}` needs a design array or a list of coefficients"),
                     )
                     .label(
                         coeffs.span,
@@ -707,26 +713,69 @@ impl<'a> Checker<'a> {
         };
         if list.is_empty() {
             self.error(
-                Diagnostic::new("cso::call", "`bezier` needs at least one coefficient")
-                    .label(coeffs.span, "empty list"),
+                Diagnostic::new(
+                    "cso::call",
+                    format!("`{func}` needs at least one coefficient"),
+                )
+                .label(coeffs.span, "empty list"),
             );
             return None;
         }
+        Some((list, q))
+    }
+
+    /// A Bezier parameter: dimensionless (`t`, `u`, `v` in [0, 1]).
+    fn parameter(&mut self, func: &str, t: &Expr) -> Option<Formula> {
         let (ft, qt) = self.formula(t)?;
         if !qt.is_dimensionless() {
             self.error(
                 Diagnostic::new(
                     "cso::unit",
                     format!(
-                        "the parameter of `bezier` must be dimensionless, found {}",
+                        "the parameters of `{func}` must be dimensionless, found {}",
                         qt.describe()
                     ),
                 )
-                .label(t.span, "expected t in [0, 1]"),
+                .label(t.span, "expected a value in [0, 1]")
+                .help("divide a coordinate by a length, e.g. `(x - x0) / w`"),
             );
             return None;
         }
+        Some(ft)
+    }
+
+    /// `bezier(A, t)`: `A` a design array or a list.
+    fn bezier(&mut self, coeffs: &Expr, t: &Expr) -> Option<(Formula, Quantity)> {
+        let (list, q) = self.control_points("bezier", coeffs)?;
+        let ft = self.parameter("bezier", t)?;
         Some((Formula::Bezier(list, Box::new(ft)), q))
+    }
+
+    /// `bezier2(A, u, v)`: `A` a square control net of `n x n` points (a design
+    /// array or a list, row-major with `u` along a row).
+    fn bezier2(&mut self, net: &Expr, u: &Expr, v: &Expr) -> Option<(Formula, Quantity)> {
+        let (list, q) = self.control_points("bezier2", net)?;
+        if crate::lang::expr::net_side(list.len()).is_none() {
+            let n = list.len();
+            let below = (n as f64).sqrt().floor() as usize;
+            let above = below + 1;
+            self.error(
+                Diagnostic::new(
+                    "cso::call",
+                    format!("`bezier2` needs a square control net (n x n points), found {n}"),
+                )
+                .label(net.span, format!("{n} is not a square"))
+                .help(format!(
+                    "use {} ({below} x {below}) or {} ({above} x {above}) control points, row-major with u along a row",
+                    below * below,
+                    above * above
+                )),
+            );
+            return None;
+        }
+        let fu = self.parameter("bezier2", u)?;
+        let fv = self.parameter("bezier2", v)?;
+        Some((Formula::Bezier2(list, Box::new(fu), Box::new(fv)), q))
     }
 
     /// `a[i]`: one entry of a design array.
