@@ -161,3 +161,48 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
         assert!((p - q).abs() < 1e-5, "{xa:?} vs {xc:?}");
     }
 }
+
+#[test]
+fn scont3d_lowers_the_compliance_keeps_the_volume_and_stays_symmetric() {
+    // The example on a coarser mesh (half the elements per direction), to keep
+    // the test suite fast; `cso optimize examples/scont3d.cso` runs the full one.
+    let src = std::fs::read_to_string(root().join("examples/scont3d.cso"))
+        .expect("example")
+        .replace("mesh = 12 x 12 x 4", "mesh = 6 x 6 x 2")
+        .replace("mesh = 8 x 8 x 4", "mesh = 4 x 4 x 2");
+    let s = compile(&src, &options()).expect("checks");
+    let run = optimize(&s, &mut |_, _| true).expect("runs");
+    assert_eq!(run.termination, Termination::Kkt, "{:?}", run.termination);
+    let first = &run.history[0];
+    let best = &run.history[run.best.expect("a feasible design")];
+    assert!(
+        best.objective < 0.9 * first.objective,
+        "{} -> {}",
+        first.objective,
+        best.objective
+    );
+    // The volume constraint holds and is active at the optimum.
+    assert!(
+        best.constraints[0] <= 1e-6 && best.constraints[0] > -1e-4,
+        "{:?}",
+        best.constraints
+    );
+    // The scene is symmetric about x = 1.5, y = 1.5 and the diagonal x = y, so
+    // is the optimal net (entry j * 4 + i is the control point (i, j)).
+    let a = |i: usize, j: usize| best.design[j * 4 + i];
+    for j in 0..4 {
+        for i in 0..4 {
+            for (k, l) in [(3 - i, j), (i, 3 - j), (j, i)] {
+                assert!((a(i, j) - a(k, l)).abs() < 1e-5, "{:?}", best.design);
+            }
+        }
+    }
+    for w in run.history.windows(2) {
+        assert!(
+            w[1].objective <= w[0].objective * (1.0 + 1e-9),
+            "{} -> {}",
+            w[0].objective,
+            w[1].objective
+        );
+    }
+}

@@ -222,7 +222,7 @@ pub fn best_scene(scene: &Scene, run: &Optimization) -> Option<String> {
 }
 
 /// `shape_BODY_FACE.svg`: every curved, design-dependent face at the first,
-/// middle and last iterates.
+/// middle and last iterates (in 3D its section through the middle of `y`).
 fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
     if run.history.is_empty() {
         return Ok(());
@@ -251,15 +251,30 @@ fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()>
                         .collect()
                 })
                 .collect();
+            // 3D: the face's section at the middle of its y extent (at each design).
+            let mid_y = |d: &[f64]| {
+                if body.extent.len() == 3 {
+                    0.5 * (body.extent[1].0.eval_f64([0.0; 3], d)
+                        + body.extent[1].1.eval_f64([0.0; 3], d))
+                } else {
+                    0.0
+                }
+            };
             let ys: Vec<Vec<f64>> = picks
                 .iter()
                 .zip(&xs)
                 .map(|(&k, x)| {
-                    x.iter()
-                        .map(|&xi| f.eval_f64([xi, 0.0, 0.0], &run.history[k].design))
-                        .collect()
+                    let d = &run.history[k].design;
+                    let y = mid_y(d);
+                    x.iter().map(|&xi| f.eval_f64([xi, y, 0.0], d)).collect()
                 })
                 .collect();
+            let section = if body.extent.len() == 3 {
+                let d = &run.history[picks[0]].design;
+                format!(", section y = {} m", crate::lang::diag::num(mid_y(d)))
+            } else {
+                String::new()
+            };
             let labels: Vec<String> = picks.iter().map(|k| format!("iteration {k}")).collect();
             let series: Vec<Series> = labels
                 .iter()
@@ -267,7 +282,7 @@ fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()>
                 .map(|(n, (x, y))| Series { name: n, x, y })
                 .collect();
             let svg = line_chart(
-                &format!("{}: {face} face of `{}`", scene.name, body.name),
+                &format!("{}: {face} face of `{}`{section}", scene.name, body.name),
                 "x (m)",
                 "height (m)",
                 &series,
