@@ -708,6 +708,10 @@ impl Optimize {
     }
 }
 
+/// The gradient-cost rows of `m` design variables at a tolerance.
+type CostsOf =
+    fn(usize, f64) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
+
 /// A row of a table over H/h and cuts: the cells after them, or why it failed.
 type CutsRow<'a> = &'a (dyn Fn(usize, usize, usize) -> Result<String, String> + Sync);
 
@@ -767,11 +771,19 @@ impl Bench {
                     )?))
                 },
             ),
-            Benchmark::Sensitivity => {
+            Benchmark::Sensitivity | Benchmark::Sensitivity3d => {
                 let threads = pool.current_num_threads();
                 outln!("{}", output::gradient_costs_header(threads, tolerance));
-                for m in bench::GRADIENT_COST_SIZES {
-                    match bench::gradient_costs(m, tolerance) {
+                let (sizes, costs) = if self.which == Benchmark::Sensitivity {
+                    (bench::GRADIENT_COST_SIZES, bench::gradient_costs as CostsOf)
+                } else {
+                    (
+                        bench::GRADIENT_COST_SIZES_3D,
+                        bench::gradient_costs_3d as CostsOf,
+                    )
+                };
+                for m in sizes {
+                    match costs(m, tolerance) {
                         Ok(rows) => rows
                             .iter()
                             .for_each(|r| outln!("{}", output::gradient_cost_row(r))),

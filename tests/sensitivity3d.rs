@@ -3,41 +3,22 @@
 //! against central differences of an exact sparse solve of the same discrete
 //! problem (no TFETI, no tolerance); the exact volume derivative; weak contacts.
 
-use crate::options;
 use crate::reference::{assemble, sparse_reference_solve};
+use crate::{options, root};
 use cso::lang::compile;
 use cso::lang::scene::Scheme;
 use cso::model::lower;
 use cso::sens::{body_volume, finite_difference, Gradient};
 use num_dual::Dual64;
 
-/// A punch with a curved bottom (curvature `c`, width `w`) pressed onto an
-/// elastic base by a prescribed displacement and pushed sideways. Non-matching
-/// meshes, so projections fall inside the base's faces; two subdomains per body.
-/// Functionals of every kind the exact methods differentiate.
-pub(crate) const PUNCH3D: &str = "scene punch3d { dim = 3 }
-material soft { E = 1000, nu = 0.3 }
-design c { init = 0.02, lower = 0, upper = 0.05 }
-design w { init = 1, lower = 0.9, upper = 1.1 }
-body base { material = soft, x = 0 .. 2.05, y = 0 .. 1.05, z = 0 .. 0.5,
-            mesh = 8 x 5 x 2, subdomains = 2 x 1 x 1 }
-body punch { material = soft, x = 0.5 .. 0.5 + w, y = 0.1 .. 0.9, z = 0.5 .. 1,
-             bottom = 0.5 + c * ((2*(x - 0.5)/w - 1)^2 + (2.5*(y - 0.1) - 1)^2),
-             mesh = 4 x 4 x 2, subdomains = 2 x 1 x 1 }
-fix base.bottom
-displace punch.top { ux = 0, uy = 0, uz = -0.01 }
-traction punch.right = (-0.5, 0, 0)
-contact seat { primary = base.top, secondary = punch.bottom }
-probe centre { body = punch, at = (1, 0.5, 0.5) }
-minimize energy + 0.1 * compliance
-subject to contact_force(seat) <= 10
-subject to centre.uz >= -0.02
-subject to volume(punch) <= 1.1
-subject to pressure_norm(seat, 4) <= 100
-";
+/// examples/punch3d.cso: a punch with a curved bottom (curvature `c`, width
+/// `w`) on an elastic base, non-matching meshes, functionals of every kind.
+fn punch3d() -> String {
+    std::fs::read_to_string(root().join("examples/punch3d.cso")).expect("example")
+}
 
 fn scene(tolerance: f64) -> cso::lang::Scene {
-    let mut s = compile(PUNCH3D, &options()).expect("checks");
+    let mut s = compile(&punch3d(), &options()).expect("checks");
     s.solver.tolerance = tolerance;
     s
 }
@@ -173,4 +154,58 @@ minimize volume(punch)
         panic!("the adjoint must refuse weak contacts");
     };
     assert!(e.to_string().contains("weak contacts"), "{e}");
+}
+
+#[test]
+fn the_speed_accuracy_study_runs_in_3d_and_says_where_differences_break() {
+    // punch3d with the curvature as the only design variable, on fewer elements.
+    let src = punch3d()
+        .replace("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
+        .replace("0.5 + w", "1.5")
+        .replace("/w", "/1")
+        .replace(
+            "mesh = 8 x 5 x 2, subdomains = 2 x 1 x 1",
+            "mesh = 4 x 3 x 1",
+        )
+        .replace(
+            "mesh = 4 x 4 x 2, subdomains = 2 x 1 x 1",
+            "mesh = 2 x 2 x 1",
+        );
+    let s = compile(&src, &options()).expect("checks");
+    let study = cso::studies::sensitivity::study(&s, &mut |_| {}).expect("runs");
+    assert!(
+        study.richardson_agreement < 1e-6,
+        "{}",
+        study.richardson_agreement
+    );
+    let exact: Vec<_> = study
+        .runs
+        .iter()
+        .filter(|r| r.step.is_none() && r.tolerance == 1e-10)
+        .collect();
+    assert_eq!(exact.len(), 2);
+    assert!(exact.iter().all(|r| r.error < 1e-7), "{exact:?}");
+    let fd = |h: f64| {
+        study
+            .runs
+            .iter()
+            .find(|r| {
+                r.method == "finite_difference forward" && r.tolerance == 1e-10 && r.step == Some(h)
+            })
+            .expect("a run per step")
+    };
+    // Truncation at large h, round-off and solver error at tiny h: the best
+    // step lies strictly inside, and the largest step changes the active set.
+    let best = (2..=9)
+        .map(|k| fd(10f64.powi(-k)).error)
+        .fold(f64::INFINITY, f64::min);
+    assert!(best < fd(1e-1).error && best < fd(1e-10).error);
+    assert!(
+        study
+            .runs
+            .iter()
+            .any(|r| r.step == Some(1e-1) && r.active_set_changed),
+        "a step of 0.1 on a curvature of 0.02 changes which nodes touch"
+    );
+    assert!(study.svg().expect("draws").starts_with("<svg"));
 }

@@ -13,7 +13,8 @@ use serde::Serialize;
 /// The benchmarks of `cso bench`: `scaling` (TFETI on the scaled scene),
 /// `compare` (FETI against TFETI on it), `hard` (the hard-scene sweeps of
 /// [`crate::studies::stability`]), `sensitivity` (gradient cost for m = 6, 24,
-/// 96) and `optimize` (reuse between design iterations).
+/// 96), `sensitivity3d` (the same on scont3d for m = 4, 16, 36) and `optimize`
+/// (reuse between design iterations).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 #[value(rename_all = "snake_case")]
 pub enum Benchmark {
@@ -23,11 +24,16 @@ pub enum Benchmark {
     Compare,
     Hard,
     Sensitivity,
+    Sensitivity3d,
     Optimize,
 }
 
 /// The design sizes `m` of the gradient-cost benchmark.
 pub const GRADIENT_COST_SIZES: [usize; 3] = [6, 24, 96];
+
+/// The design sizes `m` of the 3D gradient-cost benchmark: control nets of
+/// 2 x 2, 4 x 4 and 6 x 6 heights.
+pub const GRADIENT_COST_SIZES_3D: [usize; 3] = [4, 16, 36];
 
 /// Parses the largest cut of the base, `SXxSY` (e.g. `32x16`): the value parser
 /// of `cso bench --max-cuts`.
@@ -253,6 +259,26 @@ subject to area(punch) <= initial(area(punch))
     )
 }
 
+/// scont3d with an `n x n` net of `bezier2` control heights as design variables
+/// (initial shape: a flat face 0.01 above the base, the same for every n).
+pub fn scont3d_with(n: usize) -> String {
+    let m = n * n;
+    format!(
+        "scene scont3d_m{m} {{ dim = 3 }}
+material soft {{ E = 1000, nu = 0.3 }}
+design a[{m}] {{ init = 0.01, lower = 0, upper = 0.1 }}
+body base {{ material = soft, x = 0 .. 3, y = 0 .. 3, z = 0 .. 1, mesh = 12 x 12 x 4, subdomains = 2 x 2 x 1 }}
+body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, z = 1 .. 2, bottom = 1 + bezier2(a, x - 1, y - 1), mesh = 8 x 8 x 4, subdomains = 2 x 2 x 1 }}
+fix base.bottom
+fix punch.top {{ ux, uy }}
+traction punch.top = (0, 0, -5)
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+minimize compliance
+subject to volume(punch) <= initial(volume(punch))
+"
+    )
+}
+
 /// One row of the gradient-cost table.
 #[derive(Debug, Clone, Serialize)]
 pub struct GradientCost {
@@ -264,13 +290,32 @@ pub struct GradientCost {
     pub state_seconds: f64,
 }
 
-/// Gradient cost beyond the state solve, for the three methods.
+/// Gradient cost beyond the state solve on scont2d with `m` design variables,
+/// for the three methods.
 pub fn gradient_costs(
     m: usize,
     tolerance: f64,
 ) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
-    let src = scont_with(m);
-    let mut scene = compile(&src, &CheckOptions::default()).map_err(|d| {
+    gradient_costs_of(&scont_with(m), m, tolerance)
+}
+
+/// [`gradient_costs`] on scont3d with `m` control heights (a square net).
+pub fn gradient_costs_3d(
+    m: usize,
+    tolerance: f64,
+) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
+    let n = crate::lang::expr::net_side(m).ok_or_else(|| {
+        SolveError::Unsupported(format!("{m} control heights do not form a square net"))
+    })?;
+    gradient_costs_of(&scont3d_with(n), m, tolerance)
+}
+
+fn gradient_costs_of(
+    src: &str,
+    m: usize,
+    tolerance: f64,
+) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
+    let mut scene = compile(src, &CheckOptions::default()).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
     scene.solver.tolerance = tolerance;
