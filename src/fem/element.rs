@@ -4,8 +4,9 @@
 //! its routine beside [`super::quad`]); nothing in `tfeti/` changes, as the
 //! hexahedron showed.
 
-use super::hex::{hex_stiffness, isotropic};
-use super::quad::{plane_strain, quad_stiffness};
+use super::hex::{hex_gradients, hex_stiffness, isotropic};
+use super::quad::{plane_strain, quad_gradients, quad_stiffness};
+use super::shape_gradient::bilinear_shape_gradient;
 use crate::num::Scalar;
 
 /// An element type.
@@ -59,6 +60,48 @@ impl Element {
             Element::Hex8 => {
                 let h = std::array::from_fn(|k| [x[3 * k], x[3 * k + 1], x[3 * k + 2]]);
                 hex_stiffness(&h, &isotropic(young, poisson))
+            }
+        }
+    }
+}
+
+impl Element {
+    /// `d(w^T K_e u) / dX` for every node coordinate (node-major, like `x`), in
+    /// one pass ([`super::shape_gradient`]); `w` and `u` are element vectors.
+    /// None for an inverted or degenerate element.
+    pub fn shape_gradient(
+        self,
+        x: &[f64],
+        young: f64,
+        poisson: f64,
+        thickness: f64,
+        w: &[f64],
+        u: &[f64],
+    ) -> Option<Vec<f64>> {
+        let ok = |det: f64| det > 0.0 && det.is_finite();
+        match self {
+            Element::Quad4 => {
+                let q = std::array::from_fn(|k| [x[2 * k], x[2 * k + 1]]);
+                let points: Vec<_> = quad_gradients(&q)
+                    .into_iter()
+                    .map(|(g, det)| (g, det * thickness))
+                    .collect();
+                if !points.iter().all(|p| ok(p.1)) {
+                    return None;
+                }
+                let d = plane_strain(young, poisson);
+                let rows: Vec<&[f64]> = d.iter().map(|r| r.as_slice()).collect();
+                Some(bilinear_shape_gradient(&points, &rows, w, u))
+            }
+            Element::Hex8 => {
+                let h = std::array::from_fn(|k| [x[3 * k], x[3 * k + 1], x[3 * k + 2]]);
+                let points = hex_gradients(&h);
+                if !points.iter().all(|p| ok(p.1)) {
+                    return None;
+                }
+                let d = isotropic(young, poisson);
+                let rows: Vec<&[f64]> = d.iter().map(|r| r.as_slice()).collect();
+                Some(bilinear_shape_gradient(&points, &rows, w, u))
             }
         }
     }

@@ -170,6 +170,11 @@ pub fn hex_strain_at(x: &Hex<f64>, u: &[f64; 24], xi: [f64; 3]) -> [f64; 6] {
     e
 }
 
+/// Physical shape-function gradients and det J at the Gauss points (weight 1).
+pub fn hex_gradients(x: &Hex<f64>) -> Vec<([[f64; 3]; 8], f64)> {
+    gauss().map(|xi| gradients(x, xi)).collect()
+}
+
 /// Shape-function values and det J (Gauss weight 1) at the Gauss points, for
 /// body loads.
 pub fn hex_gauss<T: Scalar>(x: &Hex<T>) -> Vec<([f64; 8], T)> {

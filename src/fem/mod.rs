@@ -9,6 +9,7 @@ pub mod facet;
 pub mod hex;
 pub mod quad;
 pub mod quadface;
+pub mod shape_gradient;
 
 pub use element::Element;
 pub use facet::{Facet, Orientation, Segment};

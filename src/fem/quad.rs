@@ -118,6 +118,14 @@ pub fn quad_strain_at(x: &Quad<f64>, u: &[f64; 8], xi: f64, eta: f64) -> [f64; 3
     e
 }
 
+/// Physical shape-function gradients and det J at the Gauss points (weight 1).
+pub fn quad_gradients(x: &Quad<f64>) -> Vec<([[f64; 2]; 4], f64)> {
+    GAUSS
+        .iter()
+        .map(|&(xi, eta)| gradients(x, xi, eta))
+        .collect()
+}
+
 /// Shape-function values at (xi, eta) and det J times the Gauss weight, for loads.
 pub fn quad_gauss<T: Scalar>(x: &Quad<T>) -> Vec<([f64; 4], T)> {
     GAUSS
