@@ -39,7 +39,16 @@ pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
 /// Gauss integrates a trilinear map's det J exactly), in any number type.
 pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
     let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
-    let at = |i: usize, j: usize, k: usize| body.node_t([i, j, k], design);
+    // Every node once (a node is shared by up to eight hexahedra).
+    let mut pts = Vec::with_capacity((n[0] + 1) * (n[1] + 1) * (n[2] + 1));
+    for k in 0..=n[2] {
+        for j in 0..=n[1] {
+            for i in 0..=n[0] {
+                pts.push(body.node_t([i, j, k], design));
+            }
+        }
+    }
+    let at = |i: usize, j: usize, k: usize| pts[(k * (n[1] + 1) + j) * (n[0] + 1) + i];
     let mut volume = T::from(0.0);
     for k in 0..n[2] {
         for j in 0..n[1] {

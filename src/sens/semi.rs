@@ -254,6 +254,63 @@ fn stiffness_derivative_times_u<const DIM: usize>(
         .collect()
 }
 
+/// `d(w^T K u) / dX` per body node (flat, `dim` per node) at the state's
+/// geometry: one pass over the elements, whatever the number of design
+/// directions; `w^T K' u` of a direction is then its dot product with the node
+/// velocities ([`crate::fem::shape_gradient`]).
+fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let p = &state.problem;
+    let dim = p.dim;
+    let mut out: Vec<Vec<f64>> = p
+        .bodies
+        .iter()
+        .map(|b| vec![0.0; dim * b.coords.len()])
+        .collect();
+    let per_subdomain: Vec<Vec<(usize, f64)>> = state.dual.cluster().map(|s, _| {
+        let m = &p.subdomains[s];
+        let coords = &p.bodies[m.body].coords;
+        let mut acc = Vec::new();
+        let (mut x, mut we, mut ue) = (Vec::new(), Vec::new(), Vec::new());
+        for e in m.element_nodes() {
+            x.clear();
+            we.clear();
+            ue.clear();
+            for &k in e {
+                x.extend_from_slice(&coords[m.grid[k]][..dim]);
+                we.extend_from_slice(&w[s][dim * k..dim * k + dim]);
+                ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
+            }
+            let Some(g) = m
+                .element
+                .shape_gradient(&x, m.young, m.poisson, m.thickness, &we, &ue)
+            else {
+                continue;
+            };
+            for (a, &k) in e.iter().enumerate() {
+                for c in 0..dim {
+                    acc.push((dim * m.grid[k] + c, g[dim * a + c]));
+                }
+            }
+        }
+        acc
+    });
+    // Summed in subdomain order: the same bits whatever the thread count.
+    for (s, acc) in per_subdomain.into_iter().enumerate() {
+        let body = &mut out[p.subdomains[s].body];
+        for (k, v) in acc {
+            body[k] += v;
+        }
+    }
+    out
+}
+
+fn dot_nested(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
+        .sum()
+}
+
 /// The semi-analytical sensitivity problem of a solved state: its rows and operators.
 pub struct Sensitivity<'a> {
     pub scene: &'a Scene,
@@ -263,6 +320,8 @@ pub struct Sensitivity<'a> {
     pub kept: Vec<usize>,
     pub n_equality: usize,
     dual: DualSystem,
+    /// `K u` of the state per subdomain (energy derivatives need it per direction).
+    ku: Vec<Vec<f64>>,
 }
 
 impl<'a> Sensitivity<'a> {
@@ -289,6 +348,7 @@ impl<'a> Sensitivity<'a> {
             kept,
             n_equality,
             dual,
+            ku: state.dual.cluster().apply_k(&state.u),
         })
     }
 
@@ -341,22 +401,40 @@ impl<'a> Sensitivity<'a> {
     /// The data of direction `i`: `f_bar = f' - K'u - B'^T l` per subdomain,
     /// `c_bar = c' - B'u` on the kept rows, and what functionals need.
     pub fn rhs(&self, i: usize) -> Rhs {
+        self.rhs_with(i, true).0
+    }
+
+    /// [`Self::rhs`], with `K'u` left out of `f_bar` (and `u^T K' u` zero) unless
+    /// `with_kpu`; and the node velocities of direction `i` (per body, flat).
+    fn rhs_with(&self, i: usize, with_kpu: bool) -> (Rhs, Vec<Vec<f64>>) {
         if self.state.problem.dim == 2 {
-            self.rhs_in::<FaceEdge, 2, 2>(i)
+            self.rhs_in::<FaceEdge, 2, 2>(i, with_kpu)
         } else {
-            self.rhs_in::<FaceQuad, 3, 4>(i)
+            self.rhs_in::<FaceQuad, 3, 4>(i, with_kpu)
         }
     }
 
-    /// [`Self::rhs`] in `DIM` dimensions, on pieces `P`.
-    fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(&self, i: usize) -> Rhs {
+    /// [`Self::rhs_with`] in `DIM` dimensions, on pieces `P`.
+    fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(
+        &self,
+        i: usize,
+        with_kpu: bool,
+    ) -> (Rhs, Vec<Vec<f64>>) {
         let scene = self.scene;
         let state = self.state;
         let design = scene.design_init();
         let dd = seeded(&design, i);
         let pos = node_positions::<D, DIM>(scene, &dd);
+        let velocities = pos
+            .iter()
+            .map(|b| b.iter().flatten().map(|x| x.eps).collect())
+            .collect();
         let fprime = load_derivative::<P, DIM, N>(scene, state, &pos, &design);
-        let kpu = stiffness_derivative_times_u(state, &pos);
+        let kpu = if with_kpu {
+            stiffness_derivative_times_u(state, &pos)
+        } else {
+            fprime.iter().map(|f| vec![0.0; f.len()]).collect()
+        };
         let (rows, kinks) = moving_rows::<P, DIM, N>(scene, state, &pos, &dd);
         let p = &state.problem;
         let mut fbar: Vec<Vec<f64>> = fprime
@@ -382,29 +460,88 @@ impl<'a> Sensitivity<'a> {
             .zip(&state.u)
             .map(|(k, u)| k.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
             .sum();
-        Rhs {
+        let rhs = Rhs {
             fbar,
             cbar,
             fprime,
             ukpu,
             scale,
             kinks,
-        }
+        };
+        (rhs, velocities)
     }
 
-    /// Adjoint gradient of one functional: one dual solve with data `(J_u, J_l)`
-    /// for `(w, nu)`, then `dJ/da_i = J_a,i + w^T f_bar_i + nu^T c_bar_i` for every i.
-    /// Refused with weak contacts (the gradient does not exist there).
+    /// Adjoint gradient of one functional: [`Self::adjoint_all`] of it alone.
     pub fn adjoint(&self, f: &Functional, tolerance: f64) -> Result<(Vec<f64>, usize), SolveError> {
+        let (mut g, cost) = self.adjoint_all(std::slice::from_ref(f), tolerance)?;
+        Ok((g.pop().unwrap_or_default(), cost))
+    }
+
+    /// Adjoint gradients of functionals: per functional one dual solve with data
+    /// `(J_u, J_l)` for `(w, nu)` and the node shape gradient of `w^T K u`; then one
+    /// pass over the directions, `dJ/da_i = J_a,i + w^T f_bar_i + nu^T c_bar_i`,
+    /// where `w^T K'_i u` and `u^T K'_i u` are dot products with the node
+    /// velocities (no element pass per direction). Refused with weak contacts
+    /// (the gradient does not exist there). Returns the gradients and the
+    /// Hessian applications of the adjoint solves.
+    pub fn adjoint_all(
+        &self,
+        fs: &[Functional],
+        tolerance: f64,
+    ) -> Result<(Vec<Vec<f64>>, usize), SolveError> {
         if self.weak() > 0 {
             return Err(SolveError::Unsupported(format!(
                 "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
                 self.weak()
             )));
         }
+        let mut adjoints = Vec::with_capacity(fs.len());
+        let mut cost = 0;
+        for f in fs {
+            let (w, nu, c) = self.adjoint_solve(f, tolerance)?;
+            cost += c;
+            let gw = node_shape_gradient(self.state, &w);
+            adjoints.push((w, nu, gw));
+        }
+        let gu = node_shape_gradient(self.state, &self.state.u);
+        let m = self.scene.design.len();
+        let p = &self.state.problem;
+        let mut grad = vec![vec![0.0; m]; fs.len()];
+        for i in 0..m {
+            let (mut rhs, velocities) = self.rhs_with(i, false);
+            rhs.ukpu = dot_nested(&gu, &velocities);
+            // The explicit part: the derivative with u' = 0 and l' = 0.
+            let explicit = Direction {
+                u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
+                lambda: vec![0.0; p.rows.len()],
+                f: rhs.fprime,
+                ukpu: rhs.ukpu,
+                scale: rhs.scale,
+                hessian_applications: 0,
+                kinks: rhs.kinks,
+            };
+            for (k, f) in fs.iter().enumerate() {
+                let (w, nu, gw) = &adjoints[k];
+                let ja = self
+                    .derivative(f, i, &explicit)
+                    .map_err(SolveError::Unsupported)?;
+                // f_bar here leaves out K'u: w^T K'u comes from the shape gradient.
+                let wf = dot_nested(w, &rhs.fbar) - dot_nested(gw, &velocities);
+                let nc: f64 = nu.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
+                grad[k][i] = ja + wf + nc;
+            }
+        }
+        Ok((grad, cost))
+    }
+
+    /// The adjoint solve of one functional: `(w, nu)` and its Hessian applications.
+    fn adjoint_solve(
+        &self,
+        f: &Functional,
+        tolerance: f64,
+    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, usize), SolveError> {
         let state = self.state;
         let p = &state.problem;
-        let m = self.scene.design.len();
         // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
         let mut ju: Vec<Vec<f64>> = p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect();
         let mut jl = vec![0.0; p.rows.len()];
@@ -433,7 +570,7 @@ impl<'a> Sensitivity<'a> {
                     }
                 }
                 Functional::Energy => {
-                    for (s, ku) in state.dual.cluster().apply_k(&state.u).iter().enumerate() {
+                    for (s, ku) in self.ku.iter().enumerate() {
                         for (k, v) in ku.iter().enumerate() {
                             ju[s][k] += w * v;
                         }
@@ -489,32 +626,7 @@ impl<'a> Sensitivity<'a> {
             .info
             .hessian_applications
             .max(self.dual.f_applications() - before);
-        let mut grad = vec![0.0; m];
-        for (i, g) in grad.iter_mut().enumerate() {
-            let rhs = self.rhs(i);
-            // The explicit part: the derivative with u' = 0 and l' = 0.
-            let explicit = Direction {
-                u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
-                lambda: vec![0.0; p.rows.len()],
-                f: rhs.fprime.clone(),
-                ukpu: rhs.ukpu,
-                scale: rhs.scale.clone(),
-                hessian_applications: 0,
-                kinks: rhs.kinks,
-            };
-            let ja = self
-                .derivative(f, i, &explicit)
-                .map_err(SolveError::Unsupported)?;
-            let wf: f64 = sol
-                .u
-                .iter()
-                .zip(&rhs.fbar)
-                .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>())
-                .sum();
-            let nc: f64 = sol.lambda.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
-            *g = ja + wf + nc;
-        }
-        Ok((grad, cost))
+        Ok((sol.u, sol.lambda, cost))
     }
 
     /// `dJ/da_i` of a functional from the state and one direction's derivatives.
@@ -532,13 +644,6 @@ impl<'a> Sensitivity<'a> {
     fn leaf_dual(&self, f: &Functional, dd: &[D], dir: &Direction) -> D {
         let state = self.state;
         let p = &state.problem;
-        let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
-            a.iter()
-                .zip(b)
-                .map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
-                .sum()
-        };
-        let f_state: Vec<Vec<f64>> = p.subdomains.iter().map(|m| m.f.clone()).collect();
         match f {
             Functional::Geometry(g) => g.eval(&Point {
                 coords: [D::from(0.0); 3],
@@ -546,15 +651,20 @@ impl<'a> Sensitivity<'a> {
             }),
             Functional::Compliance => {
                 let v = state.compliance();
-                D::new(v, dot(&dir.f, &state.u) + dot(&f_state, &dir.u))
+                let fu: f64 = p
+                    .subdomains
+                    .iter()
+                    .zip(&dir.u)
+                    .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
+                    .sum();
+                D::new(v, dot_nested(&dir.f, &state.u) + fu)
             }
             Functional::Energy => {
                 // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
-                let mut kuu = 0.0;
-                for (s, ku) in state.dual.cluster().apply_k(&state.u).iter().enumerate() {
-                    kuu += ku.iter().zip(&dir.u[s]).map(|(a, b)| a * b).sum::<f64>();
-                }
-                D::new(state.energy(), 0.5 * dir.ukpu + kuu)
+                D::new(
+                    state.energy(),
+                    0.5 * dir.ukpu + dot_nested(&self.ku, &dir.u),
+                )
             }
             Functional::ContactForce(c) => {
                 let mut v = D::from(0.0);
@@ -791,13 +901,7 @@ pub fn adjoint_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let mut gradient = Vec::new();
-    let mut hessian = 0;
-    for f in &rows {
-        let (g, cost) = sens.adjoint(f, tolerance)?;
-        hessian += cost;
-        gradient.push(g);
-    }
+    let (gradient, hessian) = sens.adjoint_all(&rows, tolerance)?;
     Ok(super::Gradient {
         method: "adjoint".to_string(),
         functionals: names,
