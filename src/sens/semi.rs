@@ -311,6 +311,9 @@ fn dot_nested(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
         .sum()
 }
 
+/// An adjoint solution: `w` per subdomain, `nu` per kept row, Hessian applications.
+type Adjoint = (Vec<Vec<f64>>, Vec<f64>, usize);
+
 /// The semi-analytical sensitivity problem of a solved state: its rows and operators.
 pub struct Sensitivity<'a> {
     pub scene: &'a Scene,
@@ -535,11 +538,7 @@ impl<'a> Sensitivity<'a> {
     }
 
     /// The adjoint solve of one functional: `(w, nu)` and its Hessian applications.
-    fn adjoint_solve(
-        &self,
-        f: &Functional,
-        tolerance: f64,
-    ) -> Result<(Vec<Vec<f64>>, Vec<f64>, usize), SolveError> {
+    fn adjoint_solve(&self, f: &Functional, tolerance: f64) -> Result<Adjoint, SolveError> {
         let state = self.state;
         let p = &state.problem;
         // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
