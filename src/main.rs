@@ -265,6 +265,19 @@ fn fail(code: u8, msg: impl Display) -> u8 {
     code
 }
 
+/// A solve-time error of a scene: rendered on its source like the checker's
+/// errors where it names an item (the contact, the load, the body), else a line.
+fn fail_solve(file: &dyn Display, scene: &Scene, e: &cso::state::SolveError) -> u8 {
+    match cso::state::diagnostic(scene, e) {
+        Some(d) => {
+            let name = file.to_string();
+            errln!("{}", diag::render(&[d], &name, &scene.source.text));
+            EXIT_SCENE
+        }
+        None => fail(EXIT_SCENE, format!("{file}: {e}")),
+    }
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     QUIET.store(cli.quiet, Ordering::Relaxed);
@@ -475,7 +488,7 @@ impl Check {
                     outln!("{}", cso::io::summary::check_line(file, &scene));
                     0
                 }
-                Err(e) => fail(EXIT_SCENE, format!("{}: {e}", file.display())),
+                Err(e) => fail_solve(&file.display(), &scene, &e),
             },
             Err(code) => code,
         });
@@ -530,7 +543,7 @@ impl Solve {
             })
         });
         bar.finish();
-        let state = result.map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
+        let state = result.map_err(|e| fail_solve(&file, &scene, &e))?;
         for w in cso::state::warnings(&scene, &state.problem) {
             errln!("warning: {file}: {w}");
         }
@@ -563,7 +576,7 @@ impl Export {
         };
         cso::io::export::check_dir(&self.out, self.force).map_err(cannot)?;
         let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
-            .map_err(|e| fail(EXIT_SCENE, format!("{file}: {e}")))?;
+            .map_err(|e| fail_solve(&file, &scene, &e))?;
         cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;
         outln!("{} files written to {}", files.len(), self.out.display());
         Ok(())
@@ -592,6 +605,7 @@ impl Sensitivity {
         let g = g.map_err(|e| match e {
             // A bad `--step` is a usage error, not the scene's.
             cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
+            cso::sens::GradientError::Solve(e) => fail_solve(&self.file.display(), &scene, &e),
             e => fail(EXIT_SCENE, e),
         })?;
         outln!("{}", tables::gradient(&scene, &g));
@@ -694,7 +708,10 @@ impl Optimize {
             })
         });
         bar.finish();
-        let run = result.map_err(|e| fail(EXIT_SCENE, e))?;
+        let run = result.map_err(|e| match e {
+            cso::sens::GradientError::Solve(e) => fail_solve(&self.file.display(), &scene, &e),
+            e => fail(EXIT_SCENE, e),
+        })?;
         if let Some(series) = series {
             series.finish(&scene).map_err(|e| fail(EXIT_IO, e))?;
         }

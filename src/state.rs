@@ -160,6 +160,66 @@ pub fn precheck(
     }
 }
 
+/// A solve-time error as a diagnostic on the scene's text: the item that causes
+/// it (the contact whose bodies overlap, the loads nothing holds and their body,
+/// the body with an inverted element) gets a label, like the checker's errors.
+/// None where the error names no item (it is then printed as a line).
+pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag::Diagnostic> {
+    use crate::lang::diag::Diagnostic;
+    use crate::lang::scene::Condition;
+    let places = &scene.source.places;
+    let body_at = |name: &str| {
+        let b = scene.bodies.iter().position(|b| b.name == name)?;
+        places.bodies.get(b).copied()
+    };
+    let message = error.to_string();
+    match error {
+        SolveError::Penetration { contact, depth, .. } => {
+            let c = scene.contacts.iter().position(|c| &c.name == contact)?;
+            let d = Diagnostic::new("cso::penetration", message).label(
+                *places.contacts.get(c)?,
+                format!(
+                    "its bodies overlap by up to {} m",
+                    crate::lang::diag::num(*depth)
+                ),
+            );
+            Some(d.help(
+                "move the secondary body out of the primary one, or flip the primary face or the obstacle's normal so that it points at the secondary body",
+            ))
+        }
+        SolveError::Unbalanced { body, .. } => {
+            let b = scene.bodies.iter().position(|x| &x.name == body)?;
+            let mut d = Diagnostic::new("cso::unbalanced", message).label(
+                *places.bodies.get(b)?,
+                "nothing holds this body against its load",
+            );
+            for (k, cond) in scene.conditions.iter().enumerate() {
+                let sel = match cond {
+                    Condition::Traction { sel, .. } | Condition::Pressure { sel, .. } => sel,
+                    _ => continue,
+                };
+                if sel.body == b {
+                    if let Some(at) = places.conditions.get(k) {
+                        d = d.label(*at, "this load");
+                    }
+                }
+            }
+            Some(d.help(
+                "add a support (`fix`, `symmetry`) or a contact that can push against the load, or check the load's sign",
+            ))
+        }
+        SolveError::Subdomain { body, .. } => {
+            Some(Diagnostic::new("cso::subdomain", message).label(body_at(body)?, "in this body"))
+        }
+        SolveError::Lower(crate::model::LowerError::Inverted { body, .. }) => Some(
+            Diagnostic::new("cso::inverted", message)
+                .label(body_at(body)?, "this body's mesh folds over at this design")
+                .help("check the body's faces and extents: `bottom` must stay below `top`"),
+        ),
+        _ => None,
+    }
+}
+
 /// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
 /// adds to the language checks; nothing is assembled or factorized); the
 /// warnings of the lowered problem on success.

@@ -633,9 +633,12 @@ fn bodies_that_start_inside_each_other_are_refused_by_check_and_solve() {
     for cmd in ["check", "solve"] {
         let (code, _, err) = cso(&[cmd, &sunk]);
         assert_eq!(code, 1, "{cmd}: {err}");
+        // Rendered on the scene like a checker error: the contact's line, labelled.
         assert!(
-            err.contains("the bodies of contact `seat` start inside each other")
-                && err.contains("at (1.5, 0.9) lies 0.1 m behind the primary side"),
+            err.contains("cso::penetration")
+                && err.contains("the bodies of contact `seat` start inside each other")
+                && err.contains("contact seat {")
+                && err.contains("its bodies overlap by up to 0.1 m"),
             "{cmd}: {err}"
         );
     }
@@ -663,12 +666,19 @@ fn check_refuses_a_load_that_nothing_can_carry() {
         "traction punch.top = (0, 5)",
         "pulled",
     );
-    let (code, _, err) = cso(&["check", &pulled.to_string_lossy()]);
-    assert_eq!(code, 1, "{err}");
-    assert!(
-        err.contains("the load on body `punch`") && err.contains("cannot be carried"),
-        "{err}"
-    );
+    for cmd in ["check", "solve"] {
+        let (code, _, err) = cso(&[cmd, &pulled.to_string_lossy()]);
+        assert_eq!(code, 1, "{err}");
+        assert!(
+            err.contains("the load on body `punch`") && err.contains("cannot be carried"),
+            "{err}"
+        );
+        if cmd == "check" {
+            // The body and its load are labelled on the scene's text.
+            let rendered = err.replace(&*pulled.to_string_lossy(), "pulled.cso");
+            insta::assert_snapshot!("unbalanced_load_on_the_scene", rendered);
+        }
+    }
 }
 
 #[test]

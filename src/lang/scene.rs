@@ -79,6 +79,19 @@ pub struct Source {
     /// Byte ranges of the text to replace when writing the scene again: each
     /// design item's `init` value, and each overridden `let` value.
     pub edits: Vec<Edit>,
+    /// Where the items are, so that errors found while solving point at them.
+    pub places: Places,
+}
+
+/// Byte spans of the scene's items (`keyword NAME`, or `keyword SELECTION` of a
+/// condition), in the order of the scene's lists: what a solve-time error
+/// (overlapping bodies, a load nothing holds, an inverted element) points at.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Places {
+    pub bodies: Vec<super::ast::Span>,
+    pub obstacles: Vec<super::ast::Span>,
+    pub contacts: Vec<super::ast::Span>,
+    pub conditions: Vec<super::ast::Span>,
 }
 
 /// A place in the source text that [`Source::with_design`] rewrites.

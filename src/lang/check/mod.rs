@@ -55,6 +55,7 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
             .collect(),
         text: src.into(),
         edits: std::mem::take(&mut checker.edits),
+        places: std::mem::take(&mut checker.places),
     };
     diag::sort(&mut diags);
     if diags.iter().any(Diagnostic::is_error) {
@@ -186,6 +187,8 @@ pub(crate) struct Checker<'a> {
     obstacles: Vec<Obstacle>,
     /// Per body, where its name, mesh and curved faces are written.
     body_spans: Vec<BodySpans>,
+    /// Item places of the scene being built (see [`crate::lang::scene::Places`]).
+    places: crate::lang::scene::Places,
     /// The parser reported errors: checks of the whole scene would guess.
     syntax_errors: bool,
     /// Where the objective is written (its expression), once checked.
@@ -217,6 +220,7 @@ impl<'a> Checker<'a> {
             bodies: Vec::new(),
             obstacles: Vec::new(),
             body_spans: Vec::new(),
+            places: Default::default(),
             syntax_errors: false,
             objective_at: None,
             constraint_at: Vec::new(),
@@ -451,9 +455,19 @@ impl<'a> Checker<'a> {
                         );
                     }
                 }
+                let at = Span::new(
+                    keyword.span.start,
+                    name.as_ref().map_or(keyword.span.end, |n| n.span.end),
+                );
                 match keyword.name.as_str() {
-                    "body" => self.body(name.as_ref(), body),
-                    "obstacle" => self.obstacle(name.as_ref(), body),
+                    "body" => {
+                        self.body(name.as_ref(), body);
+                        self.places.bodies.resize(self.bodies.len(), at);
+                    }
+                    "obstacle" => {
+                        self.obstacle(name.as_ref(), body);
+                        self.places.obstacles.resize(self.obstacles.len(), at);
+                    }
                     _ => {}
                 }
             }
@@ -474,6 +488,10 @@ impl<'a> Checker<'a> {
                     "contact" => {
                         if let Some(c) = self.contact(name.as_ref(), body) {
                             scene.contacts.push(c);
+                            self.places.contacts.push(Span::new(
+                                keyword.span.start,
+                                name.as_ref().map_or(keyword.span.end, |n| n.span.end),
+                            ));
                         }
                     }
                     "probe" => {
@@ -496,6 +514,9 @@ impl<'a> Checker<'a> {
                         self.condition(keyword, selection, fields.as_ref(), value.as_ref())
                     {
                         scene.conditions.push(c);
+                        self.places
+                            .conditions
+                            .push(Span::new(keyword.span.start, selection.span.end));
                     }
                 }
                 ItemKind::Gravity { value } => {
