@@ -634,3 +634,39 @@ fn hertz3d_pressure_along_the_radius_against_the_analytic_curve() {
     .expect("chart");
     std::fs::write(root().join("docs/hertz3d_pressure.svg"), svg).expect("writable");
 }
+
+/// (f) A slab pressed onto a convex dome of bilinear faces: the slab's nodes
+/// over the dome's edges project just off both neighbouring faces.
+const DOME: &str = "
+scene dome { dim = 3 }
+material soft { E = 1000, nu = 0.3 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 3, z = -0.5 .. 1,
+            top = 1 - 0.1 * ((x - 1.5)^2 + (y - 1.5)^2), mesh = 6 x 6 x 2, subdomains = 2 x 2 x 1 }
+body slab { material = soft, x = 0.55 .. 2.45, y = 0.55 .. 2.45, z = 1.001 .. 1.5,
+            mesh = 13 x 13 x 2 }
+fix base.bottom
+fix slab.top { ux, uy }
+traction slab.top = (0, 0, -50)
+contact seat { primary = base.top, secondary = slab.bottom, search = 1 }
+";
+
+#[test]
+fn every_node_over_a_convex_face_gets_a_contact_row_and_none_beyond_it() {
+    let scene = compile_scene(DOME);
+    let problem = lower(&scene, &[]).expect("lowers");
+    let contact_rows = |p: &Problem| {
+        p.rows
+            .iter()
+            .filter(|r| matches!(r.kind, RowKind::Contact { .. }))
+            .count()
+    };
+    // 14 x 14 nodes, all over the dome; some over its edges, off both faces.
+    assert_eq!(contact_rows(&problem), 14 * 14);
+    // The slab wider than the dome: the nodes beyond its rim get no row.
+    let wide = DOME.replace("x = 0.55 .. 2.45", "x = -0.45 .. 3.45");
+    let problem = lower(&compile_scene(&wide), &[]).expect("lowers");
+    // Slab nodes at x = -0.45 + 3.9 i / 13 = -0.45 + 0.3 i: i = 2 .. 11 are over x in [0, 3].
+    assert_eq!(contact_rows(&problem), 10 * 14);
+    // And the state meets the KKT conditions against the undecomposed reference.
+    check_method("dome", DOME, SolverMethod::Tfeti, 1e-8, 1e-6);
+}

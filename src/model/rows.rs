@@ -246,28 +246,83 @@ fn pieces_or_error<P: Piece<D, N>, const D: usize, const N: usize>(
     non_empty(selected_pieces(problem, sel, design), sel)
 }
 
+/// How many selected pieces share each of their sides: a node's sides are its
+/// nodes in 2D (segments meet at nodes), edges in 3D (quadrilaterals meet along
+/// them). A side shared by two pieces is inside the selection; by one, on its
+/// boundary.
+fn side_counts<P: Piece<D, N>, const D: usize, const N: usize>(
+    pieces: &[P],
+) -> HashMap<(usize, usize), usize> {
+    let mut counts = HashMap::new();
+    for piece in pieces {
+        let nodes = piece.nodes();
+        if N == 2 {
+            for n in nodes {
+                *counts.entry((n, n)).or_insert(0) += 1;
+            }
+        } else {
+            for k in 0..N {
+                let (a, b) = (nodes[k], nodes[(k + 1) % N]);
+                *counts.entry((a.min(b), a.max(b))).or_insert(0) += 1;
+            }
+        }
+    }
+    counts
+}
+
+/// Is the point of `piece` with shape weights `weights` (on the piece's
+/// boundary) inside the selection: on a side (or, in 3D, at a corner) that
+/// other selected pieces share?
+fn on_inner_side<P: Piece<D, N>, const D: usize, const N: usize>(
+    piece: &P,
+    weights: &[f64; N],
+    counts: &HashMap<(usize, usize), usize>,
+) -> bool {
+    let nodes = piece.nodes();
+    let on: Vec<usize> = (0..N).filter(|&k| weights[k].abs() > 1e-12).collect();
+    let shared = |a: usize, b: usize| counts.get(&(a.min(b), a.max(b))).copied().unwrap_or(0) > 1;
+    match on.as_slice() {
+        [k] if N == 2 => shared(nodes[*k], nodes[*k]),
+        // A corner of a quadrilateral: inside when both its edges are.
+        [k] => shared(nodes[*k], nodes[(k + 1) % N]) && shared(nodes[*k], nodes[(k + N - 1) % N]),
+        [a, b] if N > 2 => shared(nodes[*a], nodes[*b]),
+        _ => false,
+    }
+}
+
 /// The selected piece nearest to `p` among those its projection falls on
-/// (within 1e-9 of the facet's boundary), with the gap there; None when it
-/// falls on none.
+/// (within 1e-9 of the facet's boundary), with the gap there. A point whose
+/// projection falls on no piece but lies over a side shared by two pieces (a
+/// node over a convex kink of a curved face: its projections fall just off both
+/// neighbours) takes the nearest piece at its clamped projection, so that no
+/// node inside the face is left without a row; a point beyond the face's
+/// boundary gets None.
 fn nearest_piece<P: Piece<D, N>, const D: usize, const N: usize>(
     pos: &[Vec<[f64; D]>],
     pieces: &[P],
+    counts: &HashMap<(usize, usize), usize>,
     p: [f64; D],
 ) -> Option<(P, f64)> {
     let mut best: Option<(f64, P, f64)> = None;
+    let mut clamped: Option<(f64, P, f64, bool)> = None;
     for piece in pieces {
         let facet = piece.facet(pos);
         let at = facet.project(&p);
-        if !facet.inside(at, 1e-9) {
-            continue;
-        }
         let pr = project(&facet, &p, at);
         let dist = norm(&sub(&p, &pr.point));
-        if best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
-            best = Some((dist, *piece, pr.gap));
+        if facet.inside(at, 1e-9) {
+            if best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
+                best = Some((dist, *piece, pr.gap));
+            }
+        } else if dist.is_finite() && clamped.as_ref().is_none_or(|(d, ..)| dist < *d) {
+            let inner = on_inner_side(piece, &pr.weights, counts);
+            clamped = Some((dist, *piece, pr.gap, inner));
         }
     }
-    best.map(|(_, piece, gap)| (piece, gap))
+    // The nearest clamped point decides: beyond the boundary it is on a side
+    // that no other piece shares.
+    let clamped = clamped.and_then(|(d, piece, gap, inner)| inner.then_some((d, piece, gap)));
+    best.or(clamped).map(|(_, piece, gap)| (piece, gap))
 }
 
 /// `glue` ties: each secondary node follows its projection on the primary face.
@@ -280,10 +335,11 @@ fn ties<P: Piece<D, N> + Named, const D: usize, const N: usize>(
 ) -> Result<(), LowerError> {
     for (g, glue) in scene.glues.iter().enumerate() {
         let pieces: Vec<P> = pieces_or_error(problem, &glue.primary, design)?;
+        let counts = side_counts(&pieces);
         let body = glue.secondary.body;
         for node in nodes_or_error(problem, &glue.secondary, design)? {
             let p = pos[body][node];
-            let Some((piece, _)) = nearest_piece(pos, &pieces, p) else {
+            let Some((piece, _)) = nearest_piece(pos, &pieces, &counts, p) else {
                 continue;
             };
             for comp in 0..D {
@@ -334,7 +390,11 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             .search
             .unwrap_or_else(|| default_search(problem, sec.body));
         let primary = match &contact.primary {
-            Primary::Face(p) => Side::Facets(pieces_or_error::<P, D, N>(problem, p, design)?),
+            Primary::Face(p) => {
+                let pieces = pieces_or_error::<P, D, N>(problem, p, design)?;
+                let counts = side_counts(&pieces);
+                Side::Facets(pieces, counts)
+            }
             Primary::Obstacle(o) => {
                 Side::Obstacle(*o, ObstacleShape::at(&scene.obstacles[*o], design))
             }
@@ -348,8 +408,8 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             let p = pos[sec.body][node];
             let area = areas.get(&node).copied().unwrap_or(0.0);
             let (e, normal, gap, primary) = match &primary {
-                Side::Facets(pieces) => {
-                    let Some((piece, gap)) = nearest_piece(pos, pieces, p) else {
+                Side::Facets(pieces, counts) => {
+                    let Some((piece, gap)) = nearest_piece(pos, pieces, counts, p) else {
                         continue;
                     };
                     if gap.abs() > search {
@@ -408,6 +468,7 @@ type ContactFindings = (Vec<Penetration>, Vec<(usize, f64)>);
 
 /// The primary side of a contact, as lowering searches it.
 enum Side<P, const D: usize> {
-    Facets(Vec<P>),
+    /// The primary face's pieces and how many of them share each side.
+    Facets(Vec<P>, HashMap<(usize, usize), usize>),
     Obstacle(usize, ObstacleShape<f64, D>),
 }
