@@ -1,0 +1,159 @@
+//! The communication a [`super::cluster::Cluster`] needs when its subdomains
+//! are spread over processes, behind one small trait: [`Serial`] (one process,
+//! every collective a copy) and, with the `mpi` feature, [`super::mpi::Mpi`].
+//!
+//! Only collectives that give bitwise the same result whatever the number of
+//! ranks: gathers of per-subdomain parts (the caller then sums them in
+//! subdomain order, exactly as the serial loop does) and integer reductions
+//! (exact in any order). Floating-point sums are never reduced across ranks,
+//! because MPI may add partial sums in any order and the rounding would then
+//! depend on the rank count.
+
+use std::sync::Arc;
+
+/// An integer reduction.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Op {
+    Sum,
+    Min,
+    Max,
+}
+
+/// What the collectives cost so far on this rank.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Stats {
+    /// Collective calls.
+    pub calls: u64,
+    /// Wall seconds inside them (waiting for slower ranks included).
+    pub seconds: f64,
+    /// Bytes received.
+    pub bytes: u64,
+}
+
+/// The collectives of a group of ranks that each own a contiguous range of
+/// subdomains. Every rank must make the same calls in the same order.
+pub trait Comm: Send + Sync {
+    fn rank(&self) -> usize;
+    fn size(&self) -> usize;
+    /// Every rank's `local` concatenated in rank order; `counts[r]` is the
+    /// length of rank `r`'s part (the same on every rank).
+    fn all_gather(&self, local: &[f64], counts: &[usize]) -> Vec<f64>;
+    /// [`Comm::all_gather`] of integers.
+    fn all_gather_u64(&self, local: &[u64], counts: &[usize]) -> Vec<u64>;
+    /// Element-wise integer reduction, the result on every rank.
+    fn all_reduce_u64(&self, x: &mut [u64], op: Op);
+    /// `bytes` of rank `root` on every rank (resized as needed).
+    fn broadcast(&self, root: usize, bytes: &mut Vec<u8>);
+    /// The cost of the collectives so far.
+    fn stats(&self) -> Stats;
+}
+
+/// One process owns everything: collectives are copies.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Serial;
+
+impl Comm for Serial {
+    fn rank(&self) -> usize {
+        0
+    }
+    fn size(&self) -> usize {
+        1
+    }
+    fn all_gather(&self, local: &[f64], _counts: &[usize]) -> Vec<f64> {
+        local.to_vec()
+    }
+    fn all_gather_u64(&self, local: &[u64], _counts: &[usize]) -> Vec<u64> {
+        local.to_vec()
+    }
+    fn all_reduce_u64(&self, _x: &mut [u64], _op: Op) {}
+    fn broadcast(&self, _root: usize, _bytes: &mut Vec<u8>) {}
+    fn stats(&self) -> Stats {
+        Stats::default()
+    }
+}
+
+/// The serial communicator, shared.
+pub fn serial() -> Arc<dyn Comm> {
+    Arc::new(Serial)
+}
+
+/// Why subdomains cannot be spread over the ranks.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct PartitionError {
+    pub subdomains: usize,
+    pub ranks: usize,
+}
+
+impl std::fmt::Display for PartitionError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} MPI ranks for {} subdomains: every rank needs at least one subdomain; run with at most {} ranks (`mpirun -n {}`) or cut the bodies into more blocks",
+            self.ranks, self.subdomains, self.subdomains, self.subdomains
+        )
+    }
+}
+
+/// Contiguous ranges of subdomains, one per rank, balanced by `weights` (the
+/// subdomains' dof counts): rank `r` owns `bounds[r]..bounds[r + 1]`. Each
+/// cut is put where the running weight is nearest `r / ranks` of the total,
+/// every rank keeping at least one subdomain. Contiguous ranges keep the
+/// gathered parts in subdomain order.
+pub fn partition(weights: &[usize], ranks: usize) -> Result<Vec<usize>, PartitionError> {
+    let n = weights.len();
+    if ranks == 0 || ranks > n {
+        return Err(PartitionError {
+            subdomains: n,
+            ranks,
+        });
+    }
+    let mut prefix = vec![0u128; n + 1];
+    for (s, &w) in weights.iter().enumerate() {
+        prefix[s + 1] = prefix[s] + w as u128;
+    }
+    let total = prefix[n];
+    let p = ranks as u128;
+    let mut bounds = vec![0; ranks + 1];
+    bounds[ranks] = n;
+    for r in 1..ranks {
+        // The cut whose running weight is nearest r/P of the total (times P).
+        let target = r as u128 * total;
+        let dist = |s: usize| (prefix[s] * p).abs_diff(target);
+        let lo = bounds[r - 1] + 1;
+        let hi = n - (ranks - r);
+        let mut best = lo;
+        for s in lo..=hi {
+            if dist(s) < dist(best) {
+                best = s;
+            }
+        }
+        bounds[r] = best;
+    }
+    Ok(bounds)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn partition_balances_by_weight_and_keeps_every_rank_busy() {
+        assert_eq!(partition(&[10; 8], 2).unwrap(), vec![0, 4, 8]);
+        assert_eq!(partition(&[10; 8], 4).unwrap(), vec![0, 2, 4, 6, 8]);
+        assert_eq!(partition(&[10; 8], 1).unwrap(), vec![0, 8]);
+        // One heavy subdomain gets a rank to itself.
+        assert_eq!(partition(&[100, 1, 1, 1, 1], 2).unwrap(), vec![0, 1, 5]);
+        // Every rank keeps one even when the weights say otherwise.
+        assert_eq!(partition(&[100, 1, 1], 3).unwrap(), vec![0, 1, 2, 3]);
+        assert_eq!(partition(&[1, 1, 100], 3).unwrap(), vec![0, 1, 2, 3]);
+        let e = partition(&[1, 1], 3).unwrap_err();
+        assert_eq!(
+            e,
+            PartitionError {
+                subdomains: 2,
+                ranks: 3
+            }
+        );
+        assert!(e.to_string().contains("at most 2 ranks"), "{e}");
+    }
+}
