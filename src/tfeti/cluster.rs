@@ -52,6 +52,9 @@ pub struct Cluster {
     m: usize,
     /// One per owned subdomain.
     work: Vec<Mutex<Work>>,
+    /// Nonzeros of every rank's Cholesky factors (summed once, at set-up, so
+    /// that reports need no collective).
+    factor_nonzeros: usize,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -151,7 +154,10 @@ impl Cluster {
                 })
             })
             .collect();
+        let mut nnz = [subs.iter().map(|s| s.factor_nonzeros() as u64).sum()];
+        comm.all_reduce_u64(&mut nnz, Op::Sum);
         Cluster {
+            factor_nonzeros: nnz[0] as usize,
             subs,
             first,
             comm,
@@ -201,6 +207,15 @@ impl Cluster {
     /// The subdomains this rank owns (global indices).
     pub fn owned(&self) -> std::ops::Range<usize> {
         self.first..self.first + self.subs.len()
+    }
+
+    /// Local rows of each rank's subdomains in all (the layout of a gathered
+    /// row vector).
+    pub fn rows_per_rank(&self) -> Vec<usize> {
+        self.bounds
+            .windows(2)
+            .map(|w| self.row_start[w[1]] - self.row_start[w[0]])
+            .collect()
     }
 
     /// Every rank's part of a vector with `len(s)` entries per subdomain,
@@ -299,9 +314,7 @@ impl Cluster {
 
     /// Nonzeros of all Cholesky factors (of every rank).
     pub fn factor_nonzeros(&self) -> usize {
-        let mut n = [self.subs.iter().map(|s| s.factor_nonzeros() as u64).sum()];
-        self.comm.all_reduce_u64(&mut n, Op::Sum);
-        n[0] as usize
+        self.factor_nonzeros
     }
 
     /// Classical FETI: how much room its eps had (None in TFETI; the owned

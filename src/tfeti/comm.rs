@@ -77,6 +77,44 @@ pub fn serial() -> Arc<dyn Comm> {
     Arc::new(Serial)
 }
 
+/// The failure of the lowest failing rank, the same on every rank.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RankFailure {
+    pub rank: usize,
+    /// What that rank's error says.
+    pub message: String,
+}
+
+/// Agrees on the outcome of a phase that each rank ran on its own part (the
+/// set-up of its subdomains): `Ok` on every rank when all succeeded, else the
+/// lowest failing rank's message on every rank, so that all stop with the
+/// same message and none waits in a later collective for a rank that has
+/// left. Collective; one integer all-reduce when all succeed.
+pub fn agree<T, E: std::fmt::Display>(comm: &dyn Comm, r: Result<T, E>) -> Result<T, RankFailure> {
+    let me = match &r {
+        Ok(_) => comm.size() as u64,
+        Err(_) => comm.rank() as u64,
+    };
+    let mut first = [me];
+    comm.all_reduce_u64(&mut first, Op::Min);
+    let root = first[0] as usize;
+    if root >= comm.size() {
+        return r.map_err(|e| RankFailure {
+            rank: comm.rank(),
+            message: e.to_string(),
+        });
+    }
+    let mut bytes = match &r {
+        Err(e) if comm.rank() == root => e.to_string().into_bytes(),
+        _ => Vec::new(),
+    };
+    comm.broadcast(root, &mut bytes);
+    Err(RankFailure {
+        rank: root,
+        message: String::from_utf8_lossy(&bytes).into_owned(),
+    })
+}
+
 /// Why subdomains cannot be spread over the ranks.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PartitionError {

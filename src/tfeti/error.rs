@@ -51,6 +51,9 @@ pub enum SolveError {
         load: Vec<f64>,
         why: String,
     },
+    /// Distributed runs: what the lowest failing rank reported, the same on
+    /// every rank.
+    Rank(super::comm::RankFailure),
 }
 
 impl fmt::Display for SolveError {
@@ -99,6 +102,7 @@ impl fmt::Display for SolveError {
                     .join(", "),
                 crate::lang::diag::num(*depth)
             ),
+            SolveError::Rank(r) => write!(f, "MPI rank {}: {}", r.rank, r.message),
             SolveError::Unbalanced { body, load, why } => write!(
                 f,
                 "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",

@@ -26,17 +26,16 @@ pub fn launched() -> bool {
     .any(|v| std::env::var_os(v).is_some())
 }
 
-/// `MPI_COMM_WORLD` with the cost of its collectives. Keep it alive until the
-/// end of `main`: dropping it finalizes MPI.
+/// `MPI_COMM_WORLD` with the cost of its collectives.
 pub struct Mpi {
     stats: Mutex<Stats>,
-    _universe: Universe,
 }
 
 impl Mpi {
     /// Initializes MPI. Collectives come from one thread at a time (the
-    /// thread that runs the solve), which `Serialized` allows.
-    pub fn init() -> Result<Mpi, String> {
+    /// thread that runs the solve), which `Serialized` allows. Keep the
+    /// universe until the end of `main`: dropping it finalizes MPI.
+    pub fn init() -> Result<(Mpi, Universe), String> {
         let (universe, threading) = mpi::initialize_with_threading(Threading::Serialized)
             .ok_or_else(|| "MPI was initialized twice".to_string())?;
         if threading < Threading::Serialized {
@@ -44,10 +43,12 @@ impl Mpi {
                 "the MPI library gives thread support {threading:?}, cso needs Serialized"
             ));
         }
-        Ok(Mpi {
-            stats: Mutex::new(Stats::default()),
-            _universe: universe,
-        })
+        Ok((
+            Mpi {
+                stats: Mutex::new(Stats::default()),
+            },
+            universe,
+        ))
     }
 
     /// `MPI_COMM_WORLD` (a handle, made per call: the handle type is not `Send`).
