@@ -479,12 +479,7 @@ fn solve_on(
 ) -> Result<State, SolveError> {
     let t0 = Instant::now();
     let mut times = Times::default();
-    let setup = setup_on(
-        scene,
-        design,
-        previous.filter(|_| factorizations),
-        comm,
-    )?;
+    let setup = setup_on(scene, design, previous.filter(|_| factorizations), comm)?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 

@@ -8,6 +8,8 @@ mod feti;
 mod front_end;
 mod fuzz;
 mod hard;
+#[cfg(feature = "mpi")]
+mod mpi;
 mod optimize;
 mod reference;
 mod schema;
