@@ -316,7 +316,7 @@ fn fail(code: u8, msg: impl Display) -> u8 {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    let (ranks, universe) = match start_mpi() {
+    let (ranks, _universe) = match start_mpi() {
         Ok(r) => r,
         Err(code) => return ExitCode::from(code),
     };
@@ -343,8 +343,7 @@ fn main() -> ExitCode {
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
     };
-    drop(ranks);
-    drop(universe);
+    // `_universe` (MPI's) lives to the end of `main`: dropping it finalizes MPI.
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(code) => ExitCode::from(code),
