@@ -11,6 +11,7 @@ mod hard;
 #[cfg(feature = "mpi")]
 mod mpi;
 mod optimize;
+mod ranks;
 mod reference;
 mod schema;
 mod sensitivity;

@@ -77,6 +77,86 @@ pub fn serial() -> Arc<dyn Comm> {
     Arc::new(Serial)
 }
 
+/// Ranks as threads of one process: `ranks(p)` gives `p` communicators over
+/// shared memory with the semantics of the MPI ones, so that the distributed
+/// code paths are tested (and can be compared bit for bit with the serial
+/// ones) by `cargo test`, without MPI. Run each rank's work on its own thread.
+pub struct ThreadRank {
+    rank: usize,
+    shared: Arc<Shared>,
+}
+
+struct Shared {
+    size: usize,
+    barrier: std::sync::Barrier,
+    /// One slot per rank for the data of the collective under way.
+    slots: std::sync::Mutex<Vec<Vec<u64>>>,
+}
+
+/// `p` thread ranks sharing one group.
+pub fn thread_ranks(p: usize) -> Vec<ThreadRank> {
+    let shared = Arc::new(Shared {
+        size: p,
+        barrier: std::sync::Barrier::new(p),
+        slots: std::sync::Mutex::new(vec![Vec::new(); p]),
+    });
+    (0..p)
+        .map(|rank| ThreadRank {
+            rank,
+            shared: shared.clone(),
+        })
+        .collect()
+}
+
+impl ThreadRank {
+    /// Every rank's `mine`, in rank order (bits, so f64 passes unchanged).
+    fn exchange(&self, mine: Vec<u64>) -> Vec<Vec<u64>> {
+        let lock = || match self.shared.slots.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        lock()[self.rank] = mine;
+        self.shared.barrier.wait();
+        let all = lock().clone();
+        self.shared.barrier.wait();
+        all
+    }
+}
+
+impl Comm for ThreadRank {
+    fn rank(&self) -> usize {
+        self.rank
+    }
+    fn size(&self) -> usize {
+        self.shared.size
+    }
+    fn all_gather(&self, local: &[f64], _counts: &[usize]) -> Vec<f64> {
+        let all = self.exchange(local.iter().map(|x| x.to_bits()).collect());
+        all.concat().into_iter().map(f64::from_bits).collect()
+    }
+    fn all_gather_u64(&self, local: &[u64], _counts: &[usize]) -> Vec<u64> {
+        self.exchange(local.to_vec()).concat()
+    }
+    fn all_reduce_u64(&self, x: &mut [u64], op: Op) {
+        let all = self.exchange(x.to_vec());
+        for (i, v) in x.iter_mut().enumerate() {
+            let it = all.iter().map(|r| r[i]);
+            *v = match op {
+                Op::Sum => it.sum(),
+                Op::Min => it.min().unwrap_or(0),
+                Op::Max => it.max().unwrap_or(0),
+            };
+        }
+    }
+    fn broadcast(&self, root: usize, bytes: &mut Vec<u8>) {
+        let all = self.exchange(bytes.iter().map(|&b| b as u64).collect());
+        *bytes = all[root].iter().map(|&b| b as u8).collect();
+    }
+    fn stats(&self) -> Stats {
+        Stats::default()
+    }
+}
+
 /// The failure of the lowest failing rank, the same on every rank.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct RankFailure {
