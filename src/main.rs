@@ -401,6 +401,19 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, u8> {
         .map_err(|e| fail(EXIT_IO, format!("cannot start threads: {e}")))
 }
 
+/// Under `mpirun` without `--threads`: the cores shared among the ranks on
+/// this node (OpenMPI's `OMPI_COMM_WORLD_LOCAL_SIZE`), at least one, instead of
+/// every rank starting a thread per core.
+fn threads_per_rank() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let local = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(1);
+    (cores / local).max(1)
+}
+
 /// `--quiet`: no progress output at all.
 static QUIET: AtomicBool = AtomicBool::new(false);
 
@@ -590,7 +603,10 @@ impl Solve {
             Ok(())
         };
         together(ranks, prepared)?;
-        let pool = together(ranks, thread_pool(self.threads))?;
+        let threads = self
+            .threads
+            .or_else(|| ranks.as_ref().map(|_| threads_per_rank()));
+        let pool = together(ranks, thread_pool(threads))?;
         let bar = Progress::spinner("solve");
         let t0 = Instant::now();
         let result = pool.install(|| {
