@@ -254,6 +254,58 @@ pub fn partition(weights: &[usize], ranks: usize) -> Result<Vec<usize>, Partitio
 mod tests {
     use super::*;
 
+    /// `f(rank)` on `p` thread ranks, results in rank order.
+    fn on_threads<T: Send>(p: usize, f: impl Fn(&dyn Comm) -> T + Sync) -> Vec<T> {
+        std::thread::scope(|s| {
+            let f = &f;
+            let hs: Vec<_> = thread_ranks(p)
+                .into_iter()
+                .map(|r| s.spawn(move || f(&r)))
+                .collect();
+            hs.into_iter().map(|h| h.join().unwrap()).collect()
+        })
+    }
+
+    #[test]
+    fn every_rank_gets_the_lowest_failing_ranks_message() {
+        let out = on_threads(4, |c| {
+            let r: Result<usize, String> = match c.rank() {
+                1 | 3 => Err(format!("rank {} failed", c.rank())),
+                r => Ok(r),
+            };
+            agree(c, r)
+        });
+        for o in out {
+            assert_eq!(
+                o,
+                Err(RankFailure {
+                    rank: 1,
+                    message: "rank 1 failed".into()
+                })
+            );
+        }
+        let out = on_threads(3, |c| agree(c, Ok::<usize, String>(c.rank())));
+        assert_eq!(out, vec![Ok(0), Ok(1), Ok(2)]);
+    }
+
+    #[test]
+    fn thread_ranks_gather_in_rank_order_and_reduce_integers() {
+        let out = on_threads(3, |c| {
+            let mine: Vec<f64> = (0..c.rank()).map(|i| (10 * c.rank() + i) as f64).collect();
+            let all = c.all_gather(&mine, &[0, 1, 2]);
+            let mut x = [c.rank() as u64 + 1, 7 - c.rank() as u64];
+            c.all_reduce_u64(&mut x, Op::Sum);
+            let mut m = [c.rank() as u64 + 5];
+            c.all_reduce_u64(&mut m, Op::Max);
+            (all, x, m)
+        });
+        for (all, x, m) in out {
+            assert_eq!(all, vec![10.0, 20.0, 21.0]);
+            assert_eq!(x, [6, 18]);
+            assert_eq!(m, [7]);
+        }
+    }
+
     #[test]
     fn partition_balances_by_weight_and_keeps_every_rank_busy() {
         assert_eq!(partition(&[10; 8], 2).unwrap(), vec![0, 4, 8]);
