@@ -367,6 +367,32 @@ fn setup_on(
     })
 }
 
+/// Distributed runs: the replicated dual solution (multipliers and counts)
+/// must be the same bits on every rank; a difference (ranks on CPUs that round
+/// differently) is reported, never a state that is wrong on some ranks. Two
+/// integer all-reduces of a hash.
+fn same_on_every_rank(comm: &dyn Comm, sol: &DualSolution) -> Result<(), SolveError> {
+    if comm.size() < 2 {
+        return Ok(());
+    }
+    let fnv = |h: u64, x: u64| (h ^ x).wrapping_mul(0x0100_0000_01b3);
+    let h = sol
+        .lambda
+        .iter()
+        .chain(&sol.alpha)
+        .map(|x| x.to_bits())
+        .chain([sol.info.hessian_applications as u64])
+        .fold(0xcbf2_9ce4_8422_2325, fnv);
+    let (mut lo, mut hi) = ([h], [h]);
+    comm.all_reduce_u64(&mut lo, Op::Min);
+    comm.all_reduce_u64(&mut hi, Op::Max);
+    if lo == hi {
+        Ok(())
+    } else {
+        Err(SolveError::RanksDiverged)
+    }
+}
+
 /// Distributed runs only: whether `CSO_MPI_FAIL_RANK` names this rank, making
 /// its first subdomain `s` fail as a singular factorization would (the test of
 /// a rank that fails while the others succeed).
@@ -558,6 +584,7 @@ fn solve_on(
             e => e,
         })?;
     times.solve = t.elapsed().as_secs_f64();
+    same_on_every_rank(&**system.dual().cluster().comm(), &sol)?;
     let DualSolution {
         lambda,
         u,
@@ -643,5 +670,53 @@ impl State {
             .zip(&self.u)
             .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
             .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tfeti::comm::thread_ranks;
+
+    fn solution(lambda: Vec<f64>) -> DualSolution {
+        DualSolution {
+            lambda,
+            u: Vec::new(),
+            alpha: vec![1.0],
+            info: QpInfo {
+                status: Status::Converged,
+                outer_iterations: 1,
+                inner_iterations: 2,
+                hessian_applications: 3,
+                projected_gradient: 0.0,
+                feasibility: 0.0,
+                history: Vec::new(),
+                norm_estimate: 1.0,
+            },
+            b_norm: 1.0,
+        }
+    }
+
+    #[test]
+    fn ranks_whose_multipliers_differ_in_one_bit_are_refused() {
+        let check = |bump: bool| -> Vec<bool> {
+            std::thread::scope(|s| {
+                let hs: Vec<_> = thread_ranks(3)
+                    .into_iter()
+                    .map(|r| {
+                        s.spawn(move || {
+                            let mut l: Vec<f64> = vec![0.5, 2.0];
+                            if bump && r.rank() == 2 {
+                                l[1] = f64::from_bits(l[1].to_bits() + 1);
+                            }
+                            same_on_every_rank(&r, &solution(l)).is_ok()
+                        })
+                    })
+                    .collect();
+                hs.into_iter().map(|h| h.join().unwrap()).collect()
+            })
+        };
+        assert_eq!(check(false), vec![true; 3]);
+        assert_eq!(check(true), vec![false; 3]);
     }
 }

@@ -54,6 +54,8 @@ pub enum SolveError {
     /// Distributed runs: what the lowest failing rank reported, the same on
     /// every rank.
     Rank(super::comm::RankFailure),
+    /// Distributed runs: the ranks' replicated dual solutions differ.
+    RanksDiverged,
 }
 
 impl fmt::Display for SolveError {
@@ -103,6 +105,10 @@ impl fmt::Display for SolveError {
                 crate::lang::diag::num(*depth)
             ),
             SolveError::Rank(r) => write!(f, "MPI rank {}: {}", r.rank, r.message),
+            SolveError::RanksDiverged => write!(
+                f,
+                "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"
+            ),
             SolveError::Unbalanced { body, load, why } => write!(
                 f,
                 "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",
