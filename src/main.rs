@@ -9,6 +9,7 @@ use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
+use cso::tfeti::comm::Comm;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::fmt::Display;
 use std::io::{IsTerminal, Write};
@@ -239,17 +240,65 @@ fn parse_set(s: &str) -> Result<(String, String), String> {
 }
 
 // Writes that ignore a closed pipe (`cso check ... | head`) instead of panicking.
+// Under `mpirun`, ranks other than 0 print nothing (MUTE): they compute the
+// same results and stop with the same errors as rank 0.
 macro_rules! out {
-    ($($t:tt)*) => {{ let _ = write!(std::io::stdout(), $($t)*); }};
+    ($($t:tt)*) => {{ if !MUTE.load(Ordering::Relaxed) { let _ = write!(std::io::stdout(), $($t)*); } }};
 }
 macro_rules! outln {
-    ($($t:tt)*) => {{ let _ = writeln!(std::io::stdout(), $($t)*); }};
+    ($($t:tt)*) => {{ if !MUTE.load(Ordering::Relaxed) { let _ = writeln!(std::io::stdout(), $($t)*); } }};
 }
 macro_rules! err {
-    ($($t:tt)*) => {{ let _ = write!(std::io::stderr(), $($t)*); }};
+    ($($t:tt)*) => {{ if !MUTE.load(Ordering::Relaxed) { let _ = write!(std::io::stderr(), $($t)*); } }};
 }
 macro_rules! errln {
-    ($($t:tt)*) => {{ let _ = writeln!(std::io::stderr(), $($t)*); }};
+    ($($t:tt)*) => {{ if !MUTE.load(Ordering::Relaxed) { let _ = writeln!(std::io::stderr(), $($t)*); } }};
+}
+
+/// Set on MPI ranks other than 0.
+static MUTE: AtomicBool = AtomicBool::new(false);
+
+/// The ranks of an `mpirun` launch (None: a plain run).
+type Ranks = Option<Arc<dyn Comm>>;
+
+/// With the `mpi` feature and under an MPI launcher: MPI started (the
+/// universe finalizes MPI when dropped, at the end of `main`) and its ranks.
+#[cfg(feature = "mpi")]
+fn start_mpi() -> Result<(Ranks, Option<mpi::environment::Universe>), u8> {
+    if !cso::tfeti::mpi::launched() {
+        return Ok((None, None));
+    }
+    let (comm, universe) = cso::tfeti::mpi::Mpi::init()
+        .map_err(|e| fail(EXIT_IO, format!("cannot start MPI: {e}")))?;
+    let comm: Arc<dyn Comm> = Arc::new(comm);
+    // CSO_MPI_ALL_RANKS: every rank prints (tests check that all stop alike).
+    let all = std::env::var_os("CSO_MPI_ALL_RANKS").is_some();
+    MUTE.store(comm.rank() > 0 && !all, Ordering::Relaxed);
+    Ok((Some(comm), Some(universe)))
+}
+
+#[cfg(not(feature = "mpi"))]
+fn start_mpi() -> Result<(Ranks, Option<()>), u8> {
+    Ok((None, None))
+}
+
+/// Distributed runs: every rank gets the outcome of the lowest failing rank
+/// (its exit code), so that no rank goes on into a collective the others
+/// left; a plain run passes `r` through.
+fn together<T>(ranks: &Ranks, r: Result<T, u8>) -> Result<T, u8> {
+    let Some(comm) = ranks.as_ref().filter(|c| c.size() > 1) else {
+        return r;
+    };
+    cso::tfeti::comm::agree(&**comm, r).map_err(|f| {
+        if f.rank != 0 {
+            errln!(
+                "error: MPI rank {} stopped (exit code {})",
+                f.rank,
+                f.message
+            );
+        }
+        f.message.parse().unwrap_or(EXIT_IO)
+    })
 }
 
 /// Exit codes: 0 success, 1 errors in a scene, 2 I/O or usage errors.
@@ -280,7 +329,11 @@ fn fail_solve(file: &dyn Display, scene: &Scene, e: &cso::state::SolveError) -> 
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    QUIET.store(cli.quiet, Ordering::Relaxed);
+    let (ranks, _universe) = match start_mpi() {
+        Ok(r) => r,
+        Err(code) => return ExitCode::from(code),
+    };
+    QUIET.store(cli.quiet || MUTE.load(Ordering::Relaxed), Ordering::Relaxed);
     let opts = CheckOptions {
         overrides: cli.set.clone(),
         memory_limit: match cli.memory_limit {
@@ -290,8 +343,12 @@ fn main() -> ExitCode {
         },
     };
     let outcome = match &cli.command {
+        Command::Solve(c) => c.run(&opts, &ranks),
+        _ if ranks.as_ref().is_some_and(|c| c.size() > 1) => Err(fail(
+            EXIT_IO,
+            "only `cso solve` runs distributed over MPI ranks yet (sensitivities and optimization do not); run this command without mpirun",
+        )),
         Command::Check(c) => c.run(&opts),
-        Command::Solve(c) => c.run(&opts),
         Command::Sensitivity(c) => c.run(&opts),
         Command::Optimize(c) => c.run(&opts),
         Command::Compare(c) => c.run(&opts),
@@ -299,6 +356,7 @@ fn main() -> ExitCode {
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
     };
+    // `_universe` (MPI's) lives to the end of `main`: dropping it finalizes MPI.
     match outcome {
         Ok(()) => ExitCode::SUCCESS,
         Err(code) => ExitCode::from(code),
@@ -354,6 +412,19 @@ fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool, u8> {
         .num_threads(threads.unwrap_or(0))
         .build()
         .map_err(|e| fail(EXIT_IO, format!("cannot start threads: {e}")))
+}
+
+/// Under `mpirun` without `--threads`: the cores shared among the ranks on
+/// this node (OpenMPI's `OMPI_COMM_WORLD_LOCAL_SIZE`), at least one, instead of
+/// every rank starting a thread per core.
+fn threads_per_rank() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let local = std::env::var("OMPI_COMM_WORLD_LOCAL_SIZE")
+        .ok()
+        .and_then(|v| v.parse::<usize>().ok())
+        .filter(|&n| n > 0)
+        .unwrap_or(1);
+    (cores / local).max(1)
 }
 
 /// `--quiet`: no progress output at all.
@@ -528,20 +599,44 @@ impl Compile {
 }
 
 impl Solve {
-    /// The state solve with a progress line, the summary, and the files.
-    fn run(&self, opts: &CheckOptions) -> Outcome {
-        let (mut scene, file) = (load(&self.file, opts)?, self.file.display());
+    /// The state solve with a progress line, the summary, and the files; under
+    /// `mpirun`, the subdomains spread over the ranks and rank 0 writing.
+    fn run(&self, opts: &CheckOptions, ranks: &Ranks) -> Outcome {
+        let lead = ranks.as_ref().is_none_or(|c| c.rank() == 0);
+        let (mut scene, file) = (
+            together(ranks, load(&self.file, opts))?,
+            self.file.display(),
+        );
         if let Some(p) = self.preconditioner {
             scene.solver.preconditioner = p;
         }
-        prepare(self.out.as_deref())?;
-        let pool = thread_pool(self.threads)?;
+        let prepared = if lead {
+            prepare(self.out.as_deref())
+        } else {
+            Ok(())
+        };
+        together(ranks, prepared)?;
+        let threads = self
+            .threads
+            .or_else(|| ranks.as_ref().map(|_| threads_per_rank()));
+        let pool = together(ranks, thread_pool(threads))?;
         let bar = Progress::spinner("solve");
+        let t0 = Instant::now();
         let result = pool.install(|| {
-            cso::state::solve(&scene, &scene.design_init(), &mut |info| {
-                bar.update(|| tables::solve_progress(info));
-            })
+            let mut observer = |info: &cso::qp::QpInfo| bar.update(|| tables::solve_progress(info));
+            match ranks {
+                Some(comm) => cso::state::solve_distributed(
+                    &scene,
+                    &scene.design_init(),
+                    comm.clone(),
+                    &mut observer,
+                ),
+                None => cso::state::solve(&scene, &scene.design_init(), &mut observer),
+            }
         });
+        if let Some(comm) = ranks {
+            print_comm_stats(&**comm, t0.elapsed().as_secs_f64());
+        }
         bar.finish();
         let state = result.map_err(|e| fail_solve(&file, &scene, &e))?;
         for w in cso::state::warnings(&scene, &state.problem) {
@@ -549,7 +644,7 @@ impl Solve {
         }
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
-        if let Some(dir) = &self.out {
+        if let Some(dir) = self.out.as_ref().filter(|_| lead) {
             cso::io::report::write_all(dir, &scene, &state, &report).map_err(|e| {
                 let msg = format!("cannot write results to {}: {e}", dir.display());
                 fail(EXIT_IO, msg)
@@ -564,6 +659,28 @@ impl Solve {
         }
         Ok(())
     }
+}
+
+/// Rank 0 prints, on stderr, each rank's time in collectives against the
+/// solve's wall time (unless `--quiet`; collective: every rank calls it,
+/// whatever it prints).
+fn print_comm_stats(comm: &dyn Comm, total: f64) {
+    let s = comm.stats();
+    let p = comm.size();
+    let all = comm.all_gather(&[s.seconds, s.calls as f64, s.bytes as f64], &vec![3; p]);
+    let parts: Vec<String> = all
+        .chunks(3)
+        .map(|c| format!("{:.3} s ({:.0}%)", c[0], 100.0 * c[0] / total.max(1e-12)))
+        .collect();
+    if QUIET.load(Ordering::Relaxed) {
+        return;
+    }
+    errln!(
+        "mpi: {p} ranks, solve {total:.3} s; in collectives ({:.0} calls, {:.1} MB received per rank): {}",
+        all[1],
+        all[2] / 1e6,
+        parts.join(", ")
+    );
 }
 
 impl Export {

@@ -8,13 +8,14 @@ use crate::model::{lower, Problem};
 use crate::qp::{QpInfo, SmalbeSettings, Status};
 use crate::tfeti::classical::{DualSystem, Elimination};
 use crate::tfeti::cluster::Cluster;
+use crate::tfeti::comm::{agree, partition, serial, Comm, Op};
 use crate::tfeti::dual::Dual;
 pub use crate::tfeti::error::{CoarseError, SolveError};
 use crate::tfeti::kkt::kkt;
 pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::DualSolution;
-use crate::tfeti::subdomain::{Geometry, Kind, Subdomain};
+use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -86,10 +87,7 @@ fn name_modes(problem: &Problem, cluster: &Cluster, modes: &[(usize, usize)]) ->
             let sub = &problem.subdomains[s];
             let name = &problem.bodies[sub.body].name;
             match cluster.detection(s) {
-                None => format!(
-                    "body `{name}` ({}) ",
-                    mode_name(cluster.subdomain(s).dim(), m)
-                ),
+                None => format!("body `{name}` ({}) ", mode_name(problem.dim, m)),
                 // FETI's kernel vectors are numerical combinations of rigid
                 // motions: name the body only.
                 Some(_) => format!("body `{name}` (rigid motions) "),
@@ -295,6 +293,19 @@ pub fn setup_reusing(
     design: &[f64],
     previous: Option<&State>,
 ) -> Result<Setup, SolveError> {
+    setup_on(scene, design, previous, serial())
+}
+
+/// [`setup_reusing`] on the ranks of `comm`: every rank lowers the scene (the
+/// same on all), then builds only the subdomains of its part of a balanced
+/// contiguous partition; a failure on any rank stops every rank with the
+/// same message. Collective.
+fn setup_on(
+    scene: &Scene,
+    design: &[f64],
+    previous: Option<&State>,
+    comm: Arc<dyn Comm>,
+) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
     let lower_time = t0.elapsed().as_secs_f64();
@@ -320,11 +331,33 @@ pub fn setup_reusing(
             && a.thickness == b.thickness;
         (*old.kind() == kind(s)).then_some((old, same_mesh))
     };
-    let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem
-        .subdomains
+    let bounds = if comm.size() > 1 {
+        if feti {
+            return Err(SolveError::Unsupported(
+                "classical FETI (`solver { method = feti }`) does not run distributed yet; use `method = tfeti` or run without mpirun".into(),
+            ));
+        }
+        let weights: Vec<usize> = problem.subdomains.iter().map(|m| m.f.len()).collect();
+        partition(&weights, comm.size()).map_err(|e| SolveError::Unsupported(e.to_string()))?
+    } else {
+        vec![0, problem.subdomains.len()]
+    };
+    let owned = bounds[comm.rank()]..bounds[comm.rank() + 1];
+    let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem.subdomains[owned.clone()]
         .par_iter()
         .enumerate()
-        .map(|(s, m)| {
+        .map(|(i, m)| {
+            let s = owned.start + i;
+            if injected_fault(&*comm, s, owned.start) {
+                return Err(SolveError::Subdomain {
+                    body: problem.bodies[m.body].name.clone(),
+                    block: m.block.map(|b| b as u32),
+                    error: SubdomainError::NotPositive(
+                        "fault injected by CSO_MPI_FAIL_RANK (a test of distributed failures)"
+                            .into(),
+                    ),
+                });
+            }
             let g = Geometry::of(m);
             let built = match earlier(s) {
                 Some((old, true)) => return Ok((old, true)),
@@ -345,7 +378,12 @@ pub fn setup_reusing(
                 })
         })
         .collect();
-    let subs: Vec<(Arc<Subdomain>, bool)> = subs.into_iter().collect::<Result<_, _>>()?;
+    let subs: Result<Vec<(Arc<Subdomain>, bool)>, SolveError> = subs.into_iter().collect();
+    let subs = if comm.size() > 1 {
+        agree(&*comm, subs).map_err(SolveError::Rank)?
+    } else {
+        subs?
+    };
     let mut factorizations = Factorizations::default();
     for (sub, reused) in &subs {
         if *reused {
@@ -357,14 +395,28 @@ pub fn setup_reusing(
             }
         }
     }
+    let mut counts = [
+        factorizations.symbolic as u64,
+        factorizations.numeric as u64,
+        factorizations.reused as u64,
+    ];
+    comm.all_reduce_u64(&mut counts, Op::Sum);
+    let [symbolic, numeric, reused] = counts.map(|c| c as usize);
+    let factorizations = Factorizations {
+        symbolic,
+        numeric,
+        reused,
+    };
     let local = LocalRows::split(
         problem.subdomains.len(),
         problem.rows.iter().map(|r| r.entries.iter().copied()),
     );
-    let cluster = Cluster::new(
+    let cluster = Cluster::distributed(
         subs.into_iter().map(|(s, _)| s).collect(),
+        &bounds,
         local,
         problem.rows.len(),
+        comm,
     );
     Ok(Setup {
         problem,
@@ -373,6 +425,44 @@ pub fn setup_reusing(
         lower_time,
         factorizations,
     })
+}
+
+/// Distributed runs: the replicated dual solution (multipliers and counts)
+/// must be the same bits on every rank; a difference (ranks on CPUs that round
+/// differently) is reported, never a state that is wrong on some ranks. Two
+/// integer all-reduces of a hash.
+fn same_on_every_rank(comm: &dyn Comm, sol: &DualSolution) -> Result<(), SolveError> {
+    if comm.size() < 2 {
+        return Ok(());
+    }
+    let fnv = |h: u64, x: u64| (h ^ x).wrapping_mul(0x0100_0000_01b3);
+    let h = sol
+        .lambda
+        .iter()
+        .chain(&sol.alpha)
+        .map(|x| x.to_bits())
+        .chain([sol.info.hessian_applications as u64])
+        .fold(0xcbf2_9ce4_8422_2325, fnv);
+    let (mut lo, mut hi) = ([h], [h]);
+    comm.all_reduce_u64(&mut lo, Op::Min);
+    comm.all_reduce_u64(&mut hi, Op::Max);
+    if lo == hi {
+        Ok(())
+    } else {
+        Err(SolveError::RanksDiverged)
+    }
+}
+
+/// Distributed runs only: whether `CSO_MPI_FAIL_RANK` names this rank, making
+/// its first subdomain `s` fail as a singular factorization would (the test of
+/// a rank that fails while the others succeed).
+fn injected_fault(comm: &dyn Comm, s: usize, first: usize) -> bool {
+    comm.size() > 1
+        && s == first
+        && std::env::var("CSO_MPI_FAIL_RANK")
+            .ok()
+            .and_then(|v| v.trim().parse::<usize>().ok())
+            == Some(comm.rank())
 }
 
 /// Sizes of the TFETI operators of a scene, as `cso compile` prints them.
@@ -439,9 +529,43 @@ pub fn solve_reusing(
     warm_start: bool,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
+    solve_on(
+        scene,
+        design,
+        previous,
+        factorizations,
+        warm_start,
+        serial(),
+        observer,
+    )
+}
+
+/// [`solve`] with the subdomains spread over the ranks of `comm` (`cso solve`
+/// under `mpirun`): each rank builds and factorizes its own subdomains, the
+/// dual iterations run replicated on every rank, and every rank returns the
+/// same state (the primal solution gathered), bitwise the state [`solve`]
+/// gives. Collective: every rank calls it.
+pub fn solve_distributed(
+    scene: &Scene,
+    design: &[f64],
+    comm: Arc<dyn Comm>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
+    solve_on(scene, design, None, false, false, comm, observer)
+}
+
+fn solve_on(
+    scene: &Scene,
+    design: &[f64],
+    previous: Option<&State>,
+    factorizations: bool,
+    warm_start: bool,
+    comm: Arc<dyn Comm>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
     let t0 = Instant::now();
     let mut times = Times::default();
-    let setup = setup_reusing(scene, design, previous.filter(|_| factorizations))?;
+    let setup = setup_on(scene, design, previous.filter(|_| factorizations), comm)?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
@@ -520,6 +644,7 @@ pub fn solve_reusing(
             e => e,
         })?;
     times.solve = t.elapsed().as_secs_f64();
+    same_on_every_rank(&**system.dual().cluster().comm(), &sol)?;
     let DualSolution {
         lambda,
         u,
@@ -605,5 +730,53 @@ impl State {
             .zip(&self.u)
             .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
             .sum()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tfeti::comm::thread_ranks;
+
+    fn solution(lambda: Vec<f64>) -> DualSolution {
+        DualSolution {
+            lambda,
+            u: Vec::new(),
+            alpha: vec![1.0],
+            info: QpInfo {
+                status: Status::Converged,
+                outer_iterations: 1,
+                inner_iterations: 2,
+                hessian_applications: 3,
+                projected_gradient: 0.0,
+                feasibility: 0.0,
+                history: Vec::new(),
+                norm_estimate: 1.0,
+            },
+            b_norm: 1.0,
+        }
+    }
+
+    #[test]
+    fn ranks_whose_multipliers_differ_in_one_bit_are_refused() {
+        let check = |bump: bool| -> Vec<bool> {
+            std::thread::scope(|s| {
+                let hs: Vec<_> = thread_ranks(3)
+                    .into_iter()
+                    .map(|r| {
+                        s.spawn(move || {
+                            let mut l: Vec<f64> = vec![0.5, 2.0];
+                            if bump && r.rank() == 2 {
+                                l[1] = f64::from_bits(l[1].to_bits() + 1);
+                            }
+                            same_on_every_rank(&r, &solution(l)).is_ok()
+                        })
+                    })
+                    .collect();
+                hs.into_iter().map(|h| h.join().unwrap()).collect()
+            })
+        };
+        assert_eq!(check(false), vec![true; 3]);
+        assert_eq!(check(true), vec![false; 3]);
     }
 }

@@ -8,7 +8,10 @@ mod feti;
 mod front_end;
 mod fuzz;
 mod hard;
+#[cfg(feature = "mpi")]
+mod mpi;
 mod optimize;
+mod ranks;
 mod reference;
 mod schema;
 mod sensitivity;

@@ -1,14 +1,20 @@
 //! The subdomains this process owns and every loop over them: products with
 //! `F = B K^+ B^T`, `G = R^T B^T`, `K`, `B`, the reconstruction of `u`, and the
 //! reductions, always summed in subdomain order so that results do not depend
-//! on the thread count.
+//! on the thread count or the rank count.
 //!
 //! This is the seam for distributed memory: nothing outside a cluster assumes
 //! that all subdomains live in one process. Vectors indexed by multiplier (the
-//! dual vector) and by coarse mode are replicated; primal vectors are per
-//! subdomain (`Vec<Vec<f64>>`, one entry per subdomain owned). An MPI cluster
-//! will implement the same methods with an all-reduce after the local sums.
+//! dual vector) and by coarse mode are replicated, and so are the row layout
+//! of `B` and `G = R^T B^T` (gathered once, small), so the projector needs no
+//! communication. Each rank owns a contiguous range of subdomains
+//! ([`Cluster::owned`]); a sum over subdomains gathers every subdomain's part
+//! ([`Comm::all_gather`]) and adds them in subdomain order on every rank,
+//! exactly as the serial loop does, so 1, 2 or P ranks give the same bits.
+//! Primal vectors are computed per owned subdomain and gathered whole where
+//! the cluster returns them (`primal`, `apply_k`: once per solve).
 
+use super::comm::{serial, Comm, Op};
 use super::floating::{Detection, Margin};
 use super::rows::LocalRows;
 use super::subdomain::Subdomain;
@@ -24,16 +30,31 @@ struct Work {
 
 /// Subdomains with the rows of `B` that touch them.
 pub struct Cluster {
-    /// Shared, so that sensitivity problems reuse the state's factorizations.
+    /// The subdomains owned (global indices `first..first + subs.len()`);
+    /// shared, so that sensitivity problems reuse the state's factorizations.
     subs: Vec<Arc<Subdomain>>,
+    first: usize,
+    comm: Arc<dyn Comm>,
+    /// Subdomains of rank `r`: `bounds[r]..bounds[r + 1]`.
+    bounds: Vec<usize>,
+    /// Dofs of every subdomain.
+    dofs: Vec<usize>,
+    /// Rows of every subdomain.
     local: Vec<LocalRows>,
-    /// Per subdomain `G_s = R_s^T B_s^T`: kdim x (local rows), row-major.
+    /// Per subdomain (every one) `G_s = R_s^T B_s^T`: kdim x (local rows),
+    /// row-major.
     g: Vec<Vec<f64>>,
     /// Where each subdomain's kernel starts in the coarse space (`N + 1` entries).
     offset: Vec<usize>,
+    /// Where each subdomain's local rows start in a gathered row vector.
+    row_start: Vec<usize>,
     /// Number of multipliers (global).
     m: usize,
+    /// One per owned subdomain.
     work: Vec<Mutex<Work>>,
+    /// Nonzeros of every rank's Cholesky factors (summed once, at set-up, so
+    /// that reports need no collective).
+    factor_nonzeros: usize,
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -43,39 +64,109 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     }
 }
 
+/// `G_s = R_s^T B_s^T` of one subdomain, kdim x (local rows), row-major.
+fn coarse_block(sub: &Subdomain, lr: &LocalRows) -> Vec<f64> {
+    let kdim = sub.kernel_dim();
+    let nr = lr.rows.len();
+    let mut gs = vec![0.0; kdim * nr];
+    for &(r, d, v) in &lr.entries {
+        for j in 0..kdim {
+            gs[j * nr + r] += v * sub.kernel_column(j)[d];
+        }
+    }
+    gs
+}
+
 impl Cluster {
-    /// Subdomains and their local rows of a `B` with `m` rows.
+    /// Subdomains and their local rows of a `B` with `m` rows, all in this
+    /// process.
     pub fn new(subs: Vec<Arc<Subdomain>>, local: Vec<LocalRows>, m: usize) -> Self {
-        let mut g = Vec::with_capacity(subs.len());
+        let bounds = vec![0, subs.len()];
+        Cluster::distributed(subs, &bounds, local, m, serial())
+    }
+
+    /// The part of a cluster that rank `comm.rank()` owns: `subs` are its
+    /// subdomains `bounds[rank]..bounds[rank + 1]`, `local` the rows of every
+    /// subdomain. Collective: every rank calls it, in the same order.
+    pub fn distributed(
+        subs: Vec<Arc<Subdomain>>,
+        bounds: &[usize],
+        local: Vec<LocalRows>,
+        m: usize,
+        comm: Arc<dyn Comm>,
+    ) -> Self {
+        let rank = comm.rank();
+        let first = bounds[rank];
+        let n = local.len();
+        let owned: Vec<Vec<f64>> = subs
+            .iter()
+            .enumerate()
+            .map(|(i, sub)| coarse_block(sub, &local[first + i]))
+            .collect();
+        let (dofs, kdim, g) = if comm.size() == 1 {
+            let dofs = subs.iter().map(|s| s.dofs()).collect();
+            let kdim: Vec<usize> = subs.iter().map(|s| s.kernel_dim()).collect();
+            (dofs, kdim, owned)
+        } else {
+            // Sizes first (two per subdomain), then the blocks of G.
+            let per_rank: Vec<usize> = bounds.windows(2).map(|w| w[1] - w[0]).collect();
+            let mine: Vec<u64> = subs
+                .iter()
+                .flat_map(|s| [s.dofs() as u64, s.kernel_dim() as u64])
+                .collect();
+            let counts: Vec<usize> = per_rank.iter().map(|c| 2 * c).collect();
+            let sizes = comm.all_gather_u64(&mine, &counts);
+            let dofs: Vec<usize> = sizes.iter().step_by(2).map(|&d| d as usize).collect();
+            let kdim: Vec<usize> = sizes
+                .iter()
+                .skip(1)
+                .step_by(2)
+                .map(|&k| k as usize)
+                .collect();
+            let len = |s: usize| kdim[s] * local[s].rows.len();
+            let counts: Vec<usize> = bounds
+                .windows(2)
+                .map(|w| (w[0]..w[1]).map(len).sum())
+                .collect();
+            let flat = comm.all_gather(&owned.concat(), &counts);
+            let mut at = 0;
+            let g = (0..n)
+                .map(|s| {
+                    at += len(s);
+                    flat[at - len(s)..at].to_vec()
+                })
+                .collect();
+            (dofs, kdim, g)
+        };
         let mut offset = vec![0];
-        for (s, sub) in subs.iter().enumerate() {
-            let kdim = sub.kernel_dim();
-            offset.push(offset[s] + kdim);
-            let lr = &local[s];
-            let nr = lr.rows.len();
-            let mut gs = vec![0.0; kdim * nr];
-            for &(r, d, v) in &lr.entries {
-                for j in 0..kdim {
-                    gs[j * nr + r] += v * sub.kernel_column(j)[d];
-                }
-            }
-            g.push(gs);
+        let mut row_start = vec![0];
+        for s in 0..n {
+            offset.push(offset[s] + kdim[s]);
+            row_start.push(row_start[s] + local[s].rows.len());
         }
         let work = subs
             .iter()
-            .zip(&local)
-            .map(|(s, lr)| {
+            .enumerate()
+            .map(|(i, s)| {
                 Mutex::new(Work {
                     x: vec![0.0; s.dofs()],
-                    y: vec![0.0; lr.rows.len()],
+                    y: vec![0.0; local[first + i].rows.len()],
                 })
             })
             .collect();
+        let mut nnz = [subs.iter().map(|s| s.factor_nonzeros() as u64).sum()];
+        comm.all_reduce_u64(&mut nnz, Op::Sum);
         Cluster {
+            factor_nonzeros: nnz[0] as usize,
             subs,
+            first,
+            comm,
+            bounds: bounds.to_vec(),
+            dofs,
             local,
             g,
             offset,
+            row_start,
             m,
             work,
         }
@@ -88,28 +179,92 @@ impl Cluster {
         R: IntoIterator<Item = E>,
         E: IntoIterator<Item = (usize, usize, f64)>,
     {
-        let local = LocalRows::split(self.subs.len(), rows);
+        let local = LocalRows::split(self.len(), rows);
         let m = local
             .iter()
             .filter_map(|lr| lr.rows.last())
             .max()
             .map_or(0, |r| r + 1);
-        Cluster::new(self.subs.clone(), local, m)
+        self.with_local_rows(local, m)
     }
 
     /// [`Cluster::with_rows`] with `m` rows in all (trailing rows may touch no
     /// subdomain).
     pub fn with_local_rows(&self, local: Vec<LocalRows>, m: usize) -> Cluster {
-        Cluster::new(self.subs.clone(), local, m)
+        Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone())
     }
 
-    /// Subdomains owned.
+    /// The communicator of the ranks that share the subdomains.
+    pub fn comm(&self) -> &Arc<dyn Comm> {
+        &self.comm
+    }
+
+    /// Whether the subdomains are spread over more than one rank.
+    pub fn is_distributed(&self) -> bool {
+        self.comm.size() > 1
+    }
+
+    /// The subdomains this rank owns (global indices).
+    pub fn owned(&self) -> std::ops::Range<usize> {
+        self.first..self.first + self.subs.len()
+    }
+
+    /// Local rows of each rank's subdomains in all (the layout of a gathered
+    /// row vector).
+    pub fn rows_per_rank(&self) -> Vec<usize> {
+        self.bounds
+            .windows(2)
+            .map(|w| self.row_start[w[1]] - self.row_start[w[0]])
+            .collect()
+    }
+
+    /// Every rank's part of a vector with `len(s)` entries per subdomain,
+    /// `mine` being this rank's (its subdomains in order): the whole vector,
+    /// subdomains in order, on every rank.
+    fn gather(&self, mine: &[f64], len: impl Fn(usize) -> usize) -> Vec<f64> {
+        let counts: Vec<usize> = self
+            .bounds
+            .windows(2)
+            .map(|w| (w[0]..w[1]).map(&len).sum())
+            .collect();
+        self.comm.all_gather(mine, &counts)
+    }
+
+    /// One vector per subdomain, the owned ones given: every subdomain's, on
+    /// every rank (the identity on one rank).
+    fn gather_primal(&self, mine: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        if !self.is_distributed() {
+            return mine;
+        }
+        let flat = self.gather(&mine.concat(), |s| self.dofs[s]);
+        let mut at = 0;
+        (0..self.len())
+            .map(|s| {
+                at += self.dofs[s];
+                flat[at - self.dofs[s]..at].to_vec()
+            })
+            .collect()
+    }
+
+    /// `y = sum_s B_s y_s`, subdomains in order, from the gathered local row
+    /// values of every subdomain (`all`, laid out by `row_start`).
+    fn add_rows(&self, all: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for (s, lr) in self.local.iter().enumerate() {
+            let part = &all[self.row_start[s]..self.row_start[s + 1]];
+            for (k, &row) in lr.rows.iter().enumerate() {
+                y[row] += part[k];
+            }
+        }
+    }
+
+    /// Subdomains in all (on every rank).
     pub fn len(&self) -> usize {
-        self.subs.len()
+        self.local.len()
     }
 
     pub fn is_empty(&self) -> bool {
-        self.subs.is_empty()
+        self.local.is_empty()
     }
 
     /// Number of multipliers.
@@ -117,29 +272,33 @@ impl Cluster {
         self.m
     }
 
-    /// Dofs of subdomain `s`.
+    /// Dofs of subdomain `s` (any subdomain).
     pub fn dofs(&self, s: usize) -> usize {
-        self.subs[s].dofs()
+        self.dofs[s]
     }
 
-    /// One subdomain (for per-subdomain operations in `tfeti/`).
+    /// One owned subdomain (for per-subdomain operations in `tfeti/`); `s`
+    /// must be in [`Cluster::owned`].
     pub fn subdomain(&self, s: usize) -> &Subdomain {
-        &self.subs[s]
+        &self.subs[s - self.first]
     }
 
-    /// Subdomain `s` itself, shared (to rebuild or reuse it at a new design).
+    /// Subdomain `s` itself, shared (to rebuild or reuse it at a new design);
+    /// None when another rank owns it.
     pub fn shared(&self, s: usize) -> Option<Arc<Subdomain>> {
-        self.subs.get(s).cloned()
+        s.checked_sub(self.first)
+            .and_then(|i| self.subs.get(i))
+            .cloned()
     }
 
-    /// The rows of `B` that touch subdomain `s`, in local form.
+    /// The rows of `B` that touch subdomain `s` (any subdomain), in local form.
     pub fn local_rows(&self, s: usize) -> &LocalRows {
         &self.local[s]
     }
 
     /// Kernel dimension in all (the coarse space).
     pub fn kernel_dim(&self) -> usize {
-        self.offset[self.subs.len()]
+        self.offset[self.len()]
     }
 
     /// Where subdomain `s`'s kernel starts in the coarse space.
@@ -153,40 +312,61 @@ impl Cluster {
         (s, i - self.offset[s])
     }
 
-    /// Nonzeros of all Cholesky factors.
+    /// Nonzeros of all Cholesky factors (of every rank).
     pub fn factor_nonzeros(&self) -> usize {
-        self.subs.iter().map(|s| s.factor_nonzeros()).sum()
+        self.factor_nonzeros
     }
 
-    /// Classical FETI: how much room its eps had (None in TFETI).
+    /// Classical FETI: how much room its eps had (None in TFETI; the owned
+    /// subdomains only: classical FETI is not distributed).
     pub fn margin(&self) -> Option<Margin> {
         Margin::of(self.subs.iter().map(|s| s.detection()))
     }
 
-    /// What kernel detection saw in subdomain `s` (classical FETI).
+    /// What kernel detection saw in subdomain `s` (classical FETI; None when
+    /// another rank owns it).
     pub fn detection(&self, s: usize) -> Option<&Detection> {
-        self.subs[s].detection()
+        self.shared_ref(s).and_then(|sub| sub.detection())
     }
 
-    /// `f(s, subdomain)` for every subdomain, in parallel, results in order.
+    fn shared_ref(&self, s: usize) -> Option<&Subdomain> {
+        s.checked_sub(self.first)
+            .and_then(|i| self.subs.get(i))
+            .map(|a| &**a)
+    }
+
+    /// `f(s, subdomain)` for every owned subdomain (`s` its global index), in
+    /// parallel, results in order.
     pub fn map<T: Send>(&self, f: impl Fn(usize, &Subdomain) -> T + Sync + Send) -> Vec<T> {
+        let first = self.first;
         self.subs
             .par_iter()
             .enumerate()
-            .map(|(s, sub)| f(s, sub))
+            .map(|(i, sub)| f(first + i, sub))
             .collect()
     }
 
     /// `y = F x = sum_s B_s K_s^+ B_s^T x`, subdomains in parallel, summed in
-    /// subdomain order.
+    /// subdomain order (distributed: the owned parts gathered first).
     pub fn apply_f(&self, x: &[f64], y: &mut [f64]) {
-        self.subs.par_iter().enumerate().for_each(|(s, sub)| {
-            let mut guard = lock(&self.work[s]);
+        let first = self.first;
+        self.subs.par_iter().enumerate().for_each(|(i, sub)| {
+            let mut guard = lock(&self.work[i]);
             let w = &mut *guard;
-            self.local[s].scatter_t(x, &mut w.x);
+            self.local[first + i].scatter_t(x, &mut w.x);
             sub.apply_pinv(&mut w.x);
-            self.local[s].gather(&w.x, &mut w.y);
+            self.local[first + i].gather(&w.x, &mut w.y);
         });
+        if self.is_distributed() {
+            let mut mine =
+                Vec::with_capacity(self.row_start[self.owned().end] - self.row_start[first]);
+            for w in &self.work {
+                mine.extend_from_slice(&lock(w).y);
+            }
+            let all = self.gather(&mine, |s| self.local[s].rows.len());
+            self.add_rows(&all, y);
+            return;
+        }
         y.iter_mut().for_each(|v| *v = 0.0);
         for (s, lr) in self.local.iter().enumerate() {
             let guard = lock(&self.work[s]);
@@ -215,6 +395,13 @@ impl Cluster {
             (y, e)
         });
         let mut d = vec![0.0; self.m];
+        if self.is_distributed() {
+            let (ys, es): (Vec<Vec<f64>>, Vec<Vec<f64>>) = parts.into_iter().unzip();
+            let all = self.gather(&ys.concat(), |s| self.local[s].rows.len());
+            self.add_rows(&all, &mut d);
+            let e = self.gather(&es.concat(), |s| self.offset[s + 1] - self.offset[s]);
+            return (d, e);
+        }
         let mut e = vec![0.0; self.kernel_dim()];
         for (s, (y, es)) in parts.into_iter().enumerate() {
             for (k, &row) in self.local[s].rows.iter().enumerate() {
@@ -225,24 +412,30 @@ impl Cluster {
         (d, e)
     }
 
-    /// `z = G x` (kernel-sized, not orthonormalized).
+    /// Kernel dimension of subdomain `s` (any subdomain).
+    fn kdim(&self, s: usize) -> usize {
+        self.offset[s + 1] - self.offset[s]
+    }
+
+    /// `z = G x` (kernel-sized, not orthonormalized; replicated, no
+    /// communication).
     pub fn apply_g(&self, x: &[f64], z: &mut [f64]) {
         for (s, lr) in self.local.iter().enumerate() {
             let nr = lr.rows.len();
-            for j in 0..self.subs[s].kernel_dim() {
+            for j in 0..self.kdim(s) {
                 z[self.offset[s] + j] =
                     (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
             }
         }
     }
 
-    /// `x = G^T z` (not orthonormalized).
+    /// `x = G^T z` (not orthonormalized; replicated, no communication).
     pub fn apply_gt(&self, z: &[f64], x: &mut [f64]) {
         x.iter_mut().for_each(|v| *v = 0.0);
         for (s, lr) in self.local.iter().enumerate() {
             let nr = lr.rows.len();
             for k in 0..nr {
-                x[lr.rows[k]] += (0..self.subs[s].kernel_dim())
+                x[lr.rows[k]] += (0..self.kdim(s))
                     .map(|j| self.g[s][j * nr + k] * z[self.offset[s] + j])
                     .sum::<f64>();
             }
@@ -268,8 +461,8 @@ impl Cluster {
                 let ns = self.local[s].rows.len();
                 for &(t, kt) in own {
                     let nt = self.local[t].rows.len();
-                    for i in 0..self.subs[s].kernel_dim() {
-                        for j in 0..self.subs[t].kernel_dim() {
+                    for i in 0..self.kdim(s) {
+                        for j in 0..self.kdim(t) {
                             ggt[(self.offset[s] + i, self.offset[t] + j)] +=
                                 self.g[s][i * ns + ks] * self.g[t][j * nt + kt];
                         }
@@ -280,9 +473,10 @@ impl Cluster {
         ggt
     }
 
-    /// `u = K^+ (f - B^T l) + R alpha`, per subdomain.
+    /// `u = K^+ (f - B^T l) + R alpha`, per subdomain (every subdomain, on
+    /// every rank: the solution is gathered once).
     pub fn primal(&self, f: &[&[f64]], lambda: &[f64], alpha: &[f64]) -> Vec<Vec<f64>> {
-        self.map(|s, sub| {
+        let mine = self.map(|s, sub| {
             let mut btl = vec![0.0; sub.dofs()];
             self.local[s].scatter_t(lambda, &mut btl);
             let mut x: Vec<f64> = f[s].iter().zip(&btl).map(|(f, b)| f - b).collect();
@@ -294,28 +488,34 @@ impl Cluster {
                 }
             }
             x
-        })
+        });
+        self.gather_primal(mine)
     }
 
-    /// `K u` per subdomain.
+    /// `K u` per subdomain (`u` of every subdomain; the result too).
     pub fn apply_k(&self, u: &[Vec<f64>]) -> Vec<Vec<f64>> {
-        self.map(|s, sub| {
+        let mine = self.map(|s, sub| {
             let mut ku = vec![0.0; sub.dofs()];
             sub.apply_k(&u[s], &mut ku);
             ku
-        })
+        });
+        self.gather_primal(mine)
     }
 
-    /// `B^T l` per subdomain.
+    /// `B^T l` per subdomain (every subdomain; no communication).
     pub fn apply_bt(&self, lambda: &[f64]) -> Vec<Vec<f64>> {
-        self.map(|s, sub| {
-            let mut x = vec![0.0; sub.dofs()];
-            self.local[s].scatter_t(lambda, &mut x);
-            x
-        })
+        (0..self.len())
+            .into_par_iter()
+            .map(|s| {
+                let mut x = vec![0.0; self.dofs[s]];
+                self.local[s].scatter_t(lambda, &mut x);
+                x
+            })
+            .collect()
     }
 
-    /// `B u` (one entry per multiplier), summed in subdomain order.
+    /// `B u` (one entry per multiplier, `u` of every subdomain), summed in
+    /// subdomain order.
     pub fn apply_b(&self, u: &[Vec<f64>]) -> Vec<f64> {
         let mut bu = vec![0.0; self.m];
         for (s, lr) in self.local.iter().enumerate() {

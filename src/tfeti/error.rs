@@ -51,6 +51,11 @@ pub enum SolveError {
         load: Vec<f64>,
         why: String,
     },
+    /// Distributed runs: what the lowest failing rank reported, the same on
+    /// every rank.
+    Rank(super::comm::RankFailure),
+    /// Distributed runs: the ranks' replicated dual solutions differ.
+    RanksDiverged,
 }
 
 impl fmt::Display for SolveError {
@@ -98,6 +103,11 @@ impl fmt::Display for SolveError {
                     .collect::<Vec<_>>()
                     .join(", "),
                 crate::lang::diag::num(*depth)
+            ),
+            SolveError::Rank(r) => write!(f, "MPI rank {}: {}", r.rank, r.message),
+            SolveError::RanksDiverged => write!(
+                f,
+                "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"
             ),
             SolveError::Unbalanced { body, load, why } => write!(
                 f,

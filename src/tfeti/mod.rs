@@ -12,11 +12,14 @@
 
 pub mod classical;
 pub mod cluster;
+pub mod comm;
 pub mod dual;
 pub mod error;
 pub mod floating;
 pub mod kernel;
 pub mod kkt;
+#[cfg(feature = "mpi")]
+pub mod mpi;
 pub mod precond;
 pub mod reconstruct;
 pub mod rows;

@@ -25,6 +25,7 @@
 //! problems*, IJNME 1999; Dostál et al., preconditioning in face (MPRGP).
 
 use super::cluster::Cluster;
+use super::comm::{Comm, Op};
 use super::schur::{Schur, SchurForm};
 use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
 use faer::dyn_stack::MemBuffer;
@@ -32,7 +33,7 @@ use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     match m.lock() {
@@ -166,11 +167,22 @@ impl Scaling {
     }
 }
 
+/// Distributed clusters: how to gather every subdomain's block product.
+struct Spread {
+    comm: Arc<dyn Comm>,
+    /// Local rows of each rank's subdomains in all.
+    counts: Vec<usize>,
+    /// Global rows of every subdomain, in subdomain order.
+    rows: Vec<Vec<usize>>,
+}
+
 /// `M = W (sum_s B_s M_s B_s^T) W` over the subdomains of one cluster.
 pub struct DualPreconditioner {
     kind: Kind,
-    /// One per subdomain of the cluster, in its order.
+    /// One per owned subdomain of the cluster, in its order.
     blocks: Vec<Block>,
+    /// Set when the subdomains are spread over ranks.
+    spread: Option<Spread>,
     scaling: Option<Scaling>,
     work: Mutex<Vec<f64>>,
     built: Built,
@@ -221,9 +233,22 @@ impl DualPreconditioner {
                 Local::Schur(_) => built.implicit += 1,
             }
         }
+        let spread = cluster.is_distributed().then(|| {
+            let mut n = [built.dense, built.implicit, built.lumped].map(|c| c as u64);
+            cluster.comm().all_reduce_u64(&mut n, Op::Sum);
+            [built.dense, built.implicit, built.lumped] = n.map(|c| c as usize);
+            Spread {
+                comm: cluster.comm().clone(),
+                counts: cluster.rows_per_rank(),
+                rows: (0..cluster.len())
+                    .map(|s| cluster.local_rows(s).rows.clone())
+                    .collect(),
+            }
+        });
         DualPreconditioner {
             kind,
             blocks,
+            spread,
             scaling,
             work: Mutex::new(vec![0.0; cluster.multipliers()]),
             built,
@@ -248,7 +273,22 @@ impl DualPreconditioner {
         let t: &[f64] = &t;
         self.blocks.par_iter().for_each(|b| b.apply(t));
         y.iter_mut().for_each(|v| *v = 0.0);
-        for b in &self.blocks {
+        if let Some(sp) = &self.spread {
+            // Every subdomain's block product, added in subdomain order.
+            let mut mine = Vec::new();
+            for b in &self.blocks {
+                mine.extend_from_slice(&lock(&b.work).yl);
+            }
+            let all = sp.comm.all_gather(&mine, &sp.counts);
+            let mut at = 0;
+            for rows in &sp.rows {
+                for &row in rows {
+                    y[row] += all[at];
+                    at += 1;
+                }
+            }
+        }
+        for b in self.blocks.iter().filter(|_| self.spread.is_none()) {
             let guard = lock(&b.work);
             for (k, &row) in b.rows.iter().enumerate() {
                 y[row] += guard.yl[k];

@@ -1,0 +1,129 @@
+//! `cso solve` under `mpirun` (feature `mpi`): the same report bits as the
+//! serial solver on 1, 2 and 4 ranks, and every rank stopping with the same
+//! message on bad input and on a failing rank, never hanging.
+
+use crate::root;
+use std::path::Path;
+use std::process::Command;
+
+/// `cso ARGS` (under `mpirun -n N` when `ranks` is Some), with a time limit
+/// so that a hang fails the test: (exit code, stdout, stderr).
+fn run(ranks: Option<usize>, env: &[(&str, &str)], args: &[&str]) -> (i32, String, String) {
+    let exe = env!("CARGO_BIN_EXE_cso");
+    let mut cmd = Command::new("timeout");
+    cmd.arg("300");
+    if let Some(n) = ranks {
+        cmd.args([
+            "mpirun",
+            "-n",
+            &n.to_string(),
+            "--allow-run-as-root",
+            "--oversubscribe",
+        ]);
+        for (k, _) in env {
+            cmd.args(["-x", k]);
+        }
+    }
+    let out = cmd
+        .arg(exe)
+        .args(args)
+        .envs(env.iter().copied())
+        // One thread per rank: the machine has few cores.
+        .env("RAYON_NUM_THREADS", "1")
+        .current_dir(root())
+        .output()
+        .expect("timeout and mpirun run");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).to_string(),
+        String::from_utf8_lossy(&out.stderr).to_string(),
+    )
+}
+
+/// report.json without its wall times.
+fn report(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("report.json")).expect("report written");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("report is JSON");
+    v.as_object_mut().expect("an object").remove("times");
+    v
+}
+
+fn solve(ranks: Option<usize>, scene: &str, extra: &[&str], dir: &Path) -> serde_json::Value {
+    let _ = std::fs::remove_dir_all(dir);
+    let out = dir.to_str().expect("utf-8 path");
+    let mut args = vec!["--quiet", "solve", scene, "-o", out];
+    args.extend_from_slice(extra);
+    let (code, stdout, stderr) = run(ranks, &[], &args);
+    assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
+    report(dir)
+}
+
+fn scratch(name: &str) -> std::path::PathBuf {
+    std::env::temp_dir().join(format!("cso-mpi-test-{}-{name}", std::process::id()))
+}
+
+fn assert_same(serial: &serde_json::Value, other: &serde_json::Value, what: &str) {
+    // The numbers a user reads first, then the whole report (bitwise).
+    assert_eq!(serial["energy"], other["energy"], "{what}: energy");
+    assert_eq!(
+        serial["contacts"], other["contacts"],
+        "{what}: contact forces"
+    );
+    assert_eq!(serial["solver"], other["solver"], "{what}: iterations");
+    assert_eq!(serial, other, "{what}: report");
+}
+
+#[test]
+fn two_blocks_on_1_2_4_ranks_gives_the_serial_report_bitwise() {
+    let scene = "examples/two_blocks.cso";
+    let serial = solve(None, scene, &[], &scratch("tb-serial"));
+    for n in [1, 2, 4] {
+        let dist = solve(Some(n), scene, &[], &scratch(&format!("tb-{n}")));
+        assert_same(&serial, &dist, &format!("two_blocks on {n} ranks"));
+    }
+    // The VTU files rank 0 writes are the serial ones too.
+    for f in ["base.vtu", "punch.vtu"] {
+        let a = std::fs::read(scratch("tb-serial").join(f)).expect("serial VTU");
+        let b = std::fs::read(scratch("tb-2").join(f)).expect("distributed VTU");
+        assert!(a == b, "{f} differs on 2 ranks");
+    }
+}
+
+#[test]
+fn a_3d_scene_with_the_dirichlet_preconditioner_on_3_ranks_matches_serial() {
+    let scene = "examples/semicoercive3d.cso";
+    let extra = ["--preconditioner", "dirichlet"];
+    let serial = solve(None, scene, &extra, &scratch("s3-serial"));
+    let dist = solve(Some(3), scene, &extra, &scratch("s3-3"));
+    assert_same(&serial, &dist, "semicoercive3d on 3 ranks");
+}
+
+#[test]
+fn more_ranks_than_subdomains_stops_every_rank_with_one_message() {
+    let env = [("CSO_MPI_ALL_RANKS", "1")];
+    let (code, _, err) = run(Some(9), &env, &["solve", "examples/semicoercive2d.cso"]);
+    assert_eq!(code, 1, "{err}");
+    let msg = "9 MPI ranks for 8 subdomains: every rank needs at least one subdomain; run with at most 8 ranks";
+    assert_eq!(err.matches(msg).count(), 9, "{err}");
+}
+
+#[test]
+fn a_failing_rank_stops_every_rank_with_its_message() {
+    let env = [("CSO_MPI_FAIL_RANK", "1"), ("CSO_MPI_ALL_RANKS", "1")];
+    let (code, _, err) = run(Some(3), &env, &["solve", "examples/two_blocks.cso"]);
+    assert_eq!(code, 1, "{err}");
+    let lines: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(lines.len(), 3, "{err}");
+    assert!(lines.iter().all(|l| *l == lines[0]), "{err}");
+    assert!(
+        lines[0].contains("MPI rank 1: subdomain") && lines[0].contains("fault injected"),
+        "{err}"
+    );
+}
+
+#[test]
+fn commands_that_are_not_distributed_say_so() {
+    let (code, _, err) = run(Some(2), &[], &["sensitivity", "examples/hertz2d.cso"]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("only `cso solve` runs distributed"), "{err}");
+}

@@ -1,0 +1,91 @@
+//! The distributed solve on ranks that are threads of this process
+//! (`cso::tfeti::comm::thread_ranks`): the code paths `mpirun` takes, without
+//! MPI, bitwise against the serial solve.
+
+use crate::{options, root};
+use cso::io::report::Report;
+use cso::lang::{compile, Scene};
+use cso::tfeti::comm::{thread_ranks, Comm};
+use std::sync::Arc;
+
+fn example(name: &str) -> Scene {
+    let path = root().join("examples").join(format!("{name}.cso"));
+    let src = std::fs::read_to_string(path).expect("example");
+    match compile(&src, &options()) {
+        Ok(s) => s,
+        Err(d) => panic!("{}", cso::lang::diag::render(&d, "test.cso", &src)),
+    }
+}
+
+/// The report as JSON without wall times, or the error's message.
+fn outcome(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Result<serde_json::Value, String> {
+    let design = scene.design_init();
+    let state = match comm {
+        Some(c) => cso::state::solve_distributed(scene, &design, c, &mut |_| {}),
+        None => cso::state::solve(scene, &design, &mut |_| {}),
+    }
+    .map_err(|e| e.to_string())?;
+    let mut v = serde_json::to_value(Report::new(scene, &state)).expect("report serializes");
+    v.as_object_mut().expect("an object").remove("times");
+    // The state itself, bit for bit (the report rounds nothing, but says less).
+    v["lambda_bits"] = state.lambda.iter().map(|x| x.to_bits()).collect();
+    v["u_bits"] = state.u.concat().iter().map(|x| x.to_bits()).collect();
+    Ok(v)
+}
+
+/// Every rank's outcome, each rank on its own thread.
+fn on_ranks(scene: &Scene, p: usize) -> Vec<Result<serde_json::Value, String>> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = thread_ranks(p)
+            .into_iter()
+            .map(|r| s.spawn(move || outcome(scene, Some(Arc::new(r)))))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("rank thread"))
+            .collect()
+    })
+}
+
+#[test]
+fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
+    let mut dirichlet = example("semicoercive3d");
+    dirichlet.solver.preconditioner = cso::lang::scene::Preconditioner::Dirichlet;
+    for (name, scene, ranks) in [
+        ("two_blocks", example("two_blocks"), vec![2, 3, 5]),
+        ("semicoercive3d", example("semicoercive3d"), vec![2, 4]),
+        ("semicoercive3d dirichlet", dirichlet, vec![3]),
+    ] {
+        let serial = outcome(&scene, None).expect("serial solve");
+        for p in ranks {
+            for (r, got) in on_ranks(&scene, p).into_iter().enumerate() {
+                let got = got.unwrap_or_else(|e| panic!("{name}, rank {r} of {p}: {e}"));
+                assert_eq!(serial["energy"], got["energy"], "{name}, rank {r} of {p}");
+                assert_eq!(serial["solver"], got["solver"], "{name}, rank {r} of {p}");
+                assert!(serial == got, "{name}, rank {r} of {p}: the report differs");
+            }
+        }
+    }
+}
+
+#[test]
+fn more_ranks_than_subdomains_is_refused_on_every_rank() {
+    let scene = example("semicoercive2d");
+    for got in on_ranks(&scene, 9) {
+        let e = got.expect_err("refused");
+        assert!(
+            e.contains("9 MPI ranks for 8 subdomains") && e.contains("at most 8 ranks"),
+            "{e}"
+        );
+    }
+}
+
+#[test]
+fn classical_feti_over_ranks_says_it_is_not_distributed() {
+    let mut scene = example("two_blocks");
+    scene.solver.method = cso::lang::scene::SolverMethod::Feti;
+    for got in on_ranks(&scene, 2) {
+        let e = got.expect_err("refused");
+        assert!(e.contains("does not run distributed yet"), "{e}");
+    }
+}
