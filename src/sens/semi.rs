@@ -266,7 +266,7 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
         .iter()
         .map(|b| vec![0.0; dim * b.coords.len()])
         .collect();
-    let per_subdomain: Vec<Vec<(usize, f64)>> = state.dual.cluster().map(|s, _| {
+    let per_subdomain: Vec<(usize, Vec<(usize, f64)>)> = state.dual.cluster().map(|s, _| {
         let m = &p.subdomains[s];
         let coords = &p.bodies[m.body].coords;
         let mut acc = Vec::new();
@@ -292,10 +292,10 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
                 }
             }
         }
-        acc
+        (s, acc)
     });
     // Summed in subdomain order: the same bits whatever the thread count.
-    for (s, acc) in per_subdomain.into_iter().enumerate() {
+    for (s, acc) in per_subdomain {
         let body = &mut out[p.subdomains[s].body];
         for (k, v) in acc {
             body[k] += v;
