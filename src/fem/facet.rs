@@ -42,11 +42,33 @@ pub trait Facet<T: Scalar, const D: usize, const N: usize> {
 
     /// Is `at` within `tol` of the facet's boundary? Node-to-facet rows switch
     /// facet there, so a derivative of a row projected there is one-sided.
-    fn on_boundary(&self, at: Self::Local, tol: f64) -> bool;
+    fn on_boundary(&self, at: Self::Local, tol: f64) -> bool {
+        self.boundary_axes(at, tol).into_iter().any(|b| b)
+    }
 
-    /// `at` pulled onto the facet. Only the value moves, by the round-off that
-    /// [`Facet::inside`] tolerates; derivatives are those of the projection.
+    /// Which local coordinates of `at` are within `tol` of their bounds: a
+    /// point on an edge may slide along it (that coordinate free) without
+    /// switching facet.
+    fn boundary_axes(&self, at: Self::Local, tol: f64) -> Vec<bool>;
+
+    /// `at` pulled onto the facet. Within the round-off that [`Facet::inside`]
+    /// tolerates only the value moves (derivatives are those of the projection);
+    /// a coordinate beyond it is pinned to the boundary, a constant: a point
+    /// clamped to a facet's corner or edge (a node over a convex kink) stays
+    /// there while the node moves, so its derivative there is 0.
     fn clamp(&self, at: Self::Local) -> Self::Local;
+
+    /// Which coordinates [`Facet::clamp`] pinned: beyond the bounds by more
+    /// than round-off in `at` (the unclamped projection).
+    fn pinned(&self, at: Self::Local) -> Vec<bool>;
+
+    /// The closest point to `p` on the boundary piece (edge or corner) that
+    /// `at`'s pinned coordinates name, as local coordinates: the free
+    /// coordinates of an edge re-projected on it. A corner (every coordinate
+    /// pinned, a segment's end) is already that point.
+    fn nearest_on_boundary(&self, _p: &[T; D], at: Self::Local, _pinned: &[bool]) -> Self::Local {
+        at
+    }
 
     /// Shape-function values at `at`, one per node.
     fn shape(&self, at: Self::Local) -> [T; N];
@@ -67,6 +89,24 @@ pub trait Facet<T: Scalar, const D: usize, const N: usize> {
         self.load_weights()
     }
 }
+
+/// A local coordinate pulled into `[lo, hi]`: by its round-off only (beyond the
+/// bound by at most `PIN`), keeping its derivative; or pinned to
+/// the bound, a constant, when it lies further out.
+pub(crate) fn pin<T: Scalar>(t: T, lo: f64, hi: f64) -> T {
+    let v = t.re();
+    let c = v.clamp(lo, hi);
+    if (v - c).abs() > PIN {
+        T::from(c)
+    } else {
+        // Exact on f64 near the bounds: t - (t - b) = b (Sterbenz), t - 0 = t.
+        t - T::from(v - c)
+    }
+}
+
+/// How far beyond a facet's boundary a local coordinate is round-off: the
+/// tolerance of [`Facet::inside`] that contact search uses.
+pub(crate) const PIN: f64 = 1e-9;
 
 /// A straight two-node segment of a 2D face.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -120,13 +160,16 @@ impl<T: Scalar> Facet<T, 2, 2> for Segment<T> {
         (-tol..=1.0 + tol).contains(&t.re())
     }
 
-    fn on_boundary(&self, [t]: [T; 1], tol: f64) -> bool {
-        t.re() <= tol || t.re() >= 1.0 - tol
+    fn pinned(&self, [t]: [T; 1]) -> Vec<bool> {
+        vec![t.re() < -PIN || t.re() > 1.0 + PIN]
+    }
+
+    fn boundary_axes(&self, [t]: [T; 1], tol: f64) -> Vec<bool> {
+        vec![t.re() <= tol || t.re() >= 1.0 - tol]
     }
 
     fn clamp(&self, [t]: [T; 1]) -> [T; 1] {
-        // Exact on f64: t - (t - 0) = 0 and t - (t - 1) = 1 (Sterbenz), t - 0 = t.
-        [t - T::from(t.re() - t.re().clamp(0.0, 1.0))]
+        [pin(t, 0.0, 1.0)]
     }
 
     fn shape(&self, [t]: [T; 1]) -> [T; 2] {

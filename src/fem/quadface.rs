@@ -198,12 +198,42 @@ impl<T: Scalar> Facet<T, 3, 4> for QuadFacet<T> {
         at.iter().all(|v| v.re().abs() <= 1.0 + tol)
     }
 
-    fn on_boundary(&self, at: [T; 2], tol: f64) -> bool {
-        at.iter().any(|v| v.re().abs() >= 1.0 - tol)
+    fn pinned(&self, at: [T; 2]) -> Vec<bool> {
+        at.iter()
+            .map(|v| v.re().abs() > 1.0 + crate::fem::facet::PIN)
+            .collect()
+    }
+
+    fn nearest_on_boundary(&self, p: &[T; 3], at: [T; 2], pinned: &[bool]) -> [T; 2] {
+        // One coordinate pinned: an edge, straight on a bilinear face. The
+        // closest point on it (not the face extension's foot) is the same from
+        // both faces that share the edge.
+        let free = match pinned {
+            [true, false] => 1,
+            [false, true] => 0,
+            _ => return at,
+        };
+        let along = |t: f64| {
+            let mut q = at;
+            q[free] = T::from(t);
+            frame(&self.nodes, q[0], q[1]).0
+        };
+        let (a, b) = (along(-1.0), along(1.0));
+        let mid: [T; 3] = std::array::from_fn(|k| (a[k] + b[k]) * 0.5);
+        let half: [T; 3] = std::array::from_fn(|k| (b[k] - a[k]) * 0.5);
+        let d: [T; 3] = std::array::from_fn(|k| p[k] - mid[k]);
+        let t = dot(d, half) / dot(half, half);
+        let mut q = at;
+        q[free] = crate::fem::facet::pin(t, -1.0, 1.0);
+        q
+    }
+
+    fn boundary_axes(&self, at: [T; 2], tol: f64) -> Vec<bool> {
+        at.iter().map(|v| v.re().abs() >= 1.0 - tol).collect()
     }
 
     fn clamp(&self, at: [T; 2]) -> [T; 2] {
-        at.map(|v| v - T::from(v.re() - v.re().clamp(-1.0, 1.0)))
+        at.map(|v| crate::fem::facet::pin(v, -1.0, 1.0))
     }
 
     fn shape(&self, [xi, eta]: [T; 2]) -> [T; 4] {

@@ -249,15 +249,33 @@ where
     T: Scalar,
     F: Facet<T, D, N>,
 {
-    let local = facet.clamp(at);
+    let mut local = facet.clamp(at);
+    let pinned = facet.pinned(at);
+    if pinned.iter().any(|&b| b) {
+        local = facet.nearest_on_boundary(p, local, &pinned);
+    }
     let point = facet.point(local);
-    let normal = facet.normal(local);
+    let mut normal = facet.normal(local);
+    // Off the facet (a node over a convex kink of the face, its row on the
+    // shared edge or corner): the normal is the direction from that closest
+    // point to the node, on the facet's outer side, so the row is the same
+    // whichever neighbour holds the edge or corner.
+    let d = sub(p, &point);
+    let len = norm(&d);
+    if pinned.iter().any(|&b| b) && len.re() > 0.0 {
+        let side = if dot(&normal, &d).re() < 0.0 {
+            -1.0
+        } else {
+            1.0
+        };
+        normal = d.map(|x| x / len * side);
+    }
     Projection {
         local,
         point,
         weights: facet.shape(local),
         normal,
-        gap: dot(&normal, &sub(p, &point)),
+        gap: dot(&normal, &d),
     }
 }
 
@@ -604,6 +622,67 @@ mod tests {
     fn tilted() -> (Segment<f64>, [f64; 2]) {
         let s = Segment::new([1.0, 1.0], [5.0, 4.0], Orientation::CounterClockwise);
         (s, [2.0 + 0.3, 1.75 - 0.4])
+    }
+
+    #[test]
+    fn a_node_over_a_convex_kink_gets_the_same_row_from_either_side() {
+        // 2D: a roof with its ridge at (1, 1); a node 0.5 above the ridge
+        // projects off both segments. Either gives the ridge, the normal (0, 1)
+        // towards the node and the gap 0.5.
+        let left = Segment::new([0.0, 0.8], [1.0, 1.0], Orientation::Clockwise);
+        let right = Segment::new([1.0, 1.0], [2.0, 0.8], Orientation::Clockwise);
+        let p = [1.0, 1.5];
+        for s in [left, right] {
+            let at = s.project(&p);
+            assert!(!s.inside(at, 1e-9), "{at:?}");
+            let pr = project(&s, &p, at);
+            assert!(
+                close(pr.point[0], 1.0) && close(pr.point[1], 1.0),
+                "{:?}",
+                pr.point
+            );
+            assert!(
+                close(pr.normal[0], 0.0) && close(pr.normal[1], 1.0),
+                "{:?}",
+                pr.normal
+            );
+            assert!(close(pr.gap, 0.5), "{}", pr.gap);
+        }
+        // 3D: two faces meeting along the ridge x = 1 (from (1, 0, 1) to
+        // (1, 2, 1)); a node over the ridge at y = 0.5 gets the ridge point
+        // (1, 0.5, 1) and the vertical normal from both.
+        let lo = QuadFacet::new(
+            [
+                [0.0, 0.0, 0.8],
+                [1.0, 0.0, 1.0],
+                [1.0, 2.0, 1.0],
+                [0.0, 2.0, 0.8],
+            ],
+            Orientation::CounterClockwise,
+        );
+        let hi = QuadFacet::new(
+            [
+                [1.0, 0.0, 1.0],
+                [2.0, 0.0, 0.8],
+                [2.0, 2.0, 0.8],
+                [1.0, 2.0, 1.0],
+            ],
+            Orientation::CounterClockwise,
+        );
+        let p = [1.0, 0.5, 1.3];
+        for f in [lo, hi] {
+            let at = f.project(&p);
+            assert!(!f.inside(at, 1e-9), "{at:?}");
+            let pr = project(&f, &p, at);
+            let want = [1.0, 0.5, 1.0];
+            assert!(
+                (0..3).all(|k| close(pr.point[k], want[k])),
+                "{:?}",
+                pr.point
+            );
+            assert!(close(pr.normal[2], 1.0), "{:?}", pr.normal);
+            assert!(close(pr.gap, 0.3), "{}", pr.gap);
+        }
     }
 
     #[test]

@@ -314,7 +314,14 @@ fn nearest_piece<P: Piece<D, N>, const D: usize, const N: usize>(
             if best.as_ref().is_none_or(|(d, _, _)| dist < *d) {
                 best = Some((dist, *piece, pr.gap));
             }
-        } else if dist.is_finite() && clamped.as_ref().is_none_or(|(d, ..)| dist < *d) {
+        } else if dist.is_finite()
+            && clamped.as_ref().is_none_or(|(d, _, g, _)| {
+                // Neighbours clamped to the same corner are equally near: the
+                // one whose side the node is most clearly on (largest gap)
+                // decides, not the order of the list.
+                dist < *d * (1.0 - 1e-12) || (dist <= *d * (1.0 + 1e-12) && pr.gap > *g)
+            })
+        {
             let inner = on_inner_side(piece, &pr.weights, counts);
             clamped = Some((dist, *piece, pr.gap, inner));
         }

@@ -131,10 +131,13 @@ fn seeded(design: &[f64], i: usize) -> Vec<D> {
         .collect()
 }
 
-/// Is a projection parameter at a facet's boundary while the node slides along
-/// the face? The node-to-facet row has a kink there (it switches facet), so its
-/// derivative is one-sided. Sliding means the parameter moves by more than
-/// round-off: `1e-9` of the fastest node's speed over the facet's size.
+/// Is a projection parameter at a facet's boundary while it moves across it?
+/// The node-to-facet row has a kink there (it switches facet), so its
+/// derivative is one-sided. Moving means the parameter at the boundary (not one
+/// along it: a point sliding along an edge stays on the edge) changes by more
+/// than round-off: `1e-9` of the fastest node's speed over the facet's size.
+/// A point pinned to a corner or edge over a convex kink has a constant
+/// parameter there ([`Facet::clamp`]) and is no kink.
 fn at_kink<F: Facet<D, DIM, N>, const DIM: usize, const N: usize>(
     facet: &F,
     p: &[D; DIM],
@@ -146,8 +149,14 @@ fn at_kink<F: Facet<D, DIM, N>, const DIM: usize, const N: usize>(
         .chain([p])
         .flatten()
         .fold(0.0f64, |m, x| m.max(x.eps.abs()));
-    let noise = 1e-9 * speed / facet.measure().re;
-    facet.on_boundary(at, 1e-9) && at.as_ref().iter().any(|t| t.eps.abs() > noise)
+    // The facet's size: its length, or the square root of its area.
+    let size = facet.measure().re.powf(1.0 / (DIM - 1) as f64);
+    let noise = 1e-9 * speed / size;
+    facet
+        .boundary_axes(at, 1e-9)
+        .into_iter()
+        .zip(at.as_ref())
+        .any(|(at_bound, t)| at_bound && t.eps.abs() > noise)
 }
 
 /// Contact and tie rows at dual coordinates (None for rows that do not move):
@@ -853,7 +862,7 @@ pub fn semi_analytic_at(
         method: match (weak, kinked.is_empty()) {
             (0, true) => "semi_analytic".to_string(),
             (0, false) => format!(
-                "semi_analytic (one-sided along {}: contact nodes at segment ends slide)",
+                "semi_analytic (one-sided along {}: contact nodes at facet boundaries slide)",
                 kinked.join(", ")
             ),
             _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
