@@ -231,6 +231,13 @@ fn matching_meshes_make_sliding_derivatives_one_sided() {
     let g = cso::sens::semi_analytic(&s, 1e-8).expect("solves");
     assert!(g.method.contains("one-sided along w"), "{}", g.method);
     assert!(!g.method.contains("c,"), "{}", g.method);
+    // The adjoint says the same, never presenting it as a gradient.
+    let g = cso::sens::adjoint(&s, 1e-8).expect("solves");
+    assert!(
+        g.method.starts_with("adjoint (one-sided along w"),
+        "{}",
+        g.method
+    );
 }
 
 #[test]

@@ -485,7 +485,7 @@ impl<'a> Sensitivity<'a> {
 
     /// Adjoint gradient of one functional: [`Self::adjoint_all`] of it alone.
     pub fn adjoint(&self, f: &Functional, tolerance: f64) -> Result<(Vec<f64>, usize), SolveError> {
-        let (mut g, cost) = self.adjoint_all(std::slice::from_ref(f), tolerance)?;
+        let (mut g, cost, _) = self.adjoint_all(std::slice::from_ref(f), tolerance)?;
         Ok((g.pop().unwrap_or_default(), cost))
     }
 
@@ -494,13 +494,14 @@ impl<'a> Sensitivity<'a> {
     /// pass over the directions, `dJ/da_i = J_a,i + w^T f_bar_i + nu^T c_bar_i`,
     /// where `w^T K'_i u` and `u^T K'_i u` are dot products with the node
     /// velocities (no element pass per direction). Refused with weak contacts
-    /// (the gradient does not exist there). Returns the gradients and the
-    /// Hessian applications of the adjoint solves.
+    /// (the gradient does not exist there). Returns the gradients, the Hessian
+    /// applications of the adjoint solves, and the directions along which
+    /// contact nodes cross facet boundaries (one-sided there).
     pub fn adjoint_all(
         &self,
         fs: &[Functional],
         tolerance: f64,
-    ) -> Result<(Vec<Vec<f64>>, usize), SolveError> {
+    ) -> Result<(Vec<Vec<f64>>, usize, Vec<usize>), SolveError> {
         if self.weak() > 0 {
             return Err(SolveError::Unsupported(format!(
                 "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
@@ -519,8 +520,12 @@ impl<'a> Sensitivity<'a> {
         let m = self.scene.design.len();
         let p = &self.state.problem;
         let mut grad = vec![vec![0.0; m]; fs.len()];
+        let mut kinked = Vec::new();
         for i in 0..m {
             let (mut rhs, velocities) = self.rhs_with(i, false);
+            if rhs.kinks > 0 {
+                kinked.push(i);
+            }
             rhs.ukpu = dot_nested(&gu, &velocities);
             // The explicit part: the derivative with u' = 0 and l' = 0.
             let explicit = Direction {
@@ -543,7 +548,7 @@ impl<'a> Sensitivity<'a> {
                 grad[k][i] = ja + wf + nc;
             }
         }
-        Ok((grad, cost))
+        Ok((grad, cost, kinked))
     }
 
     /// The adjoint solve of one functional: `(w, nu)` and its Hessian applications.
@@ -793,6 +798,15 @@ fn num_traits_abs(a: D) -> D {
     }
 }
 
+/// What a gradient along design variables `names` is when contact nodes cross
+/// facet boundaries along them.
+fn sliding(names: &[String]) -> String {
+    format!(
+        "one-sided along {}: contact nodes at facet boundaries slide",
+        names.join(", ")
+    )
+}
+
 /// The rows of a gradient: the objective, then each constraint as one
 /// functional `g <= 0` (so one adjoint solve serves it), with their names.
 fn gradient_rows(scene: &Scene) -> (Vec<String>, Vec<Functional>) {
@@ -861,10 +875,7 @@ pub fn semi_analytic_at(
     Ok(super::Gradient {
         method: match (weak, kinked.is_empty()) {
             (0, true) => "semi_analytic".to_string(),
-            (0, false) => format!(
-                "semi_analytic (one-sided along {}: contact nodes at facet boundaries slide)",
-                kinked.join(", ")
-            ),
+            (0, false) => format!("semi_analytic ({})", sliding(&kinked)),
             _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
         },
         functionals: names,
@@ -909,9 +920,18 @@ pub fn adjoint_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let (gradient, hessian) = sens.adjoint_all(&rows, tolerance)?;
+    let (gradient, hessian, kinked) = sens.adjoint_all(&rows, tolerance)?;
+    let method = if kinked.is_empty() {
+        "adjoint".to_string()
+    } else {
+        let names: Vec<String> = kinked
+            .iter()
+            .map(|&i| scene.design[i].name.clone())
+            .collect();
+        format!("adjoint ({})", sliding(&names))
+    };
     Ok(super::Gradient {
-        method: "adjoint".to_string(),
+        method,
         functionals: names,
         values,
         design: scene.design.iter().map(|d| d.name.clone()).collect(),
