@@ -320,6 +320,10 @@ fn dot_nested(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
         .sum()
 }
 
+/// Adjoint gradients (per functional, per design variable), the Hessian
+/// applications of their solves, and the one-sided directions.
+type AdjointGradients = (Vec<Vec<f64>>, usize, Vec<usize>);
+
 /// An adjoint solution: `w` per subdomain, `nu` per kept row, Hessian applications.
 type Adjoint = (Vec<Vec<f64>>, Vec<f64>, usize);
 
@@ -501,7 +505,7 @@ impl<'a> Sensitivity<'a> {
         &self,
         fs: &[Functional],
         tolerance: f64,
-    ) -> Result<(Vec<Vec<f64>>, usize, Vec<usize>), SolveError> {
+    ) -> Result<AdjointGradients, SolveError> {
         if self.weak() > 0 {
             return Err(SolveError::Unsupported(format!(
                 "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
