@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
 use cso::io::atomic::Files;
 use cso::io::tables;
-use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod};
+use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod, SolverMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
@@ -68,6 +68,10 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench(Bench),
+    /// Accuracy against cost of state solves: `cso study convergence` refines the
+    /// mesh, `cso study tolerance` sweeps the solver's tolerance.
+    #[command(subcommand)]
+    Study(StudyCommand),
     /// Check a scene and print what the compiler understood.
     Compile(Compile),
     /// Write the compiled contact problem (the primal QP: K, f, B_E, c_E, B_I, c_I,
@@ -195,6 +199,94 @@ struct Bench {
     out: Option<PathBuf>,
 }
 
+#[derive(Subcommand, Debug)]
+enum StudyCommand {
+    /// The scene on meshes refined 2x per level (cuts too: H/h stays): cost per
+    /// level, each quantity's change, observed order, Richardson limit and, with
+    /// --hertz, its error against Hertz's solution.
+    Convergence(Convergence),
+    /// The solver's tolerance from 1e-2 to 1e-10 against the state's error
+    /// (against a solve at 1e-12) and time, for TFETI and FETI and each
+    /// preconditioner.
+    Tolerance(Tolerance),
+}
+
+/// `--hertz` and its values, shared by the studies.
+#[derive(Args, Debug)]
+struct HertzArgs {
+    /// Compare with Hertz contact (2D: cylinder, plane strain; 3D: sphere) of
+    /// the scene's one contact, with the moduli of its bodies.
+    #[arg(long)]
+    hertz: bool,
+    /// Hertz: radius of the curved face, a number with a unit (50mm) or the
+    /// name of a `let` (default: `let R`).
+    #[arg(long, value_name = "VALUE", requires = "hertz")]
+    radius: Option<String>,
+    /// Hertz: load on the whole body (2D: per unit length, 2MN/m; 3D: 10kN),
+    /// or the name of a `let` (default: `let P`).
+    #[arg(long, value_name = "VALUE", requires = "hertz")]
+    load: Option<String>,
+}
+
+impl HertzArgs {
+    fn reference(&self, scene: &Scene) -> Result<Option<cso::studies::hertz::Hertz>, u8> {
+        if !self.hertz {
+            return Ok(None);
+        }
+        cso::studies::hertz::hertz(scene, self.radius.as_deref(), self.load.as_deref())
+            .map(Some)
+            .map_err(|e| fail(EXIT_SCENE, e))
+    }
+}
+
+#[derive(Args, Debug)]
+struct Convergence {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write convergence.md, convergence.json and the charts
+    /// convergence-dofs.svg and convergence-time.svg into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Meshes to solve: the first, then each refined 2x.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    levels: usize,
+    /// Start from the scene's meshes halved K times (each count must divide).
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    coarsen: u32,
+    /// Start no level predicted to take the study past S seconds.
+    #[arg(long, value_name = "S")]
+    max_seconds: Option<f64>,
+    #[command(flatten)]
+    hertz: HertzArgs,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Tolerance {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write tolerance.md, tolerance.json and the chart tolerance.svg into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Methods (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [SolverMethod::Tfeti, SolverMethod::Feti])]
+    method: Vec<SolverMethod>,
+    /// Dual preconditioners (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None, Preconditioner::Lumped, Preconditioner::Dirichlet])]
+    preconditioner: Vec<Preconditioner>,
+    /// The mesh's error, drawn as a line (e.g. from `cso study convergence`);
+    /// with --hertz, the peak pressure's error against Hertz is drawn too.
+    #[arg(long, value_name = "E")]
+    discretization_error: Option<f64>,
+    #[command(flatten)]
+    hertz: HertzArgs,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    threads: Option<usize>,
+}
+
 #[derive(Args, Debug)]
 struct Compile {
     /// The `.cso` file.
@@ -283,6 +375,8 @@ fn main() -> ExitCode {
         Command::Optimize(c) => c.run(&opts),
         Command::Compare(c) => c.run(&opts),
         Command::Bench(c) => c.run(),
+        Command::Study(StudyCommand::Convergence(c)) => c.run(&opts),
+        Command::Study(StudyCommand::Tolerance(c)) => c.run(&opts),
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
     };
@@ -705,6 +799,69 @@ impl Optimize {
             outln!("results written to {}", dir.display());
         }
         Ok(())
+    }
+}
+
+impl Convergence {
+    /// The levels' rows as they are solved, then each quantity's table and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        use cso::studies::convergence::{self, level_row, LEVELS_HEADER};
+        if self.levels == 0 {
+            return Err(fail(
+                EXIT_IO,
+                "--levels must be at least 1 (the scene's own mesh)",
+            ));
+        }
+        if let Some(s) = self.max_seconds.filter(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(fail(
+                EXIT_IO,
+                format!("--max-seconds must be a positive number of seconds, found {s}"),
+            ));
+        }
+        let scene = load(&self.file, opts)?;
+        let hertz = self.hertz.reference(&scene)?;
+        prepare(self.out.as_deref())?;
+        let pool = thread_pool(self.threads)?;
+        let settings = convergence::Settings {
+            levels: self.levels,
+            coarsen: self.coarsen,
+            max_seconds: self.max_seconds,
+            memory_limit: opts.memory_limit,
+            hertz,
+        };
+        outln!("{LEVELS_HEADER}");
+        let bar = Progress::ticking("convergence", "solving the next level");
+        let c = pool.install(|| {
+            convergence::study(&scene, &settings, &mut |l| {
+                bar.update(|| format!("level {} solved in {:.1} s", l.level, l.seconds));
+                outln!("{}", level_row(l));
+            })
+        });
+        bar.finish();
+        let c = c.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", self.file.display())))?;
+        // The levels' table is already on stdout.
+        out!("{}", c.details());
+        let md = c.markdown();
+        for l in c.levels.iter().filter(|l| !l.converged) {
+            errln!(
+                "warning: level {} ({}) did not converge: its numbers carry the solver's error",
+                l.level,
+                l.mesh
+            );
+        }
+        write_into(self.out.as_deref(), || {
+            cso::studies::convergence::files(&scene, &c, &md)
+        })?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
+
+impl Tolerance {
+    fn run(&self, _opts: &CheckOptions) -> Outcome {
+        Err(fail(EXIT_IO, "not yet"))
     }
 }
 

@@ -10,7 +10,11 @@
 
 pub mod bench;
 pub mod compare;
+pub mod convergence;
+pub mod hertz;
+pub mod measure;
 pub mod output;
+pub mod refine;
 pub mod sensitivity;
 pub mod stability;
 
