@@ -860,8 +860,54 @@ impl Convergence {
 }
 
 impl Tolerance {
-    fn run(&self, _opts: &CheckOptions) -> Outcome {
-        Err(fail(EXIT_IO, "not yet"))
+    /// The runs' rows as they finish, the summary and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        use cso::studies::tolerance::{self, run_row, RUNS_HEADER, TOLERANCES};
+        if let Some(e) = self
+            .discretization_error
+            .filter(|e| !(e.is_finite() && *e > 0.0))
+        {
+            return Err(fail(
+                EXIT_IO,
+                format!("--discretization-error must be a positive relative error, found {e}"),
+            ));
+        }
+        let scene = load(&self.file, opts)?;
+        let hertz = self.hertz.reference(&scene)?;
+        prepare(self.out.as_deref())?;
+        let pool = thread_pool(self.threads)?;
+        let settings = tolerance::Settings {
+            methods: self.method.clone(),
+            preconditioners: self.preconditioner.clone(),
+            tolerances: TOLERANCES.to_vec(),
+            discretization: self
+                .discretization_error
+                .map(|e| ("given".to_string(), e))
+                .into_iter()
+                .collect(),
+            hertz,
+        };
+        let bar = Progress::ticking("tolerance", "solving the reference at 1e-12");
+        let mut header = false;
+        let t = pool.install(|| {
+            tolerance::study(&scene, &settings, &mut |r| {
+                if !header {
+                    outln!("{RUNS_HEADER}");
+                    header = true;
+                }
+                bar.update(|| format!("{:?} {:?} at {:.0e}", r.method, r.preconditioner, r.tolerance));
+                outln!("{}", run_row(r));
+            })
+        });
+        bar.finish();
+        let t = t.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", self.file.display())))?;
+        out!("{}", t.summary());
+        let md = t.markdown();
+        write_into(self.out.as_deref(), || tolerance::files(&scene, &t, &md))?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
     }
 }
 

@@ -128,11 +128,12 @@ pub struct QuantitySeries {
     pub richardson: Option<Richardson>,
     /// The analytic value (Hertz), when known.
     pub reference: Option<f64>,
-    /// `|q_k - reference| / |reference|`, or against the Richardson limit
-    /// when there is no reference (an estimate).
-    pub error: Vec<Option<f64>>,
-    /// Whether [`QuantitySeries::error`] is against the analytic reference.
-    pub error_is_analytic: bool,
+    /// `|q_k - reference| / |reference|`, when there is a reference.
+    pub error_analytic: Vec<Option<f64>>,
+    /// `|q_k - limit| / |limit|` against the Richardson limit: an estimate of
+    /// the mesh's error alone (an analytic reference also differs from the
+    /// model by what no mesh removes, e.g. a finite body for a half-space).
+    pub error_estimated: Vec<Option<f64>>,
     /// Every change below 1e-6: the quantity does not depend on the mesh
     /// (a contact force that equals the load).
     pub mesh_independent: bool,
@@ -334,11 +335,11 @@ pub fn series(name: &str, unit: &'static str, values: Vec<f64>, reference: Optio
     let richardson = (n >= 3 && !mesh_independent)
         .then(|| richardson(values[n - 3], values[n - 2], values[n - 1]))
         .flatten();
-    let against = reference.or(richardson.map(|r| r.limit));
-    let error = values
-        .iter()
-        .map(|v| against.map(|r| relative(*v, r)))
-        .collect();
+    let against = |r: Option<f64>| -> Vec<Option<f64>> {
+        values.iter().map(|v| r.map(|r| relative(*v, r))).collect()
+    };
+    let error_analytic = against(reference);
+    let error_estimated = against(richardson.map(|r| r.limit));
     QuantitySeries {
         name: name.to_string(),
         unit,
@@ -347,8 +348,8 @@ pub fn series(name: &str, unit: &'static str, values: Vec<f64>, reference: Optio
         order,
         richardson,
         reference,
-        error,
-        error_is_analytic: reference.is_some(),
+        error_analytic,
+        error_estimated,
         mesh_independent,
     }
 }
@@ -412,24 +413,27 @@ impl Convergence {
                 );
                 continue;
             }
-            let against = if q.error_is_analytic {
-                "error (analytic)"
-            } else {
-                "error (estimated)"
-            };
+            let analytic = q.reference.is_some();
             let _ = write!(
                 o,
-                "| level | dofs | value | change | order | {against} |\n|---|---|---|---|---|---|"
+                "| level | dofs | value | change | order | {}error (estimated) |\n|---|---|---|---|---|{}---|",
+                if analytic { "error (analytic) | " } else { "" },
+                if analytic { "---|" } else { "" },
             );
             for (k, l) in self.levels.iter().enumerate() {
                 let _ = write!(
                     o,
-                    "\n| {k} | {} | {} | {} | {} | {} |",
+                    "\n| {k} | {} | {} | {} | {} | {}{} |",
                     l.dofs,
                     num(q.values[k]),
                     pct(q.change[k]),
                     order(q.order[k]),
-                    pct(q.error[k])
+                    if analytic {
+                        format!("{} | ", pct(q.error_analytic[k]))
+                    } else {
+                        String::new()
+                    },
+                    pct(q.error_estimated[k])
                 );
             }
             o.push('\n');
@@ -473,31 +477,30 @@ impl Convergence {
             if q.mesh_independent {
                 continue;
             }
-            let pts: Vec<(f64, f64)> = x
-                .iter()
-                .zip(&q.error)
-                .filter_map(|(x, e)| e.map(|e| (*x, e)))
-                .filter(|(_, e)| *e > 0.0)
-                .collect();
-            if pts.len() < 2 {
-                continue;
+            for (errors, tag) in [
+                (&q.error_analytic, "vs analytic"),
+                (&q.error_estimated, "vs extrapolated"),
+            ] {
+                let pts: Vec<(f64, f64)> = x
+                    .iter()
+                    .zip(errors)
+                    .filter_map(|(x, e)| e.map(|e| (*x, e)))
+                    .filter(|(_, e)| *e > 0.0)
+                    .collect();
+                if pts.len() < 2 {
+                    continue;
+                }
+                names.push(format!("{} ({tag})", q.name));
+                xs.push(pts.iter().map(|p| p.0).collect::<Vec<_>>());
+                ys.push(pts.iter().map(|p| p.1).collect::<Vec<_>>());
             }
-            let tag = if q.error_is_analytic {
-                "vs analytic"
-            } else {
-                "vs extrapolated"
-            };
-            names.push(format!("{} ({tag})", q.name));
-            xs.push(pts.iter().map(|p| p.0).collect::<Vec<_>>());
-            ys.push(pts.iter().map(|p| p.1).collect::<Vec<_>>());
         }
         if names.is_empty() {
             return Ok(None);
         }
         if slope && x.len() >= 2 {
-            // O(h^2) through the largest error at the first level:
-            // h ~ dofs^(-1/d).
-            let e0 = ys.iter().filter_map(|y| y.first()).fold(0.0f64, |a, b| a.max(*b));
+            // O(h^2) (h ~ dofs^(-1/d)) through the first series' first point.
+            let e0 = ys.first().and_then(|y| y.first()).copied().unwrap_or(1.0);
             let d = self.dim as f64;
             names.push("slope of O(h^2)".to_string());
             ys.push(x.iter().map(|v| e0 * (v / x[0]).powf(-2.0 / d)).collect());
@@ -614,10 +617,11 @@ mod tests {
         assert!((s.order[3].expect("order") - 2.0).abs() < 1e-12);
         let limit = s.richardson.expect("limit").limit;
         assert!((limit - 2.0).abs() < 1e-12);
-        assert!((s.error[0].expect("error") - 0.5).abs() < 1e-12);
+        assert!((s.error_estimated[0].expect("error") - 0.5).abs() < 1e-12);
+        assert_eq!(s.error_analytic[0], None);
         let s = series("q", "m", v, Some(2.5));
-        assert!(s.error_is_analytic);
-        assert!((s.error[0].expect("error") - 0.2).abs() < 1e-12);
+        assert!((s.error_analytic[0].expect("error") - 0.2).abs() < 1e-12);
+        assert!((s.error_estimated[0].expect("error") - 0.5).abs() < 1e-12);
         let s = series("force", "N", vec![1e6, 1e6 * (1.0 + 1e-10), 1e6], None);
         assert!(s.mesh_independent && s.richardson.is_none());
     }

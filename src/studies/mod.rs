@@ -17,6 +17,7 @@ pub mod output;
 pub mod refine;
 pub mod sensitivity;
 pub mod stability;
+pub mod tolerance;
 
 /// Free text (an error message, a formula with `|u|`) as one Markdown table
 /// cell: a bare `|` would end the cell and shift every column after it.
