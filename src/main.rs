@@ -276,6 +276,9 @@ struct Tolerance {
     /// Dual preconditioners (repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None, Preconditioner::Lumped, Preconditioner::Dirichlet])]
     preconditioner: Vec<Preconditioner>,
+    /// Solve each run N times and count the fastest (steadier timings).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
     /// The mesh's error, drawn as a line (e.g. from `cso study convergence`);
     /// with --hertz, the peak pressure's error against Hertz is drawn too.
     #[arg(long, value_name = "E")]
@@ -880,6 +883,7 @@ impl Tolerance {
             methods: self.method.clone(),
             preconditioners: self.preconditioner.clone(),
             tolerances: TOLERANCES.to_vec(),
+            repeat: self.repeat as usize,
             discretization: self
                 .discretization_error
                 .map(|e| ("given".to_string(), e))
