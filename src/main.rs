@@ -899,7 +899,12 @@ impl Tolerance {
                     outln!("{RUNS_HEADER}");
                     header = true;
                 }
-                bar.update(|| format!("{:?} {:?} at {:.0e}", r.method, r.preconditioner, r.tolerance));
+                bar.update(|| {
+                    format!(
+                        "{:?} {:?} at {:.0e}",
+                        r.method, r.preconditioner, r.tolerance
+                    )
+                });
                 outln!("{}", run_row(r));
             })
         });

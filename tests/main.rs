@@ -14,6 +14,7 @@ mod schema;
 mod sensitivity;
 mod solid;
 mod state;
+mod study;
 
 use std::path::{Path, PathBuf};
 

@@ -230,10 +230,16 @@ pub fn study(
         if let Some(h) = &settings.hertz {
             let of = |suffix: &str| {
                 let name = format!("{} {suffix}", h.contact_name);
-                q.iter().find(|q| q.name == name).map_or(f64::NAN, |q| q.value)
+                q.iter()
+                    .find(|q| q.name == name)
+                    .map_or(f64::NAN, |q| q.value)
             };
             let force = of("force");
-            let extent = of(if h.line { "contact length" } else { "contact area" });
+            let extent = of(if h.line {
+                "contact length"
+            } else {
+                "contact area"
+            });
             let c = match copies {
                 Some(c) => c,
                 None => {
@@ -318,7 +324,12 @@ fn relative(a: f64, b: f64) -> f64 {
 }
 
 /// One quantity's changes, orders, extrapolation and errors.
-pub fn series(name: &str, unit: &'static str, values: Vec<f64>, reference: Option<f64>) -> QuantitySeries {
+pub fn series(
+    name: &str,
+    unit: &'static str,
+    values: Vec<f64>,
+    reference: Option<f64>,
+) -> QuantitySeries {
     let n = values.len();
     let change: Vec<Option<f64>> = (0..n)
         .map(|k| (k > 0).then(|| relative(values[k], values[k - 1]).min(f64::MAX)))
@@ -459,7 +470,9 @@ impl Convergence {
                     let _ = writeln!(o, "\nanalytic {}", num(x));
                 }
                 (None, None) if self.levels.len() >= 3 => {
-                    o.push_str("\nno Richardson limit: the last changes do not shrink monotonically\n");
+                    o.push_str(
+                        "\nno Richardson limit: the last changes do not shrink monotonically\n",
+                    );
                 }
                 (None, None) => {}
             }
@@ -469,7 +482,13 @@ impl Convergence {
 
     /// Series of the charts: each quantity's error (and a slope for
     /// reading the order) against `x` per level.
-    fn chart(&self, x: &[f64], title: &str, x_label: &str, slope: bool) -> Result<Option<String>, PlotError> {
+    fn chart(
+        &self,
+        x: &[f64],
+        title: &str,
+        x_label: &str,
+        slope: bool,
+    ) -> Result<Option<String>, PlotError> {
         let mut names = Vec::new();
         let mut ys = Vec::new();
         let mut xs = Vec::new();
@@ -577,7 +596,9 @@ pub fn files(scene: &Scene, c: &Convergence, md: &str) -> Result<crate::io::atom
         ("convergence.md".into(), md.as_bytes().to_vec()),
         ("convergence.json".into(), json.into_bytes()),
     ];
-    let (dofs, time) = c.svgs().map_err(|e| format!("cannot draw the charts: {e}"))?;
+    let (dofs, time) = c
+        .svgs()
+        .map_err(|e| format!("cannot draw the charts: {e}"))?;
     if let Some(svg) = dofs {
         files.push(("convergence-dofs.svg".into(), svg.into_bytes()));
     }
@@ -610,7 +631,10 @@ mod tests {
 
     #[test]
     fn a_series_reports_changes_orders_and_errors() {
-        let v: Vec<f64> = [1.0, 0.5, 0.25, 0.125].iter().map(|h| 2.0 + h * h).collect();
+        let v: Vec<f64> = [1.0, 0.5, 0.25, 0.125]
+            .iter()
+            .map(|h| 2.0 + h * h)
+            .collect();
         let s = series("q", "m", v.clone(), None);
         assert_eq!(s.change[0], None);
         assert!((s.order[2].expect("order") - 2.0).abs() < 1e-12);

@@ -106,11 +106,15 @@ fn value(
                 option,
                 example,
             })
-            .and_then(|v| positive(v).ok_or_else(|| bad(default, format!("`let {default}` is {v}, not positive"))));
+            .and_then(|v| {
+                positive(v)
+                    .ok_or_else(|| bad(default, format!("`let {default}` is {v}, not positive")))
+            });
     };
     let t = text.trim();
     if let Some(p) = scene.params.iter().find(|p| p.name == t) {
-        return positive(p.value).ok_or_else(|| bad(t, format!("`let {t}` is {}, not positive", p.value)));
+        return positive(p.value)
+            .ok_or_else(|| bad(t, format!("`let {t}` is {}, not positive", p.value)));
     }
     // The longest prefix that is a number; the rest is its unit.
     let split = (1..=t.len())
@@ -123,7 +127,11 @@ fn value(
             t,
             format!(
                 "neither a number nor a `let` of the scene (its constants: {})",
-                if lets.is_empty() { "none".to_string() } else { lets.join(", ") }
+                if lets.is_empty() {
+                    "none".to_string()
+                } else {
+                    lets.join(", ")
+                }
             ),
         ));
     };
@@ -278,8 +286,8 @@ mod tests {
             "scene s {{ dim = 2 }}
 let R = 50 mm
 let P = 2 MN/m
-material m {{ E = 210 GPa, nu = 0.3 }}
-body b {{ material = m, x = 0 .. 1, y = 0 .. 1, mesh = 2 x 2 }}
+material steel {{ E = 210 GPa, nu = 0.3 }}
+body b {{ material = steel, x = 0 .. 1, y = 0 .. 1, mesh = 2 x 2 }}
 obstacle floor {{ point = (0, 0), normal = (0, 1) }}
 fix b.top
 {extra}"
@@ -310,7 +318,10 @@ fix b.top
 
     #[test]
     fn a_scene_without_one_contact_is_refused() {
-        assert_eq!(hertz(&scene(""), None, None).unwrap_err(), HertzError::NoContact);
+        assert_eq!(
+            hertz(&scene(""), None, None).unwrap_err(),
+            HertzError::NoContact
+        );
         let two = "contact c { primary = floor, secondary = b.bottom }
 contact d { primary = floor, secondary = b.left }\n";
         assert_eq!(

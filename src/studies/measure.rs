@@ -60,14 +60,22 @@ pub fn quantities(scene: &Scene, state: &State) -> Vec<Quantity> {
     let mut out = vec![q("energy".into(), "J", report.energy)];
     for c in &report.contacts {
         out.push(q(format!("{} force", c.name), "N", c.total_force));
-        out.push(q(format!("{} peak pressure", c.name), "Pa", peak_pressure(c)));
+        out.push(q(
+            format!("{} peak pressure", c.name),
+            "Pa",
+            peak_pressure(c),
+        ));
         let extent = contact_extent(c, scene.dim, scene.thickness);
         out.push(match scene.dim {
             Dimension::Two => q(format!("{} contact length", c.name), "m", extent),
             Dimension::Three => q(format!("{} contact area", c.name), "m^2", extent),
         });
     }
-    let umax = report.bodies.iter().map(|b| b.max_abs_u).fold(0.0, f64::max);
+    let umax = report
+        .bodies
+        .iter()
+        .map(|b| b.max_abs_u)
+        .fold(0.0, f64::max);
     for p in &report.probes {
         let comps = [("ux", Some(p.ux)), ("uy", Some(p.uy)), ("uz", p.uz)];
         for (axis, v) in comps {

@@ -112,8 +112,8 @@ mod tests {
     fn scene(mesh: &str, cuts: &str) -> Scene {
         let src = format!(
             "scene s {{ dim = 2 }}
-material m {{ E = 1000, nu = 0.3 }}
-body b {{ material = m, x = 0 .. 1, y = 0 .. 1, mesh = {mesh}, subdomains = {cuts} }}
+material mat {{ E = 1000, nu = 0.3 }}
+body b {{ material = mat, x = 0 .. 1, y = 0 .. 1, mesh = {mesh}, subdomains = {cuts} }}
 fix b.bottom
 traction b.top = (0, -1)
 "

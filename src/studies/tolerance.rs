@@ -353,7 +353,11 @@ impl ToleranceStudy {
         for (what, level) in &self.discretization {
             names.push(format!("mesh error: {what}"));
             xs.push(if lo <= hi { vec![lo, hi] } else { vec![] });
-            ys.push(if lo <= hi { vec![*level, *level] } else { vec![] });
+            ys.push(if lo <= hi {
+                vec![*level, *level]
+            } else {
+                vec![]
+            });
         }
         let series: Vec<Series> = names
             .iter()
@@ -385,9 +389,7 @@ pub fn files(
             .map(|q| (q.name.clone(), q.unit.to_string())),
     );
     let json = to_json(&header, t).map_err(|e| format!("cannot write JSON: {e}"))?;
-    let svg = t
-        .svg()
-        .map_err(|e| format!("cannot draw the chart: {e}"))?;
+    let svg = t.svg().map_err(|e| format!("cannot draw the chart: {e}"))?;
     Ok(vec![
         ("tolerance.md".into(), md.as_bytes().to_vec()),
         ("tolerance.json".into(), json.into_bytes()),
