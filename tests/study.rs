@@ -229,23 +229,23 @@ fn study_tolerance_writes_its_table_json_and_chart() {
     let _ = std::fs::remove_file(&scene);
 }
 
+/// Runs `cso` expecting exit `code` and no panic; its stderr.
+fn refused(args: &[&str], code: i32) -> String {
+    let (got, _, err) = cso(args);
+    assert_eq!(got, code, "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{args:?}: {err}");
+    err
+}
+
 #[test]
 fn bad_study_input_is_a_clear_error_not_a_panic() {
-    // No contact, asked for Hertz.
-    let (code, _, err) = cso(&[
-        "study",
-        "convergence",
-        "examples/two_blocks.cso",
-        "--hertz",
-        "--levels",
-        "1",
-    ]);
-    assert_eq!(code, 1, "{err}");
-    assert!(!err.contains("panicked"), "{err}");
-    assert!(
-        err.contains("no `let R`") || err.contains("contact"),
-        "{err}"
+    // A contact but no radius: two_blocks has no `let R`.
+    let err = refused(
+        &["study", "convergence", "examples/two_blocks.cso", "--hertz"],
+        1,
     );
+    assert!(err.contains("no `let R`"), "{err}");
+    // No contact at all.
     let no_contact = temp("no-contact.cso");
     std::fs::write(
         &no_contact,
@@ -259,51 +259,30 @@ fix b.bottom
     )
     .expect("writable");
     let path = no_contact.to_str().expect("utf-8");
-    let (code, _, err) = cso(&["study", "convergence", path, "--hertz"]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("the scene has none"), "{err}");
-    let (code, _, err) = cso(&["study", "tolerance", path, "--hertz"]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("the scene has none"), "{err}");
-    let _ = std::fs::remove_file(&no_contact);
-    // Levels 0, a mesh that cannot be halved, a radius that is a force.
-    let (code, _, err) = cso(&[
-        "study",
-        "convergence",
-        "examples/hertz2d.cso",
-        "--levels",
-        "0",
-    ]);
-    assert_eq!(code, 2, "{err}");
-    assert!(err.contains("--levels must be at least 1"), "{err}");
-    let (code, _, err) = cso(&[
-        "study",
-        "convergence",
-        "examples/hertz2d.cso",
-        "--coarsen",
-        "5",
-    ]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("cannot be halved 5 time"), "{err}");
-    let (code, _, err) = cso(&[
-        "study",
-        "convergence",
-        "examples/hertz2d.cso",
-        "--hertz",
-        "--radius",
-        "5 kN",
-    ]);
-    assert_eq!(code, 1, "{err}");
-    assert!(err.contains("expected m, found N"), "{err}");
-    let (code, _, err) = cso(&[
-        "study",
-        "convergence",
-        "examples/hertz2d.cso",
-        "--radius",
-        "5mm",
-    ]);
-    assert_eq!(code, 2, "--radius needs --hertz: {err}");
-    for e in [&err] {
-        assert!(!e.contains("panicked"), "{e}");
+    for study in ["convergence", "tolerance"] {
+        let err = refused(&["study", study, path, "--hertz"], 1);
+        assert!(err.contains("the scene has none"), "{err}");
     }
+    let _ = std::fs::remove_file(&no_contact);
+    let hertz2d = "examples/hertz2d.cso";
+    let err = refused(&["study", "convergence", hertz2d, "--levels", "0"], 2);
+    assert!(err.contains("--levels must be at least 1"), "{err}");
+    let err = refused(&["study", "convergence", hertz2d, "--coarsen", "5"], 1);
+    assert!(err.contains("cannot be halved 5 time"), "{err}");
+    let err = refused(
+        &[
+            "study",
+            "convergence",
+            hertz2d,
+            "--hertz",
+            "--radius",
+            "5 kN",
+        ],
+        1,
+    );
+    assert!(err.contains("expected m, found N"), "{err}");
+    // --radius without --hertz is a usage error.
+    refused(&["study", "convergence", hertz2d, "--radius", "5mm"], 2);
+    let err = refused(&["study", "tolerance", hertz2d, "--repeat", "0"], 2);
+    assert!(err.contains("--repeat"), "{err}");
 }

@@ -54,7 +54,7 @@ pub enum ConvergenceError {
     Solve {
         level: usize,
         mesh: String,
-        error: SolveError,
+        error: Box<SolveError>,
     },
     #[error("level 0 ({mesh}) needs about {need}, more than the memory limit {limit}")]
     Memory {
@@ -223,7 +223,7 @@ pub fn study(
             solve(&s, &s.design_init(), &mut |_| {}).map_err(|error| ConvergenceError::Solve {
                 level: k,
                 mesh: mesh.clone(),
-                error,
+                error: Box::new(error),
             })?;
         let seconds = t.elapsed().as_secs_f64();
         let mut q = quantities(&s, &state);
