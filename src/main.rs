@@ -279,10 +279,11 @@ struct Tolerance {
     /// Solve each run N times and count the fastest (steadier timings).
     #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
     repeat: u32,
-    /// The mesh's error, drawn as a line (e.g. from `cso study convergence`);
-    /// with --hertz, the peak pressure's error against Hertz is drawn too.
-    #[arg(long, value_name = "E")]
-    discretization_error: Option<f64>,
+    /// A known relative error of the mesh, `E` or `WHAT=E` (e.g. energy=7.8e-4
+    /// from `cso study convergence`), drawn as a line (repeatable); with
+    /// --hertz, the peak pressure's error against Hertz is drawn too.
+    #[arg(long, value_name = "[WHAT=]E", value_parser = parse_error_level)]
+    discretization_error: Vec<(String, f64)>,
     #[command(flatten)]
     hertz: HertzArgs,
     /// Threads over subdomains (default: all cores).
@@ -320,6 +321,20 @@ fn parse_threads(s: &str) -> Result<usize, String> {
         Ok(n) if n >= 1 => Ok(n),
         _ => Err(format!(
             "expected a number of threads of at least 1, found `{s}` (leave --threads out to use every core)"
+        )),
+    }
+}
+
+/// `--discretization-error [WHAT=]E`: a positive relative error, named.
+fn parse_error_level(s: &str) -> Result<(String, f64), String> {
+    let (what, value) = match s.split_once('=') {
+        Some((w, v)) => (w.trim().to_string(), v),
+        None => ("given".to_string(), s),
+    };
+    match value.trim().parse::<f64>() {
+        Ok(e) if e.is_finite() && e > 0.0 && !what.is_empty() => Ok((what, e)),
+        _ => Err(format!(
+            "expected a positive relative error, E or WHAT=E (e.g. energy=7.8e-4), found `{s}`"
         )),
     }
 }
@@ -866,15 +881,6 @@ impl Tolerance {
     /// The runs' rows as they finish, the summary and the files.
     fn run(&self, opts: &CheckOptions) -> Outcome {
         use cso::studies::tolerance::{self, run_row, RUNS_HEADER, TOLERANCES};
-        if let Some(e) = self
-            .discretization_error
-            .filter(|e| !(e.is_finite() && *e > 0.0))
-        {
-            return Err(fail(
-                EXIT_IO,
-                format!("--discretization-error must be a positive relative error, found {e}"),
-            ));
-        }
         let scene = load(&self.file, opts)?;
         let hertz = self.hertz.reference(&scene)?;
         prepare(self.out.as_deref())?;
@@ -884,11 +890,7 @@ impl Tolerance {
             preconditioners: self.preconditioner.clone(),
             tolerances: TOLERANCES.to_vec(),
             repeat: self.repeat as usize,
-            discretization: self
-                .discretization_error
-                .map(|e| ("given".to_string(), e))
-                .into_iter()
-                .collect(),
+            discretization: self.discretization_error.clone(),
             hertz,
         };
         let bar = Progress::ticking("tolerance", "solving the reference at 1e-12");

@@ -201,15 +201,18 @@ fn study_tolerance_writes_its_table_json_and_chart() {
         "--hertz",
         "--discretization-error",
         "1e-3",
+        "--discretization-error",
+        "energy=2e-4",
         "-o",
         dir.to_str().expect("utf-8"),
     ]);
     assert_eq!(code, 0, "{err}");
     // 2 methods x 1 preconditioner x 9 tolerances, and a row in each of the
-    // two summaries (the given error, Hertz's).
-    assert_eq!(out.matches("| TFETI, lumped |").count(), 11, "{out}");
-    assert_eq!(out.matches("| FETI, lumped |").count(), 11, "{out}");
+    // three summaries (the two given errors, Hertz's).
+    assert_eq!(out.matches("| TFETI, lumped |").count(), 12, "{out}");
+    assert_eq!(out.matches("| FETI, lumped |").count(), 12, "{out}");
     assert!(out.contains("the mesh's error (given): 1.0e-3"), "{out}");
+    assert!(out.contains("the mesh's error (energy): 2.0e-4"), "{out}");
     assert!(
         out.contains("the mesh's error (peak pressure against Hertz)"),
         "{out}"
@@ -285,4 +288,15 @@ fix b.bottom
     refused(&["study", "convergence", hertz2d, "--radius", "5mm"], 2);
     let err = refused(&["study", "tolerance", hertz2d, "--repeat", "0"], 2);
     assert!(err.contains("--repeat"), "{err}");
+    let err = refused(
+        &[
+            "study",
+            "tolerance",
+            hertz2d,
+            "--discretization-error",
+            "energy=-1",
+        ],
+        2,
+    );
+    assert!(err.contains("expected a positive relative error"), "{err}");
 }
