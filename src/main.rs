@@ -26,7 +26,9 @@ Examples:
   cso --set P=3MN/m compile examples/hertz2d.cso
                                            override `let P` (checked like the source)
   cso solve examples/two_blocks.cso -o out solve; report.json, VTU, SVG plots
-  cso compare examples/scont2d.cso         FETI vs Total FETI table";
+  cso compare examples/scont2d.cso         FETI vs Total FETI table
+  cso study convergence examples/hertz2d.cso --hertz
+                                           refine the mesh: error, order, cost";
 
 /// cso: compiler and solver for contact shape optimization (Total FETI).
 #[derive(Parser, Debug)]

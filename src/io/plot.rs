@@ -124,6 +124,7 @@ pub fn line_chart(
         title,
         x_label,
         y_label,
+        log: (log_x, log_y),
     };
 
     // The legend gets its own column right of the chart, so it never covers
@@ -187,6 +188,8 @@ struct ChartText<'a> {
     title: &'a str,
     x_label: &'a str,
     y_label: &'a str,
+    /// Whether each axis is logarithmic (for [`axis_tick`]).
+    log: (bool, bool),
 }
 
 /// The body of [`line_chart`] for one choice of axis types.
@@ -216,8 +219,8 @@ where
         .y_desc(text.y_label)
         .label_style((FONT, LABEL_SIZE))
         .axis_desc_style((FONT, LABEL_SIZE))
-        .x_label_formatter(&|v| tick_label(*v))
-        .y_label_formatter(&|v| tick_label(*v))
+        .x_label_formatter(&|v| axis_tick(*v, text.log.0))
+        .y_label_formatter(&|v| axis_tick(*v, text.log.1))
         .light_line_style(WHITE.mix(0.0))
         .draw()
         .map_err(draw_err)?;
@@ -286,6 +289,21 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
 /// Short tick text: plain for moderate magnitudes, exponent form otherwise,
 /// with four significant digits (enough to tell ticks apart, short enough to
 /// fit).
+/// A tick's text on an axis: on a log axis only 1, 2 and 5 times a power
+/// of ten are labelled (plotters puts a tick at every multiple inside a
+/// decade when the axis spans less than two, and their labels run into each
+/// other), the other ticks stay unlabelled marks.
+fn axis_tick(v: f64, log: bool) -> String {
+    if log && v > 0.0 {
+        let m = v / 10f64.powf(v.log10().floor());
+        let round = m.round();
+        if !([1.0, 2.0, 5.0, 10.0].contains(&round) && (m - round).abs() < 1e-6 * m) {
+            return String::new();
+        }
+    }
+    tick_label(v)
+}
+
 fn tick_label(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
@@ -1239,6 +1257,16 @@ mod tests {
         // No gaps: the opaque pixels of a row are contiguous.
         let first = (0..w).position(|i| px(i, cy)[3] == 255).unwrap();
         assert!((first..first + opaque).all(|i| px(i, cy)[3] == 255));
+    }
+
+    #[test]
+    fn log_axes_label_one_two_and_five_only() {
+        assert_eq!(axis_tick(20000.0, true), "20000");
+        assert_eq!(axis_tick(1e5, true), "1e5");
+        assert_eq!(axis_tick(0.5, true), "0.5");
+        assert_eq!(axis_tick(40000.0, true), "");
+        assert_eq!(axis_tick(0.7, true), "");
+        assert_eq!(axis_tick(40000.0, false), "40000");
     }
 
     #[test]

@@ -110,6 +110,13 @@ pub fn richardson(q0: f64, q1: f64, q2: f64) -> Option<Richardson> {
     })
 }
 
+/// Orders a limit is extrapolated with. Q1 and hex8 elements give 1 (a
+/// contact edge read from nodes) to 2 (smooth quantities); an order far
+/// outside says the levels are not asymptotic yet (at order 0.3 the limit
+/// would be the last value plus 4 times its last change), and no limit is
+/// better than a wild one.
+pub const PLAUSIBLE_ORDER: std::ops::RangeInclusive<f64> = 0.5..=4.0;
+
 /// Changes below this (relative) are at the solver's tolerance, not the mesh's.
 const MESH_INDEPENDENT: f64 = 1e-6;
 
@@ -124,7 +131,8 @@ pub struct QuantitySeries {
     /// Observed order from levels `k-2, k-1, k` (None before level 2 or
     /// when the changes do not shrink monotonically).
     pub order: Vec<Option<f64>>,
-    /// From the last three levels.
+    /// From the last three levels, when its order is plausible
+    /// ([`PLAUSIBLE_ORDER`]).
     pub richardson: Option<Richardson>,
     /// The analytic value (Hertz), when known.
     pub reference: Option<f64>,
@@ -345,7 +353,8 @@ pub fn series(
     let mesh_independent = n >= 2 && change.iter().flatten().all(|c| *c < MESH_INDEPENDENT);
     let richardson = (n >= 3 && !mesh_independent)
         .then(|| richardson(values[n - 3], values[n - 2], values[n - 1]))
-        .flatten();
+        .flatten()
+        .filter(|r| PLAUSIBLE_ORDER.contains(&r.order));
     let against = |r: Option<f64>| -> Vec<Option<f64>> {
         values.iter().map(|v| r.map(|r| relative(*v, r))).collect()
     };
@@ -466,13 +475,15 @@ impl Convergence {
                     }
                     o.push('\n');
                 }
+                (None, reference) if self.levels.len() >= 3 => {
+                    let _ = writeln!(
+                        o,
+                        "\nno Richardson limit: the last three levels' changes do not shrink monotonically at an order between 0.5 and 4 (not asymptotic yet){}",
+                        reference.map_or(String::new(), |x| format!("; analytic {}", num(x)))
+                    );
+                }
                 (None, Some(x)) => {
                     let _ = writeln!(o, "\nanalytic {}", num(x));
-                }
-                (None, None) if self.levels.len() >= 3 => {
-                    o.push_str(
-                        "\nno Richardson limit: the last changes do not shrink monotonically\n",
-                    );
                 }
                 (None, None) => {}
             }
