@@ -161,6 +161,22 @@ fn study_convergence_writes_its_table_json_and_charts() {
     assert_eq!(v["input"], "examples/hertz2d.cso");
     assert_eq!(v["levels"].as_array().map(Vec::len), Some(3));
     assert_eq!(v["units"]["seat peak pressure"], "Pa");
+    // Each level's values match the quantities (the probe `tip`, at the
+    // contact point on the symmetry line, moves by zero in both components up
+    // to the solver's tolerance: left out of both).
+    let names: Vec<&str> = v["quantities"]
+        .as_array()
+        .expect("quantities")
+        .iter()
+        .filter_map(|q| q["name"].as_str())
+        .collect();
+    assert_eq!(
+        names,
+        ["energy", "seat force", "seat peak pressure", "seat half-width b"]
+    );
+    for l in v["levels"].as_array().expect("levels") {
+        assert_eq!(l["values"].as_array().map(Vec::len), Some(names.len()));
+    }
     for (file, label) in [
         ("convergence-dofs.svg", "grid unknowns"),
         ("convergence-time.svg", "seconds per solve"),

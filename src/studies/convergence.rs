@@ -297,10 +297,12 @@ pub fn study(
         levels.push(level);
     }
     let hertz = settings.hertz.as_ref();
-    let quantities = names
+    // Probe components that are zero by symmetry are left out, of the
+    // levels' values too.
+    let kept: Vec<usize> = (0..names.len()).filter(|&i| !names[i].negligible).collect();
+    let quantities = kept
         .iter()
-        .enumerate()
-        .filter(|(_, q)| !q.negligible)
+        .map(|&i| (i, &names[i]))
         .map(|(i, q)| {
             let values: Vec<f64> = levels.iter().map(|l| l.values[i]).collect();
             let reference = hertz.and_then(|h| {
@@ -315,6 +317,9 @@ pub fn study(
             series(&q.name, q.unit, values, reference)
         })
         .collect();
+    for l in &mut levels {
+        l.values = kept.iter().map(|&i| l.values[i]).collect();
+    }
     Ok(Convergence {
         scene: scene.name.clone(),
         dim: d,
