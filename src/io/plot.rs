@@ -267,11 +267,16 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
     if log {
         // Padding by a constant factor is a constant distance on the log axis.
         let lo = lo.max(hi / 10f64.powf(MAX_DECADES));
-        if hi / lo < 1.0 + MIN_REL_WIDTH {
-            (lo / 2.0)..(hi * 2.0)
+        let (lo, hi) = if hi / lo < 1.0 + MIN_REL_WIDTH {
+            (lo / 2.0, hi * 2.0)
         } else {
-            (lo / 1.1)..(hi * 1.1)
-        }
+            (lo / 1.1, hi * 1.1)
+        };
+        // From the power of ten below: plotters places a log axis' ticks from
+        // the first power of ten inside it, so data between 0.15 and 1.2
+        // would get a single tick at 1.
+        let down = 10f64.powf(lo.log10().floor());
+        (if down > 0.0 { down } else { lo })..hi
     } else {
         let mag = lo.abs().max(hi.abs());
         let width = hi - lo;
@@ -286,9 +291,6 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
     }
 }
 
-/// Short tick text: plain for moderate magnitudes, exponent form otherwise,
-/// with four significant digits (enough to tell ticks apart, short enough to
-/// fit).
 /// A tick's text on an axis: on a log axis only 1, 2 and 5 times a power
 /// of ten are labelled (plotters puts a tick at every multiple inside a
 /// decade when the axis spans less than two, and their labels run into each
@@ -304,6 +306,9 @@ fn axis_tick(v: f64, log: bool) -> String {
     tick_label(v)
 }
 
+/// Short tick text: plain for moderate magnitudes, exponent form otherwise,
+/// with four significant digits (enough to tell ticks apart, short enough to
+/// fit).
 fn tick_label(v: f64) -> String {
     let a = v.abs();
     if a == 0.0 {
@@ -1257,6 +1262,14 @@ mod tests {
         // No gaps: the opaque pixels of a row are contiguous.
         let first = (0..w).position(|i| px(i, cy)[3] == 255).unwrap();
         assert!((first..first + opaque).all(|i| px(i, cy)[3] == 255));
+    }
+
+    #[test]
+    fn a_log_axis_starts_at_a_power_of_ten() {
+        let r = axis_range([0.15, 1.2].into_iter(), true);
+        assert!((r.start - 0.1).abs() < 1e-15 && r.end > 1.2, "{r:?}");
+        let r = axis_range([3e-9, 0.7].into_iter(), true);
+        assert!((r.start - 1e-9).abs() < 1e-24, "{r:?}");
     }
 
     #[test]
