@@ -272,11 +272,12 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
         } else {
             (lo / 1.1, hi * 1.1)
         };
-        // From the power of ten below: plotters places a log axis' ticks from
-        // the first power of ten inside it, so data between 0.15 and 1.2
-        // would get a single tick at 1.
-        let down = 10f64.powf(lo.log10().floor());
-        (if down > 0.0 { down } else { lo })..hi
+        // plotters places a log axis' ticks from the first power of ten
+        // inside it on, so data from 0.15 to 1.2 would get a single tick at 1:
+        // when that power is far above the start, start at the one below.
+        let first = 10f64.powf(lo.log10().ceil());
+        let down = first / 10.0;
+        (if first / lo > 3.0 && down > 0.0 { down } else { lo })..hi
     } else {
         let mag = lo.abs().max(hi.abs());
         let width = hi - lo;
@@ -1265,11 +1266,15 @@ mod tests {
     }
 
     #[test]
-    fn a_log_axis_starts_at_a_power_of_ten() {
+    fn a_log_axis_has_ticks_near_its_start() {
+        // No power of ten near 0.15: the axis starts at 0.1.
         let r = axis_range([0.15, 1.2].into_iter(), true);
         assert!((r.start - 0.1).abs() < 1e-15 && r.end > 1.2, "{r:?}");
         let r = axis_range([3e-9, 0.7].into_iter(), true);
         assert!((r.start - 1e-9).abs() < 1e-24, "{r:?}");
+        // 0.1 is just above 0.09 / 1.1: the padded start stays.
+        let r = axis_range([0.09, 0.7].into_iter(), true);
+        assert!((r.start - 0.09 / 1.1).abs() < 1e-15, "{r:?}");
     }
 
     #[test]
