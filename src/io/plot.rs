@@ -277,7 +277,11 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
         // when that power is far above the start, start at the one below.
         let first = 10f64.powf(lo.log10().ceil());
         let down = first / 10.0;
-        (if first / lo > 3.0 && down > 0.0 { down } else { lo })..hi
+        (if first / lo > 3.0 && down > 0.0 {
+            down
+        } else {
+            lo
+        })..hi
     } else {
         let mag = lo.abs().max(hi.abs());
         let width = hi - lo;

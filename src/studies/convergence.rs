@@ -534,8 +534,17 @@ impl Convergence {
             return Ok(None);
         }
         if slope && x.len() >= 2 {
-            // O(h^2) (h ~ dofs^(-1/d)) through the first series' first point.
-            let e0 = ys.first().and_then(|y| y.first()).copied().unwrap_or(1.0);
+            // O(h^2) (h ~ dofs^(-1/d)) through the first point of the first
+            // series against an analytic value (else of the first series).
+            let anchor = names
+                .iter()
+                .position(|n| n.ends_with("(vs analytic)"))
+                .unwrap_or(0);
+            let e0 = ys
+                .get(anchor)
+                .and_then(|y| y.first())
+                .copied()
+                .unwrap_or(1.0);
             let d = self.dim as f64;
             names.push("slope of O(h^2)".to_string());
             ys.push(x.iter().map(|v| e0 * (v / x[0]).powf(-2.0 / d)).collect());
