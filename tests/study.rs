@@ -172,7 +172,12 @@ fn study_convergence_writes_its_table_json_and_charts() {
         .collect();
     assert_eq!(
         names,
-        ["energy", "seat force", "seat peak pressure", "seat half-width b"]
+        [
+            "energy",
+            "seat force",
+            "seat peak pressure",
+            "seat half-width b"
+        ]
     );
     for l in v["levels"].as_array().expect("levels") {
         assert_eq!(l["values"].as_array().map(Vec::len), Some(names.len()));
