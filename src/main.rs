@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
 use cso::io::atomic::Files;
 use cso::io::tables;
-use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod};
+use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod, SolverMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
@@ -27,7 +27,9 @@ Examples:
   cso --set P=3MN/m compile examples/hertz2d.cso
                                            override `let P` (checked like the source)
   cso solve examples/two_blocks.cso -o out solve; report.json, VTU, SVG plots
-  cso compare examples/scont2d.cso         FETI vs Total FETI table";
+  cso compare examples/scont2d.cso         FETI vs Total FETI table
+  cso study convergence examples/hertz2d.cso --hertz
+                                           refine the mesh: error, order, cost";
 
 /// cso: compiler and solver for contact shape optimization (Total FETI).
 #[derive(Parser, Debug)]
@@ -69,6 +71,10 @@ enum Command {
     /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
     /// with more and more subdomains and prints a Markdown table.
     Bench(Bench),
+    /// Accuracy against cost of state solves: `cso study convergence` refines the
+    /// mesh, `cso study tolerance` sweeps the solver's tolerance.
+    #[command(subcommand)]
+    Study(StudyCommand),
     /// Check a scene and print what the compiler understood.
     Compile(Compile),
     /// Write the compiled contact problem (the primal QP: K, f, B_E, c_E, B_I, c_I,
@@ -196,6 +202,98 @@ struct Bench {
     out: Option<PathBuf>,
 }
 
+#[derive(Subcommand, Debug)]
+enum StudyCommand {
+    /// The scene on meshes refined 2x per level (cuts too: H/h stays): cost per
+    /// level, each quantity's change, observed order, Richardson limit and, with
+    /// --hertz, its error against Hertz's solution.
+    Convergence(Convergence),
+    /// The solver's tolerance from 1e-2 to 1e-10 against the state's error
+    /// (against a solve at 1e-12) and time, for TFETI and FETI and each
+    /// preconditioner.
+    Tolerance(Tolerance),
+}
+
+/// `--hertz` and its values, shared by the studies.
+#[derive(Args, Debug)]
+struct HertzArgs {
+    /// Compare with Hertz contact (2D: cylinder, plane strain; 3D: sphere) of
+    /// the scene's one contact, with the moduli of its bodies.
+    #[arg(long)]
+    hertz: bool,
+    /// Hertz: radius of the curved face, a number with a unit (50mm) or the
+    /// name of a `let` (default: `let R`).
+    #[arg(long, value_name = "VALUE", requires = "hertz")]
+    radius: Option<String>,
+    /// Hertz: load on the whole body (2D: per unit length, 2MN/m; 3D: 10kN),
+    /// or the name of a `let` (default: `let P`).
+    #[arg(long, value_name = "VALUE", requires = "hertz")]
+    load: Option<String>,
+}
+
+impl HertzArgs {
+    fn reference(&self, scene: &Scene) -> Result<Option<cso::studies::hertz::Hertz>, u8> {
+        if !self.hertz {
+            return Ok(None);
+        }
+        cso::studies::hertz::hertz(scene, self.radius.as_deref(), self.load.as_deref())
+            .map(Some)
+            .map_err(|e| fail(EXIT_SCENE, e))
+    }
+}
+
+#[derive(Args, Debug)]
+struct Convergence {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write convergence.md, convergence.json and the charts
+    /// convergence-dofs.svg and convergence-time.svg into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Meshes to solve: the first, then each refined 2x.
+    #[arg(long, value_name = "N", default_value_t = 3)]
+    levels: usize,
+    /// Start from the scene's meshes halved K times (each count must divide).
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    coarsen: u32,
+    /// Start no level predicted to take the study past S seconds.
+    #[arg(long, value_name = "S")]
+    max_seconds: Option<f64>,
+    #[command(flatten)]
+    hertz: HertzArgs,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    threads: Option<usize>,
+}
+
+#[derive(Args, Debug)]
+struct Tolerance {
+    /// The `.cso` file.
+    file: PathBuf,
+    /// Write tolerance.md, tolerance.json and the chart tolerance.svg into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    out: Option<PathBuf>,
+    /// Methods (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [SolverMethod::Tfeti, SolverMethod::Feti])]
+    method: Vec<SolverMethod>,
+    /// Dual preconditioners (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None, Preconditioner::Lumped, Preconditioner::Dirichlet])]
+    preconditioner: Vec<Preconditioner>,
+    /// Solve each run N times and count the fastest (steadier timings).
+    #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..))]
+    repeat: u32,
+    /// A known relative error of the mesh, `E` or `WHAT=E` (e.g. energy=7.8e-4
+    /// from `cso study convergence`), drawn as a line (repeatable); with
+    /// --hertz, the peak pressure's error against Hertz is drawn too.
+    #[arg(long, value_name = "[WHAT=]E", value_parser = parse_error_level)]
+    discretization_error: Vec<(String, f64)>,
+    #[command(flatten)]
+    hertz: HertzArgs,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    threads: Option<usize>,
+}
+
 #[derive(Args, Debug)]
 struct Compile {
     /// The `.cso` file.
@@ -226,6 +324,20 @@ fn parse_threads(s: &str) -> Result<usize, String> {
         Ok(n) if n >= 1 => Ok(n),
         _ => Err(format!(
             "expected a number of threads of at least 1, found `{s}` (leave --threads out to use every core)"
+        )),
+    }
+}
+
+/// `--discretization-error [WHAT=]E`: a positive relative error, named.
+fn parse_error_level(s: &str) -> Result<(String, f64), String> {
+    let (what, value) = match s.split_once('=') {
+        Some((w, v)) => (w.trim().to_string(), v),
+        None => ("given".to_string(), s),
+    };
+    match value.trim().parse::<f64>() {
+        Ok(e) if e.is_finite() && e > 0.0 && !what.is_empty() => Ok((what, e)),
+        _ => Err(format!(
+            "expected a positive relative error, E or WHAT=E (e.g. energy=7.8e-4), found `{s}`"
         )),
     }
 }
@@ -353,6 +465,8 @@ fn main() -> ExitCode {
         Command::Optimize(c) => c.run(&opts),
         Command::Compare(c) => c.run(&opts),
         Command::Bench(c) => c.run(),
+        Command::Study(StudyCommand::Convergence(c)) => c.run(&opts),
+        Command::Study(StudyCommand::Tolerance(c)) => c.run(&opts),
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
     };
@@ -845,6 +959,108 @@ impl Optimize {
 /// The gradient-cost rows of `m` design variables at a tolerance.
 type CostsOf =
     fn(usize, f64) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
+
+impl Convergence {
+    /// The levels' rows as they are solved, then each quantity's table and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        use cso::studies::convergence::{self, level_row, LEVELS_HEADER};
+        if self.levels == 0 {
+            return Err(fail(
+                EXIT_IO,
+                "--levels must be at least 1 (the scene's own mesh)",
+            ));
+        }
+        if let Some(s) = self.max_seconds.filter(|s| !(s.is_finite() && *s > 0.0)) {
+            return Err(fail(
+                EXIT_IO,
+                format!("--max-seconds must be a positive number of seconds, found {s}"),
+            ));
+        }
+        let scene = load(&self.file, opts)?;
+        let hertz = self.hertz.reference(&scene)?;
+        prepare(self.out.as_deref())?;
+        let pool = thread_pool(self.threads)?;
+        let settings = convergence::Settings {
+            levels: self.levels,
+            coarsen: self.coarsen,
+            max_seconds: self.max_seconds,
+            memory_limit: opts.memory_limit,
+            hertz,
+        };
+        outln!("{LEVELS_HEADER}");
+        let bar = Progress::ticking("convergence", "solving the next level");
+        let c = pool.install(|| {
+            convergence::study(&scene, &settings, &mut |l| {
+                bar.update(|| format!("level {} solved in {:.1} s", l.level, l.seconds));
+                outln!("{}", level_row(l));
+            })
+        });
+        bar.finish();
+        let c = c.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", self.file.display())))?;
+        // The levels' table is already on stdout.
+        out!("{}", c.details());
+        let md = c.markdown();
+        for l in c.levels.iter().filter(|l| !l.converged) {
+            errln!(
+                "warning: level {} ({}) did not converge: its numbers carry the solver's error",
+                l.level,
+                l.mesh
+            );
+        }
+        write_into(self.out.as_deref(), || {
+            cso::studies::convergence::files(&scene, &c, &md)
+        })?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
+
+impl Tolerance {
+    /// The runs' rows as they finish, the summary and the files.
+    fn run(&self, opts: &CheckOptions) -> Outcome {
+        use cso::studies::tolerance::{self, run_row, RUNS_HEADER, TOLERANCES};
+        let scene = load(&self.file, opts)?;
+        let hertz = self.hertz.reference(&scene)?;
+        prepare(self.out.as_deref())?;
+        let pool = thread_pool(self.threads)?;
+        let settings = tolerance::Settings {
+            methods: self.method.clone(),
+            preconditioners: self.preconditioner.clone(),
+            tolerances: TOLERANCES.to_vec(),
+            repeat: self.repeat as usize,
+            discretization: self.discretization_error.clone(),
+            hertz,
+        };
+        let bar = Progress::ticking("tolerance", "solving the reference at 1e-12");
+        let mut header = false;
+        let t = pool.install(|| {
+            tolerance::study(&scene, &settings, &mut |r| {
+                if !header {
+                    outln!("{RUNS_HEADER}");
+                    header = true;
+                }
+                bar.update(|| {
+                    format!(
+                        "{:?} {:?} at {:.0e}",
+                        r.method, r.preconditioner, r.tolerance
+                    )
+                });
+                outln!("{}", run_row(r));
+            })
+        });
+        bar.finish();
+        let t = t.map_err(|e| fail(EXIT_SCENE, format!("{}: {e}", self.file.display())))?;
+        out!("{}", t.summary());
+        let md = t.markdown();
+        write_into(self.out.as_deref(), || tolerance::files(&scene, &t, &md))?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
 
 /// A row of a table over H/h and cuts: the cells after them, or why it failed.
 type CutsRow<'a> = &'a (dyn Fn(usize, usize, usize) -> Result<String, String> + Sync);

@@ -18,6 +18,7 @@ mod sensitivity;
 mod sensitivity3d;
 mod solid;
 mod state;
+mod study;
 
 use std::path::{Path, PathBuf};
 

@@ -124,6 +124,7 @@ pub fn line_chart(
         title,
         x_label,
         y_label,
+        log: (log_x, log_y),
     };
 
     // The legend gets its own column right of the chart, so it never covers
@@ -187,6 +188,8 @@ struct ChartText<'a> {
     title: &'a str,
     x_label: &'a str,
     y_label: &'a str,
+    /// Whether each axis is logarithmic (for [`axis_tick`]).
+    log: (bool, bool),
 }
 
 /// The body of [`line_chart`] for one choice of axis types.
@@ -216,8 +219,8 @@ where
         .y_desc(text.y_label)
         .label_style((FONT, LABEL_SIZE))
         .axis_desc_style((FONT, LABEL_SIZE))
-        .x_label_formatter(&|v| tick_label(*v))
-        .y_label_formatter(&|v| tick_label(*v))
+        .x_label_formatter(&|v| axis_tick(*v, text.log.0))
+        .y_label_formatter(&|v| axis_tick(*v, text.log.1))
         .light_line_style(WHITE.mix(0.0))
         .draw()
         .map_err(draw_err)?;
@@ -264,11 +267,21 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
     if log {
         // Padding by a constant factor is a constant distance on the log axis.
         let lo = lo.max(hi / 10f64.powf(MAX_DECADES));
-        if hi / lo < 1.0 + MIN_REL_WIDTH {
-            (lo / 2.0)..(hi * 2.0)
+        let (lo, hi) = if hi / lo < 1.0 + MIN_REL_WIDTH {
+            (lo / 2.0, hi * 2.0)
         } else {
-            (lo / 1.1)..(hi * 1.1)
-        }
+            (lo / 1.1, hi * 1.1)
+        };
+        // plotters places a log axis' ticks from the first power of ten
+        // inside it on, so data from 0.15 to 1.2 would get a single tick at 1:
+        // when that power is far above the start, start at the one below.
+        let first = 10f64.powf(lo.log10().ceil());
+        let down = first / 10.0;
+        (if first / lo > 3.0 && down > 0.0 {
+            down
+        } else {
+            lo
+        })..hi
     } else {
         let mag = lo.abs().max(hi.abs());
         let width = hi - lo;
@@ -281,6 +294,21 @@ fn axis_range(values: impl Iterator<Item = f64>, log: bool) -> Range<f64> {
         };
         (lo - pad)..(hi + pad)
     }
+}
+
+/// A tick's text on an axis: on a log axis only 1, 2 and 5 times a power
+/// of ten are labelled (plotters puts a tick at every multiple inside a
+/// decade when the axis spans less than two, and their labels run into each
+/// other), the other ticks stay unlabelled marks.
+fn axis_tick(v: f64, log: bool) -> String {
+    if log && v > 0.0 {
+        let m = v / 10f64.powf(v.log10().floor());
+        let round = m.round();
+        if !([1.0, 2.0, 5.0, 10.0].contains(&round) && (m - round).abs() < 1e-6 * m) {
+            return String::new();
+        }
+    }
+    tick_label(v)
 }
 
 /// Short tick text: plain for moderate magnitudes, exponent form otherwise,
@@ -1239,6 +1267,28 @@ mod tests {
         // No gaps: the opaque pixels of a row are contiguous.
         let first = (0..w).position(|i| px(i, cy)[3] == 255).unwrap();
         assert!((first..first + opaque).all(|i| px(i, cy)[3] == 255));
+    }
+
+    #[test]
+    fn a_log_axis_has_ticks_near_its_start() {
+        // No power of ten near 0.15: the axis starts at 0.1.
+        let r = axis_range([0.15, 1.2].into_iter(), true);
+        assert!((r.start - 0.1).abs() < 1e-15 && r.end > 1.2, "{r:?}");
+        let r = axis_range([3e-9, 0.7].into_iter(), true);
+        assert!((r.start - 1e-9).abs() < 1e-24, "{r:?}");
+        // 0.1 is just above 0.09 / 1.1: the padded start stays.
+        let r = axis_range([0.09, 0.7].into_iter(), true);
+        assert!((r.start - 0.09 / 1.1).abs() < 1e-15, "{r:?}");
+    }
+
+    #[test]
+    fn log_axes_label_one_two_and_five_only() {
+        assert_eq!(axis_tick(20000.0, true), "20000");
+        assert_eq!(axis_tick(1e5, true), "1e5");
+        assert_eq!(axis_tick(0.5, true), "0.5");
+        assert_eq!(axis_tick(40000.0, true), "");
+        assert_eq!(axis_tick(0.7, true), "");
+        assert_eq!(axis_tick(40000.0, false), "40000");
     }
 
     #[test]

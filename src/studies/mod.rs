@@ -10,9 +10,14 @@
 
 pub mod bench;
 pub mod compare;
+pub mod convergence;
+pub mod hertz;
+pub mod measure;
 pub mod output;
+pub mod refine;
 pub mod sensitivity;
 pub mod stability;
+pub mod tolerance;
 
 /// Free text (an error message, a formula with `|u|`) as one Markdown table
 /// cell: a bare `|` would end the cell and shift every column after it.
