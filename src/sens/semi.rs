@@ -24,6 +24,7 @@ use crate::model::{ContactPrimary, Named, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
+use crate::tfeti::cluster::Cluster;
 use num_dual::{Dual64, DualNum};
 use std::time::Instant;
 
@@ -313,13 +314,6 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
     out
 }
 
-fn dot_nested(a: &[Vec<f64>], b: &[Vec<f64>]) -> f64 {
-    a.iter()
-        .zip(b)
-        .map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
-        .sum()
-}
-
 /// Adjoint gradients (per functional, per design variable), the Hessian
 /// applications of their solves, and the one-sided directions.
 type AdjointGradients = (Vec<Vec<f64>>, usize, Vec<usize>);
@@ -530,7 +524,7 @@ impl<'a> Sensitivity<'a> {
             if rhs.kinks > 0 {
                 kinked.push(i);
             }
-            rhs.ukpu = dot_nested(&gu, &velocities);
+            rhs.ukpu = Cluster::dot(&gu, &velocities);
             // The explicit part: the derivative with u' = 0 and l' = 0.
             let explicit = Direction {
                 u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
@@ -547,7 +541,7 @@ impl<'a> Sensitivity<'a> {
                     .derivative(f, i, &explicit)
                     .map_err(SolveError::Unsupported)?;
                 // f_bar here leaves out K'u: w^T K'u comes from the shape gradient.
-                let wf = dot_nested(w, &rhs.fbar) - dot_nested(gw, &velocities);
+                let wf = Cluster::dot(w, &rhs.fbar) - Cluster::dot(gw, &velocities);
                 let nc: f64 = nu.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
                 grad[k][i] = ja + wf + nc;
             }
@@ -674,13 +668,13 @@ impl<'a> Sensitivity<'a> {
                     .zip(&dir.u)
                     .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
                     .sum();
-                D::new(v, dot_nested(&dir.f, &state.u) + fu)
+                D::new(v, Cluster::dot(&dir.f, &state.u) + fu)
             }
             Functional::Energy => {
                 // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
                 D::new(
                     state.energy(),
-                    0.5 * dir.ukpu + dot_nested(&self.ku, &dir.u),
+                    0.5 * dir.ukpu + Cluster::dot(&self.ku, &dir.u),
                 )
             }
             Functional::ContactForce(c) => {
