@@ -3,7 +3,8 @@
 use crate::root;
 use std::process::Command;
 
-fn cso(args: &[&str]) -> (i32, String, String) {
+/// Runs the `cso` binary from the repository root: (exit code, stdout, stderr).
+pub(crate) fn cso(args: &[&str]) -> (i32, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_cso"))
         .args(args)
         .current_dir(root())

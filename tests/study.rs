@@ -2,30 +2,17 @@
 //! extrapolation on exact sequences, the tolerance sweep, and the commands'
 //! files and errors.
 
+use crate::cli::cso;
 use crate::{options, root};
 use cso::lang::{compile, Scene};
 use cso::studies::convergence::{richardson, series, study, Settings};
 use cso::studies::hertz::hertz;
 use std::path::PathBuf;
-use std::process::Command;
 
 fn example(name: &str) -> Scene {
     let src = std::fs::read_to_string(root().join("examples").join(format!("{name}.cso")))
         .expect("example");
     compile(&src, &options()).expect("checks")
-}
-
-fn cso(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_cso"))
-        .args(args)
-        .current_dir(root())
-        .output()
-        .expect("cso runs");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).to_string(),
-        String::from_utf8_lossy(&out.stderr).to_string(),
-    )
 }
 
 fn temp(tag: &str) -> PathBuf {

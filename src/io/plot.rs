@@ -1199,25 +1199,7 @@ mod tests {
         (w, h, rgba)
     }
 
-    fn decode64(text: &str) -> Vec<u8> {
-        let val = |c: u8| match c {
-            b'A'..=b'Z' => c - b'A',
-            b'a'..=b'z' => c - b'a' + 26,
-            b'0'..=b'9' => c - b'0' + 52,
-            b'+' => 62,
-            _ => 63,
-        };
-        let mut out = Vec::new();
-        for quad in text.as_bytes().chunks(4) {
-            let pad = quad.iter().filter(|&&c| c == b'=').count();
-            let n = quad
-                .iter()
-                .map(|&c| if c == b'=' { 0 } else { u32::from(val(c)) })
-                .fold(0u32, |n, v| (n << 6) | v);
-            out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
-        }
-        out
-    }
+    use crate::io::vtu::tests::decode64;
 
     #[test]
     fn crc32_matches_the_check_value() {

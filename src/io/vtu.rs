@@ -360,7 +360,7 @@ fn xml_escape(text: &str) -> String {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::path::PathBuf;
     use std::process::Command;
@@ -533,8 +533,9 @@ mod tests {
         assert_eq!(s, "+//+");
     }
 
-    /// Standard base64 back to bytes (the test's own decoder).
-    fn decode64(text: &str) -> Vec<u8> {
+    /// Standard base64 back to bytes (the tests' own decoder, independent of
+    /// the encoder; the plot tests read the embedded PNG with it too).
+    pub(crate) fn decode64(text: &str) -> Vec<u8> {
         let val = |c: u8| match c {
             b'A'..=b'Z' => c - b'A',
             b'a'..=b'z' => c - b'a' + 26,
