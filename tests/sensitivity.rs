@@ -288,6 +288,34 @@ minimize area(punch)
     }
 }
 
+/// The study's reference is confirmed by Richardson-extrapolated differences,
+/// and both exact methods are within 1e-7 of it at tolerance 1e-10.
+pub(crate) fn assert_exact_methods_accurate(study: &cso::studies::sensitivity::Study) {
+    assert!(
+        study.richardson_agreement < 1e-6,
+        "{}",
+        study.richardson_agreement
+    );
+    let exact: Vec<_> = study
+        .runs
+        .iter()
+        .filter(|r| r.step.is_none() && r.tolerance == 1e-10)
+        .collect();
+    assert_eq!(exact.len(), 2);
+    assert!(exact.iter().all(|r| r.error < 1e-7), "{exact:?}");
+}
+
+/// The error of forward differences at step `h` and tolerance 1e-10.
+pub(crate) fn forward_error(study: &cso::studies::sensitivity::Study, h: f64) -> Option<f64> {
+    study
+        .runs
+        .iter()
+        .find(|r| {
+            r.method == "finite_difference forward" && r.tolerance == 1e-10 && r.step == Some(h)
+        })
+        .map(|r| r.error)
+}
+
 #[test]
 fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_extremes() {
     let src = TWO_BLOCKS_DESIGN
@@ -304,31 +332,8 @@ fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_
         .replace("/w", "/1");
     let s = compile(&src, &options()).expect("checks");
     let study = cso::studies::sensitivity::study(&s, &mut |_| {}).expect("runs");
-    assert!(
-        study.richardson_agreement < 1e-6,
-        "{}",
-        study.richardson_agreement
-    );
-    let exact_tight: Vec<_> = study
-        .runs
-        .iter()
-        .filter(|r| r.step.is_none() && r.tolerance == 1e-10)
-        .collect();
-    assert_eq!(exact_tight.len(), 2);
-    assert!(
-        exact_tight.iter().all(|r| r.error < 1e-7),
-        "{exact_tight:?}"
-    );
-    let fd = |h: f64| {
-        study
-            .runs
-            .iter()
-            .find(|r| {
-                r.method == "finite_difference forward" && r.tolerance == 1e-10 && r.step == Some(h)
-            })
-            .map(|r| r.error)
-            .unwrap_or(f64::NAN)
-    };
+    assert_exact_methods_accurate(&study);
+    let fd = |h: f64| forward_error(&study, h).unwrap_or(f64::NAN);
     // Truncation error at large h, solver error over h at tiny h: the best step
     // lies strictly inside the range (here a contact node close to releasing makes
     // the truncation constant large, so the best h is small).
