@@ -4,11 +4,10 @@ use crate::{options, root};
 use cso::lang::compile;
 use cso::opt::{optimize, Termination};
 
-#[test]
-fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
-    let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
-    let s = compile(&src, &options()).expect("checks");
-    let run = optimize(&s, &mut |_, _| true).expect("runs");
+/// A run that converged (KKT), lowered the objective by more than 10 %, never
+/// raised it beyond round-off, and ended with its one constraint held and
+/// active; the best iterate.
+fn assert_converged_lower_and_active(run: &cso::opt::Optimization) -> &cso::opt::Iterate {
     assert_eq!(run.termination, Termination::Kkt, "{:?}", run.termination);
     let first = &run.history[0];
     let best = &run.history[run.best.expect("a feasible design")];
@@ -18,19 +17,11 @@ fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
         first.objective,
         best.objective
     );
-    // Area constraint held (g <= 0 within tolerance) and active at the optimum.
     assert!(
         best.constraints[0] <= 1e-6 && best.constraints[0] > -1e-4,
         "{:?}",
         best.constraints
     );
-    assert!(best.kkt < 1e-5, "{}", best.kkt);
-    // The scene is symmetric about x = 1.5, so is the optimal face.
-    let a = &best.design;
-    for i in 0..3 {
-        assert!((a[i] - a[5 - i]).abs() < 1e-6, "{a:?}");
-    }
-    // The objective never increased by more than round-off along the way.
     for w in run.history.windows(2) {
         assert!(
             w[1].objective <= w[0].objective * (1.0 + 1e-9),
@@ -38,6 +29,21 @@ fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
             w[0].objective,
             w[1].objective
         );
+    }
+    best
+}
+
+#[test]
+fn scont2d_converges_to_a_symmetric_kkt_point_with_the_area_constraint_held() {
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
+    let s = compile(&src, &options()).expect("checks");
+    let run = optimize(&s, &mut |_, _| true).expect("runs");
+    let best = assert_converged_lower_and_active(&run);
+    assert!(best.kkt < 1e-5, "{}", best.kkt);
+    // The scene is symmetric about x = 1.5, so is the optimal face.
+    let a = &best.design;
+    for i in 0..3 {
+        assert!((a[i] - a[5 - i]).abs() < 1e-6, "{a:?}");
     }
     insta::assert_snapshot!(
         "optimize_scont2d",
@@ -172,21 +178,7 @@ fn scont3d_lowers_the_compliance_keeps_the_volume_and_stays_symmetric() {
         .replace("mesh = 8 x 8 x 4", "mesh = 4 x 4 x 2");
     let s = compile(&src, &options()).expect("checks");
     let run = optimize(&s, &mut |_, _| true).expect("runs");
-    assert_eq!(run.termination, Termination::Kkt, "{:?}", run.termination);
-    let first = &run.history[0];
-    let best = &run.history[run.best.expect("a feasible design")];
-    assert!(
-        best.objective < 0.9 * first.objective,
-        "{} -> {}",
-        first.objective,
-        best.objective
-    );
-    // The volume constraint holds and is active at the optimum.
-    assert!(
-        best.constraints[0] <= 1e-6 && best.constraints[0] > -1e-4,
-        "{:?}",
-        best.constraints
-    );
+    let best = assert_converged_lower_and_active(&run);
     // The scene is symmetric about x = 1.5, y = 1.5 and the diagonal x = y, so
     // is the optimal net (entry j * 4 + i is the control point (i, j)).
     let a = |i: usize, j: usize| best.design[j * 4 + i];
@@ -196,13 +188,5 @@ fn scont3d_lowers_the_compliance_keeps_the_volume_and_stays_symmetric() {
                 assert!((a(i, j) - a(k, l)).abs() < 1e-5, "{:?}", best.design);
             }
         }
-    }
-    for w in run.history.windows(2) {
-        assert!(
-            w[1].objective <= w[0].objective * (1.0 + 1e-9),
-            "{} -> {}",
-            w[0].objective,
-            w[1].objective
-        );
     }
 }
