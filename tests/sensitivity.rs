@@ -403,3 +403,71 @@ fn a_step_that_moves_the_geometry_too_far_is_blamed_not_the_supports() {
     assert!(msg.contains("step 0.5 moves the geometry too far"), "{msg}");
     assert!(msg.contains(&format!("`{variable}`")), "{msg}");
 }
+
+/// `u'` and `l'` of two directions, worst difference relative to the largest entry.
+fn direction_difference(a: &cso::sens::semi::Direction, b: &cso::sens::semi::Direction) -> f64 {
+    let worst = |x: Vec<f64>, y: Vec<f64>| {
+        let scale = y.iter().fold(0.0f64, |m, v| m.max(v.abs())).max(1e-300);
+        x.iter()
+            .zip(&y)
+            .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()))
+            / scale
+    };
+    let flat = |d: &cso::sens::semi::Direction| d.u.iter().flatten().copied().collect::<Vec<_>>();
+    worst(flat(a), flat(b)).max(worst(a.lambda.clone(), b.lambda.clone()))
+}
+
+#[test]
+fn one_block_solve_gives_the_directions_of_the_single_solves_even_when_they_are_dependent() {
+    // d shifts the whole face: its direction is the sum of the six Bezier ones
+    // (the Bernstein polynomials sum to 1), so the block is rank deficient.
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
+        .expect("example")
+        .replace(
+            "bottom = 1 + bezier(a, x - 1)",
+            "bottom = 1 + bezier(a, x - 1) + d",
+        )
+        .replace(
+            "body base",
+            "design d { init = 0, lower = -0.01, upper = 0.01 }\nbody base",
+        );
+    let mut s = compile(&src, &options()).expect("checks");
+    s.solver.tolerance = 1e-11;
+    let design = s.design_init();
+    let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
+    let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");
+    let (block, cost) = sens.directions(1e-11).expect("solves");
+    assert!(cost.block_iterations.is_some(), "one block solve: {cost:?}");
+    let mut single_products = 0;
+    for (i, b) in block.iter().enumerate() {
+        let single = sens.direction(i, 1e-11).expect("solves");
+        single_products += single.hessian_applications;
+        let diff = direction_difference(b, &single);
+        assert!(diff < 1e-7, "direction {i}: block vs single {diff:e}");
+    }
+    // The sum of the Bezier directions is the shift's direction.
+    let d = s.design.iter().position(|v| v.name == "d").expect("d");
+    let mut rest: Vec<f64> = block[d].u.iter().flatten().copied().collect();
+    for (_, b) in block.iter().enumerate().filter(|(i, _)| *i != d) {
+        rest.iter_mut()
+            .zip(b.u.iter().flatten())
+            .for_each(|(r, v)| *r -= v);
+    }
+    let scale = block[d]
+        .u
+        .iter()
+        .flatten()
+        .fold(0.0f64, |m, v| m.max(v.abs()));
+    let rest = rest.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(
+        rest < 1e-7 * scale,
+        "u'_d - sum u'_i = {rest:e} (scale {scale:e})"
+    );
+    // One pass over the factors serves the whole block, and the shared Krylov
+    // space takes fewer products than the single solves together.
+    assert!(cost.passes * 3 < cost.products, "{cost:?}");
+    assert!(
+        cost.products < single_products,
+        "{cost:?} vs {single_products}"
+    );
+}

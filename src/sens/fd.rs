@@ -93,6 +93,10 @@ pub struct Gradient {
     /// Full state solves, Hessian applications and seconds, in all.
     pub solves: usize,
     pub hessian_applications: usize,
+    /// Passes over the subdomain factors with `F`: a block of right-hand sides
+    /// applied at once is one pass (equal to `hessian_applications` where
+    /// nothing is blocked).
+    pub f_passes: usize,
     pub seconds: f64,
     /// The same for the one state solve at the design (for ratios).
     pub state_hessian_applications: usize,
@@ -214,6 +218,7 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
         gradient,
         solves,
         hessian_applications: hessian,
+        f_passes: hessian,
         seconds: t0.elapsed().as_secs_f64(),
         state_hessian_applications: base.info.hessian_applications,
         state_seconds,

@@ -285,6 +285,8 @@ pub struct GradientCost {
     pub m: usize,
     pub method: String,
     pub hessian: usize,
+    /// Passes over the factors with `F` beyond the state (a block is one).
+    pub passes: usize,
     pub seconds: f64,
     pub state_hessian: usize,
     pub state_seconds: f64,
@@ -332,6 +334,7 @@ fn gradient_costs_of(
             hessian: g
                 .hessian_applications
                 .saturating_sub(g.state_hessian_applications),
+            passes: g.f_passes.saturating_sub(g.state_hessian_applications),
             seconds: (g.seconds - g.state_seconds).max(0.0),
             state_hessian: g.state_hessian_applications,
             state_seconds: g.state_seconds,

@@ -93,7 +93,9 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
         sensitivity_error: None,
     };
     if !s.design.is_empty() {
-        match Sensitivity::new(&s, &state) {
+        // As the scene says (the seed's table compares unpreconditioned solves).
+        let kind = crate::state::preconditioner(&s);
+        match Sensitivity::with_preconditioner(&s, &state, kind) {
             Err(e) => col.sensitivity_error = Some(e.to_string()),
             Ok(sens) => {
                 for i in 0..s.design.len() {

@@ -104,8 +104,8 @@ pub fn compare_cells(r: &CompareRow) -> String {
 pub fn gradient_costs_header(threads: usize, tolerance: f64) -> String {
     format!(
         "threads {threads}, tolerance {tolerance:e}\n\
-         | m | method | Hessian beyond the state | ratio | seconds beyond the state | ratio |\n\
-         |---|---|---|---|---|---|"
+         | m | method | Hessian beyond the state | ratio | F passes beyond the state | ratio | seconds beyond the state | ratio |\n\
+         |---|---|---|---|---|---|---|---|"
     )
 }
 
@@ -113,11 +113,13 @@ pub fn gradient_costs_header(threads: usize, tolerance: f64) -> String {
 /// relative to it.
 pub fn gradient_cost_row(r: &GradientCost) -> String {
     format!(
-        "| {} | {} | {} | {:.2} | {:.3} | {:.2} |",
+        "| {} | {} | {} | {:.2} | {} | {:.2} | {:.3} | {:.2} |",
         r.m,
         r.method,
         r.hessian,
         r.hessian as f64 / r.state_hessian.max(1) as f64,
+        r.passes,
+        r.passes as f64 / r.state_hessian.max(1) as f64,
         r.seconds,
         r.seconds / r.state_seconds.max(1e-9)
     )

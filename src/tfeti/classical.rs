@@ -233,6 +233,21 @@ impl DualSystem {
         self.dual().f_applications()
     }
 
+    /// [`super::block::dual_solve_block`]: every row an equality, every
+    /// right-hand side at once. TFETI only (None for classical FETI, whose held
+    /// dofs shift each right-hand side: solve those one by one).
+    pub fn solve_block(
+        &self,
+        fs: &[Vec<&[f64]>],
+        cs: &[Vec<f64>],
+        settings: &SmalbeSettings,
+    ) -> Option<Result<super::block::BlockSolution, SolveError>> {
+        match self {
+            DualSystem::Total(dual) => Some(super::block::dual_solve_block(dual, fs, cs, settings)),
+            DualSystem::Classical { .. } => None,
+        }
+    }
+
     /// Solves `min 1/2 u^T K u - f^T u` s.t. the rows (`B u = c` for the
     /// equalities, `B u <= c` for the rest); `prescribed`: whether held dofs take
     /// their Dirichlet values (a state) or zero (a derivative or adjoint problem).

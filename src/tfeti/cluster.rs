@@ -536,3 +536,151 @@ impl Cluster {
             .sum()
     }
 }
+
+/// Blocks of right-hand sides: one pass over every subdomain's factor for all
+/// of them (the sensitivity directions of a design). Serial clusters only; a
+/// distributed cluster applies the single-vector products column by column,
+/// which keeps the results independent of the rank count.
+impl Cluster {
+    /// Per owned subdomain: `fill` writes column `c` of a `dofs x cols` block,
+    /// `K_s^+` is applied to the block at once, and `finish` reads it.
+    fn pinv_block<T: Send>(
+        &self,
+        cols: usize,
+        fill: impl Fn(usize, usize, &mut [f64]) + Sync + Send,
+        finish: impl Fn(usize, &Subdomain, &[f64]) -> T + Sync + Send,
+    ) -> Vec<T> {
+        self.map(|s, sub| {
+            let n = sub.dofs();
+            let mut x = vec![0.0; n * cols];
+            for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
+                fill(s, c, col);
+            }
+            if n > 0 {
+                sub.apply_pinv_block(&mut x, cols);
+            }
+            finish(s, sub, &x)
+        })
+    }
+
+    /// Adds each subdomain's local rows (`rows x cols`, column-major) into
+    /// `cols` multiplier vectors, in subdomain order.
+    fn sum_rows_block(&self, parts: &[Vec<f64>], cols: usize) -> Vec<Vec<f64>> {
+        let mut y = vec![vec![0.0; self.m]; cols];
+        for (s, lr) in self.local.iter().enumerate() {
+            let nr = lr.rows.len();
+            for (c, yc) in y.iter_mut().enumerate() {
+                for (k, &row) in lr.rows.iter().enumerate() {
+                    yc[row] += parts[s][c * nr + k];
+                }
+            }
+        }
+        y
+    }
+
+    /// `F x_c` for every column `x_c` (see [`Self::apply_f`]).
+    pub fn apply_f_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let cols = xs.len();
+        if self.is_distributed() || cols <= 1 {
+            return xs
+                .iter()
+                .map(|x| {
+                    let mut y = vec![0.0; self.m];
+                    self.apply_f(x, &mut y);
+                    y
+                })
+                .collect();
+        }
+        let parts = self.pinv_block(
+            cols,
+            |s, c, out| self.local[s].scatter_t(&xs[c], out),
+            |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
+        );
+        self.sum_rows_block(&parts, cols)
+    }
+
+    /// `B_s x_c` of every column of a `dofs x cols` block, `rows x cols`.
+    fn gather_block(&self, s: usize, n: usize, x: &[f64], cols: usize) -> Vec<f64> {
+        let lr = &self.local[s];
+        let nr = lr.rows.len();
+        let mut y = vec![0.0; nr * cols];
+        for c in 0..cols {
+            lr.gather(&x[c * n..(c + 1) * n], &mut y[c * nr..(c + 1) * nr]);
+        }
+        y
+    }
+
+    /// [`Self::loads`] of every load `fs[c]` (per subdomain).
+    pub fn loads_block(&self, fs: &[Vec<&[f64]>]) -> Vec<(Vec<f64>, Vec<f64>)> {
+        let cols = fs.len();
+        if self.is_distributed() || cols <= 1 {
+            return fs.iter().map(|f| self.loads(f)).collect();
+        }
+        let parts = self.pinv_block(
+            cols,
+            |s, c, out| out.copy_from_slice(fs[c][s]),
+            |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
+        );
+        let d = self.sum_rows_block(&parts, cols);
+        d.into_iter()
+            .zip(fs)
+            .map(|(d, f)| {
+                let mut e = vec![0.0; self.kernel_dim()];
+                for s in 0..self.len() {
+                    let sub = self.subdomain(s);
+                    for j in 0..sub.kernel_dim() {
+                        e[self.offset[s] + j] = sub
+                            .kernel_column(j)
+                            .iter()
+                            .zip(f[s])
+                            .map(|(a, b)| a * b)
+                            .sum();
+                    }
+                }
+                (d, e)
+            })
+            .collect()
+    }
+
+    /// [`Self::primal`] of every `(f, lambda, alpha)`.
+    pub fn primal_block(
+        &self,
+        fs: &[Vec<&[f64]>],
+        lambdas: &[Vec<f64>],
+        alphas: &[Vec<f64>],
+    ) -> Vec<Vec<Vec<f64>>> {
+        let cols = fs.len();
+        if self.is_distributed() || cols <= 1 {
+            return (0..cols)
+                .map(|c| self.primal(&fs[c], &lambdas[c], &alphas[c]))
+                .collect();
+        }
+        let per_sub = self.pinv_block(
+            cols,
+            |s, c, out| {
+                self.local[s].scatter_t(&lambdas[c], out);
+                for (o, f) in out.iter_mut().zip(fs[c][s]) {
+                    *o = f - *o;
+                }
+            },
+            |s, sub, x| {
+                let n = sub.dofs();
+                (0..cols)
+                    .map(|c| {
+                        let mut u = x[c * n..(c + 1) * n].to_vec();
+                        for j in 0..sub.kernel_dim() {
+                            let a = alphas[c][self.offset[s] + j];
+                            for (ui, ri) in u.iter_mut().zip(sub.kernel_column(j)) {
+                                *ui += a * ri;
+                            }
+                        }
+                        u
+                    })
+                    .collect::<Vec<_>>()
+            },
+        );
+        (0..cols)
+            .map(|c| per_sub.iter().map(|cols| cols[c].clone()).collect())
+            .collect()
+    }
+}

@@ -133,6 +133,13 @@ impl Dual {
         self.cluster.apply_f(x, y);
     }
 
+    /// `F x_c` for a block of columns, one pass over the factors for all of
+    /// them (counted as one application per column).
+    pub fn apply_f_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        self.f_applications.fetch_add(xs.len(), Ordering::Relaxed);
+        self.cluster.apply_f_block(xs)
+    }
+
     /// `z <- L^-1 z`.
     pub fn solve_l(&self, z: &mut [f64]) {
         let n = z.len();

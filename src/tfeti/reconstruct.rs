@@ -26,15 +26,38 @@ pub(crate) fn reconstruct(
         .collect();
     let mut fl = vec![0.0; m];
     dual.apply_f(lambda, &mut fl);
-    let r: Vec<f64> = (0..m)
-        .map(|i| if active[i] { fl[i] - d[i] } else { 0.0 })
-        .collect();
-    // G~ G~^T and G~ r over the active rows (r is zero elsewhere).
+    let mut alpha = kernel_coefficients(dual, &active, &[fl], std::slice::from_ref(&d))?;
+    let alpha = alpha.pop().unwrap_or_default();
+    let u = dual.cluster().primal(f, lambda, &alpha);
+    Ok((u, alpha))
+}
+
+/// [`reconstruct`] of a block of equality-only problems (every row holds): one
+/// `G~ G~^T` factor and one pass over the subdomain factors for all of them.
+/// Returns `u` of each.
+pub(crate) fn reconstruct_block(
+    dual: &Dual,
+    fs: &[Vec<&[f64]>],
+    lambdas: &[Vec<f64>],
+    ds: &[Vec<f64>],
+) -> Result<Vec<Vec<Vec<f64>>>, SolveError> {
+    let active = vec![true; dual.multipliers()];
+    let fls = dual.apply_f_block(lambdas);
+    let alphas = kernel_coefficients(dual, &active, &fls, ds)?;
+    Ok(dual.cluster().primal_block(fs, lambdas, &alphas))
+}
+
+/// The kernel coefficients of each `(F l, d)`: `G~ G~^T alpha = G~ r` with
+/// `r = F l - d` on the `active` rows (zero elsewhere).
+fn kernel_coefficients(
+    dual: &Dual,
+    active: &[bool],
+    fls: &[Vec<f64>],
+    ds: &[impl AsRef<[f64]>],
+) -> Result<Vec<Vec<f64>>, SolveError> {
     let cluster = dual.cluster();
     let n3 = cluster.kernel_dim();
-    let gg = cluster.coarse_gram(Some(&active));
-    let mut rhs = vec![0.0; n3];
-    cluster.apply_g(&r, &mut rhs);
+    let gg = cluster.coarse_gram(Some(active));
     // G~G~^T over the active rows must be regular: a round-off pivot means a
     // rigid motion no active row determines (the state is not unique).
     let scale = (0..n3).map(|i| gg[(i, i)]).fold(0.0f64, f64::max);
@@ -52,14 +75,24 @@ pub(crate) fn reconstruct(
     if n3 > 0 && min_pivot <= 1e-10 * scale {
         return Err(undetermined());
     }
-    let mut alpha = rhs;
-    {
-        use faer::linalg::solvers::SolveCore;
-        llt.solve_in_place_with_conj(
-            faer::Conj::No,
-            faer::MatMut::from_column_major_slice_mut(&mut alpha, n3, 1),
-        );
+    let mut alphas = Vec::with_capacity(fls.len());
+    for (fl, d) in fls.iter().zip(ds) {
+        let r: Vec<f64> = fl
+            .iter()
+            .zip(d.as_ref())
+            .zip(active)
+            .map(|((f, d), &a)| if a { f - d } else { 0.0 })
+            .collect();
+        let mut alpha = vec![0.0; n3];
+        cluster.apply_g(&r, &mut alpha);
+        {
+            use faer::linalg::solvers::SolveCore;
+            llt.solve_in_place_with_conj(
+                faer::Conj::No,
+                faer::MatMut::from_column_major_slice_mut(&mut alpha, n3, 1),
+            );
+        }
+        alphas.push(alpha);
     }
-    let u = cluster.primal(f, lambda, &alpha);
-    Ok((u, alpha))
+    Ok(alphas)
 }

@@ -220,3 +220,46 @@ pub fn llt_solve(
         MemStack::new(buf),
     );
 }
+
+/// A work buffer for solves with `cols` right-hand sides on `symbolic`.
+pub fn solve_scratch(symbolic: &SymbolicCholesky<usize>, cols: usize) -> MemBuffer {
+    MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(cols.max(1), Par::Seq))
+}
+
+/// [`llt_solve`] on `cols` right-hand sides at once (`x` column-major, `n x cols`):
+/// one pass over the factor for all of them, which is where a block of
+/// right-hand sides is cheaper than as many single solves.
+pub fn llt_solve_block(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    cols: usize,
+    buf: &mut MemBuffer,
+) {
+    let n = x.len() / cols.max(1);
+    let llt = LltRef::<usize, f64>::new(symbolic, l_values);
+    llt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, cols),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}
+
+/// [`ldlt_solve`] on `cols` right-hand sides at once (`x` column-major).
+pub fn ldlt_solve_block(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: &mut [f64],
+    cols: usize,
+    buf: &mut MemBuffer,
+) {
+    let n = x.len() / cols.max(1);
+    let ldlt = LdltRef::<usize, f64>::new(symbolic, l_values);
+    ldlt.solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, cols),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}

@@ -22,7 +22,10 @@
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
 use super::schur::{Schur, SchurForm};
-use super::sparse::{ldlt_solve, llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use super::sparse::{
+    ldlt_solve, ldlt_solve_block, llt_numeric, llt_solve, llt_solve_block, solve_scratch,
+    symbolic_amd, UpperCsc,
+};
 use crate::fem::Element;
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::MemBuffer;
@@ -441,6 +444,56 @@ impl Subdomain {
                 ldlt_solve(symbolic, l_values, &mut work.x, &mut work.buf);
                 for ((xi, w), si) in x.iter_mut().zip(&work.x).zip(scaling) {
                     *xi = w * si;
+                }
+            }
+        }
+    }
+}
+
+impl Subdomain {
+    /// `x <- K^+ x` on `cols` columns at once (`x` column-major, `dofs x cols`):
+    /// one pass over the factor (see [`super::sparse::llt_solve_block`]).
+    pub fn apply_pinv_block(&self, x: &mut [f64], cols: usize) {
+        let n = self.n;
+        debug_assert_eq!(x.len(), n * cols);
+        if cols == 1 {
+            return self.apply_pinv(x);
+        }
+        let mut buf = solve_scratch(self.factor.symbolic(), cols);
+        match &self.factor {
+            Factor::Fixed {
+                reduced,
+                symbolic,
+                l_values,
+                ..
+            } => {
+                let nr = symbolic.nrows();
+                let mut xr = vec![0.0; nr * cols];
+                for c in 0..cols {
+                    for (d, &r) in reduced.iter().enumerate() {
+                        if r != usize::MAX {
+                            xr[c * nr + r] = x[c * n + d];
+                        }
+                    }
+                }
+                llt_solve_block(symbolic, l_values, &mut xr, cols, &mut buf);
+                for c in 0..cols {
+                    for (d, &r) in reduced.iter().enumerate() {
+                        x[c * n + d] = if r == usize::MAX { 0.0 } else { xr[c * nr + r] };
+                    }
+                }
+            }
+            Factor::Regularized {
+                scaling,
+                symbolic,
+                l_values,
+            } => {
+                for (i, xi) in x.iter_mut().enumerate() {
+                    *xi *= scaling[i % n];
+                }
+                ldlt_solve_block(symbolic, l_values, x, cols, &mut buf);
+                for (i, xi) in x.iter_mut().enumerate() {
+                    *xi *= scaling[i % n];
                 }
             }
         }
