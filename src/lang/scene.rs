@@ -207,6 +207,15 @@ pub struct DesignVar {
     pub unit: Option<String>,
 }
 
+/// A column of a body's nodes: the face point (vertical coordinate unset) and
+/// the column's bottom and top.
+#[derive(Debug, Clone, Copy)]
+pub struct Column<T> {
+    pub face: [T; 3],
+    pub bottom: T,
+    pub top: T,
+}
+
 /// One structured block of one material.
 #[derive(Debug, Clone)]
 pub struct Body {
@@ -267,6 +276,15 @@ impl Body {
     /// [`Body::node`] in any number type: with dual numbers seeded by a design
     /// direction, the dual parts are the exact node velocities of that direction.
     pub fn node_t<T: Scalar>(&self, idx: [usize; 3], design: &[T]) -> [T; 3] {
+        let v = self.extent.len() - 1;
+        self.in_column(&self.column_t(idx, design), idx[v])
+    }
+
+    /// The column of nodes through grid index `idx` (its index along the
+    /// vertical axis ignored): the face point and the column's bottom and top.
+    /// Every node of a column shares them, so a pass over all nodes evaluates
+    /// the curved faces once per column ([`Body::in_column`] places the nodes).
+    pub fn column_t<T: Scalar>(&self, idx: [usize; 3], design: &[T]) -> Column<T> {
         let zero = T::from(0.0);
         let d = self.extent.len();
         let v = d - 1;
@@ -294,7 +312,19 @@ impl Body {
             .top
             .as_ref()
             .map_or_else(|| hi.eval(&fixed), |f| f.eval(&face));
-        c[v] = bottom + (top - bottom) * (idx[v] as f64 / self.mesh[v].max(1) as f64);
+        Column {
+            face: c,
+            bottom,
+            top,
+        }
+    }
+
+    /// Node `k` (along the vertical axis) of a column.
+    pub fn in_column<T: Scalar>(&self, column: &Column<T>, k: usize) -> [T; 3] {
+        let v = self.extent.len() - 1;
+        let mut c = column.face;
+        c[v] =
+            column.bottom + (column.top - column.bottom) * (k as f64 / self.mesh[v].max(1) as f64);
         c
     }
 
