@@ -328,10 +328,10 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
 
 /// Adjoint gradients (per functional, per design variable), the Hessian
 /// applications of their solves, and the one-sided directions.
-type AdjointGradients = (Vec<Vec<f64>>, usize, Vec<usize>);
+type AdjointGradients = (Vec<Vec<f64>>, Cost, Vec<usize>);
 
-/// An adjoint solution: `w` per subdomain, `nu` per kept row, Hessian applications.
-type Adjoint = (Vec<Vec<f64>>, Vec<f64>, usize);
+/// An adjoint solution: `w` per subdomain, `nu` per kept row.
+type Adjoint = (Vec<Vec<f64>>, Vec<f64>);
 
 /// The semi-analytical sensitivity problem of a solved state: its rows and operators.
 pub struct Sensitivity<'a> {
@@ -567,7 +567,7 @@ impl<'a> Sensitivity<'a> {
     /// Adjoint gradient of one functional: [`Self::adjoint_all`] of it alone.
     pub fn adjoint(&self, f: &Functional, tolerance: f64) -> Result<(Vec<f64>, usize), SolveError> {
         let (mut g, cost, _) = self.adjoint_all(std::slice::from_ref(f), tolerance)?;
-        Ok((g.pop().unwrap_or_default(), cost))
+        Ok((g.pop().unwrap_or_default(), cost.products))
     }
 
     /// Adjoint gradients of functionals: per functional one dual solve with data
@@ -589,14 +589,14 @@ impl<'a> Sensitivity<'a> {
                 self.weak()
             )));
         }
-        let mut adjoints = Vec::with_capacity(fs.len());
-        let mut cost = 0;
-        for f in fs {
-            let (w, nu, c) = self.adjoint_solve(f, tolerance)?;
-            cost += c;
-            let gw = node_shape_gradient(self.state, &w);
-            adjoints.push((w, nu, gw));
-        }
+        let (solved, cost) = self.adjoint_solves(fs, tolerance)?;
+        let adjoints: Vec<_> = solved
+            .into_iter()
+            .map(|(w, nu)| {
+                let gw = node_shape_gradient(self.state, &w);
+                (w, nu, gw)
+            })
+            .collect();
         let gu = node_shape_gradient(self.state, &self.state.u);
         let m = self.scene.design.len();
         let p = &self.state.problem;
@@ -632,8 +632,66 @@ impl<'a> Sensitivity<'a> {
         Ok((grad, cost, kinked))
     }
 
-    /// The adjoint solve of one functional: `(w, nu)` and its Hessian applications.
-    fn adjoint_solve(&self, f: &Functional, tolerance: f64) -> Result<Adjoint, SolveError> {
+    /// The adjoint solves of functionals, `(w, nu)` of each, and their cost:
+    /// one block solve for all of them where the dual is TFETI's (every kept
+    /// row is an equality here: weak contacts are refused before), else one
+    /// solve each.
+    fn adjoint_solves(
+        &self,
+        fs: &[Functional],
+        tolerance: f64,
+    ) -> Result<(Vec<Adjoint>, Cost), SolveError> {
+        let data: Vec<_> = fs.iter().map(|f| self.adjoint_data(f)).collect();
+        if fs.len() > 1 {
+            let f_adj: Vec<Vec<&[f64]>> = data
+                .iter()
+                .map(|(ju, _)| ju.iter().map(Vec::as_slice).collect())
+                .collect();
+            let c_adj: Vec<Vec<f64>> = data.iter().map(|(_, c)| c.clone()).collect();
+            if let Some(sol) = self
+                .dual
+                .solve_block(&f_adj, &c_adj, &solve_settings(tolerance))
+            {
+                let sol = sol?;
+                if sol.info.status == crate::qp::Status::Converged {
+                    let cost = Cost {
+                        products: sol.info.products,
+                        passes: sol.info.passes,
+                        block_iterations: Some(sol.info.iterations),
+                    };
+                    return Ok((sol.u.into_iter().zip(sol.lambda).collect(), cost));
+                }
+            }
+        }
+        let mut cost = Cost::default();
+        let mut out = Vec::with_capacity(fs.len());
+        for (ju, c_adj) in &data {
+            let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
+            let before = self.dual.f_applications();
+            // Held dofs of classical FETI do not move with the design: zero there.
+            let sol = self.dual.solve(
+                &f_adj,
+                c_adj,
+                self.n_equality,
+                false,
+                &solve_settings(tolerance),
+                None,
+                &mut |_| {},
+            )?;
+            let c = sol
+                .info
+                .hessian_applications
+                .max(self.dual.f_applications() - before);
+            cost.products += c;
+            cost.passes += c;
+            out.push((sol.u, sol.lambda));
+        }
+        Ok((out, cost))
+    }
+
+    /// The data of a functional's adjoint problem: `J_u` per subdomain and
+    /// `J_l` on the kept rows (its linearization in `(u, l)`).
+    fn adjoint_data(&self, f: &Functional) -> (Vec<Vec<f64>>, Vec<f64>) {
         let state = self.state;
         let p = &state.problem;
         // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
@@ -703,24 +761,8 @@ impl<'a> Sensitivity<'a> {
                 _ => {}
             }
         }
-        let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
         let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
-        let before = self.dual.f_applications();
-        // Held dofs of classical FETI do not move with the design: zero there.
-        let sol = self.dual.solve(
-            &f_adj,
-            &c_adj,
-            self.n_equality,
-            false,
-            &solve_settings(tolerance),
-            None,
-            &mut |_| {},
-        )?;
-        let cost = sol
-            .info
-            .hessian_applications
-            .max(self.dual.f_applications() - before);
-        Ok((sol.u, sol.lambda, cost))
+        (ju, c_adj)
     }
 
     /// `dJ/da_i` of a functional from the state and one direction's derivatives.
@@ -1000,7 +1042,7 @@ pub fn adjoint_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let (gradient, hessian, kinked) = sens.adjoint_all(&rows, tolerance)?;
+    let (gradient, cost, kinked) = sens.adjoint_all(&rows, tolerance)?;
     let method = if kinked.is_empty() {
         "adjoint".to_string()
     } else {
@@ -1017,8 +1059,8 @@ pub fn adjoint_at(
         design: scene.design.iter().map(|d| d.name.clone()).collect(),
         gradient,
         solves: 1,
-        hessian_applications: state.info.hessian_applications + hessian,
-        f_passes: state.info.hessian_applications + hessian,
+        hessian_applications: state.info.hessian_applications + cost.products,
+        f_passes: state.info.hessian_applications + cost.passes,
         seconds: t0.elapsed().as_secs_f64(),
         state_hessian_applications: state.info.hessian_applications,
         state_seconds,
