@@ -115,13 +115,10 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
     use cso::opt::{optimize_with, Reuse};
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
     let s = compile(&src, &options()).expect("checks");
-    let cold = Reuse {
-        factorizations: false,
-        warm_start: false,
-    };
+    let cold = Reuse::COLD;
     let partial = Reuse {
         factorizations: true,
-        warm_start: false,
+        ..Reuse::COLD
     };
     let a = optimize_with(&s, cold, &mut |_, _| true).expect("runs");
     let b = optimize_with(&s, partial, &mut |_, _| true).expect("runs");

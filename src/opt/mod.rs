@@ -11,7 +11,7 @@ pub mod mma;
 use crate::lang::expr::Formula;
 use crate::lang::scene::{Functional, Scene, SensitivityMethod};
 use crate::sens::{Eval, Gradient, GradientError};
-use crate::state::{SolveError, State};
+use crate::state::{SolveError, State, WarmStart};
 use mma::{kkt_residual, Mma, MmaSettings};
 use serde::Serialize;
 use std::time::Instant;
@@ -42,8 +42,17 @@ pub struct Iterate {
     pub gradient_norm: f64,
     pub kkt: f64,
     pub step: f64,
+    /// Hessian applications (one `F` each) of the state solve and the
+    /// gradient together, then of the state solve alone.
     pub hessian_applications: usize,
+    pub state_hessian_applications: usize,
+    /// SMALBE outer iterations of the state solve.
+    pub outer_iterations: usize,
+    /// Seconds of the state solve and the gradient together, then of the
+    /// state solve alone and of its factorizations (assembly included).
     pub seconds: f64,
+    pub state_seconds: f64,
+    pub factorize_seconds: f64,
     /// Subdomain factorizations reused from the previous design.
     pub reused_factorizations: usize,
     /// Subdomains factorized symbolically (a new pattern) and numerically at
@@ -92,15 +101,23 @@ fn with_design(scene: &Scene, x: &[f64]) -> Scene {
 pub struct Reuse {
     /// Keep the factorizations of subdomains whose nodes did not move.
     pub factorizations: bool,
-    /// Start each dual solve from the previous design's multipliers.
-    pub warm_start: bool,
+    /// What each state solve takes from the previous design's.
+    pub warm: WarmStart,
+}
+
+impl Reuse {
+    /// Nothing reused: every design factorized and solved from scratch.
+    pub const COLD: Reuse = Reuse {
+        factorizations: false,
+        warm: WarmStart::OFF,
+    };
 }
 
 impl Default for Reuse {
     fn default() -> Self {
         Reuse {
             factorizations: true,
-            warm_start: true,
+            warm: WarmStart::default(),
         }
     }
 }
@@ -119,7 +136,7 @@ fn state_and_gradient(
             &design,
             Some(prev),
             reuse.factorizations,
-            reuse.warm_start,
+            reuse.warm,
             &mut |_| {},
         )?,
         _ => crate::state::solve(scene, &design, &mut |_| {})?,
@@ -254,6 +271,10 @@ pub fn optimize_with(
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
         let (counts, warm) = (state.factorizations, state.warm_started);
         let it = Iterate {
+            state_hessian_applications: state.info.hessian_applications,
+            outer_iterations: state.info.outer_iterations,
+            state_seconds: state.times.total,
+            factorize_seconds: state.times.factorize,
             reused_factorizations: counts.reused,
             symbolic_factorizations: counts.symbolic,
             numeric_factorizations: counts.numeric,

@@ -164,6 +164,50 @@ pub fn smalbe(
     smalbe_preconditioned(a, None, b, lower, g, x, settings, observer)
 }
 
+/// SMALBE's own state at the end of a solve, which a nearby problem (the next
+/// design of an optimization) can start from instead of from scratch: the
+/// multipliers `mu` of `G x = 0`, the precision control `M`, the norm
+/// estimates behind `rho` and `a_bar`, and the final projected gradient. As a
+/// start, each part is used only when present ([`smalbe_from`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SmalbeWarm {
+    /// `mu` (one per row of `G`); the start's linear term is `b - G^T mu`.
+    pub mu: Option<Vec<f64>>,
+    /// `M / ||A||` (the precision control, in the units of `m0_factor`).
+    pub m_factor: Option<f64>,
+    /// `||A||` and `||A + rho G^T G||`: no power iterations when given.
+    pub norms: Option<(f64, f64)>,
+    /// Final `||g^P|| / ||b||`: as a start, the first inner solve's cap
+    /// `eta` is lowered to `max(eps, 10 x this)` relative to `||b||`,
+    /// instead of `eta_factor` (a warm start is already that close).
+    pub gradient: Option<f64>,
+}
+
+/// [`smalbe_preconditioned`] started from the state of an earlier solve of a
+/// nearby problem (`None`: from scratch, exactly [`smalbe_preconditioned`]);
+/// returns, besides the usual info, the state at the end (every part set),
+/// to start the next nearby problem from. Starting from an earlier state
+/// changes the path, not the stopping test: the result meets the same
+/// tolerance.
+#[allow(clippy::too_many_arguments)]
+pub fn smalbe_from(
+    a: &dyn Operator,
+    precond: Option<&dyn Operator>,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> (QpInfo, SmalbeWarm) {
+    let mut end = SmalbeWarm::default();
+    let info = run_smalbe(
+        a, precond, b, lower, g, x, settings, start, &mut end, observer,
+    );
+    (info, end)
+}
+
 /// [`smalbe`] with MPRGP preconditioned in face by `precond`, an approximate
 /// inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the scaled TFETI dual);
 /// `None` is [`smalbe`] exactly. The augmented Hessian is preconditioned by
@@ -180,6 +224,25 @@ pub fn smalbe_preconditioned(
     g: &dyn Equality,
     x: &mut [f64],
     settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> QpInfo {
+    let mut end = SmalbeWarm::default();
+    run_smalbe(
+        a, precond, b, lower, g, x, settings, None, &mut end, observer,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_smalbe(
+    a: &dyn Operator,
+    precond: Option<&dyn Operator>,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    end: &mut SmalbeWarm,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> QpInfo {
     let n = a.dim();
@@ -212,10 +275,18 @@ pub fn smalbe_preconditioned(
     };
     let power = settings.mprgp.power_iterations;
 
-    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar.
-    start_vector(&mut ws.p);
-    let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
-    info.hessian_applications += used;
+    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar; or
+    // both from the start.
+    let known = start.and_then(|s| s.norms);
+    let norm_a = match known {
+        Some((norm_a, _)) => norm_a,
+        None => {
+            start_vector(&mut ws.p);
+            let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
+            info.hessian_applications += used;
+            norm_a
+        }
+    };
     info.norm_estimate = norm_a;
     if !(norm_a > 0.0 && norm_a.is_finite()) {
         info.status = Status::Breakdown(format!(
@@ -226,8 +297,15 @@ pub fn smalbe_preconditioned(
     let rho = settings.rho_factor * norm_a;
     let hessian = Augmented::new(a, g, rho);
     let augmented_precond = precond.map(|p| Augmented::new(p, g, 1.0 / rho));
-    let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
-    info.hessian_applications += used;
+    let norm_h = match known {
+        Some((_, norm_h)) => norm_h,
+        None => {
+            let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
+            info.hessian_applications += used;
+            norm_h
+        }
+    };
+    end.norms = Some((norm_a, norm_h));
     let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
         Ok(v) => v,
         Err(why) => {
@@ -244,13 +322,30 @@ pub fn smalbe_preconditioned(
     };
     let eps_g = settings.tolerance * scale;
     let eps_f = settings.tolerance * scale;
-    let eta = settings.eta_factor * scale;
-    let mut big_m = settings.m0_factor * norm_a;
+    let eta = match start.and_then(|s| s.gradient) {
+        Some(gp) => (10.0 * gp * scale)
+            .max(eps_g)
+            .min(settings.eta_factor * scale),
+        None => settings.eta_factor * scale,
+    };
+    let m_factor = start.and_then(|s| s.m_factor).unwrap_or(settings.m0_factor);
+    let mut big_m = m_factor * norm_a;
 
-    // b~ = b - G^T mu is the linear term of L; mu itself is not needed.
+    // b~ = b - G^T mu is the linear term of L.
     let mut b_tilde = b.to_vec();
     let mut gx = vec![0.0; m];
     let mut gtgx = vec![0.0; n];
+    let mut mu = vec![0.0; m];
+    if let Some(mu0) = start.and_then(|s| s.mu.as_ref()).filter(|v| v.len() == m) {
+        mu.copy_from_slice(mu0);
+        g.apply_t(&mu, &mut gtgx);
+        axpy(-1.0, &gtgx, &mut b_tilde);
+    }
+    let finish = |end: &mut SmalbeWarm, mu: &[f64], big_m: f64, gp: f64| {
+        end.mu = Some(mu.to_vec());
+        end.m_factor = Some(big_m / norm_a);
+        end.gradient = Some(gp / scale);
+    };
     let mut lagrangian_prev = f64::NAN;
     let mut g_ready = false;
     project(x, lower);
@@ -305,6 +400,7 @@ pub fn smalbe_preconditioned(
         info.history.push(run.gp_norm / scale);
         if run.gp_norm <= eps_g && feasibility <= eps_f {
             info.status = Status::Converged;
+            finish(end, &mu, big_m, run.gp_norm);
             observer(&info);
             return info;
         }
@@ -315,6 +411,7 @@ pub fn smalbe_preconditioned(
                 < 2
         {
             info.status = Status::MaxIterations;
+            finish(end, &mu, big_m, run.gp_norm);
             observer(&info);
             return info;
         }
@@ -322,6 +419,7 @@ pub fn smalbe_preconditioned(
         // mu += rho G x: b~ -= rho G^T G x, and the gradient of L moves by
         // +rho G^T G x, which keeps ws.g exact without applying A again.
         g.apply_t(&gx, &mut gtgx);
+        axpy(rho, &gx, &mut mu);
         axpy(-rho, &gtgx, &mut b_tilde);
         axpy(rho, &gtgx, &mut ws.g);
         // L(x_k, mu_{k+1}, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~.
@@ -333,6 +431,7 @@ pub fn smalbe_preconditioned(
         observer(&info);
     }
     info.status = Status::MaxIterations;
+    finish(end, &mu, big_m, info.projected_gradient);
     info
 }
 
