@@ -769,6 +769,130 @@ mod tests {
     }
 
     #[test]
+    fn a_warm_start_reaches_the_same_point_for_less() {
+        // A sequence of nearby problems (b drifting, like the designs of an
+        // optimization): each solved cold and from the previous solution with
+        // SMALBE's state at its end. Both meet the tolerance at the same KKT
+        // point; the warm solves cost at least 30 % fewer Hessian applications.
+        let mut rng = Lcg::new(41);
+        let n = 60;
+        let geq = DenseEq::random(4, n, &mut rng);
+        let a = projected(&random_spd(n, 0.02, &mut rng), &geq);
+        let in_range_p = |v: Vec<f64>| -> Vec<f64> {
+            let mut gv = vec![0.0; 4];
+            geq.apply(&v, &mut gv);
+            let mut q = vec![0.0; n];
+            geq.apply_t(&gv, &mut q);
+            v.iter().zip(&q).map(|(x, y)| x - y).collect()
+        };
+        let mut b = in_range_p((0..n).map(|_| rng.symmetric()).collect());
+        let lower = bounds(n, &mut rng);
+        let settings = SmalbeSettings {
+            tolerance: 1e-9,
+            ..SmalbeSettings::default()
+        };
+        let mut x_warm = vec![0.0; n];
+        let (first, mut end) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut x_warm,
+            &settings,
+            None,
+            &mut |_| {},
+        );
+        assert_eq!(first.status, Status::Converged, "{first:?}");
+        let (mut cold_total, mut warm_total) = (0, 0);
+        for step in 0..5 {
+            let drift = in_range_p((0..n).map(|_| 0.02 * rng.symmetric()).collect());
+            b.iter_mut().zip(&drift).for_each(|(bi, di)| *bi += di);
+            let mut x_cold = vec![0.0; n];
+            let cold = smalbe(&a, &b, &lower, &geq, &mut x_cold, &settings, &mut |_| {});
+            let start = SmalbeWarm {
+                m_factor: None,
+                gradient: None,
+                ..end.clone()
+            };
+            let (warm, next) = smalbe_from(
+                &a,
+                None,
+                &b,
+                &lower,
+                &geq,
+                &mut x_warm,
+                &settings,
+                Some(&start),
+                &mut |_| {},
+            );
+            end = next;
+            assert_eq!(cold.status, Status::Converged, "step {step}: {cold:?}");
+            assert_eq!(warm.status, Status::Converged, "step {step}: {warm:?}");
+            for x in [&x_cold, &x_warm] {
+                let (res, feas) = kkt(&a, &b, &lower, &geq, x);
+                assert!(
+                    res <= 1e-7 && feas <= 1e-8,
+                    "step {step}: KKT {res:e}, G x {feas:e}"
+                );
+            }
+            let scale = x_cold.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x_cold, &x_warm) <= 1e-6 * scale,
+                "step {step}: {x_cold:?} vs {x_warm:?}"
+            );
+            cold_total += cold.hessian_applications;
+            warm_total += warm.hessian_applications;
+        }
+        // (436 against 731 when written.)
+        assert!(
+            10 * warm_total < 7 * cold_total,
+            "warm {warm_total} vs cold {cold_total} Hessian applications"
+        );
+    }
+
+    #[test]
+    fn without_a_start_smalbe_from_is_smalbe() {
+        let mut rng = Lcg::new(43);
+        let n = 30;
+        let geq = DenseEq::random(3, n, &mut rng);
+        let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng);
+        let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let plain = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+        let (from, end) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut y,
+            &tight(),
+            None,
+            &mut |_| {},
+        );
+        assert_eq!(plain, from);
+        assert_eq!(x, y);
+        // The end state has every part, and restarting from it at the solution
+        // on the same problem converges at once.
+        assert!(end.mu.is_some() && end.m_factor.is_some() && end.norms.is_some());
+        let (again, _) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut y,
+            &tight(),
+            Some(&end),
+            &mut |_| {},
+        );
+        assert_eq!(again.status, Status::Converged);
+        assert!(again.hessian_applications <= 2, "{again:?}");
+    }
+
+    #[test]
     fn default_tolerance_is_relative() {
         let mut rng = Lcg::new(19);
         let n = 40;
