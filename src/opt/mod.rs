@@ -103,6 +103,9 @@ pub struct Reuse {
     pub factorizations: bool,
     /// What each state solve takes from the previous design's.
     pub warm: WarmStart,
+    /// Start each adjoint solve from the previous design's adjoint (adjoint
+    /// gradients only).
+    pub warm_adjoint: bool,
 }
 
 impl Reuse {
@@ -110,6 +113,7 @@ impl Reuse {
     pub const COLD: Reuse = Reuse {
         factorizations: false,
         warm: WarmStart::OFF,
+        warm_adjoint: false,
     };
 }
 
@@ -118,16 +122,21 @@ impl Default for Reuse {
         Reuse {
             factorizations: true,
             warm: WarmStart::default(),
+            warm_adjoint: true,
         }
     }
 }
 
-/// The state at the scene's design (reusing `previous` as allowed) and its gradient.
+/// The state at the scene's design (reusing `previous` as allowed) and its
+/// gradient; with adjoint gradients also the adjoints' multipliers (per
+/// functional and row), from which the next design's adjoint solves start
+/// when `adjoints` are given and `reuse` says so.
 fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
+    adjoints: &[Vec<f64>],
     reuse: Reuse,
-) -> Result<(State, Gradient), GradientError> {
+) -> Result<(State, Gradient, Vec<Vec<f64>>), GradientError> {
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = match previous {
@@ -141,18 +150,25 @@ fn state_and_gradient(
         )?,
         _ => crate::state::solve(scene, &design, &mut |_| {})?,
     };
-    let g = match scene.sensitivity.method {
-        SensitivityMethod::FiniteDifference => {
-            crate::sens::finite_difference(scene, scene.sensitivity.step, scene.sensitivity.scheme)?
-        }
+    let (g, adjoints) = match scene.sensitivity.method {
+        SensitivityMethod::FiniteDifference => (
+            crate::sens::finite_difference(
+                scene,
+                scene.sensitivity.step,
+                scene.sensitivity.scheme,
+            )?,
+            Vec::new(),
+        ),
         SensitivityMethod::Adjoint => {
-            crate::sens::adjoint_at(scene, &state, scene.solver.tolerance, t0)?
+            let starts = if reuse.warm_adjoint { adjoints } else { &[] };
+            crate::sens::adjoint_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
         }
-        SensitivityMethod::SemiAnalytic => {
-            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?
-        }
+        SensitivityMethod::SemiAnalytic => (
+            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?,
+            Vec::new(),
+        ),
     };
-    Ok((state, g))
+    Ok((state, g, adjoints))
 }
 
 /// Runs MMA on the scene's design problem. `observer` sees every iterate with its
@@ -206,44 +222,48 @@ pub fn optimize_with(
     let mut last_multipliers: Vec<f64> = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut previous: Option<State> = None;
+    let mut last_adjoints: Vec<Vec<f64>> = Vec::new();
     for k in 0..scene.optimize.max_iterations.max(1) {
         let t = Instant::now();
         let current = with_design(&frozen, &x);
-        let (state, g) = match state_and_gradient(&current, previous.as_ref(), reuse) {
-            Ok(r) => r,
-            Err(e) if k > 0 => {
-                // Step back halfway towards the last good design, a few times.
-                let prev = history
-                    .last()
-                    .map(|h| h.design.clone())
-                    .unwrap_or_else(|| x0.clone());
-                let mut recovered = None;
-                let mut trial = x.clone();
-                for _ in 0..4 {
-                    trial = trial
-                        .iter()
-                        .zip(&prev)
-                        .map(|(a, b)| 0.5 * (a + b))
-                        .collect();
-                    if let Ok(r) = state_and_gradient(&with_design(&frozen, &trial), None, reuse) {
-                        recovered = Some(r);
-                        break;
+        let (state, g, adjoints) =
+            match state_and_gradient(&current, previous.as_ref(), &last_adjoints, reuse) {
+                Ok(r) => r,
+                Err(e) if k > 0 => {
+                    // Step back halfway towards the last good design, a few times.
+                    let prev = history
+                        .last()
+                        .map(|h| h.design.clone())
+                        .unwrap_or_else(|| x0.clone());
+                    let mut recovered = None;
+                    let mut trial = x.clone();
+                    for _ in 0..4 {
+                        trial = trial
+                            .iter()
+                            .zip(&prev)
+                            .map(|(a, b)| 0.5 * (a + b))
+                            .collect();
+                        if let Ok(r) =
+                            state_and_gradient(&with_design(&frozen, &trial), None, &[], reuse)
+                        {
+                            recovered = Some(r);
+                            break;
+                        }
+                    }
+                    match recovered {
+                        Some(g) => {
+                            x = trial;
+                            g
+                        }
+                        None => {
+                            termination =
+                                Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
+                            break;
+                        }
                     }
                 }
-                match recovered {
-                    Some(g) => {
-                        x = trial;
-                        g
-                    }
-                    None => {
-                        termination =
-                            Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
-                        break;
-                    }
-                }
-            }
-            Err(e) => return Err(e),
-        };
+                Err(e) => return Err(e),
+            };
         if k == 0 {
             names = g.functionals.clone();
             f_scale = 1.0 / g.values[0].abs().max(1e-300);
@@ -291,6 +311,7 @@ pub fn optimize_with(
         };
         let keep_going = observer(&it, &state);
         previous = Some(state);
+        last_adjoints = adjoints;
         history.push(it);
         if feasible && best.is_none_or(|b| f0 < history[b].objective) {
             best = Some(history.len() - 1);

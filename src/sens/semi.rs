@@ -25,6 +25,7 @@ use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::cluster::Cluster;
+use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
 use std::time::Instant;
 
@@ -500,6 +501,19 @@ impl<'a> Sensitivity<'a> {
         fs: &[Functional],
         tolerance: f64,
     ) -> Result<AdjointGradients, SolveError> {
+        Ok(self.adjoint_all_from(fs, tolerance, &[])?.0)
+    }
+
+    /// [`Self::adjoint_all`] with each adjoint solve started from `starts`
+    /// (per functional, multipliers per state row: the adjoints of a nearby
+    /// design, as returned here; a start of the wrong length is ignored).
+    /// Returns the adjoints' multipliers per state row too.
+    pub fn adjoint_all_from(
+        &self,
+        fs: &[Functional],
+        tolerance: f64,
+        starts: &[Vec<f64>],
+    ) -> Result<(AdjointGradients, Vec<Vec<f64>>), SolveError> {
         if self.weak() > 0 {
             return Err(SolveError::Unsupported(format!(
                 "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
@@ -507,11 +521,31 @@ impl<'a> Sensitivity<'a> {
             )));
         }
         let mut adjoints = Vec::with_capacity(fs.len());
+        let mut ends = Vec::with_capacity(fs.len());
         let mut cost = 0;
-        for f in fs {
-            let (w, nu, c) = self.adjoint_solve(f, tolerance)?;
+        let rows = self.state.problem.rows.len();
+        for (k, f) in fs.iter().enumerate() {
+            let start: Option<Vec<f64>> = starts
+                .get(k)
+                .filter(|l| l.len() == rows)
+                .map(|l| self.kept.iter().map(|&r| l[r]).collect());
+            let (w, nu, c) = self.adjoint_solve(f, tolerance, start)?;
+            let mut end = vec![0.0; rows];
+            for (&r, v) in self.kept.iter().zip(&nu) {
+                end[r] = *v;
+            }
+            ends.push(end);
             cost += c;
-            let gw = node_shape_gradient(self.state, &w);
+            // A functional of the geometry alone (J_u = 0, J_l = 0) has w = 0.
+            let gw = if w.iter().flatten().all(|v| *v == 0.0) {
+                let p = &self.state.problem;
+                p.bodies
+                    .iter()
+                    .map(|b| vec![0.0; p.dim * b.coords.len()])
+                    .collect()
+            } else {
+                node_shape_gradient(self.state, &w)
+            };
             adjoints.push((w, nu, gw));
         }
         let gu = node_shape_gradient(self.state, &self.state.u);
@@ -546,11 +580,16 @@ impl<'a> Sensitivity<'a> {
                 grad[k][i] = ja + wf + nc;
             }
         }
-        Ok((grad, cost, kinked))
+        Ok(((grad, cost, kinked), ends))
     }
 
     /// The adjoint solve of one functional: `(w, nu)` and its Hessian applications.
-    fn adjoint_solve(&self, f: &Functional, tolerance: f64) -> Result<Adjoint, SolveError> {
+    fn adjoint_solve(
+        &self,
+        f: &Functional,
+        tolerance: f64,
+        start: Option<Vec<f64>>,
+    ) -> Result<Adjoint, SolveError> {
         let state = self.state;
         let p = &state.problem;
         // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
@@ -620,8 +659,16 @@ impl<'a> Sensitivity<'a> {
                 _ => {}
             }
         }
-        let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
         let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
+        if ju.iter().flatten().chain(&c_adj).all(|v| *v == 0.0) {
+            // Nothing depends on (u, l): the adjoint is zero, no solve needed.
+            return Ok((ju, c_adj, 0));
+        }
+        let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
+        let start = start.map(|lambda| DualStart {
+            lambda,
+            ..DualStart::default()
+        });
         let before = self.dual.f_applications();
         // Held dofs of classical FETI do not move with the design: zero there.
         let sol = self.dual.solve(
@@ -630,7 +677,7 @@ impl<'a> Sensitivity<'a> {
             self.n_equality,
             false,
             &solve_settings(tolerance),
-            None,
+            start.as_ref(),
             &mut |_| {},
         )?;
         let cost = sol
@@ -907,6 +954,19 @@ pub fn adjoint_at(
     tolerance: f64,
     t0: Instant,
 ) -> Result<super::Gradient, SolveError> {
+    Ok(adjoint_at_from(scene, state, tolerance, t0, &[])?.0)
+}
+
+/// [`adjoint_at`] with the adjoint solves started from `starts` (the adjoint
+/// multipliers of a nearby design, per functional and state row, as returned
+/// here with the gradient): a warm start between optimization steps.
+pub fn adjoint_at_from(
+    scene: &Scene,
+    state: &State,
+    tolerance: f64,
+    t0: Instant,
+    starts: &[Vec<f64>],
+) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
@@ -918,7 +978,7 @@ pub fn adjoint_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let (gradient, hessian, kinked) = sens.adjoint_all(&rows, tolerance)?;
+    let ((gradient, hessian, kinked), ends) = sens.adjoint_all_from(&rows, tolerance, starts)?;
     let method = if kinked.is_empty() {
         "adjoint".to_string()
     } else {
@@ -928,7 +988,7 @@ pub fn adjoint_at(
             .collect();
         format!("adjoint ({})", sliding(&names))
     };
-    Ok(super::Gradient {
+    let gradient = super::Gradient {
         method,
         functionals: names,
         values,
@@ -942,7 +1002,8 @@ pub fn adjoint_at(
         active_set_changed: Vec::new(),
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
-    })
+    };
+    Ok((gradient, ends))
 }
 
 #[cfg(test)]

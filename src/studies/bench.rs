@@ -401,6 +401,7 @@ pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
     let warm = |w: WarmStart| Reuse {
         factorizations: false,
         warm: w,
+        warm_adjoint: false,
     };
     let best = WarmStart::BEST;
     vec![
@@ -457,13 +458,31 @@ pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
             },
         ),
         (
-            "warm start (default)",
+            "warm state solve",
+            Reuse {
+                factorizations: false,
+                warm_adjoint: false,
+                ..Reuse::default()
+            },
+        ),
+        (
+            "warm state and adjoint solves",
             Reuse {
                 factorizations: false,
                 ..Reuse::default()
             },
         ),
-        ("partial refactorization + warm start", Reuse::default()),
+        (
+            "partial refactorization + warm state solve",
+            Reuse {
+                warm_adjoint: false,
+                ..Reuse::default()
+            },
+        ),
+        (
+            "partial refactorization + warm state and adjoint solves (default)",
+            Reuse::default(),
+        ),
     ]
 }
 

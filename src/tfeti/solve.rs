@@ -100,7 +100,12 @@ pub fn dual_solve_from(
         // Im P = ker G~, so the constraint holds without an outer loop.
         let precond = dual.preconditioner().map(|m| ProjectedM::new(dual, m, 1.0));
         let precond = precond.as_ref().map(|m| m as &dyn Operator);
-        let (lhat, info) = projected_cg(dual, &b, settings, precond);
+        let x0 = start.filter(|s| s.lambda.len() == m).map(|s| {
+            let mut x: Vec<f64> = s.lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
+            dual.project(&mut x);
+            x
+        });
+        let (lhat, info) = projected_cg(dual, &b, settings, precond, x0);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
         let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
         return Ok(DualSolution {
@@ -185,7 +190,8 @@ pub fn dual_solve_from(
 
 /// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;
 /// with `precond` (`P M P`) the ordinary preconditioned CG, the test still on
-/// the plain residual.
+/// the plain residual. From `x0` (in Im P) instead when given and its residual
+/// is below `||b||` (a warm start; one more application).
 ///
 /// # Reference
 /// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
@@ -195,11 +201,13 @@ fn projected_cg(
     b: &[f64],
     settings: &SmalbeSettings,
     precond: Option<&dyn Operator>,
+    x0: Option<Vec<f64>>,
 ) -> (Vec<f64>, QpInfo) {
     let m = b.len();
     let a = ProjectedF::new(dual, 1.0);
     let bnorm = norm(b);
     let mut x = vec![0.0; m];
+    let mut r = b.to_vec();
     let mut info = QpInfo {
         status: Status::Converged,
         outer_iterations: 0,
@@ -213,7 +221,16 @@ fn projected_cg(
     if bnorm == 0.0 {
         return (x, info);
     }
-    let mut r = b.to_vec();
+    if let Some(x0) = x0.filter(|v| v.len() == m) {
+        let mut ax = vec![0.0; m];
+        crate::qp::Operator::apply(&a, &x0, &mut ax);
+        info.hessian_applications += 1;
+        let r0: Vec<f64> = b.iter().zip(&ax).map(|(bi, ai)| bi - ai).collect();
+        if norm(&r0) < bnorm {
+            x = x0;
+            r = r0;
+        }
+    }
     let mut z = r.clone();
     // z = P M P r, or r when M gives no descent (round-off, semidefinite M).
     let precondition = |r: &[f64], z: &mut [f64]| {
