@@ -5,6 +5,13 @@
 //! solve plus a gradient; a design whose geometry cannot be lowered or solved
 //! is stepped back towards the last good one, and the best feasible design found
 //! is always kept.
+//!
+//! From the second design on, each iterate reuses the previous one ([`Reuse`]):
+//! subdomains whose nodes did not move keep their factorizations (the moved
+//! ones refactor on their symbolic factorization), the state solve starts from
+//! the previous multipliers, active set and SMALBE state
+//! ([`crate::state::WarmStart`]), and adjoint solves from the previous
+//! adjoints. Each changes the path of a solve, never its tolerance.
 
 pub mod mma;
 
