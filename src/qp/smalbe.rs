@@ -177,9 +177,9 @@ pub struct SmalbeWarm {
     pub m_factor: Option<f64>,
     /// `||A||` and `||A + rho G^T G||`: no power iterations when given.
     pub norms: Option<(f64, f64)>,
-    /// Final `||g^P|| / ||b||`: as a start, the first inner solve's cap
-    /// `eta` is lowered to `max(eps, 10 x this)` relative to `||b||`,
-    /// instead of `eta_factor` (a warm start is already that close).
+    /// Final `||g^P|| / ||b||`: as a start, the inner solves' cap `eta` is
+    /// lowered to `max(eps, 10 x this)` relative to `||b||` (at most
+    /// `eta_factor`), on the grounds that a warm start is already that close.
     pub gradient: Option<f64>,
 }
 

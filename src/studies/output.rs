@@ -156,6 +156,7 @@ pub fn reuse(t: &ReuseTable) -> String {
             )
         });
         let objective = match (r.best_objective, reference) {
+            (Some(a), Some(b)) if a == b => "0".to_string(),
             (Some(a), Some(b)) => format!("{:.0e}", ((a - b) / b).abs()),
             _ => "-".to_string(),
         };
