@@ -1144,6 +1144,8 @@ impl Bench {
             }
             Benchmark::Optimize => {
                 let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
+                outln!("{}\n", output::reuse(&rows));
+                let rows = bench::optimization_reuse_large().map_err(|e| fail(EXIT_SCENE, e))?;
                 outln!("{}", output::reuse(&rows));
                 Ok(())
             }

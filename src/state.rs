@@ -5,7 +5,7 @@
 
 use crate::lang::scene::Scene;
 use crate::model::{lower, Problem};
-use crate::qp::{QpInfo, SmalbeSettings, Status};
+use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm, Status};
 use crate::tfeti::classical::{DualSystem, Elimination};
 use crate::tfeti::cluster::Cluster;
 use crate::tfeti::comm::{agree, partition, serial, Comm, Op};
@@ -14,7 +14,7 @@ pub use crate::tfeti::error::{CoarseError, SolveError};
 use crate::tfeti::kkt::kkt;
 pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
-use crate::tfeti::solve::DualSolution;
+use crate::tfeti::solve::{DualSolution, DualStart};
 use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError};
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -58,6 +58,69 @@ pub struct State {
     pub factorizations: Factorizations,
     /// Whether the dual solve started from a previous state's multipliers.
     pub warm_started: bool,
+    /// SMALBE's state at the end of the dual solve and `||P F P||` (contact
+    /// scenes), for a warm start at the next design.
+    pub end: Option<(SmalbeWarm, f64)>,
+}
+
+/// What a state solve takes from the state of the same scene at a nearby
+/// design (the previous iterate of an optimization), besides factorizations.
+/// Every part changes the path of the dual solve, never its stopping test.
+///
+/// The default is what measured best (`cso bench optimize`, BENCHMARKS.md):
+/// the multipliers with their active set, SMALBE's `mu` and the norm
+/// estimates. Carrying `M` or starting `eta` from the previous final gradient
+/// made every warm solve dearer on scont2d (`M` has been halved ten times by
+/// the end of a solve, so the inner solves of the next one start far too
+/// precise), so both are off by default.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct WarmStart {
+    /// Start from the previous multipliers (when the rows are the same ones).
+    pub multipliers: bool,
+    /// Keep the previous active set: contact rows whose multiplier was zero
+    /// stay at their bound when the start is projected onto `ker G`.
+    pub active_set: bool,
+    /// SMALBE's multipliers `mu` of `G l = 0`.
+    pub mu: bool,
+    /// SMALBE's precision control `M`.
+    pub precision: bool,
+    /// The norm estimates behind `rho`, `a_bar` and the scaling by
+    /// `||P F P||` (no power iterations).
+    pub norms: bool,
+    /// The first inner tolerance from the previous final gradient.
+    pub eta: bool,
+}
+
+impl WarmStart {
+    /// A cold start.
+    pub const OFF: WarmStart = WarmStart {
+        multipliers: false,
+        active_set: false,
+        mu: false,
+        precision: false,
+        norms: false,
+        eta: false,
+    };
+    /// The previous multipliers only (SMALBE's own state from scratch).
+    pub const MULTIPLIERS: WarmStart = WarmStart {
+        multipliers: true,
+        ..WarmStart::OFF
+    };
+    /// What measured best: everything but `M` and `eta`.
+    pub const BEST: WarmStart = WarmStart {
+        multipliers: true,
+        active_set: true,
+        mu: true,
+        precision: false,
+        norms: true,
+        eta: false,
+    };
+}
+
+impl Default for WarmStart {
+    fn default() -> Self {
+        WarmStart::BEST
+    }
 }
 
 /// Names of the rigid motions of a subdomain, by dimension, in the order of
@@ -515,7 +578,7 @@ pub fn solve(
     design: &[f64],
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_reusing(scene, design, None, false, false, observer)
+    solve_reusing(scene, design, None, false, WarmStart::OFF, observer)
 }
 
 /// [`solve`] at a new design, reusing what `previous` (a state of the same scene
@@ -526,7 +589,7 @@ pub fn solve_reusing(
     design: &[f64],
     previous: Option<&State>,
     factorizations: bool,
-    warm_start: bool,
+    warm: WarmStart,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
     solve_on(
@@ -534,7 +597,7 @@ pub fn solve_reusing(
         design,
         previous,
         factorizations,
-        warm_start,
+        warm,
         serial(),
         observer,
     )
@@ -551,7 +614,7 @@ pub fn solve_distributed(
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_on(scene, design, None, false, false, comm, observer)
+    solve_on(scene, design, None, false, WarmStart::OFF, comm, observer)
 }
 
 fn solve_on(
@@ -559,7 +622,7 @@ fn solve_on(
     design: &[f64],
     previous: Option<&State>,
     factorizations: bool,
-    warm_start: bool,
+    warm: WarmStart,
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
@@ -603,7 +666,7 @@ fn solve_on(
         ..SmalbeSettings::default()
     };
     // Warm start: the previous multipliers, when the rows are the same ones.
-    let warm = previous.filter(|_| warm_start).and_then(|prev| {
+    let start = previous.filter(|_| warm.multipliers).and_then(|prev| {
         let same = prev.problem.rows.len() == problem.rows.len()
             && prev.problem.n_equality == problem.n_equality
             && prev.problem.rows.iter().zip(&problem.rows).all(|(a, b)| {
@@ -613,9 +676,23 @@ fn solve_on(
                         .map(|e| (e.0, e.1))
                         .eq(b.entries.iter().map(|e| (e.0, e.1)))
             });
-        same.then(|| prev.lambda.clone())
+        same.then(|| {
+            let end = prev.end.as_ref();
+            let smalbe = end.map(|(w, _)| SmalbeWarm {
+                mu: w.mu.clone().filter(|_| warm.mu),
+                m_factor: w.m_factor.filter(|_| warm.precision),
+                norms: w.norms.filter(|_| warm.norms),
+                gradient: w.gradient.filter(|_| warm.eta),
+            });
+            DualStart {
+                lambda: prev.lambda.clone(),
+                active_set: warm.active_set,
+                smalbe,
+                pfp: end.map(|e| e.1).filter(|_| warm.norms),
+            }
+        })
     });
-    let warm_started = warm.is_some();
+    let warm_started = start.is_some();
     let sol = system
         .solve(
             &f,
@@ -623,7 +700,7 @@ fn solve_on(
             problem.n_equality,
             true,
             &settings,
-            warm.as_deref(),
+            start.as_ref(),
             observer,
         )
         .map_err(|e| match e {
@@ -651,6 +728,7 @@ fn solve_on(
         alpha,
         info,
         b_norm,
+        end,
     } = sol;
     let t = Instant::now();
     let f_applications = system.f_applications();
@@ -677,6 +755,7 @@ fn solve_on(
         b_norm,
         factorizations,
         warm_started,
+        end,
     })
 }
 
@@ -754,6 +833,7 @@ mod tests {
                 norm_estimate: 1.0,
             },
             b_norm: 1.0,
+            end: None,
         }
     }
 

@@ -136,20 +136,41 @@ pub fn termination(scene: &Scene, t: &Termination) -> String {
 
 /// `cso optimize`: every iterate, why the run stopped, and the best feasible
 /// design with its variables.
+///
+/// Per iterate also its cost: Hessian applications of the state solve and of
+/// state + gradient, subdomains refactored, seconds (state, then state +
+/// gradient), and whether the state solve started cold or warm (from the
+/// previous design's multipliers and SMALBE state).
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
     let mut o = format!(
-        "{:>4} {:>14} {:>12} {:>10} {:>10}",
-        "iter", "objective", "worst g", "step", "KKT"
+        "{:>4} {:>14} {:>12} {:>10} {:>10} {:>7} {:>7} {:>6} {:>8} {:>8} {:>5}",
+        "iter",
+        "objective",
+        "worst g",
+        "step",
+        "KKT",
+        "H state",
+        "H all",
+        "refact",
+        "s state",
+        "s all",
+        "start"
     );
     for it in &run.history {
         let _ = write!(
             o,
-            "\n{:>4} {:>14.6e} {:>12.3e} {:>10.2e} {:>10.2e}",
+            "\n{:>4} {:>14.6e} {:>12.3e} {:>10.2e} {:>10.2e} {:>7} {:>7} {:>6} {:>8.3} {:>8.3} {:>5}",
             it.iteration,
             it.objective,
             worst_constraint(&it.constraints),
             it.step,
-            it.kkt
+            it.kkt,
+            it.state_hessian_applications,
+            it.hessian_applications,
+            it.numeric_factorizations,
+            it.state_seconds,
+            it.seconds,
+            if it.warm_started { "warm" } else { "cold" }
         );
     }
     let _ = write!(o, "\nstopped: {}", termination(scene, &run.termination));

@@ -5,13 +5,20 @@
 //! solve plus a gradient; a design whose geometry cannot be lowered or solved
 //! is stepped back towards the last good one, and the best feasible design found
 //! is always kept.
+//!
+//! From the second design on, each iterate reuses the previous one ([`Reuse`]):
+//! subdomains whose nodes did not move keep their factorizations (the moved
+//! ones refactor on their symbolic factorization), the state solve starts from
+//! the previous multipliers, active set and SMALBE state
+//! ([`crate::state::WarmStart`]), and adjoint solves from the previous
+//! adjoints. Each changes the path of a solve, never its tolerance.
 
 pub mod mma;
 
 use crate::lang::expr::Formula;
 use crate::lang::scene::{Functional, Scene, SensitivityMethod};
 use crate::sens::{Eval, Gradient, GradientError};
-use crate::state::{SolveError, State};
+use crate::state::{SolveError, State, WarmStart};
 use mma::{kkt_residual, Mma, MmaSettings};
 use serde::Serialize;
 use std::time::Instant;
@@ -42,8 +49,17 @@ pub struct Iterate {
     pub gradient_norm: f64,
     pub kkt: f64,
     pub step: f64,
+    /// Hessian applications (one `F` each) of the state solve and the
+    /// gradient together, then of the state solve alone.
     pub hessian_applications: usize,
+    pub state_hessian_applications: usize,
+    /// SMALBE outer iterations of the state solve.
+    pub outer_iterations: usize,
+    /// Seconds of the state solve and the gradient together, then of the
+    /// state solve alone and of its factorizations (assembly included).
     pub seconds: f64,
+    pub state_seconds: f64,
+    pub factorize_seconds: f64,
     /// Subdomain factorizations reused from the previous design.
     pub reused_factorizations: usize,
     /// Subdomains factorized symbolically (a new pattern) and numerically at
@@ -92,25 +108,42 @@ fn with_design(scene: &Scene, x: &[f64]) -> Scene {
 pub struct Reuse {
     /// Keep the factorizations of subdomains whose nodes did not move.
     pub factorizations: bool,
-    /// Start each dual solve from the previous design's multipliers.
-    pub warm_start: bool,
+    /// What each state solve takes from the previous design's.
+    pub warm: WarmStart,
+    /// Start each adjoint solve from the previous design's adjoint (adjoint
+    /// gradients only).
+    pub warm_adjoint: bool,
+}
+
+impl Reuse {
+    /// Nothing reused: every design factorized and solved from scratch.
+    pub const COLD: Reuse = Reuse {
+        factorizations: false,
+        warm: WarmStart::OFF,
+        warm_adjoint: false,
+    };
 }
 
 impl Default for Reuse {
     fn default() -> Self {
         Reuse {
             factorizations: true,
-            warm_start: true,
+            warm: WarmStart::default(),
+            warm_adjoint: true,
         }
     }
 }
 
-/// The state at the scene's design (reusing `previous` as allowed) and its gradient.
+/// The state at the scene's design (reusing `previous` as allowed) and its
+/// gradient; with adjoint gradients also the adjoints' multipliers (per
+/// functional and row), from which the next design's adjoint solves start
+/// when `adjoints` are given and `reuse` says so.
 fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
+    adjoints: &[Vec<f64>],
     reuse: Reuse,
-) -> Result<(State, Gradient), GradientError> {
+) -> Result<(State, Gradient, Vec<Vec<f64>>), GradientError> {
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = match previous {
@@ -119,23 +152,30 @@ fn state_and_gradient(
             &design,
             Some(prev),
             reuse.factorizations,
-            reuse.warm_start,
+            reuse.warm,
             &mut |_| {},
         )?,
         _ => crate::state::solve(scene, &design, &mut |_| {})?,
     };
-    let g = match scene.sensitivity.method {
-        SensitivityMethod::FiniteDifference => {
-            crate::sens::finite_difference(scene, scene.sensitivity.step, scene.sensitivity.scheme)?
-        }
+    let (g, adjoints) = match scene.sensitivity.method {
+        SensitivityMethod::FiniteDifference => (
+            crate::sens::finite_difference(
+                scene,
+                scene.sensitivity.step,
+                scene.sensitivity.scheme,
+            )?,
+            Vec::new(),
+        ),
         SensitivityMethod::Adjoint => {
-            crate::sens::adjoint_at(scene, &state, scene.solver.tolerance, t0)?
+            let starts = if reuse.warm_adjoint { adjoints } else { &[] };
+            crate::sens::adjoint_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
         }
-        SensitivityMethod::SemiAnalytic => {
-            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?
-        }
+        SensitivityMethod::SemiAnalytic => (
+            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?,
+            Vec::new(),
+        ),
     };
-    Ok((state, g))
+    Ok((state, g, adjoints))
 }
 
 /// Runs MMA on the scene's design problem. `observer` sees every iterate with its
@@ -189,44 +229,48 @@ pub fn optimize_with(
     let mut last_multipliers: Vec<f64> = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut previous: Option<State> = None;
+    let mut last_adjoints: Vec<Vec<f64>> = Vec::new();
     for k in 0..scene.optimize.max_iterations.max(1) {
         let t = Instant::now();
         let current = with_design(&frozen, &x);
-        let (state, g) = match state_and_gradient(&current, previous.as_ref(), reuse) {
-            Ok(r) => r,
-            Err(e) if k > 0 => {
-                // Step back halfway towards the last good design, a few times.
-                let prev = history
-                    .last()
-                    .map(|h| h.design.clone())
-                    .unwrap_or_else(|| x0.clone());
-                let mut recovered = None;
-                let mut trial = x.clone();
-                for _ in 0..4 {
-                    trial = trial
-                        .iter()
-                        .zip(&prev)
-                        .map(|(a, b)| 0.5 * (a + b))
-                        .collect();
-                    if let Ok(r) = state_and_gradient(&with_design(&frozen, &trial), None, reuse) {
-                        recovered = Some(r);
-                        break;
+        let (state, g, adjoints) =
+            match state_and_gradient(&current, previous.as_ref(), &last_adjoints, reuse) {
+                Ok(r) => r,
+                Err(e) if k > 0 => {
+                    // Step back halfway towards the last good design, a few times.
+                    let prev = history
+                        .last()
+                        .map(|h| h.design.clone())
+                        .unwrap_or_else(|| x0.clone());
+                    let mut recovered = None;
+                    let mut trial = x.clone();
+                    for _ in 0..4 {
+                        trial = trial
+                            .iter()
+                            .zip(&prev)
+                            .map(|(a, b)| 0.5 * (a + b))
+                            .collect();
+                        if let Ok(r) =
+                            state_and_gradient(&with_design(&frozen, &trial), None, &[], reuse)
+                        {
+                            recovered = Some(r);
+                            break;
+                        }
+                    }
+                    match recovered {
+                        Some(g) => {
+                            x = trial;
+                            g
+                        }
+                        None => {
+                            termination =
+                                Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
+                            break;
+                        }
                     }
                 }
-                match recovered {
-                    Some(g) => {
-                        x = trial;
-                        g
-                    }
-                    None => {
-                        termination =
-                            Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
-                        break;
-                    }
-                }
-            }
-            Err(e) => return Err(e),
-        };
+                Err(e) => return Err(e),
+            };
         if k == 0 {
             names = g.functionals.clone();
             f_scale = 1.0 / g.values[0].abs().max(1e-300);
@@ -254,6 +298,10 @@ pub fn optimize_with(
             kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
         let (counts, warm) = (state.factorizations, state.warm_started);
         let it = Iterate {
+            state_hessian_applications: state.info.hessian_applications,
+            outer_iterations: state.info.outer_iterations,
+            state_seconds: state.times.total,
+            factorize_seconds: state.times.factorize,
             reused_factorizations: counts.reused,
             symbolic_factorizations: counts.symbolic,
             numeric_factorizations: counts.numeric,
@@ -270,6 +318,7 @@ pub fn optimize_with(
         };
         let keep_going = observer(&it, &state);
         previous = Some(state);
+        last_adjoints = adjoints;
         history.push(it);
         if feasible && best.is_none_or(|b| f0 < history[b].objective) {
             best = Some(history.len() - 1);

@@ -164,6 +164,50 @@ pub fn smalbe(
     smalbe_preconditioned(a, None, b, lower, g, x, settings, observer)
 }
 
+/// SMALBE's own state at the end of a solve, which a nearby problem (the next
+/// design of an optimization) can start from instead of from scratch: the
+/// multipliers `mu` of `G x = 0`, the precision control `M`, the norm
+/// estimates behind `rho` and `a_bar`, and the final projected gradient. As a
+/// start, each part is used only when present ([`smalbe_from`]).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct SmalbeWarm {
+    /// `mu` (one per row of `G`); the start's linear term is `b - G^T mu`.
+    pub mu: Option<Vec<f64>>,
+    /// `M / ||A||` (the precision control, in the units of `m0_factor`).
+    pub m_factor: Option<f64>,
+    /// `||A||` and `||A + rho G^T G||`: no power iterations when given.
+    pub norms: Option<(f64, f64)>,
+    /// Final `||g^P|| / ||b||`: as a start, the inner solves' cap `eta` is
+    /// lowered to `max(eps, 10 x this)` relative to `||b||` (at most
+    /// `eta_factor`), on the grounds that a warm start is already that close.
+    pub gradient: Option<f64>,
+}
+
+/// [`smalbe_preconditioned`] started from the state of an earlier solve of a
+/// nearby problem (`None`: from scratch, exactly [`smalbe_preconditioned`]);
+/// returns, besides the usual info, the state at the end (every part set),
+/// to start the next nearby problem from. Starting from an earlier state
+/// changes the path, not the stopping test: the result meets the same
+/// tolerance.
+#[allow(clippy::too_many_arguments)]
+pub fn smalbe_from(
+    a: &dyn Operator,
+    precond: Option<&dyn Operator>,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> (QpInfo, SmalbeWarm) {
+    let mut end = SmalbeWarm::default();
+    let info = run_smalbe(
+        a, precond, b, lower, g, x, settings, start, &mut end, observer,
+    );
+    (info, end)
+}
+
 /// [`smalbe`] with MPRGP preconditioned in face by `precond`, an approximate
 /// inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the scaled TFETI dual);
 /// `None` is [`smalbe`] exactly. The augmented Hessian is preconditioned by
@@ -180,6 +224,25 @@ pub fn smalbe_preconditioned(
     g: &dyn Equality,
     x: &mut [f64],
     settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> QpInfo {
+    let mut end = SmalbeWarm::default();
+    run_smalbe(
+        a, precond, b, lower, g, x, settings, None, &mut end, observer,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_smalbe(
+    a: &dyn Operator,
+    precond: Option<&dyn Operator>,
+    b: &[f64],
+    lower: &[f64],
+    g: &dyn Equality,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    end: &mut SmalbeWarm,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> QpInfo {
     let n = a.dim();
@@ -212,10 +275,18 @@ pub fn smalbe_preconditioned(
     };
     let power = settings.mprgp.power_iterations;
 
-    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar.
-    start_vector(&mut ws.p);
-    let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
-    info.hessian_applications += used;
+    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar; or
+    // both from the start.
+    let known = start.and_then(|s| s.norms);
+    let norm_a = match known {
+        Some((norm_a, _)) => norm_a,
+        None => {
+            start_vector(&mut ws.p);
+            let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
+            info.hessian_applications += used;
+            norm_a
+        }
+    };
     info.norm_estimate = norm_a;
     if !(norm_a > 0.0 && norm_a.is_finite()) {
         info.status = Status::Breakdown(format!(
@@ -226,8 +297,15 @@ pub fn smalbe_preconditioned(
     let rho = settings.rho_factor * norm_a;
     let hessian = Augmented::new(a, g, rho);
     let augmented_precond = precond.map(|p| Augmented::new(p, g, 1.0 / rho));
-    let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
-    info.hessian_applications += used;
+    let norm_h = match known {
+        Some((_, norm_h)) => norm_h,
+        None => {
+            let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
+            info.hessian_applications += used;
+            norm_h
+        }
+    };
+    end.norms = Some((norm_a, norm_h));
     let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
         Ok(v) => v,
         Err(why) => {
@@ -244,13 +322,30 @@ pub fn smalbe_preconditioned(
     };
     let eps_g = settings.tolerance * scale;
     let eps_f = settings.tolerance * scale;
-    let eta = settings.eta_factor * scale;
-    let mut big_m = settings.m0_factor * norm_a;
+    let eta = match start.and_then(|s| s.gradient) {
+        Some(gp) => (10.0 * gp * scale)
+            .max(eps_g)
+            .min(settings.eta_factor * scale),
+        None => settings.eta_factor * scale,
+    };
+    let m_factor = start.and_then(|s| s.m_factor).unwrap_or(settings.m0_factor);
+    let mut big_m = m_factor * norm_a;
 
-    // b~ = b - G^T mu is the linear term of L; mu itself is not needed.
+    // b~ = b - G^T mu is the linear term of L.
     let mut b_tilde = b.to_vec();
     let mut gx = vec![0.0; m];
     let mut gtgx = vec![0.0; n];
+    let mut mu = vec![0.0; m];
+    if let Some(mu0) = start.and_then(|s| s.mu.as_ref()).filter(|v| v.len() == m) {
+        mu.copy_from_slice(mu0);
+        g.apply_t(&mu, &mut gtgx);
+        axpy(-1.0, &gtgx, &mut b_tilde);
+    }
+    let finish = |end: &mut SmalbeWarm, mu: &[f64], big_m: f64, gp: f64| {
+        end.mu = Some(mu.to_vec());
+        end.m_factor = Some(big_m / norm_a);
+        end.gradient = Some(gp / scale);
+    };
     let mut lagrangian_prev = f64::NAN;
     let mut g_ready = false;
     project(x, lower);
@@ -305,6 +400,7 @@ pub fn smalbe_preconditioned(
         info.history.push(run.gp_norm / scale);
         if run.gp_norm <= eps_g && feasibility <= eps_f {
             info.status = Status::Converged;
+            finish(end, &mu, big_m, run.gp_norm);
             observer(&info);
             return info;
         }
@@ -315,6 +411,7 @@ pub fn smalbe_preconditioned(
                 < 2
         {
             info.status = Status::MaxIterations;
+            finish(end, &mu, big_m, run.gp_norm);
             observer(&info);
             return info;
         }
@@ -322,6 +419,7 @@ pub fn smalbe_preconditioned(
         // mu += rho G x: b~ -= rho G^T G x, and the gradient of L moves by
         // +rho G^T G x, which keeps ws.g exact without applying A again.
         g.apply_t(&gx, &mut gtgx);
+        axpy(rho, &gx, &mut mu);
         axpy(-rho, &gtgx, &mut b_tilde);
         axpy(rho, &gtgx, &mut ws.g);
         // L(x_k, mu_{k+1}, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~.
@@ -333,6 +431,7 @@ pub fn smalbe_preconditioned(
         observer(&info);
     }
     info.status = Status::MaxIterations;
+    finish(end, &mu, big_m, info.projected_gradient);
     info
 }
 
@@ -667,6 +766,130 @@ mod tests {
                 "trial {trial}: {x:?} vs {exact:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_warm_start_reaches_the_same_point_for_less() {
+        // A sequence of nearby problems (b drifting, like the designs of an
+        // optimization): each solved cold and from the previous solution with
+        // SMALBE's state at its end. Both meet the tolerance at the same KKT
+        // point; the warm solves cost at least 30 % fewer Hessian applications.
+        let mut rng = Lcg::new(41);
+        let n = 60;
+        let geq = DenseEq::random(4, n, &mut rng);
+        let a = projected(&random_spd(n, 0.02, &mut rng), &geq);
+        let in_range_p = |v: Vec<f64>| -> Vec<f64> {
+            let mut gv = vec![0.0; 4];
+            geq.apply(&v, &mut gv);
+            let mut q = vec![0.0; n];
+            geq.apply_t(&gv, &mut q);
+            v.iter().zip(&q).map(|(x, y)| x - y).collect()
+        };
+        let mut b = in_range_p((0..n).map(|_| rng.symmetric()).collect());
+        let lower = bounds(n, &mut rng);
+        let settings = SmalbeSettings {
+            tolerance: 1e-9,
+            ..SmalbeSettings::default()
+        };
+        let mut x_warm = vec![0.0; n];
+        let (first, mut end) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut x_warm,
+            &settings,
+            None,
+            &mut |_| {},
+        );
+        assert_eq!(first.status, Status::Converged, "{first:?}");
+        let (mut cold_total, mut warm_total) = (0, 0);
+        for step in 0..5 {
+            let drift = in_range_p((0..n).map(|_| 0.02 * rng.symmetric()).collect());
+            b.iter_mut().zip(&drift).for_each(|(bi, di)| *bi += di);
+            let mut x_cold = vec![0.0; n];
+            let cold = smalbe(&a, &b, &lower, &geq, &mut x_cold, &settings, &mut |_| {});
+            let start = SmalbeWarm {
+                m_factor: None,
+                gradient: None,
+                ..end.clone()
+            };
+            let (warm, next) = smalbe_from(
+                &a,
+                None,
+                &b,
+                &lower,
+                &geq,
+                &mut x_warm,
+                &settings,
+                Some(&start),
+                &mut |_| {},
+            );
+            end = next;
+            assert_eq!(cold.status, Status::Converged, "step {step}: {cold:?}");
+            assert_eq!(warm.status, Status::Converged, "step {step}: {warm:?}");
+            for x in [&x_cold, &x_warm] {
+                let (res, feas) = kkt(&a, &b, &lower, &geq, x);
+                assert!(
+                    res <= 1e-7 && feas <= 1e-8,
+                    "step {step}: KKT {res:e}, G x {feas:e}"
+                );
+            }
+            let scale = x_cold.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x_cold, &x_warm) <= 1e-6 * scale,
+                "step {step}: {x_cold:?} vs {x_warm:?}"
+            );
+            cold_total += cold.hessian_applications;
+            warm_total += warm.hessian_applications;
+        }
+        // (436 against 731 when written.)
+        assert!(
+            10 * warm_total < 7 * cold_total,
+            "warm {warm_total} vs cold {cold_total} Hessian applications"
+        );
+    }
+
+    #[test]
+    fn without_a_start_smalbe_from_is_smalbe() {
+        let mut rng = Lcg::new(43);
+        let n = 30;
+        let geq = DenseEq::random(3, n, &mut rng);
+        let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng);
+        let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let plain = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+        let (from, end) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut y,
+            &tight(),
+            None,
+            &mut |_| {},
+        );
+        assert_eq!(plain, from);
+        assert_eq!(x, y);
+        // The end state has every part, and restarting from it at the solution
+        // on the same problem converges at once.
+        assert!(end.mu.is_some() && end.m_factor.is_some() && end.norms.is_some());
+        let (again, _) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            &geq,
+            &mut y,
+            &tight(),
+            Some(&end),
+            &mut |_| {},
+        );
+        assert_eq!(again.status, Status::Converged);
+        assert!(again.hessian_applications <= 2, "{again:?}");
     }
 
     #[test]

@@ -5,7 +5,7 @@
 
 use super::functional::Eval;
 use crate::lang::scene::{Scene, Scheme};
-use crate::state::{solve, solve_reusing, SolveError, State};
+use crate::state::{solve, solve_reusing, SolveError, State, WarmStart};
 use serde::Serialize;
 use std::fmt;
 use std::time::Instant;
@@ -144,8 +144,8 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
             d[i] += shift;
             // Subdomains the step does not move keep the base's factorization;
             // the others refactor on its symbolic one.
-            let st = solve_reusing(scene, &d, Some(&base), true, false, &mut |_| {}).map_err(
-                |error| {
+            let st = solve_reusing(scene, &d, Some(&base), true, WarmStart::OFF, &mut |_| {})
+                .map_err(|error| {
                     let var = &scene.design[i];
                     GradientError::Perturbed {
                         variable: var.name.clone(),
@@ -154,8 +154,7 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
                         bounds: (var.lower, var.upper),
                         error: Box::new(error),
                     }
-                },
-            )?;
+                })?;
             let v: Vec<f64> = Eval {
                 scene,
                 design: &d,

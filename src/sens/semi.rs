@@ -26,6 +26,7 @@ use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
+use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
 use std::time::Instant;
 
@@ -418,7 +419,10 @@ impl<'a> Sensitivity<'a> {
                 .map(|r| r.fbar.iter().map(Vec::as_slice).collect())
                 .collect();
             let cs: Vec<Vec<f64>> = rhs.iter().map(|r| r.cbar.clone()).collect();
-            if let Some(sol) = self.dual.solve_block(&fs, &cs, &solve_settings(tolerance)) {
+            if let Some(sol) = self
+                .dual
+                .solve_block(&fs, &cs, &solve_settings(tolerance), None)
+            {
                 let sol = sol?;
                 if sol.info.status == crate::qp::Status::Converged {
                     let cost = Cost {
@@ -583,17 +587,52 @@ impl<'a> Sensitivity<'a> {
         fs: &[Functional],
         tolerance: f64,
     ) -> Result<AdjointGradients, SolveError> {
+        Ok(self.adjoint_all_from(fs, tolerance, &[])?.0)
+    }
+
+    /// [`Self::adjoint_all`] with the adjoint solves started from `starts`
+    /// (per functional, multipliers per state row: the adjoints of a nearby
+    /// design, as returned here; starts that do not fit are ignored). Returns
+    /// the adjoints' multipliers per state row too.
+    pub fn adjoint_all_from(
+        &self,
+        fs: &[Functional],
+        tolerance: f64,
+        starts: &[Vec<f64>],
+    ) -> Result<(AdjointGradients, Vec<Vec<f64>>), SolveError> {
         if self.weak() > 0 {
             return Err(SolveError::Unsupported(format!(
                 "{} weak contacts (closed, carrying no force): the functional is only directionally differentiable; use the semi-analytical method, which reports one-sided derivatives",
                 self.weak()
             )));
         }
-        let (solved, cost) = self.adjoint_solves(fs, tolerance)?;
+        let rows = self.state.problem.rows.len();
+        let starts: Vec<Vec<f64>> = starts
+            .iter()
+            .filter(|l| l.len() == rows)
+            .map(|l| self.kept.iter().map(|&r| l[r]).collect())
+            .collect();
+        let starts = (starts.len() == fs.len()).then_some(starts.as_slice());
+        let (solved, cost) = self.adjoint_solves(fs, tolerance, starts)?;
+        let p = &self.state.problem;
+        let mut ends = Vec::with_capacity(fs.len());
         let adjoints: Vec<_> = solved
             .into_iter()
             .map(|(w, nu)| {
-                let gw = node_shape_gradient(self.state, &w);
+                let mut end = vec![0.0; rows];
+                for (&r, v) in self.kept.iter().zip(&nu) {
+                    end[r] = *v;
+                }
+                ends.push(end);
+                // A functional of the geometry alone (J_u = 0, J_l = 0) has w = 0.
+                let gw = if w.iter().flatten().all(|v| *v == 0.0) {
+                    p.bodies
+                        .iter()
+                        .map(|b| vec![0.0; p.dim * b.coords.len()])
+                        .collect()
+                } else {
+                    node_shape_gradient(self.state, &w)
+                };
                 (w, nu, gw)
             })
             .collect();
@@ -629,7 +668,7 @@ impl<'a> Sensitivity<'a> {
                 grad[k][i] = ja + wf + nc;
             }
         }
-        Ok((grad, cost, kinked))
+        Ok(((grad, cost, kinked), ends))
     }
 
     /// The adjoint solves of functionals, `(w, nu)` of each, and their cost:
@@ -640,33 +679,52 @@ impl<'a> Sensitivity<'a> {
         &self,
         fs: &[Functional],
         tolerance: f64,
+        starts: Option<&[Vec<f64>]>,
     ) -> Result<(Vec<Adjoint>, Cost), SolveError> {
         let data: Vec<_> = fs.iter().map(|f| self.adjoint_data(f)).collect();
-        if fs.len() > 1 {
-            let f_adj: Vec<Vec<&[f64]>> = data
+        // Nothing depends on (u, l) (a functional of the geometry alone): the
+        // adjoint is zero, no solve needed.
+        let zero =
+            |(ju, c): &(Vec<Vec<f64>>, Vec<f64>)| ju.iter().flatten().chain(c).all(|v| *v == 0.0);
+        let solved: Vec<usize> = (0..fs.len()).filter(|&k| !zero(&data[k])).collect();
+        let start_of = |k: usize| starts.map(|st| st[k].clone());
+        // Zero adjoints where nothing is solved.
+        let mut out: Vec<Adjoint> = data.clone();
+        let mut cost = Cost::default();
+        if solved.len() > 1 {
+            let f_adj: Vec<Vec<&[f64]>> = solved
                 .iter()
-                .map(|(ju, _)| ju.iter().map(Vec::as_slice).collect())
+                .map(|&k| data[k].0.iter().map(Vec::as_slice).collect())
                 .collect();
-            let c_adj: Vec<Vec<f64>> = data.iter().map(|(_, c)| c.clone()).collect();
-            if let Some(sol) = self
-                .dual
-                .solve_block(&f_adj, &c_adj, &solve_settings(tolerance))
+            let c_adj: Vec<Vec<f64>> = solved.iter().map(|&k| data[k].1.clone()).collect();
+            let block_starts: Option<Vec<Vec<f64>>> =
+                starts.map(|_| solved.iter().filter_map(|&k| start_of(k)).collect());
+            let settings = solve_settings(tolerance);
+            if let Some(sol) =
+                self.dual
+                    .solve_block(&f_adj, &c_adj, &settings, block_starts.as_deref())
             {
                 let sol = sol?;
                 if sol.info.status == crate::qp::Status::Converged {
-                    let cost = Cost {
+                    cost = Cost {
                         products: sol.info.products,
                         passes: sol.info.passes,
                         block_iterations: Some(sol.info.iterations),
                     };
-                    return Ok((sol.u.into_iter().zip(sol.lambda).collect(), cost));
+                    for ((&k, u), l) in solved.iter().zip(sol.u).zip(sol.lambda) {
+                        out[k] = (u, l);
+                    }
+                    return Ok((out, cost));
                 }
             }
         }
-        let mut cost = Cost::default();
-        let mut out = Vec::with_capacity(fs.len());
-        for (ju, c_adj) in &data {
+        for &k in &solved {
+            let (ju, c_adj) = &data[k];
             let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
+            let start = start_of(k).map(|lambda| DualStart {
+                lambda,
+                ..DualStart::default()
+            });
             let before = self.dual.f_applications();
             // Held dofs of classical FETI do not move with the design: zero there.
             let sol = self.dual.solve(
@@ -675,7 +733,7 @@ impl<'a> Sensitivity<'a> {
                 self.n_equality,
                 false,
                 &solve_settings(tolerance),
-                None,
+                start.as_ref(),
                 &mut |_| {},
             )?;
             let c = sol
@@ -684,7 +742,7 @@ impl<'a> Sensitivity<'a> {
                 .max(self.dual.f_applications() - before);
             cost.products += c;
             cost.passes += c;
-            out.push((sol.u, sol.lambda));
+            out[k] = (sol.u, sol.lambda);
         }
         Ok((out, cost))
     }
@@ -1031,6 +1089,19 @@ pub fn adjoint_at(
     tolerance: f64,
     t0: Instant,
 ) -> Result<super::Gradient, SolveError> {
+    Ok(adjoint_at_from(scene, state, tolerance, t0, &[])?.0)
+}
+
+/// [`adjoint_at`] with the adjoint solves started from `starts` (the adjoint
+/// multipliers of a nearby design, per functional and state row, as returned
+/// here with the gradient): a warm start between optimization steps.
+pub fn adjoint_at_from(
+    scene: &Scene,
+    state: &State,
+    tolerance: f64,
+    t0: Instant,
+    starts: &[Vec<f64>],
+) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
@@ -1042,7 +1113,7 @@ pub fn adjoint_at(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let (gradient, cost, kinked) = sens.adjoint_all(&rows, tolerance)?;
+    let ((gradient, cost, kinked), ends) = sens.adjoint_all_from(&rows, tolerance, starts)?;
     let method = if kinked.is_empty() {
         "adjoint".to_string()
     } else {
@@ -1052,7 +1123,7 @@ pub fn adjoint_at(
             .collect();
         format!("adjoint ({})", sliding(&names))
     };
-    Ok(super::Gradient {
+    let gradient = super::Gradient {
         method,
         functionals: names,
         values,
@@ -1067,7 +1138,8 @@ pub fn adjoint_at(
         active_set_changed: Vec::new(),
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
-    })
+    };
+    Ok((gradient, ends))
 }
 
 #[cfg(test)]

@@ -342,52 +342,211 @@ fn gradient_costs_of(
         .collect())
 }
 
-/// Per configuration: its name and, per iteration, (Hessian applications,
-/// seconds, factorizations reused).
-pub type ReuseTable = Vec<(String, Vec<(usize, f64, usize)>)>;
+/// One optimization run of the reuse benchmark: what it reused and its iterates.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReuseRun {
+    pub name: String,
+    pub history: Vec<crate::opt::Iterate>,
+    /// The best feasible objective (the same for every run, to the solver's
+    /// tolerance).
+    pub best_objective: Option<f64>,
+}
 
-/// Per design iteration on scont2d: Hessian applications and seconds of the state
-/// solve + gradient, cold (full refactorization, cold dual start) against partial
-/// refactorization and warm start.
-pub fn optimization_reuse() -> Result<ReuseTable, crate::sens::GradientError> {
-    use crate::opt::{optimize_with, Reuse};
-    let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
-    let scene = compile(&src, &CheckOptions::default()).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
-    let mut out = Vec::new();
-    for (name, reuse) in [
-        (
-            "cold (full refactorization, cold start)",
-            Reuse {
-                factorizations: false,
-                warm_start: false,
-            },
-        ),
+/// The reuse benchmark on one scene: a cold state solve for reference, then
+/// one optimization run per configuration.
+#[derive(Debug, Clone, Serialize)]
+pub struct ReuseTable {
+    pub scene: String,
+    /// The gradient method of the runs.
+    pub gradient: String,
+    pub subdomains: usize,
+    /// Subdomains whose nodes the design moves (refactored at every design).
+    pub moved: usize,
+    /// The cold state solve at the initial design: Hessian applications,
+    /// seconds, of which factorizing (assembly included).
+    pub cold_hessian: usize,
+    pub cold_seconds: f64,
+    pub cold_factorize_seconds: f64,
+    pub runs: Vec<ReuseRun>,
+}
+
+/// The large scene of `cso bench optimize`: scont2d with the base cut 24 x 8
+/// and the punch split into a thin shoe that carries the designed face (cut
+/// 8 x 1) glued under a punch body (8 x 6) that the design does not move; every
+/// subdomain 8 x 8 elements. 248 subdomains, of which the design moves the 8
+/// of the shoe. Adjoint gradients.
+pub fn scont_large() -> String {
+    "scene scont_large { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design a[6] { init = [0.04, 0.01, 0, 0, 0.01, 0.04], lower = 0, upper = 0.1 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 192 x 64, subdomains = 24 x 8 }
+body shoe { material = soft, x = 1 .. 2, y = 1 .. 1.2, bottom = 1 + bezier(a, x - 1), mesh = 64 x 8, subdomains = 8 x 1 }
+body punch { material = soft, x = 1 .. 2, y = 1.2 .. 2, mesh = 64 x 48, subdomains = 8 x 6 }
+glue joint { primary = punch.bottom, secondary = shoe.top }
+fix base.bottom
+fix punch.top { ux }
+traction punch.top = (0, -5)
+contact seat { primary = base.top, secondary = shoe.bottom }
+minimize compliance
+subject to area(shoe) <= initial(area(shoe))
+sensitivity { method = adjoint }
+optimize { max_iterations = 30, tolerance = 1e-6 }
+"
+    .to_string()
+}
+
+/// The configurations of the scont2d table: cold, partial refactorization,
+/// the parts of a warm start added one at a time, the two parts that measured
+/// worse, and partial refactorization with the default warm start.
+pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
+    use crate::opt::Reuse;
+    use crate::state::WarmStart;
+    let warm = |w: WarmStart| Reuse {
+        factorizations: false,
+        warm: w,
+        warm_adjoint: false,
+    };
+    let best = WarmStart::BEST;
+    vec![
+        ("cold (full refactorization, cold start)", Reuse::COLD),
         (
             "partial refactorization",
             Reuse {
                 factorizations: true,
-                warm_start: false,
+                ..Reuse::COLD
+            },
+        ),
+        ("warm: multipliers", warm(WarmStart::MULTIPLIERS)),
+        (
+            "warm: multipliers, active set",
+            warm(WarmStart {
+                active_set: true,
+                ..WarmStart::MULTIPLIERS
+            }),
+        ),
+        (
+            "warm: multipliers, active set, mu",
+            warm(WarmStart {
+                norms: false,
+                ..best
+            }),
+        ),
+        (
+            "warm: multipliers, active set, mu, norms (default)",
+            warm(best),
+        ),
+        (
+            "warm: default + M",
+            warm(WarmStart {
+                precision: true,
+                ..best
+            }),
+        ),
+        ("warm: default + eta", warm(WarmStart { eta: true, ..best })),
+        ("partial refactorization + warm (default)", Reuse::default()),
+    ]
+}
+
+/// The configurations of the large table: cold, partial refactorization, warm
+/// start, both.
+pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
+    use crate::opt::Reuse;
+    vec![
+        ("cold (full refactorization, cold start)", Reuse::COLD),
+        (
+            "partial refactorization",
+            Reuse {
+                factorizations: true,
+                ..Reuse::COLD
             },
         ),
         (
-            "warm start",
+            "warm state solve",
             Reuse {
                 factorizations: false,
-                warm_start: true,
+                warm_adjoint: false,
+                ..Reuse::default()
             },
         ),
-        ("partial refactorization + warm start", Reuse::default()),
-    ] {
-        let run = optimize_with(&scene, reuse, &mut |_, _| true)?;
-        out.push((
-            name.to_string(),
-            run.history
-                .iter()
-                .map(|h| (h.hessian_applications, h.seconds, h.reused_factorizations))
-                .collect(),
-        ));
+        (
+            "warm state and adjoint solves",
+            Reuse {
+                factorizations: false,
+                ..Reuse::default()
+            },
+        ),
+        (
+            "partial refactorization + warm state solve",
+            Reuse {
+                warm_adjoint: false,
+                ..Reuse::default()
+            },
+        ),
+        (
+            "partial refactorization + warm state and adjoint solves (default)",
+            Reuse::default(),
+        ),
+    ]
+}
+
+/// Runs the reuse benchmark on a scene's source with each configuration.
+pub fn reuse_table(
+    src: &str,
+    configurations: &[(&str, crate::opt::Reuse)],
+) -> Result<ReuseTable, crate::sens::GradientError> {
+    use crate::opt::optimize_with;
+    let options = CheckOptions {
+        memory_limit: None,
+        ..CheckOptions::default()
+    };
+    let scene = compile(src, &options).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    let cold = solve(&scene, &scene.design_init(), &mut |_| {})?;
+    let mut runs = Vec::new();
+    for (name, reuse) in configurations {
+        let run = optimize_with(&scene, *reuse, &mut |_, _| true)?;
+        runs.push(ReuseRun {
+            name: name.to_string(),
+            best_objective: run
+                .best
+                .and_then(|b| run.history.get(b))
+                .map(|h| h.objective),
+            history: run.history,
+        });
     }
-    Ok(out)
+    let moved = runs
+        .iter()
+        .flat_map(|r| r.history.iter().skip(1))
+        .filter(|h| h.reused_factorizations > 0)
+        .map(|h| h.numeric_factorizations)
+        .max()
+        .unwrap_or(0);
+    Ok(ReuseTable {
+        scene: scene.name.clone(),
+        gradient: match scene.sensitivity.method {
+            crate::lang::scene::SensitivityMethod::SemiAnalytic => "semi-analytic",
+            crate::lang::scene::SensitivityMethod::Adjoint => "adjoint",
+            crate::lang::scene::SensitivityMethod::FiniteDifference => "finite differences",
+        }
+        .to_string(),
+        subdomains: cold.problem.subdomains.len(),
+        moved,
+        cold_hessian: cold.info.hessian_applications,
+        cold_seconds: cold.times.total,
+        cold_factorize_seconds: cold.times.factorize,
+        runs,
+    })
+}
+
+/// Per design iteration on scont2d (semi-analytic gradients, 16 subdomains):
+/// cold against partial refactorization and the parts of a warm start.
+pub fn optimization_reuse() -> Result<ReuseTable, crate::sens::GradientError> {
+    let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
+    reuse_table(&src, &reuse_configurations())
+}
+
+/// The same on [`scont_large`] (adjoint gradients, 248 subdomains, 8 moved).
+pub fn optimization_reuse_large() -> Result<ReuseTable, crate::sens::GradientError> {
+    reuse_table(&scont_large(), &reuse_configurations_large())
 }

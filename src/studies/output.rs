@@ -127,19 +127,54 @@ pub fn gradient_cost_row(r: &GradientCost) -> String {
 
 /// `cso bench optimize`: per reuse configuration, the mean cost of a design
 /// iteration.
-pub fn reuse(rows: &ReuseTable) -> String {
-    let mut o = String::from(
-        "| reuse | iterations | Hessian per iteration | seconds per iteration | factorizations reused per iteration |\n|---|---|---|---|---|",
+pub fn reuse(t: &ReuseTable) -> String {
+    let cold_factor = t.cold_factorize_seconds / t.cold_seconds.max(1e-300);
+    let mut o = format!(
+        "{} ({} subdomains, {} moved by the design; {} gradients). A cold state solve: {} Hessian applications, {:.3} s ({:.0} % factorizing).\n\
+         Per design iteration after the first (the first is the same cold solve in every run), mean and last:\n\
+         | reuse | iterations | state Hessian | gradient Hessian | refactored subdomains | factorize s | state s | iteration s | iteration / cold state solve, Hessian | iteration / cold state solve, seconds | last iteration / cold, Hessian, seconds | best objective vs cold |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|",
+        t.scene,
+        t.subdomains,
+        t.moved,
+        t.gradient,
+        t.cold_hessian,
+        t.cold_seconds,
+        100.0 * cold_factor
     );
-    for (name, its) in rows {
-        let n = its.len().max(1) as f64;
+    let reference = t.runs.first().and_then(|r| r.best_objective);
+    for r in &t.runs {
+        let later = r.history.get(1..).unwrap_or(&[]);
+        let n = later.len().max(1) as f64;
+        let mean = |f: &dyn Fn(&crate::opt::Iterate) -> f64| later.iter().map(f).sum::<f64>() / n;
+        let state_h = mean(&|h| h.state_hessian_applications as f64);
+        let total_h = mean(&|h| h.hessian_applications as f64);
+        let seconds = mean(&|h| h.seconds);
+        let last = later.last().map_or("-".to_string(), |h| {
+            format!(
+                "{:.2}, {:.2}",
+                h.hessian_applications as f64 / t.cold_hessian.max(1) as f64,
+                h.seconds / t.cold_seconds.max(1e-300)
+            )
+        });
+        let objective = match (r.best_objective, reference) {
+            (Some(a), Some(b)) if a == b => "0".to_string(),
+            (Some(a), Some(b)) => format!("{:.0e}", ((a - b) / b).abs()),
+            _ => "-".to_string(),
+        };
         let _ = write!(
             o,
-            "\n| {name} | {} | {:.1} | {:.4} | {:.1} |",
-            its.len(),
-            its.iter().map(|i| i.0 as f64).sum::<f64>() / n,
-            its.iter().map(|i| i.1).sum::<f64>() / n,
-            its.iter().map(|i| i.2 as f64).sum::<f64>() / n
+            "\n| {} | {} | {:.1} | {:.1} | {:.1} | {:.4} | {:.4} | {:.4} | {:.2} | {:.2} | {last} | {objective} |",
+            r.name,
+            r.history.len(),
+            state_h,
+            total_h - state_h,
+            mean(&|h| h.numeric_factorizations as f64),
+            mean(&|h| h.factorize_seconds),
+            mean(&|h| h.state_seconds),
+            seconds,
+            total_h / t.cold_hessian.max(1) as f64,
+            seconds / t.cold_seconds.max(1e-300),
         );
     }
     o

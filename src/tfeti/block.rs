@@ -119,11 +119,22 @@ fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
     Some(llt.solve(&x))
 }
 
-/// Block CG on `P F P X = B` from `X = 0` (columns of `B` in Im P), each column
-/// to `||r_j|| <= tol ||b_j||`, with `precond` (`P M P`) applied per column.
+/// `P F P x_c` of every column, one pass over the factors.
+fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let mut px = x.to_vec();
+    px.iter_mut().for_each(|c| dual.project(c));
+    let mut y = dual.apply_f_block(&px);
+    y.iter_mut().for_each(|c| dual.project(c));
+    y
+}
+
+/// Block CG on `P F P X = B` from `X = x0` (default 0; columns of `B` and
+/// `x0` in Im P), each column to `||r_j|| <= tol ||b_j||`, with `precond`
+/// (`P M P`) applied per column.
 fn block_projected_cg(
     dual: &Dual,
     b: &[Vec<f64>],
+    x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
     precond: Option<&dyn Operator>,
 ) -> (Vec<Vec<f64>>, BlockInfo) {
@@ -136,8 +147,20 @@ fn block_projected_cg(
         history: Vec::new(),
     };
     let bnorm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
-    let mut x = vec![vec![0.0; m]; b.len()];
     let mut r = b.to_vec();
+    let x = match x0 {
+        Some(x0) if x0.len() == b.len() && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
+            let ax = apply_block(dual, &x0);
+            info.passes += 1;
+            info.products += x0.len();
+            for (rj, axj) in r.iter_mut().zip(&ax) {
+                rj.iter_mut().zip(axj).for_each(|(a, b)| *a -= b);
+            }
+            x0
+        }
+        _ => vec![vec![0.0; m]; b.len()],
+    };
+    let mut x = x;
     // The columns not yet converged, and the largest relative residual.
     let open = |r: &[Vec<f64>]| -> (Vec<usize>, f64) {
         let rel: Vec<f64> = r
@@ -178,10 +201,7 @@ fn block_projected_cg(
             break;
         }
         // Q = P F P p (p is in Im P: the projections only remove round-off).
-        let mut pp = p.clone();
-        pp.iter_mut().for_each(|c| dual.project(c));
-        let mut q = dual.apply_f_block(&pp);
-        q.iter_mut().for_each(|c| dual.project(c));
+        let q = apply_block(dual, &p);
         info.iterations += 1;
         info.passes += 1;
         info.products += p.len();
@@ -217,12 +237,15 @@ fn block_projected_cg(
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an equality)
 /// for every right-hand side `(fs[c], cs[c])` at once on the operators of
 /// `dual`: the homogenization, the block CG and the reconstruction each take
-/// one pass over the subdomain factors for the whole block.
+/// one pass over the subdomain factors for the whole block. `starts`: the
+/// multipliers of nearby problems to start from (a warm start; one per
+/// right-hand side, else ignored).
 pub fn dual_solve_block(
     dual: &Dual,
     fs: &[Vec<&[f64]>],
     cs: &[Vec<f64>],
     settings: &SmalbeSettings,
+    starts: Option<&[Vec<f64>]>,
 ) -> Result<BlockSolution, SolveError> {
     let m = dual.multipliers();
     let loads = dual.cluster().loads_block(fs);
@@ -256,9 +279,23 @@ pub fn dual_solve_block(
     let precond = dual
         .preconditioner()
         .map(|pm| ProjectedM::new(dual, pm, 1.0));
+    // The starts, homogenized and projected.
+    let x0 = starts
+        .filter(|l0| l0.len() == fs.len() && l0.iter().all(|l| l.len() == m))
+        .map(|l0| {
+            l0.iter()
+                .zip(&l_tilde)
+                .map(|(l, lt)| {
+                    let mut x: Vec<f64> = l.iter().zip(lt).map(|(a, b)| a - b).collect();
+                    dual.project(&mut x);
+                    x
+                })
+                .collect()
+        });
     let (lhat, mut info) = block_projected_cg(
         dual,
         &b,
+        x0,
         settings,
         precond.as_ref().map(|pm| pm as &dyn Operator),
     );

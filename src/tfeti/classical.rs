@@ -18,7 +18,7 @@ use super::cluster::Cluster;
 use super::dual::Dual;
 use super::error::{CoarseError, SolveError};
 use super::rows::LocalRows;
-use super::solve::{dual_solve_from, DualSolution};
+use super::solve::{dual_solve_from, DualSolution, DualStart};
 use crate::model::{Problem, Row, RowKind};
 use crate::qp::{QpInfo, SmalbeSettings};
 use std::sync::Arc;
@@ -241,9 +241,12 @@ impl DualSystem {
         fs: &[Vec<&[f64]>],
         cs: &[Vec<f64>],
         settings: &SmalbeSettings,
+        starts: Option<&[Vec<f64>]>,
     ) -> Option<Result<super::block::BlockSolution, SolveError>> {
         match self {
-            DualSystem::Total(dual) => Some(super::block::dual_solve_block(dual, fs, cs, settings)),
+            DualSystem::Total(dual) => Some(super::block::dual_solve_block(
+                dual, fs, cs, settings, starts,
+            )),
             DualSystem::Classical { .. } => None,
         }
     }
@@ -260,7 +263,7 @@ impl DualSystem {
         n_equality: usize,
         prescribed: bool,
         settings: &SmalbeSettings,
-        start: Option<&[f64]>,
+        start: Option<&DualStart>,
         observer: &mut dyn FnMut(&QpInfo),
     ) -> Result<DualSolution, SolveError> {
         let DualSystem::Classical {
@@ -306,15 +309,21 @@ impl DualSystem {
                 .collect()
         });
         let f_ref: Vec<&[f64]> = f_hat.iter().map(Vec::as_slice).collect();
-        let start_hat: Option<Vec<f64>> =
-            start.map(|l| reduced.kept.iter().map(|&i| l[i]).collect());
+        let start_hat: Option<DualStart> = start.map(|s| DualStart {
+            lambda: reduced
+                .kept
+                .iter()
+                .map(|&i| s.lambda.get(i).copied().unwrap_or(0.0))
+                .collect(),
+            ..s.clone()
+        });
         let sol = dual_solve_from(
             dual,
             &f_ref,
             &c_hat,
             reduced.n_equality,
             settings,
-            start_hat.as_deref(),
+            start_hat.as_ref(),
             observer,
         )?;
         let mut lambda = vec![0.0; rows.len()];

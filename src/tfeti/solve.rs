@@ -12,7 +12,7 @@ use super::dual::ProjectedM;
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
-use crate::qp::{estimate_norm, smalbe_preconditioned, Operator, QpInfo, SmalbeSettings, Status};
+use crate::qp::{estimate_norm, smalbe_from, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
 fn norm(v: &[f64]) -> f64 {
     v.iter().map(|x| x * x).sum::<f64>().sqrt()
@@ -26,6 +26,25 @@ pub struct DualSolution {
     pub info: QpInfo,
     /// `||b||` of the scaled homogenized problem.
     pub b_norm: f64,
+    /// With inequalities: SMALBE's state at the end and `||P F P||`, to start
+    /// the solve of a nearby problem from ([`DualStart`]).
+    pub end: Option<(SmalbeWarm, f64)>,
+}
+
+/// A warm start of a dual solve from the solution of a nearby problem (the
+/// previous design of an optimization): its multipliers, and optionally
+/// SMALBE's state and `||P F P||` at its end.
+#[derive(Debug, Clone, Default)]
+pub struct DualStart {
+    /// Multipliers, one per row.
+    pub lambda: Vec<f64>,
+    /// Keep the inequality rows whose multiplier is zero at their bound (the
+    /// previous active set) when the start is projected onto `ker G`.
+    pub active_set: bool,
+    /// SMALBE's state (the parts set are used) and `||P F P||` (no power
+    /// iterations when given).
+    pub smalbe: Option<SmalbeWarm>,
+    pub pfp: Option<f64>,
 }
 
 /// Solves `min 1/2 u^T K u - f^T u` s.t. `B_i u = c_i` (rows `i < n_equality`),
@@ -41,7 +60,7 @@ pub fn dual_solve_from(
     c: &[f64],
     n_equality: usize,
     settings: &SmalbeSettings,
-    start: Option<&[f64]>,
+    start: Option<&DualStart>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let m = dual.multipliers();
@@ -81,7 +100,12 @@ pub fn dual_solve_from(
         // Im P = ker G~, so the constraint holds without an outer loop.
         let precond = dual.preconditioner().map(|m| ProjectedM::new(dual, m, 1.0));
         let precond = precond.as_ref().map(|m| m as &dyn Operator);
-        let (lhat, info) = projected_cg(dual, &b, settings, precond);
+        let x0 = start.filter(|s| s.lambda.len() == m).map(|s| {
+            let mut x: Vec<f64> = s.lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
+            dual.project(&mut x);
+            x
+        });
+        let (lhat, info) = projected_cg(dual, &b, settings, precond, x0);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
         let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
         return Ok(DualSolution {
@@ -90,14 +114,20 @@ pub fn dual_solve_from(
             alpha,
             info,
             b_norm: norm(&b),
+            end: None,
         });
     }
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
-    let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
-    dual.project(&mut v);
-    let mut w = vec![0.0; m];
-    let (pfp, _) = estimate_norm(&ProjectedF::new(dual, 1.0), &mut v, &mut w, 10);
+    let pfp = match start.and_then(|s| s.pfp) {
+        Some(pfp) => pfp,
+        None => {
+            let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+            dual.project(&mut v);
+            let mut w = vec![0.0; m];
+            estimate_norm(&ProjectedF::new(dual, 1.0), &mut v, &mut w, 10).0
+        }
+    };
     let scale = if pfp > 0.0 && pfp.is_finite() {
         1.0 / pfp
     } else {
@@ -106,9 +136,17 @@ pub fn dual_solve_from(
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
     // The start, homogenized and projected (SMALBE puts it on the bounds).
     let mut lhat = match start {
-        Some(l0) if l0.len() == m => {
+        Some(s) if s.lambda.len() == m => {
+            let l0 = &s.lambda;
             let mut x: Vec<f64> = l0.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
             dual.project(&mut x);
+            if s.active_set {
+                for i in n_equality..m {
+                    if l0[i] <= 0.0 {
+                        x[i] = lower_bounds[i];
+                    }
+                }
+            }
             x
         }
         _ => vec![0.0; m],
@@ -118,7 +156,7 @@ pub fn dual_solve_from(
     let precond = dual
         .preconditioner()
         .map(|m| ProjectedM::new(dual, m, 1.0 / scale));
-    let info = smalbe_preconditioned(
+    let (info, end) = smalbe_from(
         &ProjectedF::new(dual, scale),
         precond.as_ref().map(|m| m as &dyn Operator),
         &b,
@@ -126,6 +164,7 @@ pub fn dual_solve_from(
         &g,
         &mut lhat,
         settings,
+        start.and_then(|s| s.smalbe.as_ref()),
         observer,
     );
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
@@ -145,12 +184,14 @@ pub fn dual_solve_from(
         alpha,
         info,
         b_norm: norm(&b),
+        end: Some((end, pfp)),
     })
 }
 
 /// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;
 /// with `precond` (`P M P`) the ordinary preconditioned CG, the test still on
-/// the plain residual.
+/// the plain residual. From `x0` (in Im P) instead when given and its residual
+/// is below `||b||` (a warm start; one more application).
 ///
 /// # Reference
 /// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
@@ -160,11 +201,13 @@ fn projected_cg(
     b: &[f64],
     settings: &SmalbeSettings,
     precond: Option<&dyn Operator>,
+    x0: Option<Vec<f64>>,
 ) -> (Vec<f64>, QpInfo) {
     let m = b.len();
     let a = ProjectedF::new(dual, 1.0);
     let bnorm = norm(b);
     let mut x = vec![0.0; m];
+    let mut r = b.to_vec();
     let mut info = QpInfo {
         status: Status::Converged,
         outer_iterations: 0,
@@ -178,7 +221,16 @@ fn projected_cg(
     if bnorm == 0.0 {
         return (x, info);
     }
-    let mut r = b.to_vec();
+    if let Some(x0) = x0.filter(|v| v.len() == m) {
+        let mut ax = vec![0.0; m];
+        crate::qp::Operator::apply(&a, &x0, &mut ax);
+        info.hessian_applications += 1;
+        let r0: Vec<f64> = b.iter().zip(&ax).map(|(bi, ai)| bi - ai).collect();
+        if norm(&r0) < bnorm {
+            x = x0;
+            r = r0;
+        }
+    }
     let mut z = r.clone();
     // z = P M P r, or r when M gives no descent (round-off, semidefinite M).
     let precondition = |r: &[f64], z: &mut [f64]| {
