@@ -310,4 +310,21 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
         g_warm.hessian_applications,
         g_cold.hessian_applications
     );
+    // The same for the semi-analytic directions' block solve.
+    use cso::sens::semi_analytic_at_from;
+    let (_, dirs) = semi_analytic_at_from(&at(&x0), &first, tol, now, &[]).expect("semi");
+    let (d_cold, _) = semi_analytic_at_from(&s1, &warm, tol, now, &[]).expect("semi");
+    let (d_warm, _) = semi_analytic_at_from(&s1, &warm, tol, now, &dirs).expect("semi");
+    for (a, b) in d_cold.gradient.iter().zip(&d_warm.gradient) {
+        let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (p, q) in a.iter().zip(b) {
+            assert!((p - q).abs() <= 1e-4 * scale, "{a:?} vs {b:?}");
+        }
+    }
+    assert!(
+        d_warm.hessian_applications < d_cold.hessian_applications,
+        "warm {} vs cold {}",
+        d_warm.hessian_applications,
+        d_cold.hessian_applications
+    );
 }

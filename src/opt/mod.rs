@@ -110,8 +110,9 @@ pub struct Reuse {
     pub factorizations: bool,
     /// What each state solve takes from the previous design's.
     pub warm: WarmStart,
-    /// Start each adjoint solve from the previous design's adjoint (adjoint
-    /// gradients only).
+    /// Start the gradient's solves from the previous design's: each adjoint
+    /// from the previous adjoint, the semi-analytic directions' block from the
+    /// previous directions.
     pub warm_adjoint: bool,
 }
 
@@ -170,10 +171,10 @@ fn state_and_gradient(
             let starts = if reuse.warm_adjoint { adjoints } else { &[] };
             crate::sens::adjoint_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
         }
-        SensitivityMethod::SemiAnalytic => (
-            crate::sens::semi_analytic_at(scene, &state, scene.solver.tolerance, t0)?,
-            Vec::new(),
-        ),
+        SensitivityMethod::SemiAnalytic => {
+            let starts = if reuse.warm_adjoint { adjoints } else { &[] };
+            crate::sens::semi_analytic_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
+        }
     };
     Ok((state, g, adjoints))
 }

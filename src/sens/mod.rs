@@ -11,7 +11,8 @@ pub mod semi;
 pub use fd::{check_step, finite_difference, Gradient, GradientError};
 pub use functional::{body_area, body_measure, body_volume, Eval};
 pub use semi::{
-    adjoint, adjoint_at, adjoint_at_from, semi_analytic, semi_analytic_at, Sensitivity,
+    adjoint, adjoint_at, adjoint_at_from, semi_analytic, semi_analytic_at, semi_analytic_at_from,
+    Sensitivity,
 };
 
 use crate::lang::scene::{Scene, Scheme, SensitivityMethod};

@@ -411,7 +411,26 @@ impl<'a> Sensitivity<'a> {
     /// ([`crate::tfeti::block`]); otherwise, or if the block solve stops short,
     /// each direction is solved alone.
     pub fn directions(&self, tolerance: f64) -> Result<(Vec<Direction>, Cost), SolveError> {
+        self.directions_from(tolerance, &[])
+    }
+
+    /// [`Self::directions`] with the block solve started from `starts` (per
+    /// direction, `l'` per state row: the directions of a nearby design;
+    /// ignored unless there is one for every direction).
+    pub fn directions_from(
+        &self,
+        tolerance: f64,
+        starts: &[Vec<f64>],
+    ) -> Result<(Vec<Direction>, Cost), SolveError> {
         let m = self.scene.design.len();
+        let rows = self.state.problem.rows.len();
+        let starts: Option<Vec<Vec<f64>>> =
+            (starts.len() == m && starts.iter().all(|l| l.len() == rows)).then(|| {
+                starts
+                    .iter()
+                    .map(|l| self.kept.iter().map(|&r| l[r]).collect())
+                    .collect()
+            });
         let rhs: Vec<Rhs> = (0..m).map(|i| self.rhs(i)).collect();
         if m > 1 && self.n_equality == self.kept.len() {
             let fs: Vec<Vec<&[f64]>> = rhs
@@ -419,9 +438,9 @@ impl<'a> Sensitivity<'a> {
                 .map(|r| r.fbar.iter().map(Vec::as_slice).collect())
                 .collect();
             let cs: Vec<Vec<f64>> = rhs.iter().map(|r| r.cbar.clone()).collect();
-            if let Some(sol) = self
-                .dual
-                .solve_block(&fs, &cs, &solve_settings(tolerance), None)
+            if let Some(sol) =
+                self.dual
+                    .solve_block(&fs, &cs, &solve_settings(tolerance), starts.as_deref())
             {
                 let sol = sol?;
                 if sol.info.status == crate::qp::Status::Converged {
@@ -1026,6 +1045,20 @@ pub fn semi_analytic_at(
     tolerance: f64,
     t0: Instant,
 ) -> Result<super::Gradient, SolveError> {
+    Ok(semi_analytic_at_from(scene, state, tolerance, t0, &[])?.0)
+}
+
+/// [`semi_analytic_at`] with the directions' block solve started from
+/// `starts` (the multiplier derivatives of a nearby design, per direction and
+/// state row, as returned here with the gradient): a warm start between
+/// optimization steps.
+pub fn semi_analytic_at_from(
+    scene: &Scene,
+    state: &State,
+    tolerance: f64,
+    t0: Instant,
+    starts: &[Vec<f64>],
+) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
@@ -1038,7 +1071,7 @@ pub fn semi_analytic_at(
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
     let mut gradient = vec![vec![0.0; design.len()]; rows.len()];
-    let (dirs, cost) = sens.directions(tolerance)?;
+    let (dirs, cost) = sens.directions_from(tolerance, starts)?;
     let mut kinked = Vec::new();
     for (i, dir) in dirs.iter().enumerate() {
         if dir.kinks > 0 {
@@ -1051,7 +1084,7 @@ pub fn semi_analytic_at(
         }
     }
     let weak = sens.weak();
-    Ok(super::Gradient {
+    let gradient = super::Gradient {
         method: match (weak, kinked.is_empty()) {
             (0, true) => "semi_analytic".to_string(),
             (0, false) => format!("semi_analytic ({})", sliding(&kinked)),
@@ -1070,7 +1103,8 @@ pub fn semi_analytic_at(
         active_set_changed: Vec::new(),
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
-    })
+    };
+    Ok((gradient, dirs.into_iter().map(|d| d.lambda).collect()))
 }
 
 /// The adjoint gradient of the objective and constraints (as `g <= 0`): one dual
