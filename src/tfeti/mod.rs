@@ -1,8 +1,9 @@
 //! Total FETI end to end, and classical FETI beside it: per-subdomain operators
 //! behind one interface ([`subdomain`]), the subdomains this process owns and
-//! the loops over them ([`cluster`]), the coarse space and projector and `F`
-//! ([`dual`]), the dual solve ([`solve`]), the reconstruction of the primal
-//! solution ([`reconstruct`]) and its KKT check ([`kkt`]). Classical FETI
+//! the loops over them ([`cluster`]), the coarse problem `G G^T` dense or
+//! sparse ([`coarse`]), the coarse space and projector and `F` ([`dual`]), the
+//! dual solve ([`solve`]), the reconstruction of the primal solution
+//! ([`reconstruct`]) and its KKT check ([`kkt`]). Classical FETI
 //! ([`classical`], kernels by pivot detection in [`floating`]) is the same dual
 //! machinery with other kernels and Dirichlet dofs eliminated.
 //!
@@ -12,6 +13,7 @@
 
 pub mod classical;
 pub mod cluster;
+pub mod coarse;
 pub mod comm;
 pub mod dual;
 pub mod error;

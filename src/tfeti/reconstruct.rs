@@ -3,9 +3,10 @@
 //! `u = K^+ (f - B^T l) + R alpha`. A rigid motion that no active row
 //! determines is refused (the state is not unique), never guessed.
 
+use super::coarse::{CoarseFactor, CoarseForm, Gram};
 use super::dual::Dual;
 use super::error::SolveError;
-use faer::Side;
+use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
 /// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
@@ -29,37 +30,26 @@ pub(crate) fn reconstruct(
     let r: Vec<f64> = (0..m)
         .map(|i| if active[i] { fl[i] - d[i] } else { 0.0 })
         .collect();
-    // G~ G~^T and G~ r over the active rows (r is zero elsewhere).
+    // G G^T and G r over the active rows (r is zero elsewhere).
     let cluster = dual.cluster();
     let n3 = cluster.kernel_dim();
-    let gg = cluster.coarse_gram(Some(&active));
+    let t = Instant::now();
+    let gg = Gram::assemble(cluster, Some(&active), CoarseForm::Auto);
     let mut rhs = vec![0.0; n3];
     cluster.apply_g(&r, &mut rhs);
-    // G~G~^T over the active rows must be regular: a round-off pivot means a
+    // G G^T over the active rows must be regular: a round-off pivot means a
     // rigid motion no active row determines (the state is not unique).
-    let scale = (0..n3).map(|i| gg[(i, i)]).fold(0.0f64, f64::max);
-    let undetermined = || SolveError::Undetermined {
-        modes: super::dual::null_modes(&gg)
+    let factor = CoarseFactor::factor(gg, 1e-10);
+    dual.add_coarse_setup(t);
+    let factor = factor.map_err(|gg| SolveError::Undetermined {
+        modes: super::dual::null_modes(&gg.to_dense())
             .into_iter()
             .map(|i| dual.mode(i))
             .collect(),
         stopped: None,
-    };
-    let llt = gg.llt(Side::Lower).map_err(|_| undetermined())?;
-    let min_pivot = (0..n3)
-        .map(|i| llt.L()[(i, i)].powi(2))
-        .fold(f64::INFINITY, f64::min);
-    if n3 > 0 && min_pivot <= 1e-10 * scale {
-        return Err(undetermined());
-    }
+    })?;
     let mut alpha = rhs;
-    {
-        use faer::linalg::solvers::SolveCore;
-        llt.solve_in_place_with_conj(
-            faer::Conj::No,
-            faer::MatMut::from_column_major_slice_mut(&mut alpha, n3, 1),
-        );
-    }
+    factor.solve(&mut alpha);
     let u = cluster.primal(f, lambda, &alpha);
     Ok((u, alpha))
 }

@@ -1,0 +1,422 @@
+//! The coarse problem of TFETI: `G G^T` (`G = R^T B^T`), assembled and
+//! Cholesky-factorized once per dual, applied in every projection
+//! `P = I - G^T (G G^T)^-1 G` as two triangular solves.
+//!
+//! `G G^T` has the subdomain adjacency pattern: block `(s, t)` is nonzero only
+//! where subdomains `s` and `t` share a row of `B` (about 9 blocks per
+//! subdomain in 2D, 27 in 3D). Small coarse problems are assembled and factored
+//! dense (as before); from [`DENSE_UP_TO`] unknowns on it is assembled sparse
+//! (upper triangle, block by block, in parallel over block columns) and
+//! factored by faer's simplicial sparse Cholesky with its AMD fill-reducing
+//! ordering `Q`: `Q (G G^T) Q^T = L L^T`. Either way the orthonormalized rows are
+//! `G~ = L^-1 Q G` (dense: `Q = I`), so [`CoarseFactor::solve_l`] applies
+//! `L^-1 Q` and [`CoarseFactor::solve_lt`] applies `Q^T L^-T`.
+//!
+//! Every entry of the sparse `G G^T` is summed over the shared rows in row
+//! order, exactly as the dense assembly does, so the two matrices are equal
+//! bit for bit; the factors differ by the ordering (round-off in the
+//! projector). Everything here is sequential or a parallel map with a fixed
+//! result, and the coarse problem is replicated: every MPI rank computes the
+//! same bits.
+
+use super::cluster::Cluster;
+use super::sparse::{llt_numeric, UpperCsc};
+use faer::linalg::triangular_solve::{
+    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
+};
+use faer::sparse::linalg::cholesky::{
+    factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering,
+};
+use faer::sparse::linalg::SupernodalThreshold;
+use faer::sparse::SparseColMatRef;
+use faer::{Mat, MatMut, Par, Side};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Mutex;
+
+/// How the coarse problem is stored and factored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CoarseForm {
+    /// Dense below [`DENSE_UP_TO`] unknowns, sparse from there on.
+    #[default]
+    Auto,
+    Dense,
+    Sparse,
+}
+
+/// Coarse unknowns below which `Auto` assembles and factors dense: there the
+/// dense factor is as fast to build and to apply (measured by `cso bench
+/// coarse`, BENCHMARKS.md) and small scenes keep the bits they always had.
+pub const DENSE_UP_TO: usize = 256;
+
+/// Process-wide choice for `Auto` (0: by size, 1: dense, 2: sparse); set only
+/// by benchmarks that compare the two on whole solves.
+static FORCED: AtomicU8 = AtomicU8::new(0);
+
+/// Makes `Auto` mean `form` in this process (`Auto`: by size again). For
+/// benchmarks; tests pass the form explicitly instead.
+pub fn force_form(form: CoarseForm) {
+    let v = match form {
+        CoarseForm::Auto => 0,
+        CoarseForm::Dense => 1,
+        CoarseForm::Sparse => 2,
+    };
+    FORCED.store(v, Ordering::Relaxed);
+}
+
+impl CoarseForm {
+    /// `Dense` or `Sparse` for a coarse problem of `n` unknowns.
+    pub fn resolve(self, n: usize) -> CoarseForm {
+        match self {
+            CoarseForm::Auto => match FORCED.load(Ordering::Relaxed) {
+                1 => CoarseForm::Dense,
+                2 => CoarseForm::Sparse,
+                _ if n < DENSE_UP_TO => CoarseForm::Dense,
+                _ => CoarseForm::Sparse,
+            },
+            f => f,
+        }
+    }
+}
+
+/// `G G^T` (over the active rows), dense or as its sparse upper triangle.
+pub enum Gram {
+    Dense(Mat<f64>),
+    Sparse(UpperCsc),
+}
+
+impl Gram {
+    /// `G G^T` over the rows where `active` holds (all when None), in `form`
+    /// (`Auto` resolved by size).
+    pub fn assemble(cluster: &Cluster, active: Option<&[bool]>, form: CoarseForm) -> Gram {
+        match form.resolve(cluster.kernel_dim()) {
+            CoarseForm::Dense => Gram::Dense(cluster.coarse_gram(active)),
+            _ => Gram::Sparse(sparse_gram(cluster, active)),
+        }
+    }
+
+    /// Number of coarse unknowns.
+    pub fn dim(&self) -> usize {
+        match self {
+            Gram::Dense(a) => a.nrows(),
+            Gram::Sparse(a) => a.n,
+        }
+    }
+
+    /// The diagonal.
+    pub fn diagonal(&self) -> Vec<f64> {
+        match self {
+            Gram::Dense(a) => (0..a.nrows()).map(|i| a[(i, i)]).collect(),
+            Gram::Sparse(a) => a.diagonal(),
+        }
+    }
+
+    /// The whole matrix, dense (for the eigen-analysis of a singular one).
+    pub fn to_dense(&self) -> Mat<f64> {
+        match self {
+            Gram::Dense(a) => a.clone(),
+            Gram::Sparse(a) => {
+                let mut d = Mat::<f64>::zeros(a.n, a.n);
+                for (r, c, v) in a.entries() {
+                    d[(r, c)] = v;
+                }
+                d
+            }
+        }
+    }
+}
+
+/// The sparse upper triangle of `G G^T` over the active rows: block column `t`
+/// holds the blocks `(s, t)`, `s <= t`, of the subdomains `s` that share an
+/// active row with `t` (and always the diagonal block). Entry `(i, j)` of block
+/// `(s, t)` is `sum_r G_s[i, r] G_t[j, r]` over the shared rows `r` in
+/// increasing order, the dense assembly's order.
+fn sparse_gram(cluster: &Cluster, active: Option<&[bool]>) -> UpperCsc {
+    let n = cluster.len();
+    let m = cluster.multipliers();
+    // Owners of each row, (subdomain, local row), subdomains in order (CSR).
+    let mut start = vec![0usize; m + 1];
+    for s in 0..n {
+        for &row in &cluster.local_rows(s).rows {
+            start[row + 1] += 1;
+        }
+    }
+    for r in 0..m {
+        start[r + 1] += start[r];
+    }
+    let mut fill = start.clone();
+    let mut owners = vec![(0usize, 0usize); start[m]];
+    for s in 0..n {
+        for (k, &row) in cluster.local_rows(s).rows.iter().enumerate() {
+            owners[fill[row]] = (s, k);
+            fill[row] += 1;
+        }
+    }
+    let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+    // Block column t: its columns' row indices and values, column by column.
+    let columns: Vec<(Vec<usize>, Vec<usize>, Vec<f64>)> = (0..n)
+        .into_par_iter()
+        .map(|t| {
+            let kt = kdim(t);
+            let lt = cluster.local_rows(t);
+            let nt = lt.rows.len();
+            let gt = cluster.g_block(t);
+            // (s, block kdim(s) x kt row-major), s <= t, the diagonal block first.
+            let mut blocks: Vec<(usize, Vec<f64>)> = vec![(t, vec![0.0; kt * kt])];
+            for (kt_row, &row) in lt.rows.iter().enumerate() {
+                if active.is_some_and(|a| !a[row]) {
+                    continue;
+                }
+                for &(s, ks) in &owners[start[row]..start[row + 1]] {
+                    if s > t {
+                        continue;
+                    }
+                    let b = match blocks.iter().position(|(u, _)| *u == s) {
+                        Some(b) => b,
+                        None => {
+                            blocks.push((s, vec![0.0; kdim(s) * kt]));
+                            blocks.len() - 1
+                        }
+                    };
+                    let ls = cluster.local_rows(s).rows.len();
+                    let gs = cluster.g_block(s);
+                    let block = &mut blocks[b].1;
+                    for i in 0..kdim(s) {
+                        for j in 0..kt {
+                            block[i * kt + j] += gs[i * ls + ks] * gt[j * nt + kt_row];
+                        }
+                    }
+                }
+            }
+            blocks.sort_by_key(|(s, _)| *s);
+            let mut len = Vec::with_capacity(kt);
+            let mut rows = Vec::new();
+            let mut values = Vec::new();
+            for j in 0..kt {
+                let before = rows.len();
+                for (s, block) in &blocks {
+                    let ks = if *s == t { j + 1 } else { kdim(*s) };
+                    for i in 0..ks {
+                        rows.push(cluster.kernel_offset(*s) + i);
+                        values.push(block[i * kt + j]);
+                    }
+                }
+                len.push(rows.len() - before);
+            }
+            (len, rows, values)
+        })
+        .collect();
+    let dim = cluster.kernel_dim();
+    let mut col_ptr = Vec::with_capacity(dim + 1);
+    col_ptr.push(0);
+    let nnz = columns.iter().map(|c| c.1.len()).sum();
+    let mut row_idx = Vec::with_capacity(nnz);
+    let mut values = Vec::with_capacity(nnz);
+    for (len, rows, vals) in columns {
+        for l in len {
+            col_ptr.push(col_ptr[col_ptr.len() - 1] + l);
+        }
+        row_idx.extend(rows);
+        values.extend(vals);
+    }
+    UpperCsc {
+        n: dim,
+        col_ptr,
+        row_idx,
+        values,
+    }
+}
+
+/// A lower triangular sparse factor in compressed columns, the diagonal first
+/// in every column.
+struct SparseLower {
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    /// The fill-reducing ordering: row `i` of `Q A Q^T` is row `perm[i]` of `A`.
+    perm: Vec<usize>,
+    /// Work space of the permuted solves.
+    work: Mutex<Vec<f64>>,
+}
+
+enum Factor {
+    /// `L` of `G G^T` (the lower triangle; the rest is zero).
+    Dense(Mat<f64>),
+    Sparse(SparseLower),
+}
+
+/// The Cholesky factor of the coarse problem.
+pub struct CoarseFactor {
+    n: usize,
+    factor: Factor,
+}
+
+fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    match m.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    }
+}
+
+impl CoarseFactor {
+    /// The Cholesky factor of `gram`; the matrix back when it is not positive
+    /// definite or a pivot `l_ii^2` is at most `tol` times its largest diagonal
+    /// entry (a rigid motion that the rows do not determine).
+    pub fn factor(gram: Gram, tol: f64) -> Result<CoarseFactor, Gram> {
+        let n = gram.dim();
+        let scale = gram.diagonal().into_iter().fold(0.0f64, f64::max);
+        let factor = match &gram {
+            Gram::Dense(a) => match a.llt(Side::Lower) {
+                Ok(llt) => Factor::Dense(llt.L().to_owned()),
+                Err(_) => return Err(gram),
+            },
+            Gram::Sparse(a) => match sparse_llt(a) {
+                Some(l) => Factor::Sparse(l),
+                None => return Err(gram),
+            },
+        };
+        let f = CoarseFactor { n, factor };
+        let min_pivot = f.min_pivot_squared();
+        if n > 0 && min_pivot <= tol * scale {
+            return Err(gram);
+        }
+        Ok(f)
+    }
+
+    /// Smallest `l_ii^2` (infinite when empty).
+    fn min_pivot_squared(&self) -> f64 {
+        let pivots: Box<dyn Iterator<Item = f64>> = match &self.factor {
+            Factor::Dense(l) => Box::new((0..self.n).map(|i| l[(i, i)])),
+            Factor::Sparse(l) => Box::new(l.col_ptr[..self.n].iter().map(|&p| l.values[p])),
+        };
+        pivots.map(|p| p * p).fold(f64::INFINITY, f64::min)
+    }
+
+    /// Number of coarse unknowns.
+    pub fn dim(&self) -> usize {
+        self.n
+    }
+
+    /// Whether the factor is sparse.
+    pub fn is_sparse(&self) -> bool {
+        matches!(self.factor, Factor::Sparse(_))
+    }
+
+    /// Entries of `L` stored (dense: the lower triangle).
+    pub fn nonzeros(&self) -> usize {
+        match &self.factor {
+            Factor::Dense(_) => self.n * (self.n + 1) / 2,
+            Factor::Sparse(l) => l.values.len(),
+        }
+    }
+
+    /// `z <- L^-1 Q z`.
+    pub fn solve_l(&self, z: &mut [f64]) {
+        match &self.factor {
+            Factor::Dense(l) => solve_lower_triangular_in_place(
+                l.as_ref(),
+                MatMut::from_column_major_slice_mut(z, self.n, 1),
+                Par::Seq,
+            ),
+            Factor::Sparse(l) => {
+                let mut guard = lock(&l.work);
+                let t = &mut *guard;
+                for (ti, &p) in t.iter_mut().zip(&l.perm) {
+                    *ti = z[p];
+                }
+                l.forward(t);
+                z.copy_from_slice(t);
+            }
+        }
+    }
+
+    /// `z <- Q^T L^-T z`.
+    pub fn solve_lt(&self, z: &mut [f64]) {
+        match &self.factor {
+            Factor::Dense(l) => solve_upper_triangular_in_place(
+                l.as_ref().transpose(),
+                MatMut::from_column_major_slice_mut(z, self.n, 1),
+                Par::Seq,
+            ),
+            Factor::Sparse(l) => {
+                let mut guard = lock(&l.work);
+                let t = &mut *guard;
+                t.copy_from_slice(z);
+                l.backward(t);
+                for (ti, &p) in t.iter().zip(&l.perm) {
+                    z[p] = *ti;
+                }
+            }
+        }
+    }
+
+    /// `z <- (G G^T)^-1 z`.
+    pub fn solve(&self, z: &mut [f64]) {
+        self.solve_l(z);
+        self.solve_lt(z);
+    }
+}
+
+/// faer's simplicial sparse Cholesky of `a` (its upper triangle) with the AMD
+/// ordering; None when `a` is not positive definite.
+fn sparse_llt(a: &UpperCsc) -> Option<SparseLower> {
+    let params = CholeskySymbolicParams {
+        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+        ..CholeskySymbolicParams::default()
+    };
+    let symbolic =
+        factorize_symbolic_cholesky(a.symbolic(), Side::Upper, SymmetricOrdering::Amd, params)
+            .ok()?;
+    let (values, _) =
+        llt_numeric(&symbolic, SparseColMatRef::new(a.symbolic(), &a.values), 1).ok()?;
+    let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
+        return None;
+    };
+    let perm = match symbolic.perm() {
+        Some(p) => p.arrays().0.to_vec(),
+        None => (0..a.n).collect(),
+    };
+    let l = SparseLower {
+        col_ptr: s.col_ptr().to_vec(),
+        row_idx: s.row_idx().to_vec(),
+        values,
+        perm,
+        work: Mutex::new(vec![0.0; a.n]),
+    };
+    // The solves below take the diagonal as the first entry of each column.
+    let diagonal_first = (0..a.n).all(|j| {
+        l.col_ptr[j] < l.col_ptr[j + 1]
+            && l.row_idx[l.col_ptr[j]] == j
+            && l.row_idx[l.col_ptr[j] + 1..l.col_ptr[j + 1]]
+                .iter()
+                .all(|&r| r > j)
+    });
+    diagonal_first.then_some(l)
+}
+
+impl SparseLower {
+    /// `x <- L^-1 x`.
+    fn forward(&self, x: &mut [f64]) {
+        for j in 0..x.len() {
+            let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
+            let xj = x[j] / self.values[a];
+            x[j] = xj;
+            for p in a + 1..b {
+                x[self.row_idx[p]] -= self.values[p] * xj;
+            }
+        }
+    }
+
+    /// `x <- L^-T x`.
+    fn backward(&self, x: &mut [f64]) {
+        for j in (0..x.len()).rev() {
+            let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
+            let mut s = x[j];
+            for p in a + 1..b {
+                s -= self.values[p] * x[self.row_idx[p]];
+            }
+            x[j] = s / self.values[a];
+        }
+    }
+}
