@@ -411,6 +411,36 @@ pub struct CoarseRow {
     /// (zero in the dense row).
     pub u_difference: f64,
     pub lambda_difference: f64,
+    /// Milliseconds of one projection's parts, timed apart after the solve:
+    /// `G x`, the two triangular solves, `G^T z`.
+    pub parts_ms: [f64; 3],
+}
+
+/// Milliseconds of `G x`, `L^-1`+`L^-T`, `G^T z` each, over a few repetitions.
+fn projection_parts(dual: &crate::tfeti::dual::Dual) -> [f64; 3] {
+    use std::time::Instant;
+    let cluster = dual.cluster();
+    let m = dual.multipliers();
+    let x: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+    let mut z = vec![0.0; dual.kernel_dim()];
+    let mut y = vec![0.0; m];
+    let mut work = Vec::new();
+    let reps = 20;
+    let mut t = [0.0; 3];
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        crate::tfeti::coarse::apply_g(cluster, &x, &mut z);
+        let t1 = Instant::now();
+        dual.solve_l(&mut z);
+        dual.solve_lt(&mut z);
+        let t2 = Instant::now();
+        crate::tfeti::coarse::apply_gt(cluster, &z, &mut y, &mut work);
+        let t3 = Instant::now();
+        t[0] += (t1 - t0).as_secs_f64();
+        t[1] += (t2 - t1).as_secs_f64();
+        t[2] += (t3 - t2).as_secs_f64();
+    }
+    t.map(|s| 1e3 * s / reps as f64)
 }
 
 /// Solves `scene` with the coarse problem dense, then sparse (process-wide
@@ -454,6 +484,7 @@ pub fn coarse_rows(scene: &crate::lang::Scene) -> Result<Vec<CoarseRow>, SolveEr
             share: (stats.setup_seconds + stats.apply_seconds) / state.times.total.max(1e-300),
             u_difference: du,
             lambda_difference: dl,
+            parts_ms: projection_parts(&state.dual),
         });
         if dense.is_none() {
             dense = Some((u, state.lambda.clone()));

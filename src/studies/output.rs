@@ -66,7 +66,7 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
 }
 
 /// The columns of `cso bench coarse` after H/h and cuts.
-pub const COARSE_COLUMNS: [&str; 15] = [
+pub const COARSE_COLUMNS: [&str; 16] = [
     "subdomains",
     "primal",
     "dual",
@@ -76,7 +76,8 @@ pub const COARSE_COLUMNS: [&str; 15] = [
     "coarse set-up s",
     "projections",
     "coarse apply s",
-    "ms per projection",
+    "coarse ms per Hessian",
+    "ms G x / L solves / G^T z",
     "Hessian",
     "solve s",
     "total s",
@@ -88,7 +89,7 @@ pub const COARSE_COLUMNS: [&str; 15] = [
 pub fn coarse_cells(r: &crate::studies::bench::CoarseRow) -> String {
     let s = &r.stats;
     format!(
-        "{} | {} | {} | {} | {} | {} | {:.3} | {} | {:.3} | {:.3} | {} | {:.3} | {:.3} | {:.1}% | {:.1e} / {:.1e}",
+        "{} | {} | {} | {} | {} | {} | {:.3} | {} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {} | {:.3} | {:.3} | {:.1}% | {:.1e} / {:.1e}",
         r.subdomains,
         r.primal,
         r.dual,
@@ -98,7 +99,10 @@ pub fn coarse_cells(r: &crate::studies::bench::CoarseRow) -> String {
         s.setup_seconds,
         s.projections,
         s.apply_seconds,
-        1e3 * s.apply_seconds / s.projections.max(1) as f64,
+        1e3 * s.apply_seconds / r.hessian.max(1) as f64,
+        r.parts_ms[0],
+        r.parts_ms[1],
+        r.parts_ms[2],
         r.hessian,
         r.time_solve,
         r.time_total,

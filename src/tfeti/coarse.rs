@@ -48,7 +48,7 @@ pub enum CoarseForm {
 /// Coarse unknowns below which `Auto` assembles and factors dense: there the
 /// dense factor is as fast to build and to apply (measured by `cso bench
 /// coarse`, BENCHMARKS.md) and small scenes keep the bits they always had.
-pub const DENSE_UP_TO: usize = 256;
+pub const DENSE_UP_TO: usize = 100;
 
 /// Process-wide choice for `Auto` (0: by size, 1: dense, 2: sparse); set only
 /// by benchmarks that compare the two on whole solves.
@@ -225,6 +225,71 @@ fn sparse_gram(cluster: &Cluster, active: Option<&[bool]>) -> UpperCsc {
         col_ptr,
         row_idx,
         values,
+    }
+}
+
+/// Subdomains per parallel task of the `G` products.
+const G_CHUNK: usize = 32;
+
+/// `z = G x` (kernel-sized), in parallel over subdomains; every entry is the
+/// same sum as in [`Cluster::apply_g`], so the bits are the same.
+pub fn apply_g(cluster: &Cluster, x: &[f64], z: &mut [f64]) {
+    let n = cluster.len();
+    let mut parts: Vec<&mut [f64]> = Vec::with_capacity(n);
+    let mut rest = z;
+    for s in 0..n {
+        let k = cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+        let (a, b) = std::mem::take(&mut rest).split_at_mut(k);
+        parts.push(a);
+        rest = b;
+    }
+    parts
+        .into_par_iter()
+        .enumerate()
+        .with_min_len(G_CHUNK)
+        .for_each(|(s, zs)| {
+            let lr = cluster.local_rows(s);
+            let nr = lr.rows.len();
+            let g = cluster.g_block(s);
+            for (j, zj) in zs.iter_mut().enumerate() {
+                *zj = (0..nr).map(|k| g[j * nr + k] * x[lr.rows[k]]).sum();
+            }
+        });
+}
+
+/// `x = G^T z`: every subdomain's local row values in parallel (into `work`,
+/// resized to the local rows of all subdomains), then added to `x` in
+/// subdomain order, as in [`Cluster::apply_gt`] (the same bits).
+pub fn apply_gt(cluster: &Cluster, z: &[f64], x: &mut [f64], work: &mut Vec<f64>) {
+    let n = cluster.len();
+    let total: usize = (0..n).map(|s| cluster.local_rows(s).rows.len()).sum();
+    work.resize(total, 0.0);
+    let mut parts: Vec<&mut [f64]> = Vec::with_capacity(n);
+    let mut rest = work.as_mut_slice();
+    for s in 0..n {
+        let (a, b) = std::mem::take(&mut rest).split_at_mut(cluster.local_rows(s).rows.len());
+        parts.push(a);
+        rest = b;
+    }
+    parts
+        .into_par_iter()
+        .enumerate()
+        .with_min_len(G_CHUNK)
+        .for_each(|(s, ts)| {
+            let nr = ts.len();
+            let g = cluster.g_block(s);
+            let (o, k) = (cluster.kernel_offset(s), cluster.kernel_offset(s + 1));
+            for (i, t) in ts.iter_mut().enumerate() {
+                *t = (0..k - o).map(|j| g[j * nr + i] * z[o + j]).sum::<f64>();
+            }
+        });
+    x.iter_mut().for_each(|v| *v = 0.0);
+    let mut at = 0;
+    for s in 0..n {
+        for &row in &cluster.local_rows(s).rows {
+            x[row] += work[at];
+            at += 1;
+        }
     }
 }
 
@@ -418,5 +483,209 @@ impl SparseLower {
             }
             x[j] = s / self.values[a];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::qp::Equality;
+    use crate::tfeti::dual::{Dual, Orthonormal};
+    use crate::tfeti::error::CoarseError;
+    use crate::tfeti::rows::LocalRows;
+    use crate::tfeti::subdomain::tests::{grid, rand_vec};
+    use crate::tfeti::subdomain::{Geometry, Subdomain};
+    use std::sync::Arc;
+
+    type Row = Vec<(usize, usize, f64)>;
+
+    /// `nx x ny` unit squares of 2 x 2 elements glued along their sides (both
+    /// components of every shared node), the left side of the first column
+    /// held when `held`; `skip` (if any) is a subdomain left without rows.
+    fn patch(nx: usize, ny: usize, held: bool, skip: Option<usize>) -> Cluster {
+        let id = |a: usize, b: usize| b * nx + a;
+        let subs: Vec<Arc<Subdomain>> = (0..nx * ny)
+            .map(|s| {
+                let mut mesh = grid(2, 2, 0.0);
+                let (a, b) = (s % nx, s / nx);
+                for p in mesh.coords.chunks_exact_mut(2) {
+                    p[0] += a as f64;
+                    p[1] += b as f64;
+                }
+                Arc::new(Subdomain::total(&Geometry::of(&mesh)).expect("factorizes"))
+            })
+            .collect();
+        // Node (i, j) of a 2 x 2 block is j * 3 + i.
+        let mut rows: Vec<Row> = Vec::new();
+        let mut glue = |s: usize, p: usize, t: usize, q: usize| {
+            if skip == Some(s) || skip == Some(t) {
+                return;
+            }
+            for c in 0..2 {
+                rows.push(vec![(s, 2 * p + c, 1.0), (t, 2 * q + c, -1.0)]);
+            }
+        };
+        for b in 0..ny {
+            for a in 0..nx {
+                for k in 0..3 {
+                    if a + 1 < nx {
+                        glue(id(a, b), 3 * k + 2, id(a + 1, b), 3 * k);
+                    }
+                    if b + 1 < ny {
+                        glue(id(a, b), 6 + k, id(a, b + 1), k);
+                    }
+                }
+            }
+        }
+        if held {
+            for b in 0..ny {
+                for k in 0..3 {
+                    for c in 0..2 {
+                        rows.push(vec![(id(0, b), 2 * (3 * k) + c, 1.0)]);
+                    }
+                }
+            }
+        }
+        let m = rows.len();
+        Cluster::new(subs, LocalRows::split(nx * ny, rows), m)
+    }
+
+    fn norm(v: &[f64]) -> f64 {
+        v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    }
+
+    #[test]
+    fn the_sparse_gram_is_the_dense_one_bit_for_bit() {
+        let cluster = patch(5, 4, true, None);
+        let m = cluster.multipliers();
+        let some: Vec<bool> = (0..m).map(|i| i % 3 != 1).collect();
+        for active in [None, Some(some.as_slice())] {
+            let dense = cluster.coarse_gram(active);
+            let Gram::Sparse(sparse) = Gram::assemble(&cluster, active, CoarseForm::Sparse) else {
+                panic!("asked for sparse");
+            };
+            assert_eq!(sparse.n, dense.nrows());
+            let mut seen = Mat::<f64>::zeros(sparse.n, sparse.n);
+            for (r, c, v) in sparse.entries() {
+                assert_eq!(v.to_bits(), dense[(r, c)].to_bits(), "entry ({r}, {c})");
+                seen[(r, c)] = 1.0;
+            }
+            // What the pattern leaves out is zero: blocks of subdomains that
+            // share no row.
+            for r in 0..sparse.n {
+                for c in 0..sparse.n {
+                    if seen[(r, c)] == 0.0 {
+                        assert_eq!(dense[(r, c)], 0.0, "({r}, {c}) outside the pattern");
+                    }
+                }
+            }
+            // Sparse: 20 subdomains, each block column at most 3 blocks deep.
+            assert!(sparse.values.len() < sparse.n * sparse.n / 4);
+        }
+    }
+
+    #[test]
+    fn the_sparse_and_dense_factors_project_alike() {
+        let cluster = patch(10, 9, true, None);
+        let m = cluster.multipliers();
+        assert!(cluster.kernel_dim() >= DENSE_UP_TO);
+        let other = cluster.with_local_rows(
+            (0..cluster.len())
+                .map(|s| cluster.local_rows(s).clone())
+                .collect(),
+            m,
+        );
+        let dense = Dual::with_coarse(cluster, CoarseForm::Dense).expect("regular");
+        let sparse = Dual::with_coarse(other, CoarseForm::Sparse).expect("regular");
+        assert_eq!(dense.coarse_form(), CoarseForm::Dense);
+        assert_eq!(sparse.coarse_form(), CoarseForm::Sparse);
+        assert!(sparse.coarse_stats().factor_nonzeros < dense.coarse_stats().factor_nonzeros / 4);
+        let g = Orthonormal(&sparse);
+        for seed in 1..4 {
+            let x = rand_vec(m, seed);
+            let (mut pd, mut ps) = (x.clone(), x.clone());
+            dense.project(&mut pd);
+            sparse.project(&mut ps);
+            let diff = pd.iter().zip(&ps).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(diff <= 1e-12 * norm(&x), "P x differs by {diff:e}");
+            // G P x = 0 with the sparse factor.
+            let mut gpx = vec![0.0; sparse.kernel_dim()];
+            sparse.cluster().apply_g(&ps, &mut gpx);
+            let mut gx = vec![0.0; sparse.kernel_dim()];
+            sparse.cluster().apply_g(&x, &mut gx);
+            assert!(norm(&gpx) <= 1e-12 * norm(&gx), "|G P x| = {:e}", norm(&gpx));
+            // The rows of G~ = L^-1 Q G are orthonormal: G~ G~^T y = y.
+            let y = rand_vec(sparse.kernel_dim(), seed + 10);
+            let mut gty = vec![0.0; m];
+            g.apply_t(&y, &mut gty);
+            let mut ggty = vec![0.0; y.len()];
+            g.apply(&gty, &mut ggty);
+            let err = y.iter().zip(&ggty).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            assert!(err <= 1e-12 * norm(&y), "G~ G~^T y - y = {err:e}");
+        }
+    }
+
+    #[test]
+    fn the_parallel_g_products_have_the_serial_bits() {
+        let cluster = patch(9, 8, true, None);
+        let m = cluster.multipliers();
+        let n = cluster.kernel_dim();
+        let x = rand_vec(m, 5);
+        let z = rand_vec(n, 6);
+        let (mut a, mut b) = (vec![0.0; n], vec![1.0; n]);
+        cluster.apply_g(&x, &mut a);
+        apply_g(&cluster, &x, &mut b);
+        assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()));
+        let (mut a, mut b) = (vec![0.0; m], vec![1.0; m]);
+        cluster.apply_gt(&z, &mut a);
+        apply_gt(&cluster, &z, &mut b, &mut Vec::new());
+        assert!(a.iter().zip(&b).all(|(p, q)| p.to_bits() == q.to_bits()));
+    }
+
+    #[test]
+    fn coarse_solves_with_either_factor_agree() {
+        let cluster = patch(6, 5, true, None);
+        let n = cluster.kernel_dim();
+        let solve = |form| {
+            let f = CoarseFactor::factor(Gram::assemble(&cluster, None, form), 1e-12)
+                .map_err(|_| "singular")
+                .expect("regular");
+            let mut z = rand_vec(n, 3);
+            f.solve(&mut z);
+            z
+        };
+        let (d, s) = (solve(CoarseForm::Dense), solve(CoarseForm::Sparse));
+        let diff = d.iter().zip(&s).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        assert!(diff <= 1e-12 * norm(&d), "(G G^T)^-1 z differs by {diff:e}");
+    }
+
+    #[test]
+    fn a_rank_deficient_coarse_problem_names_the_same_modes_in_both_forms() {
+        // Nothing held: the rigid motions of the whole patch are in the null
+        // space of G G^T although every subdomain has rows.
+        for (held, skip) in [(false, None), (true, Some(7))] {
+            let fails = |form| {
+                let cluster = patch(4, 3, held, skip);
+                match Dual::with_coarse(cluster, form) {
+                    Ok(_) => panic!("singular coarse problem accepted ({form:?})"),
+                    Err(CoarseError { free_modes }) => free_modes,
+                }
+            };
+            let (d, s) = (fails(CoarseForm::Dense), fails(CoarseForm::Sparse));
+            assert!(!d.is_empty());
+            assert_eq!(d, s);
+            if let Some(k) = skip {
+                // A subdomain without rows: its three modes, by the diagonal.
+                assert_eq!(d, vec![(k, 0), (k, 1), (k, 2)]);
+            }
+        }
+    }
+
+    #[test]
+    fn auto_is_dense_below_the_threshold_and_sparse_above() {
+        assert_eq!(CoarseForm::Auto.resolve(DENSE_UP_TO - 1), CoarseForm::Dense);
+        assert_eq!(CoarseForm::Auto.resolve(DENSE_UP_TO), CoarseForm::Sparse);
+        assert_eq!(CoarseForm::Dense.resolve(10 * DENSE_UP_TO), CoarseForm::Dense);
+        assert_eq!(CoarseForm::Sparse.resolve(3), CoarseForm::Sparse);
     }
 }

@@ -9,7 +9,7 @@
 //! FETI method*, Commun. Numer. Meth. Engng 2006.
 
 use super::cluster::Cluster;
-use super::coarse::{CoarseFactor, CoarseForm, Gram};
+use super::coarse::{self, CoarseFactor, CoarseForm, Gram};
 use super::error::CoarseError;
 use super::precond::{Built, DualPreconditioner, Kind};
 use super::schur::SchurForm;
@@ -49,8 +49,9 @@ pub struct Dual {
     cluster: Cluster,
     /// Cholesky factor of `G G^T`: `G~ = L^-1 Q G` (`Q` its ordering).
     coarse: CoarseFactor,
-    /// Work space of the projector: kernel-sized and multiplier-sized.
-    proj: Mutex<(Vec<f64>, Vec<f64>)>,
+    /// Work space of the projector: kernel-sized, multiplier-sized, and the
+    /// local row values of `G^T z`.
+    proj: Mutex<(Vec<f64>, Vec<f64>, Vec<f64>)>,
     /// Applications of `F` so far.
     f_applications: AtomicUsize,
     /// Projections so far, and nanoseconds in the coarse operators and in
@@ -94,7 +95,7 @@ impl Dual {
                 .map(|i| cluster.mode(i))
                 .collect(),
         })?;
-        let proj = Mutex::new((vec![0.0; n3], vec![0.0; cluster.multipliers()]));
+        let proj = Mutex::new((vec![0.0; n3], vec![0.0; cluster.multipliers()], Vec::new()));
         Ok(Dual {
             cluster,
             coarse,
@@ -206,10 +207,10 @@ impl Dual {
     pub fn project(&self, x: &mut [f64]) {
         let t0 = Instant::now();
         let mut guard = lock(&self.proj);
-        let (z, t) = &mut *guard;
-        self.cluster.apply_g(x, z);
+        let (z, t, w) = &mut *guard;
+        coarse::apply_g(&self.cluster, x, z);
         self.coarse.solve(z);
-        self.cluster.apply_gt(z, t);
+        coarse::apply_gt(&self.cluster, z, t, w);
         for (a, b) in x.iter_mut().zip(t.iter()) {
             *a -= b;
         }
@@ -288,7 +289,7 @@ impl Equality for Orthonormal<'_> {
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let t0 = Instant::now();
-        self.0.cluster.apply_g(x, y);
+        coarse::apply_g(&self.0.cluster, x, y);
         self.0.solve_l(y);
         self.0.add_coarse_apply(t0);
     }
@@ -296,10 +297,10 @@ impl Equality for Orthonormal<'_> {
     fn apply_t(&self, y: &[f64], x: &mut [f64]) {
         let t0 = Instant::now();
         let mut guard = lock(&self.0.proj);
-        let z = &mut guard.0;
+        let (z, _, w) = &mut *guard;
         z.copy_from_slice(y);
         self.0.solve_lt(z);
-        self.0.cluster.apply_gt(z, x);
+        coarse::apply_gt(&self.0.cluster, z, x, w);
         self.0.add_coarse_apply(t0);
     }
 }
