@@ -297,7 +297,8 @@ pub fn apply_gt(cluster: &Cluster, z: &[f64], x: &mut [f64], work: &mut Vec<f64>
 /// in every column.
 struct SparseLower {
     col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
+    /// 32-bit row indices: the solves are bound by the bytes of `L` they read.
+    row_idx: Vec<u32>,
     values: Vec<f64>,
     /// The fill-reducing ordering: row `i` of `Q A Q^T` is row `perm[i]` of `A`.
     perm: Vec<usize>,
@@ -442,9 +443,14 @@ fn sparse_llt(a: &UpperCsc) -> Option<SparseLower> {
         Some(p) => p.arrays().0.to_vec(),
         None => (0..a.n).collect(),
     };
+    let row_idx = s
+        .row_idx()
+        .iter()
+        .map(|&r| u32::try_from(r).ok())
+        .collect::<Option<Vec<u32>>>()?;
     let l = SparseLower {
         col_ptr: s.col_ptr().to_vec(),
-        row_idx: s.row_idx().to_vec(),
+        row_idx,
         values,
         perm,
         work: Mutex::new(vec![0.0; a.n]),
@@ -452,10 +458,10 @@ fn sparse_llt(a: &UpperCsc) -> Option<SparseLower> {
     // The solves below take the diagonal as the first entry of each column.
     let diagonal_first = (0..a.n).all(|j| {
         l.col_ptr[j] < l.col_ptr[j + 1]
-            && l.row_idx[l.col_ptr[j]] == j
+            && l.row_idx[l.col_ptr[j]] as usize == j
             && l.row_idx[l.col_ptr[j] + 1..l.col_ptr[j + 1]]
                 .iter()
-                .all(|&r| r > j)
+                .all(|&r| r as usize > j)
     });
     diagonal_first.then_some(l)
 }
@@ -468,7 +474,7 @@ impl SparseLower {
             let xj = x[j] / self.values[a];
             x[j] = xj;
             for p in a + 1..b {
-                x[self.row_idx[p]] -= self.values[p] * xj;
+                x[self.row_idx[p] as usize] -= self.values[p] * xj;
             }
         }
     }
@@ -479,7 +485,7 @@ impl SparseLower {
             let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
             let mut s = x[j];
             for p in a + 1..b {
-                s -= self.values[p] * x[self.row_idx[p]];
+                s -= self.values[p] * x[self.row_idx[p] as usize];
             }
             x[j] = s / self.values[a];
         }
@@ -606,21 +612,33 @@ mod tests {
             let (mut pd, mut ps) = (x.clone(), x.clone());
             dense.project(&mut pd);
             sparse.project(&mut ps);
-            let diff = pd.iter().zip(&ps).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let diff = pd
+                .iter()
+                .zip(&ps)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             assert!(diff <= 1e-12 * norm(&x), "P x differs by {diff:e}");
             // G P x = 0 with the sparse factor.
             let mut gpx = vec![0.0; sparse.kernel_dim()];
             sparse.cluster().apply_g(&ps, &mut gpx);
             let mut gx = vec![0.0; sparse.kernel_dim()];
             sparse.cluster().apply_g(&x, &mut gx);
-            assert!(norm(&gpx) <= 1e-12 * norm(&gx), "|G P x| = {:e}", norm(&gpx));
+            assert!(
+                norm(&gpx) <= 1e-12 * norm(&gx),
+                "|G P x| = {:e}",
+                norm(&gpx)
+            );
             // The rows of G~ = L^-1 Q G are orthonormal: G~ G~^T y = y.
             let y = rand_vec(sparse.kernel_dim(), seed + 10);
             let mut gty = vec![0.0; m];
             g.apply_t(&y, &mut gty);
             let mut ggty = vec![0.0; y.len()];
             g.apply(&gty, &mut ggty);
-            let err = y.iter().zip(&ggty).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+            let err = y
+                .iter()
+                .zip(&ggty)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
             assert!(err <= 1e-12 * norm(&y), "G~ G~^T y - y = {err:e}");
         }
     }
@@ -655,7 +673,11 @@ mod tests {
             z
         };
         let (d, s) = (solve(CoarseForm::Dense), solve(CoarseForm::Sparse));
-        let diff = d.iter().zip(&s).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        let diff = d
+            .iter()
+            .zip(&s)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         assert!(diff <= 1e-12 * norm(&d), "(G G^T)^-1 z differs by {diff:e}");
     }
 
@@ -685,7 +707,10 @@ mod tests {
     fn auto_is_dense_below_the_threshold_and_sparse_above() {
         assert_eq!(CoarseForm::Auto.resolve(DENSE_UP_TO - 1), CoarseForm::Dense);
         assert_eq!(CoarseForm::Auto.resolve(DENSE_UP_TO), CoarseForm::Sparse);
-        assert_eq!(CoarseForm::Dense.resolve(10 * DENSE_UP_TO), CoarseForm::Dense);
+        assert_eq!(
+            CoarseForm::Dense.resolve(10 * DENSE_UP_TO),
+            CoarseForm::Dense
+        );
         assert_eq!(CoarseForm::Sparse.resolve(3), CoarseForm::Sparse);
     }
 }
