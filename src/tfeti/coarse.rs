@@ -7,8 +7,9 @@
 //! subdomain in 2D, 27 in 3D). Small coarse problems are assembled and factored
 //! dense (as before); from [`DENSE_UP_TO`] unknowns on it is assembled sparse
 //! (upper triangle, block by block, in parallel over block columns) and
-//! factored by faer's simplicial sparse Cholesky with its AMD fill-reducing
-//! ordering `Q`: `Q (G G^T) Q^T = L L^T`. Either way the orthonormalized rows are
+//! factored by faer's sparse Cholesky (simplicial or supernodal, as faer
+//! picks) with its AMD fill-reducing ordering `Q`, the factor kept in
+//! compressed columns: `Q (G G^T) Q^T = L L^T`. Either way the orthonormalized rows are
 //! `G~ = L^-1 Q G` (dense: `Q = I`), so [`CoarseFactor::solve_l`] applies
 //! `L^-1 Q` and [`CoarseFactor::solve_lt`] applies `Q^T L^-T`.
 //!
@@ -24,6 +25,7 @@ use super::sparse::{llt_numeric, UpperCsc};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
+use faer::sparse::linalg::cholesky::supernodal::SymbolicSupernodalCholesky;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, SymbolicCholeskyRaw, SymmetricOrdering,
 };
@@ -337,7 +339,7 @@ impl CoarseFactor {
                 Ok(llt) => Factor::Dense(llt.L().to_owned()),
                 Err(_) => return Err(gram),
             },
-            Gram::Sparse(a) => match sparse_llt(a) {
+            Gram::Sparse(a) => match sparse_llt(a, SupernodalThreshold::AUTO) {
                 Some(l) => Factor::Sparse(l),
                 None => return Err(gram),
             },
@@ -424,11 +426,13 @@ impl CoarseFactor {
     }
 }
 
-/// faer's simplicial sparse Cholesky of `a` (its upper triangle) with the AMD
-/// ordering; None when `a` is not positive definite.
-fn sparse_llt(a: &UpperCsc) -> Option<SparseLower> {
+/// faer's sparse Cholesky of `a` (its upper triangle) with the AMD ordering,
+/// simplicial or supernodal as faer picks (supernodal where the factor is
+/// dense enough: the 6 x 6 blocks of 3D), copied into compressed columns with
+/// 32-bit row indices; None when `a` is not positive definite.
+fn sparse_llt(a: &UpperCsc, threshold: SupernodalThreshold) -> Option<SparseLower> {
     let params = CholeskySymbolicParams {
-        supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SIMPLICIAL,
+        supernodal_flop_ratio_threshold: threshold,
         ..CholeskySymbolicParams::default()
     };
     let symbolic =
@@ -436,34 +440,70 @@ fn sparse_llt(a: &UpperCsc) -> Option<SparseLower> {
             .ok()?;
     let (values, _) =
         llt_numeric(&symbolic, SparseColMatRef::new(a.symbolic(), &a.values), 1).ok()?;
-    let SymbolicCholeskyRaw::Simplicial(s) = symbolic.raw() else {
-        return None;
+    let (col_ptr, row_idx, values) = match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let rows = s.row_idx().iter().map(|&r| u32::try_from(r).ok());
+            (s.col_ptr().to_vec(), rows.collect::<Option<_>>()?, values)
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => from_supernodes(s, &values)?,
     };
     let perm = match symbolic.perm() {
         Some(p) => p.arrays().0.to_vec(),
         None => (0..a.n).collect(),
     };
-    let row_idx = s
-        .row_idx()
-        .iter()
-        .map(|&r| u32::try_from(r).ok())
-        .collect::<Option<Vec<u32>>>()?;
     let l = SparseLower {
-        col_ptr: s.col_ptr().to_vec(),
+        col_ptr,
         row_idx,
         values,
         perm,
         work: Mutex::new(vec![0.0; a.n]),
     };
     // The solves below take the diagonal as the first entry of each column.
-    let diagonal_first = (0..a.n).all(|j| {
-        l.col_ptr[j] < l.col_ptr[j + 1]
-            && l.row_idx[l.col_ptr[j]] as usize == j
-            && l.row_idx[l.col_ptr[j] + 1..l.col_ptr[j + 1]]
-                .iter()
-                .all(|&r| r as usize > j)
-    });
+    let diagonal_first = l.col_ptr.len() == a.n + 1
+        && (0..a.n).all(|j| {
+            l.col_ptr[j] < l.col_ptr[j + 1]
+                && l.row_idx[l.col_ptr[j]] as usize == j
+                && l.row_idx[l.col_ptr[j] + 1..l.col_ptr[j + 1]]
+                    .iter()
+                    .all(|&r| r as usize > j)
+        });
     diagonal_first.then_some(l)
+}
+
+/// The compressed columns of a supernodal factor: supernode `s` holds columns
+/// `begin..end` as a dense column-major block, the rows `begin..end` (its lower
+/// triangle is `L`'s) and then the rows of its pattern.
+fn from_supernodes(
+    s: &SymbolicSupernodalCholesky<usize>,
+    values: &[f64],
+) -> Option<(Vec<usize>, Vec<u32>, Vec<f64>)> {
+    let (begin, end) = (s.supernode_begin(), s.supernode_end());
+    let at = s.col_ptr_for_val();
+    let mut col_ptr = vec![0];
+    let mut row_idx = Vec::new();
+    let mut out = Vec::new();
+    for k in 0..s.n_supernodes() {
+        let pattern = s.supernode(k).pattern();
+        let ncols = end[k] - begin[k];
+        let nrows = ncols + pattern.len();
+        let block = values.get(at[k]..at[k + 1])?;
+        if block.len() != nrows * ncols {
+            return None;
+        }
+        for c in 0..ncols {
+            let column = &block[c * nrows..(c + 1) * nrows];
+            for (i, &v) in column.iter().enumerate().take(ncols).skip(c) {
+                row_idx.push(u32::try_from(begin[k] + i).ok()?);
+                out.push(v);
+            }
+            for (&r, &v) in pattern.iter().zip(&column[ncols..]) {
+                row_idx.push(u32::try_from(r).ok()?);
+                out.push(v);
+            }
+            col_ptr.push(row_idx.len());
+        }
+    }
+    Some((col_ptr, row_idx, out))
 }
 
 impl SparseLower {
@@ -679,6 +719,45 @@ mod tests {
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
         assert!(diff <= 1e-12 * norm(&d), "(G G^T)^-1 z differs by {diff:e}");
+    }
+
+    #[test]
+    fn simplicial_and_supernodal_factors_solve_alike() {
+        let cluster = patch(8, 7, true, None);
+        let n = cluster.kernel_dim();
+        let Gram::Sparse(a) = Gram::assemble(&cluster, None, CoarseForm::Sparse) else {
+            panic!("asked for sparse");
+        };
+        let z0 = rand_vec(n, 9);
+        let solve = |threshold| {
+            let l = sparse_llt(&a, threshold).expect("positive definite");
+            let f = CoarseFactor {
+                n,
+                factor: Factor::Sparse(l),
+            };
+            let mut z = z0.clone();
+            f.solve(&mut z);
+            (z, f.nonzeros())
+        };
+        let (s, nnz_s) = solve(SupernodalThreshold::FORCE_SIMPLICIAL);
+        let (p, nnz_p) = solve(SupernodalThreshold::FORCE_SUPERNODAL);
+        // Supernodes store their diagonal blocks whole: at least L's entries.
+        assert!(nnz_p >= nnz_s);
+        let diff = s
+            .iter()
+            .zip(&p)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(diff <= 1e-12 * norm(&s), "solves differ by {diff:e}");
+        // And the solution solves: (G G^T) x = z.
+        let mut r = vec![0.0; n];
+        a.mul(&s, &mut r);
+        let err = r
+            .iter()
+            .zip(&z0)
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
+        assert!(err <= 1e-10 * norm(&z0), "residual {err:e}");
     }
 
     #[test]
