@@ -181,7 +181,7 @@ struct Bench {
     /// Elements per subdomain side, H/h (repeatable; default 16 and 32 in 2D, 8 in 3D).
     #[arg(long = "hh")]
     hh: Vec<usize>,
-    /// `scaling3d`: subdomains per side of the base cube (repeatable).
+    /// `scaling3d`, `coarse3d`: subdomains per side of the base cube (repeatable).
     #[arg(long = "sides", default_values_t = [2, 3, 4, 6])]
     sides: Vec<usize>,
     /// Largest cut of the base, `SXxSY`.
@@ -1106,6 +1106,46 @@ impl Bench {
                                 }
                                 Err(e) => errln!("error at {k}x{k}x{k}: {e}"),
                             }
+                        }
+                    }
+                }
+                Ok(())
+            }
+            Benchmark::Coarse => self.cuts_table(
+                pool.current_num_threads(),
+                &format!("tolerance {tolerance:e}; per scene dense, then sparse"),
+                &output::COARSE_COLUMNS,
+                &|sx, sy, hh| {
+                    let rows = bench::coarse_rows_2d(sx, sy, hh, tolerance);
+                    let cells: Vec<String> = rows
+                        .map_err(|e| e.to_string())?
+                        .iter()
+                        .map(output::coarse_cells)
+                        .collect();
+                    Ok(cells.join(&format!(" |\n| {hh} | {sx}x{sy} | ")))
+                },
+            ),
+            Benchmark::Coarse3d => {
+                let threads = pool.current_num_threads();
+                let title = format!(
+                    "tolerance {tolerance:e}, 3D punch, base cut k x k x k; dense, then sparse"
+                );
+                outln!(
+                    "{}",
+                    output::cuts_header(threads, &title, &output::COARSE_COLUMNS)
+                );
+                let hhs = if self.hh.is_empty() {
+                    vec![8]
+                } else {
+                    self.hh.clone()
+                };
+                for &hh in &hhs {
+                    for &k in &self.sides {
+                        match bench::coarse_rows_3d(k, hh, tolerance) {
+                            Ok(rows) => rows.iter().for_each(|r| {
+                                outln!("| {hh} | {k}x{k}x{k} | {} |", output::coarse_cells(r))
+                            }),
+                            Err(e) => errln!("error at {k}x{k}x{k}: {e}"),
                         }
                     }
                 }

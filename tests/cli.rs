@@ -147,7 +147,7 @@ fn bench_choices_and_cuts_are_checked_before_anything_runs() {
     let (code, out, _) = cso(&["bench", "--help"]);
     assert_eq!(code, 0);
     assert!(
-        out.contains("[possible values: scaling, scaling3d, compare, hard, sensitivity, sensitivity3d, optimize]"),
+        out.contains("[possible values: scaling, scaling3d, compare, hard, sensitivity, sensitivity3d, optimize, coarse, coarse3d]"),
         "{out}"
     );
     let (code, _, err) = cso(&["bench", "scaleing"]);

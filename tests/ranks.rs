@@ -89,3 +89,25 @@ fn classical_feti_over_ranks_says_it_is_not_distributed() {
         assert!(e.contains("does not run distributed yet"), "{e}");
     }
 }
+
+#[test]
+fn the_sparse_coarse_problem_gives_the_serial_state_bitwise_on_ranks() {
+    // 36 subdomains, 108 coarse unknowns: the sparse coarse factor.
+    let src = cso::studies::bench::scaled_two_blocks(8, 4, 4, 1e-8);
+    let scene = match compile(&src, &options()) {
+        Ok(s) => s,
+        Err(d) => panic!("{}", cso::lang::diag::render(&d, "scaled.cso", &src)),
+    };
+    let state = cso::state::solve(&scene, &[], &mut |_| {}).expect("serial solve");
+    assert_eq!(
+        state.dual.coarse_form(),
+        cso::tfeti::coarse::CoarseForm::Sparse
+    );
+    let serial = outcome(&scene, None).expect("serial solve");
+    for p in [2, 3] {
+        for (r, got) in on_ranks(&scene, p).into_iter().enumerate() {
+            let got = got.unwrap_or_else(|e| panic!("rank {r} of {p}: {e}"));
+            assert!(serial == got, "rank {r} of {p}: the state differs");
+        }
+    }
+}

@@ -13,8 +13,9 @@ use serde::Serialize;
 /// The benchmarks of `cso bench`: `scaling` (TFETI on the scaled scene),
 /// `compare` (FETI against TFETI on it), `hard` (the hard-scene sweeps of
 /// [`crate::studies::stability`]), `sensitivity` (gradient cost for m = 6, 24,
-/// 96), `sensitivity3d` (the same on scont3d for m = 4, 16, 36) and `optimize`
-/// (reuse between design iterations).
+/// 96), `sensitivity3d` (the same on scont3d for m = 4, 16, 36), `optimize`
+/// (reuse between design iterations) and `coarse`, `coarse3d` (the coarse
+/// problem dense against sparse, issue 15 item 4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 #[value(rename_all = "snake_case")]
 pub enum Benchmark {
@@ -26,6 +27,10 @@ pub enum Benchmark {
     Sensitivity,
     Sensitivity3d,
     Optimize,
+    // The coarse problem dense against sparse on the 2D scaling scene.
+    Coarse,
+    // The same on the 3D scaling scene (`--sides`).
+    Coarse3d,
 }
 
 /// The design sizes `m` of the gradient-cost benchmark.
@@ -549,4 +554,126 @@ pub fn optimization_reuse() -> Result<ReuseTable, crate::sens::GradientError> {
 /// The same on [`scont_large`] (adjoint gradients, 248 subdomains, 8 moved).
 pub fn optimization_reuse_large() -> Result<ReuseTable, crate::sens::GradientError> {
     reuse_table(&scont_large(), &reuse_configurations_large())
+}
+
+/// One row of `cso bench coarse`: a whole solve with the coarse problem in
+/// one form.
+#[derive(Debug, Clone, Serialize)]
+pub struct CoarseRow {
+    pub subdomains: usize,
+    pub primal: usize,
+    pub dual: usize,
+    pub stats: crate::tfeti::dual::CoarseStats,
+    pub hessian: usize,
+    pub time_solve: f64,
+    pub time_total: f64,
+    /// Share of the total time in the coarse problem (set-up and applications).
+    pub share: f64,
+    /// `max |u - u_dense| / max |u_dense|` and the same for the multipliers
+    /// (zero in the dense row).
+    pub u_difference: f64,
+    pub lambda_difference: f64,
+    /// Milliseconds of one projection's parts, timed apart after the solve:
+    /// `G x`, the two triangular solves, `G^T z`.
+    pub parts_ms: [f64; 3],
+}
+
+/// Milliseconds of `G x`, `L^-1`+`L^-T`, `G^T z` each, over a few repetitions.
+fn projection_parts(dual: &crate::tfeti::dual::Dual) -> [f64; 3] {
+    use std::time::Instant;
+    let cluster = dual.cluster();
+    let m = dual.multipliers();
+    let x: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+    let mut z = vec![0.0; dual.kernel_dim()];
+    let mut y = vec![0.0; m];
+    let mut work = Vec::new();
+    let reps = 20;
+    let mut t = [0.0; 3];
+    for _ in 0..reps {
+        let t0 = Instant::now();
+        crate::tfeti::coarse::apply_g(cluster, &x, &mut z);
+        let t1 = Instant::now();
+        dual.solve_l(&mut z);
+        dual.solve_lt(&mut z);
+        let t2 = Instant::now();
+        crate::tfeti::coarse::apply_gt(cluster, &z, &mut y, &mut work);
+        let t3 = Instant::now();
+        t[0] += (t1 - t0).as_secs_f64();
+        t[1] += (t2 - t1).as_secs_f64();
+        t[2] += (t3 - t2).as_secs_f64();
+    }
+    t.map(|s| 1e3 * s / reps as f64)
+}
+
+/// Solves `scene` with the coarse problem dense, then sparse (process-wide
+/// [`crate::tfeti::coarse::force_form`], restored to `Auto` after), and
+/// measures the coarse problem's share of each solve.
+pub fn coarse_rows(scene: &crate::lang::Scene) -> Result<Vec<CoarseRow>, SolveError> {
+    use crate::tfeti::coarse::{force_form, CoarseForm};
+    let rel = |a: &[f64], b: &[f64]| {
+        let d = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        let s = b.iter().fold(0.0f64, |m, y| m.max(y.abs()));
+        if s > 0.0 {
+            d / s
+        } else {
+            d
+        }
+    };
+    let mut rows = Vec::new();
+    let mut dense: Option<(Vec<f64>, Vec<f64>)> = None;
+    for form in [CoarseForm::Dense, CoarseForm::Sparse] {
+        force_form(form);
+        let state = solve(scene, &[], &mut |_| {});
+        force_form(CoarseForm::Auto);
+        let state = state?;
+        let stats = state.dual.coarse_stats();
+        let u: Vec<f64> = state.u.concat();
+        let (du, dl) = match &dense {
+            Some((u0, l0)) => (rel(&u, u0), rel(&state.lambda, l0)),
+            None => (0.0, 0.0),
+        };
+        rows.push(CoarseRow {
+            subdomains: state.problem.subdomains.len(),
+            primal: state.problem.primal_dofs(),
+            dual: state.problem.rows.len(),
+            stats,
+            hessian: state.info.hessian_applications,
+            time_solve: state.times.solve,
+            time_total: state.times.total,
+            share: (stats.setup_seconds + stats.apply_seconds) / state.times.total.max(1e-300),
+            u_difference: du,
+            lambda_difference: dl,
+            parts_ms: projection_parts(&state.dual),
+        });
+        if dense.is_none() {
+            dense = Some((u, state.lambda.clone()));
+        }
+    }
+    Ok(rows)
+}
+
+/// [`coarse_rows`] on the 2D scaling scene cut `sx x sy` at `hh`.
+pub fn coarse_rows_2d(
+    sx: usize,
+    sy: usize,
+    hh: usize,
+    tolerance: f64,
+) -> Result<Vec<CoarseRow>, SolveError> {
+    coarse_rows(&scaled_scene(sx, sy, hh, tolerance)?)
+}
+
+/// [`coarse_rows`] on the 3D scaling scene with the base cut `k x k x k`.
+pub fn coarse_rows_3d(k: usize, hh: usize, tolerance: f64) -> Result<Vec<CoarseRow>, SolveError> {
+    let src = scaled_punch_3d(k, hh, tolerance);
+    let options = CheckOptions {
+        memory_limit: None,
+        ..CheckOptions::default()
+    };
+    let scene = compile(&src, &options).map_err(|d| {
+        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
+    })?;
+    coarse_rows(&scene)
 }

@@ -65,6 +65,53 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
     )
 }
 
+/// The columns of `cso bench coarse` after H/h and cuts.
+pub const COARSE_COLUMNS: [&str; 16] = [
+    "subdomains",
+    "primal",
+    "dual",
+    "coarse n",
+    "form",
+    "nnz(L)",
+    "coarse set-up s",
+    "projections",
+    "coarse apply s",
+    "coarse ms per Hessian",
+    "ms G x / L solves / G^T z",
+    "Hessian",
+    "solve s",
+    "total s",
+    "coarse share",
+    "diff u / lambda",
+];
+
+/// The cells of one [`COARSE_COLUMNS`] row.
+pub fn coarse_cells(r: &crate::studies::bench::CoarseRow) -> String {
+    let s = &r.stats;
+    format!(
+        "{} | {} | {} | {} | {} | {} | {:.3} | {} | {:.3} | {:.3} | {:.3} / {:.3} / {:.3} | {} | {:.3} | {:.3} | {:.1}% | {:.1e} / {:.1e}",
+        r.subdomains,
+        r.primal,
+        r.dual,
+        s.dim,
+        format!("{:?}", s.form).to_lowercase(),
+        s.factor_nonzeros,
+        s.setup_seconds,
+        s.projections,
+        s.apply_seconds,
+        1e3 * s.apply_seconds / r.hessian.max(1) as f64,
+        r.parts_ms[0],
+        r.parts_ms[1],
+        r.parts_ms[2],
+        r.hessian,
+        r.time_solve,
+        r.time_total,
+        100.0 * r.share,
+        r.u_difference,
+        r.lambda_difference,
+    )
+}
+
 /// The columns of `cso bench compare` after H/h and cuts; each cell is
 /// `FETI / TFETI`.
 pub const COMPARE_COLUMNS: [&str; 8] = [

@@ -442,6 +442,12 @@ impl Cluster {
         }
     }
 
+    /// `G_s = R_s^T B_s^T` of subdomain `s` (any subdomain): kdim x (its
+    /// local rows), row-major.
+    pub fn g_block(&self, s: usize) -> &[f64] {
+        &self.g[s]
+    }
+
     /// `G G^T` over the rows where `active` holds (all rows when None): block
     /// `(s, t)` from the rows that subdomains `s` and `t` share.
     pub fn coarse_gram(&self, active: Option<&[bool]>) -> Mat<f64> {

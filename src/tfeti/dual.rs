@@ -1,23 +1,23 @@
 //! The TFETI dual operators: `F = B K^+ B^T` (applied by the cluster), the
 //! natural coarse space `G = R^T B^T` with orthonormalized rows
-//! `G~ = L^-1 G` (`L L^T = G G^T`, the coarse factor, replicated), and the
-//! projector `P = I - G~^T G~`.
+//! `G~ = L^-1 Q G` (`L L^T = Q G G^T Q^T`, the coarse factor of
+//! [`super::coarse`], dense or sparse, replicated; `Q` its fill-reducing
+//! ordering), and the projector `P = I - G~^T G~`.
 //!
 //! # Reference
 //! Dostál, Horák, Kučera, *Total FETI — an easier implementable variant of the
 //! FETI method*, Commun. Numer. Meth. Engng 2006.
 
 use super::cluster::Cluster;
+use super::coarse::{self, CoarseFactor, CoarseForm, Gram};
 use super::error::CoarseError;
 use super::precond::{Built, DualPreconditioner, Kind};
 use super::schur::SchurForm;
 use crate::qp::{Equality, Operator};
-use faer::linalg::triangular_solve::{
-    solve_lower_triangular_in_place, solve_upper_triangular_in_place,
-};
-use faer::{Mat, MatMut, Par, Side};
-use std::sync::atomic::{AtomicUsize, Ordering};
+use faer::{Mat, Side};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::Mutex;
+use std::time::Instant;
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     match m.lock() {
@@ -26,58 +26,118 @@ fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
     }
 }
 
+/// What the coarse problem cost so far.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct CoarseStats {
+    /// `Dense` or `Sparse`.
+    pub form: CoarseForm,
+    /// Coarse unknowns.
+    pub dim: usize,
+    /// Entries of the Cholesky factor stored.
+    pub factor_nonzeros: usize,
+    /// Seconds assembling and factorizing `G G^T` (at set-up and in every
+    /// reconstruction of `alpha`, over the active rows).
+    pub setup_seconds: f64,
+    /// Projections `P x` so far.
+    pub projections: usize,
+    /// Seconds in the coarse operators so far: projections, `G~ x`, `G~^T y`.
+    pub apply_seconds: f64,
+}
+
 /// `F`, `G~`, `P` of one decomposed problem.
 pub struct Dual {
     cluster: Cluster,
-    /// Lower Cholesky factor of `G G^T`: `G~ = L^-1 G`.
-    l: Mat<f64>,
-    /// Work space of the projector: kernel-sized and multiplier-sized.
-    proj: Mutex<(Vec<f64>, Vec<f64>)>,
+    /// Cholesky factor of `G G^T`: `G~ = L^-1 Q G` (`Q` its ordering).
+    coarse: CoarseFactor,
+    /// Work space of the projector: kernel-sized, multiplier-sized, and the
+    /// local row values of `G^T z`.
+    proj: Mutex<(Vec<f64>, Vec<f64>, Vec<f64>)>,
     /// Applications of `F` so far.
     f_applications: AtomicUsize,
+    /// Projections so far, and nanoseconds in the coarse operators and in
+    /// assembling and factorizing coarse problems.
+    projections: AtomicUsize,
+    apply_nanos: AtomicU64,
+    setup_nanos: AtomicU64,
     /// The dual preconditioner, when one was asked for.
     precond: Option<DualPreconditioner>,
+}
+
+fn nanos(t: Instant) -> u64 {
+    u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX)
 }
 
 impl Dual {
     /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
     /// some subdomain is not touched by any row (G G^T singular).
     pub fn new(cluster: Cluster) -> Result<Self, CoarseError> {
-        let ggt = cluster.coarse_gram(None);
+        Dual::with_coarse(cluster, CoarseForm::Auto)
+    }
+
+    /// [`Dual::new`] with the form of the coarse problem given (`Auto`: by
+    /// size).
+    pub fn with_coarse(cluster: Cluster, form: CoarseForm) -> Result<Self, CoarseError> {
+        let t = Instant::now();
+        let ggt = Gram::assemble(&cluster, None, form);
         let n3 = cluster.kernel_dim();
-        let scale = (0..n3)
-            .map(|i| ggt[(i, i)])
-            .fold(0.0f64, f64::max)
-            .max(1e-300);
+        let diag = ggt.diagonal();
+        let scale = diag.iter().copied().fold(0.0f64, f64::max).max(1e-300);
         let free: Vec<(usize, usize)> = (0..n3)
-            .filter(|&i| ggt[(i, i)] <= 1e-12 * scale)
+            .filter(|&i| diag[i] <= 1e-12 * scale)
             .map(|i| cluster.mode(i))
             .collect();
         if !free.is_empty() {
             return Err(CoarseError { free_modes: free });
         }
-        let singular = || CoarseError {
-            free_modes: null_modes(&ggt)
+        let coarse = CoarseFactor::factor(ggt, 1e-12).map_err(|ggt| CoarseError {
+            free_modes: null_modes(&ggt.to_dense())
                 .into_iter()
                 .map(|i| cluster.mode(i))
                 .collect(),
-        };
-        let l = match ggt.llt(Side::Lower) {
-            Ok(llt) => llt.L().to_owned(),
-            Err(_) => return Err(singular()),
-        };
-        let min_pivot = (0..n3).map(|i| l[(i, i)]).fold(f64::INFINITY, f64::min);
-        if min_pivot * min_pivot <= 1e-12 * scale {
-            return Err(singular());
-        }
-        let proj = Mutex::new((vec![0.0; n3], vec![0.0; cluster.multipliers()]));
+        })?;
+        let proj = Mutex::new((vec![0.0; n3], vec![0.0; cluster.multipliers()], Vec::new()));
         Ok(Dual {
             cluster,
-            l,
+            coarse,
             proj,
             f_applications: AtomicUsize::new(0),
+            projections: AtomicUsize::new(0),
+            apply_nanos: AtomicU64::new(0),
+            setup_nanos: AtomicU64::new(nanos(t)),
             precond: None,
         })
+    }
+
+    /// What the coarse problem cost so far.
+    pub fn coarse_stats(&self) -> CoarseStats {
+        CoarseStats {
+            form: if self.coarse.is_sparse() {
+                CoarseForm::Sparse
+            } else {
+                CoarseForm::Dense
+            },
+            dim: self.coarse.dim(),
+            factor_nonzeros: self.coarse.nonzeros(),
+            setup_seconds: self.setup_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
+            projections: self.projections.load(Ordering::Relaxed),
+            apply_seconds: self.apply_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
+        }
+    }
+
+    /// The form the coarse problem was set up in (`Dense` or `Sparse`).
+    pub fn coarse_form(&self) -> CoarseForm {
+        self.coarse_stats().form
+    }
+
+    /// Counts `started`'s time as coarse set-up (assembly and factorization).
+    pub(crate) fn add_coarse_setup(&self, started: Instant) {
+        self.setup_nanos
+            .fetch_add(nanos(started), Ordering::Relaxed);
+    }
+
+    fn add_coarse_apply(&self, started: Instant) {
+        self.apply_nanos
+            .fetch_add(nanos(started), Ordering::Relaxed);
     }
 
     /// The subdomains and their rows.
@@ -140,37 +200,29 @@ impl Dual {
         self.cluster.apply_f_block(xs)
     }
 
-    /// `z <- L^-1 z`.
+    /// `z <- L^-1 Q z` (`G~ = L^-1 Q G`).
     pub fn solve_l(&self, z: &mut [f64]) {
-        let n = z.len();
-        solve_lower_triangular_in_place(
-            self.l.as_ref(),
-            MatMut::from_column_major_slice_mut(z, n, 1),
-            Par::Seq,
-        );
+        self.coarse.solve_l(z);
     }
 
-    /// `z <- L^-T z`.
+    /// `z <- Q^T L^-T z`.
     pub fn solve_lt(&self, z: &mut [f64]) {
-        let n = z.len();
-        solve_upper_triangular_in_place(
-            self.l.as_ref().transpose(),
-            MatMut::from_column_major_slice_mut(z, n, 1),
-            Par::Seq,
-        );
+        self.coarse.solve_lt(z);
     }
 
     /// `x <- P x = x - G~^T G~ x`.
     pub fn project(&self, x: &mut [f64]) {
+        let t0 = Instant::now();
         let mut guard = lock(&self.proj);
-        let (z, t) = &mut *guard;
-        self.cluster.apply_g(x, z);
-        self.solve_l(z);
-        self.solve_lt(z);
-        self.cluster.apply_gt(z, t);
+        let (z, t, w) = &mut *guard;
+        coarse::apply_g(&self.cluster, x, z);
+        self.coarse.solve(z);
+        coarse::apply_gt(&self.cluster, z, t, w);
         for (a, b) in x.iter_mut().zip(t.iter()) {
             *a -= b;
         }
+        self.projections.fetch_add(1, Ordering::Relaxed);
+        self.add_coarse_apply(t0);
     }
 }
 
@@ -243,16 +295,20 @@ impl Equality for Orthonormal<'_> {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        self.0.cluster.apply_g(x, y);
+        let t0 = Instant::now();
+        coarse::apply_g(&self.0.cluster, x, y);
         self.0.solve_l(y);
+        self.0.add_coarse_apply(t0);
     }
 
     fn apply_t(&self, y: &[f64], x: &mut [f64]) {
+        let t0 = Instant::now();
         let mut guard = lock(&self.0.proj);
-        let z = &mut guard.0;
+        let (z, _, w) = &mut *guard;
         z.copy_from_slice(y);
         self.0.solve_lt(z);
-        self.0.cluster.apply_gt(z, x);
+        coarse::apply_gt(&self.0.cluster, z, x, w);
+        self.0.add_coarse_apply(t0);
     }
 }
 

@@ -1,9 +1,10 @@
 //! Total FETI end to end, and classical FETI beside it: per-subdomain operators
 //! behind one interface ([`subdomain`]), the subdomains this process owns and
-//! the loops over them ([`cluster`]), the coarse space and projector and `F`
-//! ([`dual`]), the dual solve ([`solve`]; many equality-only right-hand sides
-//! at once in [`block`]), the reconstruction of the primal
-//! solution ([`reconstruct`]) and its KKT check ([`kkt`]). Classical FETI
+//! the loops over them ([`cluster`]), the coarse problem `G G^T` dense or
+//! sparse ([`coarse`]), the coarse space and projector and `F` ([`dual`]), the
+//! dual solve ([`solve`]; many equality-only right-hand sides at once in
+//! [`block`]), the reconstruction of the primal solution ([`reconstruct`]) and
+//! its KKT check ([`kkt`]). Classical FETI
 //! ([`classical`], kernels by pivot detection in [`floating`]) is the same dual
 //! machinery with other kernels and Dirichlet dofs eliminated.
 //!
@@ -14,6 +15,7 @@
 pub mod block;
 pub mod classical;
 pub mod cluster;
+pub mod coarse;
 pub mod comm;
 pub mod dual;
 pub mod error;

@@ -3,9 +3,10 @@
 //! `u = K^+ (f - B^T l) + R alpha`. A rigid motion that no active row
 //! determines is refused (the state is not unique), never guessed.
 
+use super::coarse::{CoarseFactor, CoarseForm, Gram};
 use super::dual::Dual;
 use super::error::SolveError;
-use faer::Side;
+use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
 /// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
@@ -33,7 +34,7 @@ pub(crate) fn reconstruct(
 }
 
 /// [`reconstruct`] of a block of equality-only problems (every row holds): one
-/// `G~ G~^T` factor and one pass over the subdomain factors for all of them.
+/// `G G^T` factor and one pass over the subdomain factors for all of them.
 /// Returns `u` of each.
 pub(crate) fn reconstruct_block(
     dual: &Dual,
@@ -47,7 +48,7 @@ pub(crate) fn reconstruct_block(
     Ok(dual.cluster().primal_block(fs, lambdas, &alphas))
 }
 
-/// The kernel coefficients of each `(F l, d)`: `G~ G~^T alpha = G~ r` with
+/// The kernel coefficients of each `(F l, d)`: `G G^T alpha = G r` with
 /// `r = F l - d` on the `active` rows (zero elsewhere).
 fn kernel_coefficients(
     dual: &Dual,
@@ -57,24 +58,19 @@ fn kernel_coefficients(
 ) -> Result<Vec<Vec<f64>>, SolveError> {
     let cluster = dual.cluster();
     let n3 = cluster.kernel_dim();
-    let gg = cluster.coarse_gram(Some(active));
-    // G~G~^T over the active rows must be regular: a round-off pivot means a
+    let t = Instant::now();
+    let gg = Gram::assemble(cluster, Some(active), CoarseForm::Auto);
+    // G G^T over the active rows must be regular: a round-off pivot means a
     // rigid motion no active row determines (the state is not unique).
-    let scale = (0..n3).map(|i| gg[(i, i)]).fold(0.0f64, f64::max);
-    let undetermined = || SolveError::Undetermined {
-        modes: super::dual::null_modes(&gg)
+    let factor = CoarseFactor::factor(gg, 1e-10);
+    dual.add_coarse_setup(t);
+    let factor = factor.map_err(|gg| SolveError::Undetermined {
+        modes: super::dual::null_modes(&gg.to_dense())
             .into_iter()
             .map(|i| dual.mode(i))
             .collect(),
         stopped: None,
-    };
-    let llt = gg.llt(Side::Lower).map_err(|_| undetermined())?;
-    let min_pivot = (0..n3)
-        .map(|i| llt.L()[(i, i)].powi(2))
-        .fold(f64::INFINITY, f64::min);
-    if n3 > 0 && min_pivot <= 1e-10 * scale {
-        return Err(undetermined());
-    }
+    })?;
     let mut alphas = Vec::with_capacity(fls.len());
     for (fl, d) in fls.iter().zip(ds) {
         let r: Vec<f64> = fl
@@ -85,13 +81,7 @@ fn kernel_coefficients(
             .collect();
         let mut alpha = vec![0.0; n3];
         cluster.apply_g(&r, &mut alpha);
-        {
-            use faer::linalg::solvers::SolveCore;
-            llt.solve_in_place_with_conj(
-                faer::Conj::No,
-                faer::MatMut::from_column_major_slice_mut(&mut alpha, n3, 1),
-            );
-        }
+        factor.solve(&mut alpha);
         alphas.push(alpha);
     }
     Ok(alphas)
