@@ -471,3 +471,46 @@ fn one_block_solve_gives_the_directions_of_the_single_solves_even_when_they_are_
         "{cost:?} vs {single_products}"
     );
 }
+
+#[test]
+fn a_warm_start_of_a_direction_that_moves_nothing_gives_zero() {
+    // idle enters the geometry multiplied by 0: its direction's data is zero, and
+    // a start that is not must not survive into the answer.
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
+        .expect("example")
+        .replace(
+            "bottom = 1 + bezier(a, x - 1)",
+            "bottom = 1 + bezier(a, x - 1) + 0 * idle",
+        )
+        .replace(
+            "body base",
+            "design idle { init = 0, lower = -0.01, upper = 0.01 }\nbody base",
+        );
+    let mut s = compile(&src, &options()).expect("checks");
+    s.solver.tolerance = 1e-10;
+    let design = s.design_init();
+    let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
+    let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");
+    let (cold, _) = sens.directions(1e-10).expect("solves");
+    let idle = s
+        .design
+        .iter()
+        .position(|v| v.name == "idle")
+        .expect("idle");
+    assert!(cold[idle].lambda.iter().all(|v| *v == 0.0));
+    // Start every direction from the first one's multipliers.
+    let starts = vec![cold[0].lambda.clone(); cold.len()];
+    let (warm, _) = sens.directions_from(1e-10, &starts).expect("solves");
+    let lmax = cold[0].lambda.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    for (i, (c, w)) in cold.iter().zip(&warm).enumerate() {
+        let worst = c
+            .lambda
+            .iter()
+            .zip(&w.lambda)
+            .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+        assert!(
+            worst <= 1e-7 * lmax,
+            "direction {i}: warm vs cold {worst:e}"
+        );
+    }
+}

@@ -187,10 +187,22 @@ impl Formula {
 /// algorithm takes O(n^2), which made a gradient over `m` control points cost
 /// O(m^3) per node in dual numbers. The end points are reproduced exactly.
 fn bernstein<T: Scalar>(b: &[T], t: T) -> T {
+    /// Above this degree the binomials overflow (C(1030, 515) > f64::MAX).
+    const MAX_HORNER_DEGREE: usize = 500;
     let Some(n) = b.len().checked_sub(1) else {
         return T::from(0.0);
     };
     let one = T::from(1.0);
+    if n > MAX_HORNER_DEGREE {
+        // C(n, n/2) and (1-t)^n leave f64's range: de Casteljau's O(n^2).
+        let mut b = b.to_vec();
+        for level in (1..=n).rev() {
+            for i in 0..level {
+                b[i] = b[i] * (one - t) + b[i + 1] * t;
+            }
+        }
+        return b[0];
+    }
     // C(n, i) for the first half by integer steps (exact while C(n, i) n < 2^53),
     // mirrored for the second, so that C(n, 0) = C(n, n) = 1 exactly.
     let mut binom = vec![1.0; n + 1];
@@ -322,8 +334,8 @@ mod tests {
     }
 
     #[test]
-    fn the_linear_time_bernstein_sum_matches_de_casteljau_up_to_degree_95() {
-        for n in [1usize, 2, 5, 24, 60, 96] {
+    fn the_linear_time_bernstein_sum_matches_de_casteljau() {
+        for n in [1usize, 2, 5, 24, 60, 96, 1200] {
             let b: Vec<f64> = (0..n)
                 .map(|i| ((i * 7919) % 13) as f64 / 13.0 - 0.4)
                 .collect();
@@ -336,6 +348,11 @@ mod tests {
                     "degree {}: t = {t}: {got} vs {want}",
                     n - 1
                 );
+            }
+            // Extrapolation (t outside [0, 1]) is the same polynomial.
+            for t in [-0.2, 1.3].iter().filter(|_| n <= 6) {
+                let (got, want) = (bernstein(&b, *t), casteljau(b.clone(), *t));
+                assert!((got - want).abs() <= 1e-13 * scale * 10.0, "t = {t}");
             }
             assert_eq!(bernstein(&b, 0.0), b[0]);
             assert_eq!(bernstein(&b, 1.0), b[n - 1]);

@@ -432,6 +432,7 @@ impl<'a> Sensitivity<'a> {
                     .collect()
             });
         let rhs: Vec<Rhs> = (0..m).map(|i| self.rhs(i)).collect();
+        let mut failed = Cost::default();
         if m > 1 && self.n_equality == self.kept.len() {
             let fs: Vec<Vec<&[f64]>> = rhs
                 .iter()
@@ -457,9 +458,15 @@ impl<'a> Sensitivity<'a> {
                         .collect();
                     return Ok((dirs, cost));
                 }
+                // The block stopped short: its work counts, then single solves.
+                failed = Cost {
+                    products: sol.info.products,
+                    passes: sol.info.passes,
+                    block_iterations: None,
+                };
             }
         }
-        let mut cost = Cost::default();
+        let mut cost = failed;
         let mut dirs = Vec::with_capacity(m);
         for r in rhs {
             let d = self.direction_from(r, tolerance)?;
@@ -626,12 +633,15 @@ impl<'a> Sensitivity<'a> {
             )));
         }
         let rows = self.state.problem.rows.len();
-        let starts: Vec<Vec<f64>> = starts
-            .iter()
-            .filter(|l| l.len() == rows)
-            .map(|l| self.kept.iter().map(|&r| l[r]).collect())
-            .collect();
-        let starts = (starts.len() == fs.len()).then_some(starts.as_slice());
+        // One start per functional, each per state row, or none at all.
+        let starts: Option<Vec<Vec<f64>>> =
+            (starts.len() == fs.len() && starts.iter().all(|l| l.len() == rows)).then(|| {
+                starts
+                    .iter()
+                    .map(|l| self.kept.iter().map(|&r| l[r]).collect())
+                    .collect()
+            });
+        let starts = starts.as_deref();
         let (solved, cost) = self.adjoint_solves(fs, tolerance, starts)?;
         let p = &self.state.problem;
         let mut ends = Vec::with_capacity(fs.len());
@@ -735,6 +745,9 @@ impl<'a> Sensitivity<'a> {
                     }
                     return Ok((out, cost));
                 }
+                // The block stopped short: its work counts, then single solves.
+                cost.products += sol.info.products;
+                cost.passes += sol.info.passes;
             }
         }
         for &k in &solved {

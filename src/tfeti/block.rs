@@ -10,7 +10,10 @@
 //! of them alone. It is the breakdown-free block CG: the search block is
 //! re-orthonormalized with its rank revealed every iteration, so right-hand
 //! sides that are dependent (symmetric designs, directions that move nothing)
-//! or that converge early drop out instead of breaking the iteration.
+//! or that converge early drop out instead of breaking the iteration. A
+//! converged column no longer feeds the search block, which loosens the
+//! conjugacy to older blocks by about the tolerance; every column's residual
+//! is tested every iteration, so one that drifts back reopens.
 //!
 //! # Reference
 //! H. Ji, Y. Li, "A breakdown-free block conjugate gradient method", BIT 57
@@ -29,8 +32,10 @@ pub struct BlockInfo {
     pub status: Status,
     /// Block iterations: passes of `P F P` over the whole (shrinking) block.
     pub iterations: usize,
-    /// Passes over the subdomain factors with `F` (iterations, and one each
-    /// for the homogenization and the reconstruction).
+    /// Passes over the subdomain factors with `F` (iterations, one each for
+    /// the homogenization and the reconstruction, one for a warm start's
+    /// residual; the two passes with `K^+` alone, for the loads and for `u`,
+    /// are not counted, as in the single solves).
     pub passes: usize,
     /// Products with `F` counted per column (what single solves would count).
     pub products: usize,
@@ -72,12 +77,19 @@ fn add_product(y: &mut [Vec<f64>], x: &[Vec<f64>], c: &Mat<f64>, sign: f64) {
     }
 }
 
-/// An orthonormal basis of the span of `y`, its rank revealed: eigenvectors
-/// of the Gram matrix with eigenvalues below `1e-12` of the largest are
-/// dropped (directions dependent to about 1e-6), and a second pass restores
-/// orthonormality to round-off.
+/// An orthonormal basis of the span of `y`, its rank revealed: the columns
+/// scaled to unit norm (so that size is not mistaken for dependence), then
+/// eigenvectors of the Gram matrix with eigenvalues below `1e-12` of the
+/// largest dropped (directions dependent to about 1e-6), and a second pass
+/// restores orthonormality to round-off.
 fn orthonormal(y: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let mut basis = y.to_vec();
+    let mut basis: Vec<Vec<f64>> = y
+        .iter()
+        .filter_map(|c| {
+            let n = norm(c);
+            (n > 0.0 && n.is_finite()).then(|| c.iter().map(|v| v / n).collect())
+        })
+        .collect();
     for pass in 0..2 {
         if basis.is_empty() {
             break;
@@ -153,8 +165,15 @@ fn block_projected_cg(
             let ax = apply_block(dual, &x0);
             info.passes += 1;
             info.products += x0.len();
-            for (rj, axj) in r.iter_mut().zip(&ax) {
+            let mut x0 = x0;
+            for (j, (rj, axj)) in r.iter_mut().zip(&ax).enumerate() {
                 rj.iter_mut().zip(axj).for_each(|(a, b)| *a -= b);
+                // A start no better than zero is dropped (as in projected CG);
+                // so is any start of a zero right-hand side, whose answer is 0.
+                if bnorm[j] == 0.0 || norm(rj) >= bnorm[j] {
+                    x0[j].iter_mut().for_each(|v| *v = 0.0);
+                    rj.copy_from_slice(&b[j]);
+                }
             }
             x0
         }

@@ -546,7 +546,8 @@ impl Cluster {
 /// Blocks of right-hand sides: one pass over every subdomain's factor for all
 /// of them (the sensitivity directions of a design). Serial clusters only; a
 /// distributed cluster applies the single-vector products column by column,
-/// which keeps the results independent of the rank count.
+/// whose bits may differ from a multi-column solve's in the last place (the
+/// CLI does not distribute sensitivities yet).
 impl Cluster {
     /// Per owned subdomain: `fill` writes column `c` of a `dofs x cols` block,
     /// `K_s^+` is applied to the block at once, and `finish` reads it.
@@ -556,6 +557,7 @@ impl Cluster {
         fill: impl Fn(usize, usize, &mut [f64]) + Sync + Send,
         finish: impl Fn(usize, &Subdomain, &[f64]) -> T + Sync + Send,
     ) -> Vec<T> {
+        debug_assert!(!self.is_distributed(), "block products are serial only");
         self.map(|s, sub| {
             let n = sub.dofs();
             let mut x = vec![0.0; n * cols];
