@@ -404,6 +404,24 @@ fn a_step_that_moves_the_geometry_too_far_is_blamed_not_the_supports() {
     assert!(msg.contains(&format!("`{variable}`")), "{msg}");
 }
 
+/// scont2d with one more design variable `name` (init 0) whose `term` is added
+/// to the punch's face, solved to `tolerance`.
+fn scont2d_with_a_face_term(name: &str, term: &str, tolerance: f64) -> cso::lang::Scene {
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
+        .expect("example")
+        .replace(
+            "bottom = 1 + bezier(a, x - 1)",
+            &format!("bottom = 1 + bezier(a, x - 1) + {term}"),
+        )
+        .replace(
+            "body base",
+            &format!("design {name} {{ init = 0, lower = -0.01, upper = 0.01 }}\nbody base"),
+        );
+    let mut s = compile(&src, &options()).expect("checks");
+    s.solver.tolerance = tolerance;
+    s
+}
+
 /// `u'` and `l'` of two directions, worst difference relative to the largest entry.
 fn direction_difference(a: &cso::sens::semi::Direction, b: &cso::sens::semi::Direction) -> f64 {
     let worst = |x: Vec<f64>, y: Vec<f64>| {
@@ -421,18 +439,7 @@ fn direction_difference(a: &cso::sens::semi::Direction, b: &cso::sens::semi::Dir
 fn one_block_solve_gives_the_directions_of_the_single_solves_even_when_they_are_dependent() {
     // d shifts the whole face: its direction is the sum of the six Bezier ones
     // (the Bernstein polynomials sum to 1), so the block is rank deficient.
-    let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
-        .expect("example")
-        .replace(
-            "bottom = 1 + bezier(a, x - 1)",
-            "bottom = 1 + bezier(a, x - 1) + d",
-        )
-        .replace(
-            "body base",
-            "design d { init = 0, lower = -0.01, upper = 0.01 }\nbody base",
-        );
-    let mut s = compile(&src, &options()).expect("checks");
-    s.solver.tolerance = 1e-11;
+    let s = scont2d_with_a_face_term("d", "d", 1e-11);
     let design = s.design_init();
     let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
     let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");
@@ -476,18 +483,7 @@ fn one_block_solve_gives_the_directions_of_the_single_solves_even_when_they_are_
 fn a_warm_start_of_a_direction_that_moves_nothing_gives_zero() {
     // idle enters the geometry multiplied by 0: its direction's data is zero, and
     // a start that is not must not survive into the answer.
-    let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
-        .expect("example")
-        .replace(
-            "bottom = 1 + bezier(a, x - 1)",
-            "bottom = 1 + bezier(a, x - 1) + 0 * idle",
-        )
-        .replace(
-            "body base",
-            "design idle { init = 0, lower = -0.01, upper = 0.01 }\nbody base",
-        );
-    let mut s = compile(&src, &options()).expect("checks");
-    s.solver.tolerance = 1e-10;
+    let s = scont2d_with_a_face_term("idle", "0 * idle", 1e-10);
     let design = s.design_init();
     let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
     let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");

@@ -331,8 +331,9 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
 /// applications of their solves, and the one-sided directions.
 type AdjointGradients = (Vec<Vec<f64>>, Cost, Vec<usize>);
 
-/// An adjoint solution: `w` per subdomain, `nu` per kept row.
-type Adjoint = (Vec<Vec<f64>>, Vec<f64>);
+/// A solved sensitivity or adjoint problem: `u'` (or `w`) per subdomain, the
+/// multipliers (`l'` or `nu`) per kept row.
+type Solved = (Vec<Vec<f64>>, Vec<f64>);
 
 /// The semi-analytical sensitivity problem of a solved state: its rows and operators.
 pub struct Sensitivity<'a> {
@@ -479,23 +480,40 @@ impl<'a> Sensitivity<'a> {
 
     /// Solves one direction's problem alone.
     fn direction_from(&self, rhs: Rhs, tolerance: f64) -> Result<Direction, SolveError> {
-        let f: Vec<&[f64]> = rhs.fbar.iter().map(Vec::as_slice).collect();
+        let ((u, lambda), cost) = self.solve_one(&rhs.fbar, &rhs.cbar, None, tolerance)?;
+        Ok(self.assemble(rhs, u, &lambda, cost))
+    }
+
+    /// One sensitivity or adjoint problem alone (SMALE, or SMALBE with weak
+    /// contacts): `u`, `lambda` on the kept rows, and its products with `F`.
+    fn solve_one(
+        &self,
+        f: &[Vec<f64>],
+        c: &[f64],
+        start: Option<Vec<f64>>,
+        tolerance: f64,
+    ) -> Result<(Solved, usize), SolveError> {
+        let f: Vec<&[f64]> = f.iter().map(Vec::as_slice).collect();
+        let start = start.map(|lambda| DualStart {
+            lambda,
+            ..DualStart::default()
+        });
         let before = self.dual.f_applications();
         // Held dofs of classical FETI do not move with the design: zero there.
         let sol = self.dual.solve(
             &f,
-            &rhs.cbar,
+            c,
             self.n_equality,
             false,
             &solve_settings(tolerance),
-            None,
+            start.as_ref(),
             &mut |_| {},
         )?;
-        let hessian_applications = sol
+        let cost = sol
             .info
             .hessian_applications
             .max(self.dual.f_applications() - before);
-        Ok(self.assemble(rhs, sol.u, &sol.lambda, hessian_applications))
+        Ok(((sol.u, sol.lambda), cost))
     }
 
     /// A direction from its data and its solution (`lambda` on the kept rows).
@@ -709,7 +727,7 @@ impl<'a> Sensitivity<'a> {
         fs: &[Functional],
         tolerance: f64,
         starts: Option<&[Vec<f64>]>,
-    ) -> Result<(Vec<Adjoint>, Cost), SolveError> {
+    ) -> Result<(Vec<Solved>, Cost), SolveError> {
         let data: Vec<_> = fs.iter().map(|f| self.adjoint_data(f)).collect();
         // Nothing depends on (u, l) (a functional of the geometry alone): the
         // adjoint is zero, no solve needed.
@@ -718,7 +736,7 @@ impl<'a> Sensitivity<'a> {
         let solved: Vec<usize> = (0..fs.len()).filter(|&k| !zero(&data[k])).collect();
         let start_of = |k: usize| starts.map(|st| st[k].clone());
         // Zero adjoints where nothing is solved.
-        let mut out: Vec<Adjoint> = data.clone();
+        let mut out: Vec<Solved> = data.clone();
         let mut cost = Cost::default();
         if solved.len() > 1 {
             let f_adj: Vec<Vec<&[f64]>> = solved
@@ -752,29 +770,10 @@ impl<'a> Sensitivity<'a> {
         }
         for &k in &solved {
             let (ju, c_adj) = &data[k];
-            let f_adj: Vec<&[f64]> = ju.iter().map(Vec::as_slice).collect();
-            let start = start_of(k).map(|lambda| DualStart {
-                lambda,
-                ..DualStart::default()
-            });
-            let before = self.dual.f_applications();
-            // Held dofs of classical FETI do not move with the design: zero there.
-            let sol = self.dual.solve(
-                &f_adj,
-                c_adj,
-                self.n_equality,
-                false,
-                &solve_settings(tolerance),
-                start.as_ref(),
-                &mut |_| {},
-            )?;
-            let c = sol
-                .info
-                .hessian_applications
-                .max(self.dual.f_applications() - before);
+            let (solved, c) = self.solve_one(ju, c_adj, start_of(k), tolerance)?;
             cost.products += c;
             cost.passes += c;
-            out[k] = (sol.u, sol.lambda);
+            out[k] = solved;
         }
         Ok((out, cost))
     }
