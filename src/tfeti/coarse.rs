@@ -551,6 +551,14 @@ mod tests {
 
     type Row = Vec<(usize, usize, f64)>;
 
+    /// `max_i |a_i - b_i|`.
+    fn max_diff(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(p, q)| (p - q).abs())
+            .fold(0.0, f64::max)
+    }
+
     /// `nx x ny` unit squares of 2 x 2 elements glued along their sides (both
     /// components of every shared node), the left side of the first column
     /// held when `held`; `skip` (if any) is a subdomain left without rows.
@@ -658,11 +666,7 @@ mod tests {
             let (mut pd, mut ps) = (x.clone(), x.clone());
             dense.project(&mut pd);
             sparse.project(&mut ps);
-            let diff = pd
-                .iter()
-                .zip(&ps)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let diff = max_diff(&pd, &ps);
             assert!(diff <= 1e-12 * norm(&x), "P x differs by {diff:e}");
             // G P x = 0 with the sparse factor.
             let mut gpx = vec![0.0; sparse.kernel_dim()];
@@ -680,11 +684,7 @@ mod tests {
             g.apply_t(&y, &mut gty);
             let mut ggty = vec![0.0; y.len()];
             g.apply(&gty, &mut ggty);
-            let err = y
-                .iter()
-                .zip(&ggty)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
+            let err = max_diff(&y, &ggty);
             assert!(err <= 1e-12 * norm(&y), "G~ G~^T y - y = {err:e}");
         }
     }
@@ -719,11 +719,7 @@ mod tests {
             z
         };
         let (d, s) = (solve(CoarseForm::Dense), solve(CoarseForm::Sparse));
-        let diff = d
-            .iter()
-            .zip(&s)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let diff = max_diff(&d, &s);
         assert!(diff <= 1e-12 * norm(&d), "(G G^T)^-1 z differs by {diff:e}");
     }
 
@@ -749,20 +745,12 @@ mod tests {
         let (p, nnz_p) = solve(SupernodalThreshold::FORCE_SUPERNODAL);
         // The supernodal copy keeps no more than L's entries (padding dropped).
         assert!(nnz_p <= nnz_s, "{nnz_p} > {nnz_s}");
-        let diff = s
-            .iter()
-            .zip(&p)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let diff = max_diff(&s, &p);
         assert!(diff <= 1e-12 * norm(&s), "solves differ by {diff:e}");
         // And the solution solves: (G G^T) x = z.
         let mut r = vec![0.0; n];
         a.mul(&s, &mut r);
-        let err = r
-            .iter()
-            .zip(&z0)
-            .map(|(a, b)| (a - b).abs())
-            .fold(0.0, f64::max);
+        let err = max_diff(&r, &z0);
         assert!(err <= 1e-10 * norm(&z0), "residual {err:e}");
     }
 

@@ -169,14 +169,7 @@ pub fn ldlt_solve(
     x: &mut [f64],
     buf: &mut MemBuffer,
 ) {
-    let n = x.len();
-    let ldlt = LdltRef::<usize, f64>::new(symbolic, l_values);
-    ldlt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(x, n, 1),
-        Par::Seq,
-        MemStack::new(buf),
-    );
+    ldlt_solve_block(symbolic, l_values, x, 1, buf);
 }
 
 /// The numeric Cholesky factor of `a` (its upper triangle) on `symbolic`, and a
@@ -211,14 +204,7 @@ pub fn llt_solve(
     x: &mut [f64],
     buf: &mut MemBuffer,
 ) {
-    let n = x.len();
-    let llt = LltRef::<usize, f64>::new(symbolic, l_values);
-    llt.solve_in_place_with_conj(
-        Conj::No,
-        MatMut::from_column_major_slice_mut(x, n, 1),
-        Par::Seq,
-        MemStack::new(buf),
-    );
+    llt_solve_block(symbolic, l_values, x, 1, buf);
 }
 
 /// A work buffer for solves with `cols` right-hand sides on `symbolic`.

@@ -112,6 +112,22 @@ impl Factor {
     }
 }
 
+/// `xr[reduced[d]] = x[d]` for the dofs that are not fixed.
+fn to_reduced(reduced: &[usize], x: &[f64], xr: &mut [f64]) {
+    for (d, &r) in reduced.iter().enumerate() {
+        if r != usize::MAX {
+            xr[r] = x[d];
+        }
+    }
+}
+
+/// `x[d] = xr[reduced[d]]`, and 0 at the fixed dofs.
+fn from_reduced(reduced: &[usize], xr: &[f64], x: &mut [f64]) {
+    for (d, &r) in reduced.iter().enumerate() {
+        x[d] = if r == usize::MAX { 0.0 } else { xr[r] };
+    }
+}
+
 /// A subdomain's stiffness, kernel and generalized inverse.
 pub struct Subdomain {
     /// Dofs (`dim` per node).
@@ -423,15 +439,9 @@ impl Subdomain {
                 l_values,
                 ..
             } => {
-                for (d, &r) in reduced.iter().enumerate() {
-                    if r != usize::MAX {
-                        work.x[r] = x[d];
-                    }
-                }
+                to_reduced(reduced, x, &mut work.x);
                 llt_solve(symbolic, l_values, &mut work.x, &mut work.buf);
-                for (d, &r) in reduced.iter().enumerate() {
-                    x[d] = if r == usize::MAX { 0.0 } else { work.x[r] };
-                }
+                from_reduced(reduced, &work.x, x);
             }
             Factor::Regularized {
                 scaling,
@@ -468,19 +478,17 @@ impl Subdomain {
                 ..
             } => {
                 let nr = symbolic.nrows();
+                if nr == 0 {
+                    x.iter_mut().for_each(|v| *v = 0.0);
+                    return;
+                }
                 let mut xr = vec![0.0; nr * cols];
-                for c in 0..cols {
-                    for (d, &r) in reduced.iter().enumerate() {
-                        if r != usize::MAX {
-                            xr[c * nr + r] = x[c * n + d];
-                        }
-                    }
+                for (xc, xrc) in x.chunks_exact(n).zip(xr.chunks_exact_mut(nr)) {
+                    to_reduced(reduced, xc, xrc);
                 }
                 llt_solve_block(symbolic, l_values, &mut xr, cols, &mut buf);
-                for c in 0..cols {
-                    for (d, &r) in reduced.iter().enumerate() {
-                        x[c * n + d] = if r == usize::MAX { 0.0 } else { xr[c * nr + r] };
-                    }
+                for (xc, xrc) in x.chunks_exact_mut(n).zip(xr.chunks_exact(nr)) {
+                    from_reduced(reduced, xrc, xc);
                 }
             }
             Factor::Regularized {
