@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use cso::io::atomic::write_files;
 use cso::io::atomic::Files;
 use cso::io::tables;
-use cso::lang::scene::{Preconditioner, Scheme, SensitivityMethod, SolverMethod};
+use cso::lang::scene::{LocalF, Preconditioner, Scheme, SensitivityMethod, SolverMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
@@ -102,6 +102,9 @@ struct Solve {
     /// Dual preconditioner (default: the scene's `solver { preconditioner }`).
     #[arg(long, value_enum)]
     preconditioner: Option<Preconditioner>,
+    /// Dense or implicit local F (default: the scene's `solver { local_f }`).
+    #[arg(long, value_enum)]
+    local_f: Option<LocalF>,
 }
 
 #[derive(Args, Debug)]
@@ -194,6 +197,10 @@ struct Bench {
     /// (repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
     preconditioner: Vec<Preconditioner>,
+    /// `scaling`, `scaling3d`: how each subdomain's part of F is applied, one
+    /// row each (repeatable, or comma-separated; see `solver { local_f }`).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
+    local_f: Vec<LocalF>,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
@@ -724,6 +731,9 @@ impl Solve {
         if let Some(p) = self.preconditioner {
             scene.solver.preconditioner = p;
         }
+        if let Some(l) = self.local_f {
+            scene.solver.local_f = l;
+        }
         let prepared = if lead {
             prepare(self.out.as_deref())
         } else {
@@ -1079,8 +1089,10 @@ impl Bench {
                     // One row per preconditioner, each after H/h and cuts.
                     let mut cells = Vec::new();
                     for &p in &self.preconditioner {
-                        let r = bench::scaling_row(sx, sy, hh, tolerance, p);
-                        cells.push(output::scaling_cells(&r.map_err(|e| e.to_string())?));
+                        for &l in &self.local_f {
+                            let r = bench::scaling_row(sx, sy, hh, tolerance, p, l);
+                            cells.push(output::scaling_cells(&r.map_err(|e| e.to_string())?));
+                        }
                     }
                     Ok(cells.join(&format!(" |\n| {hh} | {sx}x{sy} | ")))
                 },
@@ -1099,8 +1111,12 @@ impl Bench {
                 };
                 for &hh in &hhs {
                     for &k in &self.sides {
-                        for &p in &self.preconditioner {
-                            match bench::scaling_row_3d(k, hh, tolerance, p) {
+                        for (&p, &l) in self
+                            .preconditioner
+                            .iter()
+                            .flat_map(|p| self.local_f.iter().map(move |l| (p, l)))
+                        {
+                            match bench::scaling_row_3d(k, hh, tolerance, p, l) {
                                 Ok(r) => {
                                     outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
                                 }

@@ -474,13 +474,16 @@ fn setup_on(
         problem.subdomains.len(),
         problem.rows.iter().map(|r| r.entries.iter().copied()),
     );
-    let cluster = Cluster::distributed(
+    let mut cluster = Cluster::distributed(
         subs.into_iter().map(|(s, _)| s).collect(),
         &bounds,
         local,
         problem.rows.len(),
         comm,
     );
+    // Dense local F where it moves fewer bytes; unchanged subdomains of the
+    // previous design keep theirs.
+    cluster.set_local_f(scene.solver.local_f, previous.map(|p| p.dual.cluster()));
     Ok(Setup {
         problem,
         cluster,

@@ -754,11 +754,42 @@ fn the_preconditioner_is_chosen_on_the_command_line() {
     let rows: Vec<&str> = out.lines().skip(3).collect();
     assert_eq!(rows.len(), 2, "{out}");
     assert!(
-        rows[0].starts_with("| 2 | 2x1 | 3 |") && rows[0].ends_with("| none |"),
+        rows[0].starts_with("| 2 | 2x1 | 3 |") && rows[0].contains("| none | auto "),
         "{out}"
     );
     assert!(
-        rows[1].starts_with("| 2 | 2x1 | 3 |") && rows[1].ends_with("| lumped |"),
+        rows[1].starts_with("| 2 | 2x1 | 3 |") && rows[1].contains("| lumped | auto "),
+        "{out}"
+    );
+}
+
+#[test]
+fn dense_local_f_is_chosen_on_the_command_line_and_changes_no_count() {
+    let (code, out, err) = cso(&[
+        "bench",
+        "scaling",
+        "--hh",
+        "4",
+        "--max-cuts",
+        "4x2",
+        "--threads",
+        "1",
+        "--local-f",
+        "implicit,explicit",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    // The 4x2 cut's two rows: same outer/inner/Hessian counts, every
+    // subdomain dense in the second.
+    let rows: Vec<Vec<&str>> = out
+        .lines()
+        .filter(|l| l.starts_with("| 4 | 4x2 |"))
+        .map(|l| l.split('|').map(str::trim).collect())
+        .collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    assert_eq!(rows[0][6..9], rows[1][6..9], "{out}");
+    assert_eq!(
+        (rows[0][15], rows[1][15]),
+        ("implicit 0/9", "explicit 9/9"),
         "{out}"
     );
 }

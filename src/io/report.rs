@@ -7,7 +7,8 @@
 //! - `scene`, `sizes`: primal unknowns and multipliers (the seed's "Primal/Dual
 //!   var." row), multipliers by kind, kernel dimension, subdomains, factor nonzeros,
 //!   `factorizations` (subdomains factorized `symbolic`ally, `numeric`ally, and
-//!   `reused` whole from a previous design);
+//!   `reused` whole from a previous design), `local_f` (subdomains whose
+//!   `F_s` is held dense, reused, bytes);
 //! - `solver`: status, outer/inner iterations, Hessian applications (`F` products
 //!   inside SMALBE) and all `F` applications, tolerance, `history` (relative
 //!   projected gradient after each outer iteration);
@@ -51,6 +52,8 @@ pub struct Sizes {
     pub kernel_detection: Option<crate::tfeti::floating::Margin>,
     /// Subdomains factorized symbolically, numerically, and reused whole.
     pub factorizations: crate::state::Factorizations,
+    /// Subdomains whose local `F_s` is held dense.
+    pub local_f: crate::tfeti::local_f::LocalFStats,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -158,6 +161,7 @@ impl Report {
             factor_nonzeros: state.dual.cluster().factor_nonzeros(),
             kernel_detection: state.dual.cluster().margin(),
             factorizations: state.factorizations,
+            local_f: state.dual.cluster().local_f_stats(),
         };
         let solver = SolverReport {
             status: state.info.status.clone(),
@@ -329,6 +333,18 @@ impl Report {
                 "  factorizations: {} symbolic, {} numeric, {} subdomains reused",
                 f.symbolic, f.numeric, f.reused
             );
+            let l = &s.local_f;
+            if l.explicit > 0 {
+                let _ = writeln!(
+                    o,
+                    "  local F dense on {} of {} subdomains ({:.1} MB, {} reused, formed in {:.3} s)",
+                    l.explicit,
+                    s.subdomains,
+                    l.bytes as f64 / 1e6,
+                    l.reused,
+                    l.seconds
+                );
+            }
         }
         let k = &self.kkt;
         let _ = writeln!(

@@ -612,6 +612,22 @@ pub enum Preconditioner {
     Dirichlet,
 }
 
+/// `solver { local_f }`: how each subdomain's part of `F = B K^+ B^T` is
+/// applied. `auto` holds `F_s = B_s K_s^+ B_s^T` as a dense matrix where its
+/// `rows^2` values are fewer bytes than one solve with the subdomain's
+/// Cholesky factor reads, within a quarter of the memory limit; `implicit`
+/// always solves with the factor; `explicit` always holds `F_s` dense
+/// (see `tfeti::local_f`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, ValueEnum)]
+#[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
+pub enum LocalF {
+    #[default]
+    Auto,
+    Implicit,
+    Explicit,
+}
+
 /// `solver { ... }`
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SolverSettings {
@@ -623,6 +639,8 @@ pub struct SolverSettings {
     pub max_iterations: usize,
     /// Dual preconditioner; default `none`.
     pub preconditioner: Preconditioner,
+    /// Dense or implicit local `F_s`; default `auto`.
+    pub local_f: LocalF,
     /// Classical FETI only: relative pivot tolerance that detects the kernel; default 1e-10.
     pub eps: f64,
 }
@@ -634,6 +652,7 @@ impl Default for SolverSettings {
             tolerance: 1e-6,
             max_iterations: 2000,
             preconditioner: Preconditioner::None,
+            local_f: LocalF::Auto,
             eps: 1e-10,
         }
     }

@@ -3,7 +3,7 @@
 //! TFETI promises numerical scalability: at fixed H/h the number of Hessian
 //! applications should stay nearly constant as the decomposition grows.
 
-use crate::lang::scene::Preconditioner;
+use crate::lang::scene::{LocalF, Preconditioner};
 use crate::lang::{compile, CheckOptions};
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
@@ -139,6 +139,7 @@ pub fn scaling_row_3d(
     hh: usize,
     tolerance: f64,
     preconditioner: Preconditioner,
+    local_f: LocalF,
 ) -> Result<ScalingRow, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
     let options = CheckOptions {
@@ -149,6 +150,7 @@ pub fn scaling_row_3d(
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
     scene.solver.preconditioner = preconditioner;
+    scene.solver.local_f = local_f;
     row_of(&scene, hh, (k, k))
 }
 
@@ -171,6 +173,11 @@ pub struct ScalingRow {
     pub kkt: f64,
     pub converged: bool,
     pub preconditioner: Preconditioner,
+    pub local_f: LocalF,
+    /// Subdomains whose local `F_s` was held dense.
+    pub explicit: usize,
+    /// Seconds spent forming the dense `F_s` (part of `time_factorize`).
+    pub time_local_f: f64,
 }
 
 /// Peak resident set size of this process (Linux), bytes.
@@ -188,9 +195,11 @@ pub fn scaling_row(
     hh: usize,
     tolerance: f64,
     preconditioner: Preconditioner,
+    local_f: LocalF,
 ) -> Result<ScalingRow, SolveError> {
     let mut scene = scaled_scene(sx, sy, hh, tolerance)?;
     scene.solver.preconditioner = preconditioner;
+    scene.solver.local_f = local_f;
     row_of(&scene, hh, (sx, sy))
 }
 
@@ -217,6 +226,9 @@ fn row_of(
         kkt: state.kkt.worst(),
         converged: state.converged(),
         preconditioner: scene.solver.preconditioner,
+        local_f: scene.solver.local_f,
+        explicit: state.dual.cluster().local_f_stats().explicit,
+        time_local_f: state.dual.cluster().local_f_stats().seconds,
     })
 }
 

@@ -29,7 +29,7 @@ pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
 }
 
 /// The columns of `cso bench scaling` after H/h and cuts.
-pub const SCALING_COLUMNS: [&str; 12] = [
+pub const SCALING_COLUMNS: [&str; 14] = [
     "subdomains",
     "primal",
     "dual",
@@ -42,12 +42,14 @@ pub const SCALING_COLUMNS: [&str; 12] = [
     "peak MB",
     "KKT",
     "preconditioner",
+    "local F",
+    "ms per F",
 ];
 
 /// The cells of one [`SCALING_COLUMNS`] row.
 pub fn scaling_cells(r: &ScalingRow) -> String {
     format!(
-        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {}",
+        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2}",
         r.subdomains,
         r.primal,
         r.dual,
@@ -61,7 +63,11 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         r.peak_memory
             .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
         r.kkt,
-        format!("{:?}", r.preconditioner).to_lowercase()
+        format!("{:?}", r.preconditioner).to_lowercase(),
+        format!("{:?}", r.local_f).to_lowercase(),
+        r.explicit,
+        r.subdomains,
+        1e3 * r.time_solve / r.hessian.max(1) as f64,
     )
 }
 

@@ -16,15 +16,22 @@
 
 use super::comm::{serial, Comm, Op};
 use super::floating::{Detection, Margin};
+use super::local_f::{budget, dense_bytes, wants_explicit, LocalF, LocalFStats};
 use super::rows::LocalRows;
 use super::subdomain::Subdomain;
-use faer::Mat;
+use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 /// Work vectors of one subdomain's `F` product.
 struct Work {
+    /// Dofs (implicit product).
     x: Vec<f64>,
+    /// Local rows: the input of an explicit product.
+    l: Vec<f64>,
+    /// Local rows: the output.
     y: Vec<f64>,
 }
 
@@ -55,6 +62,47 @@ pub struct Cluster {
     /// Nonzeros of every rank's Cholesky factors (summed once, at set-up, so
     /// that reports need no collective).
     factor_nonzeros: usize,
+    /// One per owned subdomain: `F_s = B_s K_s^+ B_s^T` where it is held
+    /// dense ([`Cluster::set_local_f`]); shared with clusters derived from
+    /// this one.
+    explicit: Vec<Option<Arc<Mat<f64>>>>,
+    local_f: LocalFStats,
+}
+
+/// The entries of each local row, `(dof, coefficient bits)`: two rows with the
+/// same key are the same row of `B_s`.
+fn row_keys(lr: &LocalRows) -> Vec<Vec<(usize, u64)>> {
+    let mut keys = vec![Vec::new(); lr.rows.len()];
+    for &(r, d, v) in &lr.entries {
+        keys[r].push((d, v.to_bits()));
+    }
+    keys
+}
+
+/// `F_s` of the rows `child` taken from the dense `F_s` of the rows `parent`
+/// of the same subdomain (and factorization): the submatrix of the rows the
+/// two share, or None when a row of `child` is not one of `parent`'s.
+fn derive_block(f: &Arc<Mat<f64>>, parent: &LocalRows, child: &LocalRows) -> Option<Arc<Mat<f64>>> {
+    let (pk, ck) = (row_keys(parent), row_keys(child));
+    if pk == ck {
+        return Some(f.clone());
+    }
+    let at: HashMap<&[(usize, u64)], usize> = pk
+        .iter()
+        .enumerate()
+        .map(|(i, k)| (k.as_slice(), i))
+        .collect();
+    let idx: Option<Vec<usize>> = ck.iter().map(|k| at.get(k.as_slice()).copied()).collect();
+    let idx = idx?;
+    Some(Arc::new(Mat::from_fn(idx.len(), idx.len(), |a, b| {
+        f[(idx[a], idx[b])]
+    })))
+}
+
+/// `y = F_s l` with a dense `F_s` (one thread: the subdomains are the
+/// parallel loop).
+fn dense_product(f: MatRef<'_, f64>, l: MatRef<'_, f64>, y: MatMut<'_, f64>) {
+    faer::linalg::matmul::matmul(y, Accum::Replace, f, l, 1.0, Par::Seq);
 }
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -150,6 +198,7 @@ impl Cluster {
             .map(|(i, s)| {
                 Mutex::new(Work {
                     x: vec![0.0; s.dofs()],
+                    l: vec![0.0; local[first + i].rows.len()],
                     y: vec![0.0; local[first + i].rows.len()],
                 })
             })
@@ -158,6 +207,8 @@ impl Cluster {
         comm.all_reduce_u64(&mut nnz, Op::Sum);
         Cluster {
             factor_nonzeros: nnz[0] as usize,
+            explicit: vec![None; subs.len()],
+            local_f: LocalFStats::default(),
             subs,
             first,
             comm,
@@ -190,8 +241,103 @@ impl Cluster {
 
     /// [`Cluster::with_rows`] with `m` rows in all (trailing rows may touch no
     /// subdomain).
+    /// Dense `F_s` of this cluster carry over where every row of the new one
+    /// is one of this one's (a submatrix).
     pub fn with_local_rows(&self, local: Vec<LocalRows>, m: usize) -> Cluster {
-        Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone())
+        let mut c =
+            Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone());
+        for (i, f) in self.explicit.iter().enumerate() {
+            let s = self.first + i;
+            c.explicit[i] = f
+                .as_ref()
+                .and_then(|f| derive_block(f, &self.local[s], &c.local[s]));
+        }
+        // Formed (or lent) for this cluster's parent: its counts and seconds,
+        // over every rank.
+        let mut counts = [
+            c.explicit.iter().flatten().count(),
+            c.explicit
+                .iter()
+                .flatten()
+                .map(|f| dense_bytes(f.nrows()))
+                .sum(),
+        ]
+        .map(|x| x as u64);
+        c.comm.all_reduce_u64(&mut counts, Op::Sum);
+        c.local_f = LocalFStats {
+            explicit: counts[0] as usize,
+            bytes: counts[1] as usize,
+            ..self.local_f
+        };
+        c
+    }
+
+    /// Forms the dense `F_s` of the owned subdomains that `choice` picks
+    /// (by bytes moved, within [`budget`] for [`LocalF::Auto`]), in parallel.
+    /// A subdomain of `previous` (an earlier cluster, e.g. the previous design
+    /// of an optimization) with the same factorization and the same rows
+    /// lends its block instead. Without a choice of dense, products stay the
+    /// two triangular solves.
+    pub fn set_local_f(&mut self, choice: LocalF, previous: Option<&Cluster>) -> LocalFStats {
+        let started = Instant::now();
+        let first = self.first;
+        let mut held = 0usize;
+        let cap = budget();
+        let mut chosen = vec![false; self.subs.len()];
+        for (i, sub) in self.subs.iter().enumerate() {
+            let nr = self.local[first + i].rows.len();
+            if wants_explicit(choice, nr, sub.solve_bytes())
+                && (choice == LocalF::Explicit || held + dense_bytes(nr) <= cap)
+            {
+                chosen[i] = true;
+                held += dense_bytes(nr);
+            }
+        }
+        let lent = |i: usize| -> Option<Arc<Mat<f64>>> {
+            let prev = previous?;
+            let s = first + i;
+            let j = s.checked_sub(prev.first)?;
+            let same = Arc::ptr_eq(prev.subs.get(j)?, &self.subs[i]);
+            let f = prev.explicit.get(j)?.as_ref().filter(|_| same)?;
+            derive_block(f, prev.local.get(s)?, &self.local[s])
+        };
+        let blocks: Vec<(Option<Arc<Mat<f64>>>, bool)> = self
+            .subs
+            .par_iter()
+            .enumerate()
+            .map(|(i, sub)| {
+                if !chosen[i] {
+                    return (None, false);
+                }
+                if let Some(f) = lent(i) {
+                    return (Some(f), true);
+                }
+                let lr = &self.local[first + i];
+                (
+                    Some(Arc::new(sub.dual_block(&lr.entries, lr.rows.len()))),
+                    false,
+                )
+            })
+            .collect();
+        let reused = blocks.iter().filter(|b| b.1).count();
+        self.explicit = blocks.into_iter().map(|b| b.0).collect();
+        // Counts of every rank (a collective, like the set-up that calls it).
+        let mut counts = [self.explicit.iter().flatten().count(), reused, held].map(|c| c as u64);
+        self.comm.all_reduce_u64(&mut counts, Op::Sum);
+        let [explicit, reused, bytes] = counts.map(|c| c as usize);
+        self.local_f = LocalFStats {
+            explicit,
+            reused,
+            bytes,
+            seconds: started.elapsed().as_secs_f64(),
+        };
+        self.local_f
+    }
+
+    /// What [`Self::set_local_f`] (or the cluster this one was derived from)
+    /// holds dense.
+    pub fn local_f_stats(&self) -> LocalFStats {
+        self.local_f
     }
 
     /// The communicator of the ranks that share the subdomains.
@@ -353,9 +499,22 @@ impl Cluster {
         self.subs.par_iter().enumerate().for_each(|(i, sub)| {
             let mut guard = lock(&self.work[i]);
             let w = &mut *guard;
-            self.local[first + i].scatter_t(x, &mut w.x);
+            let lr = &self.local[first + i];
+            if let Some(f) = &self.explicit[i] {
+                for (l, &row) in w.l.iter_mut().zip(&lr.rows) {
+                    *l = x[row];
+                }
+                let nr = w.y.len();
+                dense_product(
+                    f.as_ref().as_ref(),
+                    MatRef::from_column_major_slice(&w.l, nr, 1),
+                    MatMut::from_column_major_slice_mut(&mut w.y, nr, 1),
+                );
+                return;
+            }
+            lr.scatter_t(x, &mut w.x);
             sub.apply_pinv(&mut w.x);
-            self.local[first + i].gather(&w.x, &mut w.y);
+            lr.gather(&w.x, &mut w.y);
         });
         if self.is_distributed() {
             let mut mine =
@@ -599,11 +758,30 @@ impl Cluster {
                 })
                 .collect();
         }
-        let parts = self.pinv_block(
-            cols,
-            |s, c, out| self.local[s].scatter_t(&xs[c], out),
-            |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
-        );
+        let first = self.first;
+        let parts = self.map(|s, sub| {
+            let lr = &self.local[s];
+            let nr = lr.rows.len();
+            if let Some(f) = &self.explicit[s - first] {
+                let l = Mat::from_fn(nr, cols, |k, c| xs[c][lr.rows[k]]);
+                let mut y = vec![0.0; nr * cols];
+                dense_product(
+                    f.as_ref().as_ref(),
+                    l.as_ref(),
+                    MatMut::from_column_major_slice_mut(&mut y, nr, cols),
+                );
+                return y;
+            }
+            let n = sub.dofs();
+            let mut x = vec![0.0; n * cols];
+            for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
+                lr.scatter_t(&xs[c], col);
+            }
+            if n > 0 {
+                sub.apply_pinv_block(&mut x, cols);
+            }
+            self.gather_block(s, n, &x, cols)
+        });
         self.sum_rows_block(&parts, cols)
     }
 

@@ -22,6 +22,7 @@ pub mod error;
 pub mod floating;
 pub mod kernel;
 pub mod kkt;
+pub mod local_f;
 #[cfg(feature = "mpi")]
 pub mod mpi;
 pub mod precond;

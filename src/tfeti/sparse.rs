@@ -4,10 +4,12 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
-    SymmetricOrdering,
+    SymbolicCholeskyRaw, SymmetricOrdering,
 };
+use faer::sparse::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::sparse::linalg::LltError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Conj, MatMut, Par, Side};
@@ -248,4 +250,41 @@ pub fn ldlt_solve_block(
         Par::Seq,
         MemStack::new(buf),
     );
+}
+
+/// `x <- L^-1 x` (the forward half of [`llt_solve_block`]) on rows already in
+/// the factor's fill-reducing order. With it `A^-1 = (L^-1 P)^T (L^-1 P)`, so
+/// `Y^T A^-1 Y` is a product of one forward solve with itself.
+pub fn llt_forward_block(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f64],
+    x: MatMut<'_, f64>,
+    buf: &mut MemBuffer,
+) {
+    match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(s) => {
+            let l = SparseColMatRef::new(s.factor(), l_values);
+            solve_lower_triangular_in_place(l, Conj::No, x, Par::Seq);
+        }
+        SymbolicCholeskyRaw::Supernodal(s) => {
+            SupernodalLltRef::new(s, l_values).l_solve_with_conj(
+                Conj::No,
+                x,
+                Par::Seq,
+                MemStack::new(buf),
+            );
+        }
+    }
+}
+
+/// Bytes one solve with a factor reads: its values twice (forward and
+/// backward), and its row indices twice where it is simplicial (a supernodal
+/// factor has one index per row of a supernode, few by comparison).
+pub fn llt_solve_bytes(symbolic: &SymbolicCholesky<usize>) -> usize {
+    let values = symbolic.len_val() * std::mem::size_of::<f64>();
+    let indices = match symbolic.raw() {
+        SymbolicCholeskyRaw::Simplicial(_) => symbolic.len_val() * std::mem::size_of::<usize>(),
+        SymbolicCholeskyRaw::Supernodal(_) => 0,
+    };
+    2 * (values + indices)
 }

@@ -6,6 +6,7 @@
 use super::cluster::Cluster;
 use super::dual::Dual;
 use super::dual::ProjectedM;
+use super::local_f::LocalF;
 use super::precond::Kind;
 use super::rows::LocalRows;
 use super::schur::SchurForm;
@@ -114,17 +115,9 @@ fn max_abs(m: &Mat<f64>) -> f64 {
     x
 }
 
-#[test]
-fn f_equals_the_assembled_b_kplus_bt() {
-    let (cluster, rows, _) = glued_pair();
-    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
-    let b = dense_b(&rows, n0, n0 + n1);
-    let kp = block_diag(
-        &dense_pinv(cluster.subdomain(0)),
-        &dense_pinv(cluster.subdomain(1)),
-    );
-    let f_ref = &b * &kp * b.transpose();
-    let m = rows.len();
+/// `F` of a cluster from its products with unit vectors.
+fn dense_f(cluster: &Cluster) -> Mat<f64> {
+    let m = cluster.multipliers();
     let mut f = Mat::<f64>::zeros(m, m);
     let mut e = vec![0.0; m];
     let mut y = vec![0.0; m];
@@ -136,8 +129,62 @@ fn f_equals_the_assembled_b_kplus_bt() {
             f[(i, j)] = y[i];
         }
     }
-    let err = max_abs(&(&f - &f_ref)) / max_abs(&f_ref);
-    assert!(err < 1e-10, "||F - B K+ B^T|| / ||F|| = {err:e}");
+    f
+}
+
+#[test]
+fn f_equals_the_assembled_b_kplus_bt_implicit_and_explicit() {
+    let (mut cluster, rows, _) = glued_pair();
+    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
+    let b = dense_b(&rows, n0, n0 + n1);
+    let kp = block_diag(
+        &dense_pinv(cluster.subdomain(0)),
+        &dense_pinv(cluster.subdomain(1)),
+    );
+    let f_ref = &b * &kp * b.transpose();
+    let err = max_abs(&(&dense_f(&cluster) - &f_ref)) / max_abs(&f_ref);
+    assert!(err < 1e-10, "implicit: ||F - B K+ B^T|| / ||F|| = {err:e}");
+    let stats = cluster.set_local_f(LocalF::Explicit, None);
+    assert_eq!((stats.explicit, stats.reused), (2, 0));
+    let err = max_abs(&(&dense_f(&cluster) - &f_ref)) / max_abs(&f_ref);
+    assert!(err < 1e-10, "explicit: ||F - B K+ B^T|| / ||F|| = {err:e}");
+    // The block product of the dense blocks is the product of each column.
+    let xs: Vec<Vec<f64>> = (0..3).map(|c| rand_vec(rows.len(), 7 + c)).collect();
+    for (x, y) in xs.iter().zip(cluster.apply_f_block(&xs)) {
+        let mut y1 = vec![0.0; rows.len()];
+        cluster.apply_f(x, &mut y1);
+        let d = y
+            .iter()
+            .zip(&y1)
+            .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+        assert!(d < 1e-12, "block against single product: {d:e}");
+    }
+}
+
+#[test]
+fn dense_local_f_carries_over_to_fewer_rows_and_to_the_next_cluster() {
+    let (four, rows) = four_blocks();
+    let mut dense = four.with_rows(rows.iter().cloned());
+    dense.set_local_f(LocalF::Explicit, None);
+    // Every second row: a submatrix of each dense block, nothing formed.
+    let half: Vec<Row> = rows.iter().step_by(2).cloned().collect();
+    let derived = dense.with_rows(half.iter().cloned());
+    assert_eq!(derived.local_f_stats().explicit, 4);
+    let implicit = four.with_rows(half.iter().cloned());
+    assert_eq!(implicit.local_f_stats().explicit, 0);
+    let (fd, fi) = (dense_f(&derived), dense_f(&implicit));
+    let err = max_abs(&(&fd - &fi)) / max_abs(&fi);
+    assert!(err < 1e-10, "derived dense F against implicit: {err:e}");
+    // A later cluster on the same factorizations and rows borrows every block.
+    let mut next = four.with_rows(rows.iter().cloned());
+    let stats = next.set_local_f(LocalF::Auto, Some(&dense));
+    assert_eq!((stats.explicit, stats.reused), (4, 4));
+    // Auto on these tiny subdomains: the factor is smaller than the block.
+    let mut auto = four.with_rows(rows.iter().cloned());
+    let stats = auto.set_local_f(LocalF::Auto, None);
+    let nr = four.local_rows(0).rows.len();
+    let wanted = super::local_f::dense_bytes(nr) < four.subdomain(0).solve_bytes();
+    assert_eq!(stats.explicit > 0, wanted);
 }
 
 #[test]

@@ -1307,7 +1307,7 @@ impl<'a> Checker<'a> {
         None
     }
 
-    /// `solver { method, tolerance, max_iterations, preconditioner, eps }`
+    /// `solver { method, tolerance, max_iterations, preconditioner, local_f, eps }`
     pub(crate) fn solver(&mut self, keyword: &Ident, block: &'a Block) -> SolverSettings {
         let mut s = SolverSettings::default();
         let spec = [
@@ -1315,6 +1315,7 @@ impl<'a> Checker<'a> {
             opt("tolerance", ""),
             opt("max_iterations", ""),
             opt("preconditioner", ""),
+            opt("local_f", ""),
             opt("eps", ""),
         ];
         let f = self.fields(block, &spec, "`solver`", keyword.span, &|_| None);
@@ -1323,6 +1324,9 @@ impl<'a> Checker<'a> {
         }
         if let Some(p) = self.choice(f.get("preconditioner")) {
             s.preconditioner = p;
+        }
+        if let Some(l) = self.choice(f.get("local_f")) {
+            s.local_f = l;
         }
         if let Some(t) = self.tolerance(f.get("tolerance")) {
             s.tolerance = t;
