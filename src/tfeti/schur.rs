@@ -9,12 +9,12 @@
 //! kernel basis before factorizing, so a subdomain touched too little (one
 //! node, or one component along a line) is reported, not factorized singular.
 
-use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
-use faer::dyn_stack::{MemBuffer, MemStack};
-use faer::sparse::linalg::cholesky::{LltRef, SymbolicCholesky};
+use super::sparse::{llt_forward_rows, llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use faer::dyn_stack::MemBuffer;
+use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
-use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use std::sync::Mutex;
 
 /// How to hold `S`: chosen by bytes moved per application, or forced (tests).
@@ -126,27 +126,26 @@ impl Schur {
                 }),
             }))));
         }
-        // S = K_bb - K_ib^T (K_ii^-1 K_ib), all nb columns in one blocked solve.
-        let mut x = Mat::<f64>::zeros(ni, nb);
+        // S = K_bb - Y^T Y with Y = L^-1 P K_ib (K_ii = P^T L L^T P): one
+        // forward solve on all nb columns, row-major for its kernel.
+        let mut y = vec![0.0; ni * nb];
+        let inv = symbolic.perm().map(|p| p.arrays().1);
         for (i, j, v) in triplets.iter().map(|t| (t.row, t.col, t.val)) {
-            x[(i, j)] += v;
+            y[inv.map_or(i, |inv| inv[i]) * nb + j] += v;
         }
         let mut buf = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(nb, Par::Seq));
-        LltRef::<usize, f64>::new(&symbolic, &l_values).solve_in_place_with_conj(
-            Conj::No,
-            x.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut buf),
-        );
+        llt_forward_rows(&symbolic, &l_values, &mut y, nb, &mut buf);
+        let y = MatRef::from_row_major_slice(&y, ni, nb);
         let mut s = dense_upper(&k_bb);
-        sparse_dense_matmul(
-            s.as_mut(),
-            Accum::Add,
-            k_ib.as_ref().transpose(),
-            x.as_ref(),
-            -1.0,
-            Par::Seq,
-        );
+        faer::linalg::matmul::matmul(s.as_mut(), Accum::Add, y.transpose(), y, -1.0, Par::Seq);
+        // Symmetric up to rounding; made exactly so.
+        for c in 0..nb {
+            for r in 0..c {
+                let m = 0.5 * (s[(r, c)] + s[(c, r)]);
+                s[(r, c)] = m;
+                s[(c, r)] = m;
+            }
+        }
         Ok(Schur(Held::Dense(s)))
     }
 

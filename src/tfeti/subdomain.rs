@@ -23,7 +23,7 @@ use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
-    ldlt_solve, ldlt_solve_block, llt_forward_block, llt_numeric, llt_solve, llt_solve_block,
+    ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
     llt_solve_bytes, solve_scratch, symbolic_amd, UpperCsc,
 };
 use crate::fem::Element;
@@ -31,7 +31,7 @@ use crate::model::SubdomainMesh;
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::SparseColMatRef;
-use faer::{Accum, Mat, Par};
+use faer::{Accum, Mat, MatRef, Par};
 use std::sync::{Arc, Mutex};
 
 /// Why a subdomain's operators could not be built.
@@ -530,24 +530,26 @@ impl Subdomain {
                 ..
             } => {
                 let nk = symbolic.nrows();
-                let mut y = Mat::<f64>::zeros(nk, nr);
+                // Y row-major (nk x nr), for the forward solve's kernel.
+                let mut y = vec![0.0; nk * nr];
                 let inv = symbolic.perm().map(|p| p.arrays().1);
                 for &(r, d, v) in entries {
                     let k = reduced[d];
                     if k != usize::MAX {
                         let i = inv.map_or(k, |inv| inv[k]);
-                        y[(i, r)] += v;
+                        y[i * nr + r] += v;
                     }
                 }
                 let mut f = Mat::<f64>::zeros(nr, nr);
                 if nk > 0 && nr > 0 {
                     let mut buf = solve_scratch(symbolic, nr);
-                    llt_forward_block(symbolic, l_values, y.as_mut(), &mut buf);
+                    llt_forward_rows(symbolic, l_values, &mut y, nr, &mut buf);
+                    let y = MatRef::from_row_major_slice(&y, nk, nr);
                     faer::linalg::matmul::matmul(
                         f.as_mut(),
                         Accum::Replace,
                         y.transpose(),
-                        y.as_ref(),
+                        y,
                         1.0,
                         Par::Seq,
                     );
@@ -730,15 +732,7 @@ pub(crate) mod tests {
         // rows with mixed coefficients, one on two dofs.
         let mesh = grid(6, 4, 0.3);
         let (coords, elements, corners) = brick(8, 0.2);
-        let hex = Geometry {
-            element: crate::fem::Element::Hex8,
-            coords: &coords,
-            elements: &elements,
-            corners: &corners,
-            young: 1000.0,
-            poisson: 0.3,
-            thickness: 1.0,
-        };
+        let hex = hex_geometry(&coords, &elements, &corners);
         let supernodal = [Geometry::of(&mesh), hex].map(|g| dual_block_matches(&g));
         assert_eq!(supernodal, [false, true]);
     }
@@ -906,20 +900,29 @@ pub(crate) mod tests {
         )
     }
 
+    /// The brick's geometry: 1000 Pa, nu = 0.3.
+    fn hex_geometry<'a>(
+        coords: &'a [f64],
+        elements: &'a [usize],
+        corners: &'a [usize],
+    ) -> Geometry<'a> {
+        Geometry {
+            element: crate::fem::Element::Hex8,
+            coords,
+            elements,
+            corners,
+            young: 1000.0,
+            poisson: 0.3,
+            thickness: 1.0,
+        }
+    }
+
     #[test]
     fn hexahedra_need_no_change_in_the_solver() {
         // The same subdomain code on a 3D brick: six orthonormal rigid modes in
         // the kernel of K, and K K^+ K = K with six fixing dofs.
         let (coords, elements, corners) = brick(3, 0.2);
-        let g = Geometry {
-            element: crate::fem::Element::Hex8,
-            coords: &coords,
-            elements: &elements,
-            corners: &corners,
-            young: 1000.0,
-            poisson: 0.3,
-            thickness: 1.0,
-        };
+        let g = hex_geometry(&coords, &elements, &corners);
         let s = Subdomain::total(&g).expect("factorizes");
         assert_eq!(
             (s.kernel_dim(), s.fixed().map(<[usize]>::len)),
