@@ -197,8 +197,9 @@ struct Bench {
     /// (repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
     preconditioner: Vec<Preconditioner>,
-    /// `scaling`, `scaling3d`: how each subdomain's part of F is applied, one
-    /// row each (repeatable, or comma-separated; see `solver { local_f }`).
+    /// How each subdomain's part of F is applied (see `solver { local_f }`):
+    /// `scaling`, `scaling3d` one row each, `sensitivity`, `sensitivity3d`,
+    /// `optimize` one table each (repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
     local_f: Vec<LocalF>,
     /// Threads over subdomains (default: all cores).
@@ -968,7 +969,7 @@ impl Optimize {
 
 /// The gradient-cost rows of `m` design variables at a tolerance.
 type CostsOf =
-    fn(usize, f64) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
+    fn(usize, f64, LocalF) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
 
 impl Convergence {
     /// The levels' rows as they are solved, then each quantity's table and the files.
@@ -1179,7 +1180,6 @@ impl Bench {
             ),
             Benchmark::Sensitivity | Benchmark::Sensitivity3d => {
                 let threads = pool.current_num_threads();
-                outln!("{}", output::gradient_costs_header(threads, tolerance));
                 let (sizes, costs) = if self.which == Benchmark::Sensitivity {
                     (bench::GRADIENT_COST_SIZES, bench::gradient_costs as CostsOf)
                 } else {
@@ -1188,21 +1188,31 @@ impl Bench {
                         bench::gradient_costs_3d as CostsOf,
                     )
                 };
-                for m in sizes {
-                    match costs(m, tolerance) {
-                        Ok(rows) => rows
-                            .iter()
-                            .for_each(|r| outln!("{}", output::gradient_cost_row(r))),
-                        Err(e) => errln!("error at m = {m}: {e}"),
+                for &local_f in &self.local_f {
+                    outln!("local F: {}\n", local_f.name());
+                    outln!("{}", output::gradient_costs_header(threads, tolerance));
+                    for m in sizes {
+                        match costs(m, tolerance, local_f) {
+                            Ok(rows) => rows
+                                .iter()
+                                .for_each(|r| outln!("{}", output::gradient_cost_row(r))),
+                            Err(e) => errln!("error at m = {m}: {e}"),
+                        }
                     }
+                    outln!();
                 }
                 Ok(())
             }
             Benchmark::Optimize => {
-                let rows = bench::optimization_reuse().map_err(|e| fail(EXIT_SCENE, e))?;
-                outln!("{}\n", output::reuse(&rows));
-                let rows = bench::optimization_reuse_large().map_err(|e| fail(EXIT_SCENE, e))?;
-                outln!("{}", output::reuse(&rows));
+                for &local_f in &self.local_f {
+                    outln!("local F: {}\n", local_f.name());
+                    let rows =
+                        bench::optimization_reuse(local_f).map_err(|e| fail(EXIT_SCENE, e))?;
+                    outln!("{}\n", output::reuse(&rows));
+                    let rows = bench::optimization_reuse_large(local_f)
+                        .map_err(|e| fail(EXIT_SCENE, e))?;
+                    outln!("{}\n", output::reuse(&rows));
+                }
                 Ok(())
             }
             Benchmark::Hard => {

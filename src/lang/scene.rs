@@ -628,6 +628,17 @@ pub enum LocalF {
     Explicit,
 }
 
+impl LocalF {
+    /// The name in the language and on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            LocalF::Auto => "auto",
+            LocalF::Implicit => "implicit",
+            LocalF::Explicit => "explicit",
+        }
+    }
+}
+
 /// `solver { ... }`
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct SolverSettings {

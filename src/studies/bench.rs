@@ -314,30 +314,34 @@ pub struct GradientCost {
 pub fn gradient_costs(
     m: usize,
     tolerance: f64,
+    local_f: LocalF,
 ) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
-    gradient_costs_of(&scont_with(m), m, tolerance)
+    gradient_costs_of(&scont_with(m), m, tolerance, local_f)
 }
 
 /// [`gradient_costs`] on scont3d with `m` control heights (a square net).
 pub fn gradient_costs_3d(
     m: usize,
     tolerance: f64,
+    local_f: LocalF,
 ) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
     let n = crate::lang::expr::net_side(m).ok_or_else(|| {
         SolveError::Unsupported(format!("{m} control heights do not form a square net"))
     })?;
-    gradient_costs_of(&scont3d_with(n), m, tolerance)
+    gradient_costs_of(&scont3d_with(n), m, tolerance, local_f)
 }
 
 fn gradient_costs_of(
     src: &str,
     m: usize,
     tolerance: f64,
+    local_f: LocalF,
 ) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
     let mut scene = compile(src, &CheckOptions::default()).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
     scene.solver.tolerance = tolerance;
+    scene.solver.local_f = local_f;
     let runs = [
         crate::sens::semi_analytic(&scene, tolerance)?,
         crate::sens::adjoint(&scene, tolerance)?,
@@ -510,15 +514,17 @@ pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
 pub fn reuse_table(
     src: &str,
     configurations: &[(&str, crate::opt::Reuse)],
+    local_f: LocalF,
 ) -> Result<ReuseTable, crate::sens::GradientError> {
     use crate::opt::optimize_with;
     let options = CheckOptions {
         memory_limit: None,
         ..CheckOptions::default()
     };
-    let scene = compile(src, &options).map_err(|d| {
+    let mut scene = compile(src, &options).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
+    scene.solver.local_f = local_f;
     let cold = solve(&scene, &scene.design_init(), &mut |_| {})?;
     let mut runs = Vec::new();
     for (name, reuse) in configurations {
@@ -558,14 +564,16 @@ pub fn reuse_table(
 
 /// Per design iteration on scont2d (semi-analytic gradients, 16 subdomains):
 /// cold against partial refactorization and the parts of a warm start.
-pub fn optimization_reuse() -> Result<ReuseTable, crate::sens::GradientError> {
+pub fn optimization_reuse(local_f: LocalF) -> Result<ReuseTable, crate::sens::GradientError> {
     let src = scont_with(6).replace("init = 0.01", "init = [0.04, 0.01, 0, 0, 0.01, 0.04]");
-    reuse_table(&src, &reuse_configurations())
+    reuse_table(&src, &reuse_configurations(), local_f)
 }
 
 /// The same on [`scont_large`] (adjoint gradients, 248 subdomains, 8 moved).
-pub fn optimization_reuse_large() -> Result<ReuseTable, crate::sens::GradientError> {
-    reuse_table(&scont_large(), &reuse_configurations_large())
+pub fn optimization_reuse_large(
+    local_f: LocalF,
+) -> Result<ReuseTable, crate::sens::GradientError> {
+    reuse_table(&scont_large(), &reuse_configurations_large(), local_f)
 }
 
 /// One row of `cso bench coarse`: a whole solve with the coarse problem in

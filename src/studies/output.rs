@@ -64,7 +64,7 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
             .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
         r.kkt,
         format!("{:?}", r.preconditioner).to_lowercase(),
-        format!("{:?}", r.local_f).to_lowercase(),
+        r.local_f.name(),
         r.explicit,
         r.subdomains,
         1e3 * r.time_solve / r.hessian.max(1) as f64,
