@@ -968,8 +968,11 @@ impl Optimize {
 }
 
 /// The gradient-cost rows of `m` design variables at a tolerance.
-type CostsOf =
-    fn(usize, f64, LocalF) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
+type CostsOf = fn(
+    usize,
+    f64,
+    LocalF,
+) -> Result<Vec<cso::studies::bench::GradientCost>, cso::sens::GradientError>;
 
 impl Convergence {
     /// The levels' rows as they are solved, then each quantity's table and the files.

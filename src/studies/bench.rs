@@ -570,9 +570,7 @@ pub fn optimization_reuse(local_f: LocalF) -> Result<ReuseTable, crate::sens::Gr
 }
 
 /// The same on [`scont_large`] (adjoint gradients, 248 subdomains, 8 moved).
-pub fn optimization_reuse_large(
-    local_f: LocalF,
-) -> Result<ReuseTable, crate::sens::GradientError> {
+pub fn optimization_reuse_large(local_f: LocalF) -> Result<ReuseTable, crate::sens::GradientError> {
     reuse_table(&scont_large(), &reuse_configurations_large(), local_f)
 }
 

@@ -286,7 +286,7 @@ impl Cluster {
         let mut chosen = vec![false; self.subs.len()];
         for (i, sub) in self.subs.iter().enumerate() {
             let nr = self.local[first + i].rows.len();
-            if wants_explicit(choice, nr, sub.solve_bytes())
+            if wants_explicit(choice, nr, &sub.factor_shape())
                 && (choice == LocalF::Explicit || held + dense_bytes(nr) <= cap)
             {
                 chosen[i] = true;

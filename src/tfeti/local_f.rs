@@ -3,14 +3,18 @@
 //! subdomain instead of the Cholesky factor twice (forward and backward
 //! solve) plus the scatter to and gather from the subdomain's dofs.
 //!
-//! A 2D subdomain at H/h = 16-32 touches a few hundred multipliers and its
-//! factor holds more values than their square, so the dense block moves fewer
-//! bytes (and its product is a dense one, which runs near the memory
-//! bandwidth; the sparse triangular solves do not). A 3D subdomain at H/h = 8
-//! touches over a thousand multipliers and the dense block would be larger
-//! than the factor: [`LocalF::Auto`] keeps those implicit. The rule is by
-//! bytes moved per application, capped by memory held ([`budget`]).
+//! A 2D subdomain at H/h = 16-32 touches a hundred to a few hundred
+//! multipliers and its factor holds more values than their square, so the
+//! dense block moves fewer bytes (and its product is a dense one, which runs
+//! near the memory bandwidth; the sparse triangular solves do not). Forming
+//! it costs a forward solve on those columns and a dense `Y^T Y`: 10-20
+//! applications' worth in 2D. A 3D subdomain at H/h = 8 touches up to a
+//! thousand multipliers: the block is as large as the factor, or forming it
+//! costs hundreds of applications. [`LocalF::Auto`] decides per subdomain by
+//! a cost model of both ([`wants_explicit`]), capped by memory held
+//! ([`budget`]).
 
+use super::sparse::FactorShape;
 use serde::Serialize;
 
 pub use crate::lang::scene::LocalF;
@@ -37,13 +41,54 @@ pub fn dense_bytes(rows: usize) -> usize {
     rows * rows * std::mem::size_of::<f64>()
 }
 
-/// Whether a subdomain with `rows` local rows, whose `K^+` reads
-/// `solve_bytes` per application, is held dense under `choice` (memory aside).
-pub fn wants_explicit(choice: LocalF, rows: usize, solve_bytes: usize) -> bool {
+/// Forming and applying, in seconds, on the development machine (one core;
+/// measured with `cso bench scaling` and `scaling3d`, see BENCHMARKS.md):
+/// the forward solve on many columns runs at about 12 GFlop/s (simplicial
+/// row-major or supernodal), the dense `Y^T Y` at 40 GFlop/s (counted as the
+/// full product; the lower triangle is half of it), an application of `K^+`
+/// reads the factor at about 6.5 GB/s simplicial and 15 GB/s supernodal, a
+/// dense `F_s` product at 10 GB/s. The rule needs ratios, not exact rates.
+const SOLVE_FLOPS: f64 = 12e9;
+const GEMM_FLOPS: f64 = 40e9;
+const SIMPLICIAL_BYTES: f64 = 6.5e9;
+const SUPERNODAL_BYTES: f64 = 15e9;
+const DENSE_BYTES: f64 = 10e9;
+
+/// Applications of `F` within which forming `F_s` must pay for itself: a
+/// state solve on our scenes takes 60-300 (sensitivities and optimization
+/// steps reuse the blocks for more).
+pub const PAYBACK: f64 = 50.0;
+
+/// Seconds to form the dense `F_s` of `rows` rows on a factor of `shape`: the
+/// forward solve on the columns and `Y^T Y`.
+pub fn forming_seconds(rows: usize, shape: &FactorShape) -> f64 {
+    let (r, n) = (rows as f64, shape.rows as f64);
+    2.0 * shape.values as f64 * r / SOLVE_FLOPS + 2.0 * n * r * r / GEMM_FLOPS
+}
+
+/// Seconds one application saves with `F_s` dense (negative: it costs).
+pub fn saved_seconds(rows: usize, shape: &FactorShape) -> f64 {
+    let rate = if shape.supernodal {
+        SUPERNODAL_BYTES
+    } else {
+        SIMPLICIAL_BYTES
+    };
+    shape.solve_bytes() as f64 / rate - dense_bytes(rows) as f64 / DENSE_BYTES
+}
+
+/// Whether a subdomain with `rows` local rows and a factor of `shape` holds
+/// `F_s` dense under `choice` (memory aside). `Auto`: where an application
+/// reads less and forming pays for itself within [`PAYBACK`] applications
+/// (2D subdomains at H/h = 16-32: within 10-20; 3D at H/h = 8 or 2D at
+/// H/h = 64: not within 60).
+pub fn wants_explicit(choice: LocalF, rows: usize, shape: &FactorShape) -> bool {
     match choice {
         LocalF::Implicit => false,
         LocalF::Explicit => rows > 0,
-        LocalF::Auto => rows > 0 && dense_bytes(rows) < solve_bytes,
+        LocalF::Auto => {
+            let saved = saved_seconds(rows, shape);
+            rows > 0 && saved > 0.0 && forming_seconds(rows, shape) < PAYBACK * saved
+        }
     }
 }
 
@@ -60,12 +105,35 @@ mod tests {
     use super::*;
 
     #[test]
-    fn auto_holds_dense_only_what_moves_fewer_bytes() {
-        // 100 rows: 80 kB dense.
-        assert!(wants_explicit(LocalF::Auto, 100, 80_001));
-        assert!(!wants_explicit(LocalF::Auto, 100, 80_000));
-        assert!(!wants_explicit(LocalF::Implicit, 100, usize::MAX));
-        assert!(wants_explicit(LocalF::Explicit, 100, 0));
-        assert!(!wants_explicit(LocalF::Explicit, 0, 0));
+    fn auto_holds_dense_what_pays_for_itself_within_the_payback() {
+        // Shapes measured on the benchmark scenes (factor rows, values).
+        let simplicial = |rows, values| FactorShape {
+            rows,
+            values,
+            supernodal: false,
+        };
+        let supernodal = |rows, values| FactorShape {
+            rows,
+            values,
+            supernodal: true,
+        };
+        let (hh16, hh32) = (simplicial(575, 15_104), simplicial(2175, 85_872));
+        let (hh64, hex8) = (supernodal(8447, 581_647), supernodal(2181, 565_571));
+        // 2D at H/h = 16 and 32 with their gluing and contact rows: dense.
+        assert!(wants_explicit(LocalF::Auto, 98, &hh16));
+        assert!(wants_explicit(LocalF::Auto, 198, &hh32));
+        // A 3D subdomain at H/h = 8 touching 906 rows reads more dense than
+        // the factor; with 324 rows it reads less but forming takes longer
+        // than 50 applications save. 2D at H/h = 64 alike.
+        assert!(saved_seconds(906, &hex8) < 0.0);
+        assert!(!wants_explicit(LocalF::Auto, 906, &hex8));
+        assert!(saved_seconds(324, &hex8) > 0.0);
+        assert!(!wants_explicit(LocalF::Auto, 324, &hex8));
+        assert!(!wants_explicit(LocalF::Auto, 420, &hh64));
+        // The other choices ignore the costs.
+        assert!(!wants_explicit(LocalF::Implicit, 98, &hh16));
+        assert!(wants_explicit(LocalF::Explicit, 906, &hex8));
+        assert!(!wants_explicit(LocalF::Explicit, 0, &hex8));
+        assert!(!wants_explicit(LocalF::Auto, 0, &hh16));
     }
 }

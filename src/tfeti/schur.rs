@@ -9,7 +9,9 @@
 //! kernel basis before factorizing, so a subdomain touched too little (one
 //! node, or one component along a line) is reported, not factorized singular.
 
-use super::sparse::{llt_forward_rows, llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use super::sparse::{
+    llt_forward_rows, llt_numeric, llt_solve, lower_gram, mirror_lower, symbolic_amd, UpperCsc,
+};
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
@@ -137,15 +139,8 @@ impl Schur {
         llt_forward_rows(&symbolic, &l_values, &mut y, nb, &mut buf);
         let y = MatRef::from_row_major_slice(&y, ni, nb);
         let mut s = dense_upper(&k_bb);
-        faer::linalg::matmul::matmul(s.as_mut(), Accum::Add, y.transpose(), y, -1.0, Par::Seq);
-        // Symmetric up to rounding; made exactly so.
-        for c in 0..nb {
-            for r in 0..c {
-                let m = 0.5 * (s[(r, c)] + s[(c, r)]);
-                s[(r, c)] = m;
-                s[(c, r)] = m;
-            }
-        }
+        lower_gram(s.as_mut(), Accum::Add, y, -1.0);
+        mirror_lower(&mut s);
         Ok(Schur(Held::Dense(s)))
     }
 

@@ -4,6 +4,7 @@
 
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
+use faer::linalg::matmul::triangular::{self, BlockStructure};
 use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
 use faer::sparse::linalg::cholesky::{
     factorize_symbolic_cholesky, CholeskySymbolicParams, LdltRef, LltRef, SymbolicCholesky,
@@ -12,7 +13,7 @@ use faer::sparse::linalg::cholesky::{
 use faer::sparse::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::sparse::linalg::LltError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
-use faer::{Conj, MatMut, Par, Side};
+use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
 
 /// Upper triangle of a symmetric sparse matrix in compressed columns.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -332,22 +333,69 @@ fn forward_rows(l: SparseColMatRef<'_, usize, f64>, x: &mut [f64], cols: usize) 
     }
 }
 
-/// Bytes one solve with a factor reads: its values twice (forward and
-/// backward), and its row indices twice where it is simplicial (a supernodal
-/// factor has one index per row of a supernode, few by comparison).
-pub fn llt_solve_bytes(symbolic: &SymbolicCholesky<usize>) -> usize {
-    let values = symbolic.len_val() * std::mem::size_of::<f64>();
-    let indices = match symbolic.raw() {
-        SymbolicCholeskyRaw::Simplicial(_) => symbolic.len_val() * std::mem::size_of::<usize>(),
-        SymbolicCholeskyRaw::Supernodal(_) => 0,
-    };
-    2 * (values + indices)
+/// The lower triangle of `dst (+)= alpha Y^T Y` (half the work of the full
+/// product; [`mirror_lower`] completes it): with `Y = L^-1 P X` from
+/// [`llt_forward_rows`], `X^T A^-1 X`.
+pub fn lower_gram(dst: MatMut<'_, f64>, accum: Accum, y: MatRef<'_, f64>, alpha: f64) {
+    triangular::matmul(
+        dst,
+        BlockStructure::TriangularLower,
+        accum,
+        y.transpose(),
+        BlockStructure::Rectangular,
+        y,
+        BlockStructure::Rectangular,
+        alpha,
+        Par::Seq,
+    );
+}
+
+/// Copies the strict lower triangle onto the upper one: exactly symmetric.
+pub fn mirror_lower(m: &mut Mat<f64>) {
+    for c in 0..m.ncols() {
+        for r in 0..c {
+            m[(r, c)] = m[(c, r)];
+        }
+    }
+}
+
+/// What the cost of solves with a factor depends on.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FactorShape {
+    /// Rows of the factor.
+    pub rows: usize,
+    /// Stored values of `L`.
+    pub values: usize,
+    /// Supernodal (dense blocks) rather than simplicial (one index per value).
+    pub supernodal: bool,
+}
+
+impl FactorShape {
+    pub fn of(symbolic: &SymbolicCholesky<usize>) -> FactorShape {
+        FactorShape {
+            rows: symbolic.nrows(),
+            values: symbolic.len_val(),
+            supernodal: matches!(symbolic.raw(), SymbolicCholeskyRaw::Supernodal(_)),
+        }
+    }
+
+    /// Bytes one solve reads: the values twice (forward and backward), and
+    /// the row indices twice where it is simplicial (a supernodal factor has
+    /// one index per row of a supernode, few by comparison).
+    pub fn solve_bytes(&self) -> usize {
+        let values = self.values * std::mem::size_of::<f64>();
+        let indices = if self.supernodal {
+            0
+        } else {
+            self.values * std::mem::size_of::<usize>()
+        };
+        2 * (values + indices)
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use faer::Mat;
 
     /// The 5-point Laplacian of a `k x k` grid plus the identity, upper
     /// triangle (SPD; faer factors it simplicial).

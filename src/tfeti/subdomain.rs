@@ -24,14 +24,14 @@ use super::kernel::{fixing_dofs, rigid_modes};
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
     ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
-    llt_solve_bytes, solve_scratch, symbolic_amd, UpperCsc,
+    lower_gram, mirror_lower, solve_scratch, symbolic_amd, FactorShape, UpperCsc,
 };
 use crate::fem::Element;
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::SparseColMatRef;
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Accum, Mat, MatRef};
 use std::sync::{Arc, Mutex};
 
 /// Why a subdomain's operators could not be built.
@@ -510,9 +510,9 @@ impl Subdomain {
 }
 
 impl Subdomain {
-    /// Bytes one application of `K^+` reads from the factor.
-    pub fn solve_bytes(&self) -> usize {
-        llt_solve_bytes(self.factor.symbolic())
+    /// The size of the factor that applications of `K^+` read.
+    pub fn factor_shape(&self) -> FactorShape {
+        FactorShape::of(self.factor.symbolic())
     }
 
     /// `B_s K^+ B_s^T`, dense `nr x nr`, of the rows `entries` (local row,
@@ -522,7 +522,7 @@ impl Subdomain {
     /// to them. Classical FETI applies `K^+` to the columns.
     pub fn dual_block(&self, entries: &[(usize, usize, f64)], nr: usize) -> Mat<f64> {
         let n = self.n;
-        let mut f = match &self.factor {
+        match &self.factor {
             Factor::Fixed {
                 reduced,
                 symbolic,
@@ -545,15 +545,9 @@ impl Subdomain {
                     let mut buf = solve_scratch(symbolic, nr);
                     llt_forward_rows(symbolic, l_values, &mut y, nr, &mut buf);
                     let y = MatRef::from_row_major_slice(&y, nk, nr);
-                    faer::linalg::matmul::matmul(
-                        f.as_mut(),
-                        Accum::Replace,
-                        y.transpose(),
-                        y,
-                        1.0,
-                        Par::Seq,
-                    );
+                    lower_gram(f.as_mut(), Accum::Replace, y, 1.0);
                 }
+                mirror_lower(&mut f);
                 f
             }
             Factor::Regularized { .. } => {
@@ -570,18 +564,17 @@ impl Subdomain {
                         f[(r, c)] += v * xc[d];
                     }
                 }
+                // Symmetric up to rounding; made exactly so.
+                for c in 0..nr {
+                    for r in 0..c {
+                        let m = 0.5 * (f[(r, c)] + f[(c, r)]);
+                        f[(r, c)] = m;
+                        f[(c, r)] = m;
+                    }
+                }
                 f
             }
-        };
-        // Symmetric up to rounding; made exactly so.
-        for c in 0..nr {
-            for r in 0..c {
-                let m = 0.5 * (f[(r, c)] + f[(c, r)]);
-                f[(r, c)] = m;
-                f[(c, r)] = m;
-            }
         }
-        f
     }
 }
 

@@ -179,12 +179,16 @@ fn dense_local_f_carries_over_to_fewer_rows_and_to_the_next_cluster() {
     let mut next = four.with_rows(rows.iter().cloned());
     let stats = next.set_local_f(LocalF::Auto, Some(&dense));
     assert_eq!((stats.explicit, stats.reused), (4, 4));
-    // Auto on these tiny subdomains: the factor is smaller than the block.
+    // Auto on these tiny subdomains: as the cost model says.
     let mut auto = four.with_rows(rows.iter().cloned());
     let stats = auto.set_local_f(LocalF::Auto, None);
-    let nr = four.local_rows(0).rows.len();
-    let wanted = super::local_f::dense_bytes(nr) < four.subdomain(0).solve_bytes();
-    assert_eq!(stats.explicit > 0, wanted);
+    let wanted = (0..4)
+        .filter(|&s| {
+            let nr = four.local_rows(s).rows.len();
+            super::local_f::wants_explicit(LocalF::Auto, nr, &four.subdomain(s).factor_shape())
+        })
+        .count();
+    assert_eq!(stats.explicit, wanted);
 }
 
 #[test]
