@@ -1218,6 +1218,19 @@ impl Bench {
                 }
                 Ok(())
             }
+            Benchmark::Scene => {
+                let (sx, sy) = self.max_cuts;
+                match self.hh[..] {
+                    [hh] if hh > 0 && sx > 0 && sy > 0 => {
+                        out!("{}", bench::scaled_two_blocks(sx, sy, hh, tolerance));
+                        Ok(())
+                    }
+                    _ => Err(fail(
+                        EXIT_IO,
+                        "bench scene takes one --hh H and --max-cuts SXxSY, all at least 1",
+                    )),
+                }
+            }
             Benchmark::Hard => {
                 prepare(self.out.as_deref())?;
                 let bar = Progress::spinner("bench hard");

@@ -181,6 +181,34 @@ fn bench_scaling_prints_one_row_per_hh_and_cut() {
 }
 
 #[test]
+fn bench_scene_prints_the_scaled_scene_and_it_checks() {
+    let args = ["bench", "scene", "--hh", "4", "--max-cuts", "4x2"];
+    let (code, out, err) = cso(&[&args[..], &["--tolerance", "1e-8"]].concat());
+    assert_eq!(code, 0, "{err}");
+    assert_eq!(out, cso::studies::bench::scaled_two_blocks(4, 2, 4, 1e-8));
+    assert!(out.contains("mesh = 16 x 8, subdomains = 4 x 2"), "{out}");
+    assert!(out.contains("tolerance = 1e-8"), "{out}");
+    let file = std::env::temp_dir().join(format!("cso-bench-scene-{}.cso", std::process::id()));
+    std::fs::write(&file, &out).expect("temp file");
+    let (code, out, err) = cso(&["check", &file.to_string_lossy()]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("scene `scaled` (2D), 2 bodies"), "{out}");
+    let _ = std::fs::remove_file(&file);
+    // One H/h, cuts of at least 1: anything else is a usage error, nothing printed.
+    for bad in [
+        &["bench", "scene", "--max-cuts", "4x2"][..],
+        &["bench", "scene", "--hh", "4", "--hh", "8"],
+        &["bench", "scene", "--hh", "0"],
+        &["bench", "scene", "--hh", "4", "--max-cuts", "0x2"],
+    ] {
+        let (code, out, err) = cso(bad);
+        assert_eq!(code, 2, "{bad:?}: {out}{err}");
+        assert!(out.is_empty(), "{bad:?}: {out}");
+        assert!(err.contains("one --hh H"), "{bad:?}: {err}");
+    }
+}
+
+#[test]
 fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
     let dir = std::env::temp_dir().join(format!("cso-export-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);

@@ -68,3 +68,67 @@ fn exported_qp_solved_elsewhere_equals_cso_solve() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// bench/pdas_reference.py --check: the exported QP of a small two_blocks scene
+/// solved by a primal-dual active-set method with PARDISO has cso's energy to
+/// 1e-6; and with an impossible agreement the script fails (so a real
+/// disagreement would). Skipped where pypardiso is not importable (CI):
+/// `CSO_PDAS_PYTHON` (else `CSO_PYTHON`, else python3) names the interpreter.
+#[test]
+fn pdas_reference_with_pardiso_has_the_energy_of_cso() {
+    let python = std::env::var("CSO_PDAS_PYTHON")
+        .or_else(|_| std::env::var("CSO_PYTHON"))
+        .unwrap_or_else(|_| "python3".to_string());
+    let script = root().join("bench/pdas_reference.py");
+    let run = |extra: &[&str]| {
+        std::process::Command::new(&python)
+            .arg(&script)
+            .args([
+                "--check",
+                "--threads",
+                "2",
+                "--cso",
+                env!("CARGO_BIN_EXE_cso"),
+            ])
+            .args(extra)
+            .output()
+    };
+    let out = match run(&[]) {
+        Ok(o) if o.status.code() == Some(77) => {
+            eprintln!(
+                "SKIPPED: the PDAS reference needs pypardiso ({python}: {})",
+                String::from_utf8_lossy(&o.stderr).trim()
+            );
+            return;
+        }
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("SKIPPED: {python} not found ({e})");
+            return;
+        }
+    };
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert!(out.status.success(), "{stdout}\n{stderr}");
+    let row = stdout
+        .lines()
+        .find(|l| l.starts_with("| 8 | 8x4 |"))
+        .unwrap_or_else(|| panic!("no row for 8x4 at H/h = 8:\n{stdout}\n{stderr}"));
+    let diff: f64 = row
+        .trim_end_matches(" |")
+        .rsplit(" | ")
+        .next()
+        .and_then(|c| c.parse().ok())
+        .unwrap_or_else(|| panic!("no energy difference in {row}"));
+    assert!(diff <= 1e-6, "{row}");
+    eprintln!("PDAS reference ({python}): {row}");
+    let strict = run(&["--energy-tol", "1e-15"]).expect("ran once already");
+    assert_eq!(
+        strict.status.code(),
+        Some(1),
+        "an energy difference above --energy-tol must fail:\n{}",
+        String::from_utf8_lossy(&strict.stderr)
+    );
+}

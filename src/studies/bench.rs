@@ -31,6 +31,11 @@ pub enum Benchmark {
     Coarse,
     // The same on the 3D scaling scene (`--sides`).
     Coarse3d,
+    // Prints the `.cso` text of one scaled scene (one `--hh`, `--max-cuts` as
+    // its cut, `--tolerance`), so that other tools solve the same problem
+    // (bench/pdas_reference.py). Hidden: a tool's entry, not a benchmark.
+    #[value(hide = true)]
+    Scene,
 }
 
 /// The design sizes `m` of the gradient-cost benchmark.
