@@ -7,6 +7,7 @@ use cso::io::atomic::Files;
 use cso::io::tables;
 use cso::lang::scene::{LocalF, Preconditioner, Scheme, SensitivityMethod, SolverMethod};
 use cso::lang::{compile, diag, CheckOptions, Scene};
+use cso::qp::SmalbeOverrides;
 use cso::studies::bench::{self, parse_cuts, Benchmark};
 use cso::studies::output;
 use cso::tfeti::comm::Comm;
@@ -202,6 +203,11 @@ struct Bench {
     /// `optimize` one table each (repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
     local_f: Vec<LocalF>,
+    /// `scaling`, `scaling3d`: SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after`
+    /// (any of them; rho, m0 relative to ||PFP||, eta to ||b||) or `default`;
+    /// one row each (repeatable).
+    #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]
+    smalbe: Vec<SmalbeOverrides>,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
@@ -334,6 +340,11 @@ fn parse_threads(s: &str) -> Result<usize, String> {
             "expected a number of threads of at least 1, found `{s}` (leave --threads out to use every core)"
         )),
     }
+}
+
+/// `--smalbe rho=1,m0=1,beta=2,eta=0.1,lag=before` (or `default`).
+fn parse_smalbe(s: &str) -> Result<SmalbeOverrides, String> {
+    s.parse()
 }
 
 /// `--discretization-error [WHAT=]E`: a positive relative error, named.
@@ -1094,8 +1105,10 @@ impl Bench {
                     let mut cells = Vec::new();
                     for &p in &self.preconditioner {
                         for &l in &self.local_f {
-                            let r = bench::scaling_row(sx, sy, hh, tolerance, p, l);
-                            cells.push(output::scaling_cells(&r.map_err(|e| e.to_string())?));
+                            for &o in &self.smalbe {
+                                let r = bench::scaling_row(sx, sy, hh, tolerance, p, l, o);
+                                cells.push(output::scaling_cells(&r.map_err(|e| e.to_string())?));
+                            }
                         }
                     }
                     Ok(cells.join(&format!(" |\n| {hh} | {sx}x{sy} | ")))
@@ -1115,12 +1128,12 @@ impl Bench {
                 };
                 for &hh in &hhs {
                     for &k in &self.sides {
-                        for (&p, &l) in self
-                            .preconditioner
-                            .iter()
-                            .flat_map(|p| self.local_f.iter().map(move |l| (p, l)))
-                        {
-                            match bench::scaling_row_3d(k, hh, tolerance, p, l) {
+                        for (&p, &l, &o) in self.preconditioner.iter().flat_map(|p| {
+                            self.local_f
+                                .iter()
+                                .flat_map(move |l| self.smalbe.iter().map(move |o| (p, l, o)))
+                        }) {
+                            match bench::scaling_row_3d(k, hh, tolerance, p, l, o) {
                                 Ok(r) => {
                                     outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
                                 }

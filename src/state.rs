@@ -660,7 +660,7 @@ fn solve_on(
     let t = Instant::now();
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
     let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
-    let settings = SmalbeSettings {
+    let mut settings = SmalbeSettings {
         tolerance: scene.solver.tolerance,
         max_hessian: scene.solver.max_iterations,
         // Outer iterations are cheap here (a few MPRGP steps each on contact
@@ -668,6 +668,7 @@ fn solve_on(
         max_outer: 1000,
         ..SmalbeSettings::default()
     };
+    scene.solver.smalbe.apply(&mut settings);
     // Warm start: the previous multipliers, when the rows are the same ones.
     let start = previous.filter(|_| warm.multipliers).and_then(|prev| {
         let same = prev.problem.rows.len() == problem.rows.len()

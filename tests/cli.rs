@@ -792,6 +792,41 @@ fn the_preconditioner_is_chosen_on_the_command_line() {
 }
 
 #[test]
+fn smalbe_settings_are_chosen_on_the_command_line_one_row_each() {
+    let (code, out, err) = cso(&[
+        "bench",
+        "scaling",
+        "--hh",
+        "2",
+        "--max-cuts",
+        "2x1",
+        "--threads",
+        "1",
+        "--smalbe",
+        "default",
+        "--smalbe",
+        "rho=2,m0=0.5,beta=5,eta=0.01,lag=before",
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let rows: Vec<&str> = out.lines().skip(3).collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    assert!(rows[0].ends_with("| default |"), "{out}");
+    assert!(
+        rows[1].ends_with("| rho=2,m0=0.5,beta=5,eta=0.01,lag=before |"),
+        "{out}"
+    );
+    for (bad, says) in [
+        ("beta=0.5", "beta must be a number above 1"),
+        ("lag=later", "`before` or `after`"),
+        ("rh=1", "unknown SMALBE setting `rh`"),
+    ] {
+        let (code, _, err) = cso(&["bench", "scaling3d", "--smalbe", bad]);
+        assert_eq!(code, 2, "{bad}: {err}");
+        assert!(err.contains(says), "{bad}: {err}");
+    }
+}
+
+#[test]
 fn dense_local_f_is_chosen_on_the_command_line_and_changes_no_count() {
     let (code, out, err) = cso(&[
         "bench",

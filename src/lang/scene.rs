@@ -654,6 +654,10 @@ pub struct SolverSettings {
     pub local_f: LocalF,
     /// Classical FETI only: relative pivot tolerance that detects the kernel; default 1e-10.
     pub eps: f64,
+    /// SMALBE's tuning parameters overridden (`cso bench scaling --smalbe`);
+    /// not in the language, default none.
+    #[serde(skip)]
+    pub smalbe: crate::qp::SmalbeOverrides,
 }
 
 impl Default for SolverSettings {
@@ -665,6 +669,7 @@ impl Default for SolverSettings {
             preconditioner: Preconditioner::None,
             local_f: LocalF::Auto,
             eps: 1e-10,
+            smalbe: crate::qp::SmalbeOverrides::default(),
         }
     }
 }

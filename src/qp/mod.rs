@@ -9,7 +9,9 @@ mod mprgp;
 mod smalbe;
 
 pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
-pub use smalbe::{smalbe, smalbe_from, smalbe_preconditioned, SmalbeSettings, SmalbeWarm};
+pub use smalbe::{
+    smalbe, smalbe_from, smalbe_preconditioned, SmalbeOverrides, SmalbeSettings, SmalbeWarm,
+};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.
 pub trait Operator {

@@ -62,6 +62,15 @@ pub struct SmalbeSettings {
     /// steps). Default `20_000`: the real limit on the cost of one solve,
     /// 10 to 200 times what the test problems above needed (100 to 1500).
     pub max_hessian: usize,
+    /// Which Lagrangians the test that lowers `M` compares. `true`: each
+    /// outer iterate's at the multipliers it was minimized for,
+    /// `L(x_k, mu_k) < L(x_{k-1}, mu_{k-1}) + rho/2 ||G x_k||^2` (Dostál's
+    /// SMALBE, PERMON's SMALXE); `false`: both after their multiplier update,
+    /// `L(x_k, mu_{k+1}) < L(x_{k-1}, mu_k) + rho/2 ||G x_k||^2`, which is
+    /// the first plus `rho ||G x_k||^2 - rho ||G x_{k-1}||^2` and so also fires
+    /// whenever the feasibility falls by more than `sqrt 2` (ordinary
+    /// progress), lowering `M` and over-solving the inner problems.
+    pub lagrangian_before_update: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
     /// `max_iterations` caps each inner solve, and its `abar_factor` is
@@ -76,10 +85,138 @@ impl Default for SmalbeSettings {
             m0_factor: 1.0,
             beta: 2.0,
             eta_factor: 0.1,
+            lagrangian_before_update: false,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,
             mprgp: MprgpSettings::default(),
+        }
+    }
+}
+
+/// Overrides of [`SmalbeSettings`]' tuning parameters (`None`: keep the
+/// setting), written `rho=1,m0=0.5,beta=5,eta=0.1,lag=before` (any subset, in
+/// any order; `default` for none): `rho`, `m0` and `eta` are the factors
+/// `rho_factor`, `m0_factor`, `eta_factor`, `lag` is
+/// `lagrangian_before_update`. For benchmarks (`cso bench scaling --smalbe`),
+/// not for scenes.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct SmalbeOverrides {
+    pub rho_factor: Option<f64>,
+    pub m0_factor: Option<f64>,
+    pub beta: Option<f64>,
+    pub eta_factor: Option<f64>,
+    pub lagrangian_before_update: Option<bool>,
+}
+
+impl SmalbeOverrides {
+    /// `settings` with every override set.
+    pub fn apply(&self, settings: &mut SmalbeSettings) {
+        if let Some(v) = self.rho_factor {
+            settings.rho_factor = v;
+        }
+        if let Some(v) = self.m0_factor {
+            settings.m0_factor = v;
+        }
+        if let Some(v) = self.beta {
+            settings.beta = v;
+        }
+        if let Some(v) = self.eta_factor {
+            settings.eta_factor = v;
+        }
+        if let Some(v) = self.lagrangian_before_update {
+            settings.lagrangian_before_update = v;
+        }
+    }
+
+    /// No override set.
+    pub fn is_empty(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+impl std::str::FromStr for SmalbeOverrides {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, String> {
+        const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after` \
+             (any of them, comma-separated) or `default`";
+        let mut o = Self::default();
+        if s.trim() == "default" {
+            return Ok(o);
+        }
+        if s.trim().is_empty() {
+            return Err(format!("empty SMALBE settings: {EXPECTED}"));
+        }
+        for part in s.split(',') {
+            let part = part.trim();
+            let Some((key, value)) = part.split_once('=') else {
+                return Err(format!("`{part}` is not `key=value`: {EXPECTED}"));
+            };
+            let (key, value) = (key.trim(), value.trim());
+            let number = |min: f64, what: &str| -> Result<f64, String> {
+                match value.parse::<f64>() {
+                    Ok(v) if v.is_finite() && v > min => Ok(v),
+                    Ok(_) => Err(format!("`{key}={value}`: {key} must be {what}")),
+                    Err(_) => Err(format!("`{key}={value}`: `{value}` is not a number")),
+                }
+            };
+            let slot_taken = match key {
+                "rho" => o
+                    .rho_factor
+                    .replace(number(0.0, "a positive number")?)
+                    .is_some(),
+                "m0" => o
+                    .m0_factor
+                    .replace(number(0.0, "a positive number")?)
+                    .is_some(),
+                "beta" => o.beta.replace(number(1.0, "a number above 1")?).is_some(),
+                "eta" => o
+                    .eta_factor
+                    .replace(number(0.0, "a positive number")?)
+                    .is_some(),
+                "lag" => {
+                    let before = match value {
+                        "before" => true,
+                        "after" => false,
+                        _ => {
+                            return Err(format!(
+                                "`lag={value}`: lag is `before` or `after` (the multiplier update)"
+                            ))
+                        }
+                    };
+                    o.lagrangian_before_update.replace(before).is_some()
+                }
+                _ => return Err(format!("unknown SMALBE setting `{key}`: {EXPECTED}")),
+            };
+            if slot_taken {
+                return Err(format!("`{key}` is given twice in `{s}`"));
+            }
+        }
+        Ok(o)
+    }
+}
+
+impl std::fmt::Display for SmalbeOverrides {
+    /// The form [`SmalbeOverrides::from_str`] reads (`default` when empty).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mut parts = Vec::new();
+        let mut number = |key: &str, v: Option<f64>| {
+            if let Some(v) = v {
+                parts.push(format!("{key}={v}"));
+            }
+        };
+        number("rho", self.rho_factor);
+        number("m0", self.m0_factor);
+        number("beta", self.beta);
+        number("eta", self.eta_factor);
+        if let Some(before) = self.lagrangian_before_update {
+            parts.push(format!("lag={}", if before { "before" } else { "after" }));
+        }
+        if parts.is_empty() {
+            f.write_str("default")
+        } else {
+            f.write_str(&parts.join(","))
         }
     }
 }
@@ -416,14 +553,20 @@ fn run_smalbe(
             return info;
         }
 
+        // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~,
+        // at mu = mu_k here and at mu_{k+1} after the update.
+        let lagrangian_before = 0.5 * (dot(x, &ws.g) - dot(x, &b_tilde));
         // mu += rho G x: b~ -= rho G^T G x, and the gradient of L moves by
         // +rho G^T G x, which keeps ws.g exact without applying A again.
         g.apply_t(&gx, &mut gtgx);
         axpy(rho, &gx, &mut mu);
         axpy(-rho, &gtgx, &mut b_tilde);
         axpy(rho, &gtgx, &mut ws.g);
-        // L(x_k, mu_{k+1}, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~.
-        let lagrangian = 0.5 * (dot(x, &ws.g) - dot(x, &b_tilde));
+        let lagrangian = if settings.lagrangian_before_update {
+            lagrangian_before
+        } else {
+            0.5 * (dot(x, &ws.g) - dot(x, &b_tilde))
+        };
         if k > 0 && lagrangian < lagrangian_prev + 0.5 * rho * feasibility * feasibility {
             big_m /= settings.beta;
         }
@@ -765,6 +908,88 @@ mod tests {
                 max_diff(&x, &exact) <= 1e-7 * scale,
                 "trial {trial}: {x:?} vs {exact:?}"
             );
+        }
+    }
+
+    #[test]
+    fn either_lagrangian_test_reaches_the_kkt_point() {
+        // The M update compares the Lagrangians before or after the multiplier
+        // update: a different path, the same solution (singular P S P Hessians
+        // with bounds, as in TFETI).
+        let mut rng = Lcg::new(47);
+        for trial in 0..12 {
+            let n = 4 + trial % 5;
+            let m = 1 + trial % 2;
+            let geq = DenseEq::random(m, n, &mut rng);
+            let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = bounds(n, &mut rng);
+            let exact = enumerate(&a, &b, &lower, &geq);
+            for before in [false, true] {
+                let settings = SmalbeSettings {
+                    lagrangian_before_update: before,
+                    ..tight()
+                };
+                let mut x = vec![0.0; n];
+                let info = smalbe(&a, &b, &lower, &geq, &mut x, &settings, &mut |_| {});
+                assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+                let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
+                assert!(
+                    res <= 1e-8 && feas <= 1e-8,
+                    "trial {trial}, before {before}: KKT {res:e}, G x {feas:e}"
+                );
+                let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+                assert!(
+                    max_diff(&x, &exact) <= 1e-7 * scale,
+                    "trial {trial}, before {before}: {x:?} vs {exact:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn overrides_parse_apply_and_print() {
+        let o: SmalbeOverrides = "rho=2,m0=0.5, beta=5,eta=0.01,lag=before".parse().unwrap();
+        let mut s = SmalbeSettings::default();
+        o.apply(&mut s);
+        assert_eq!(
+            (s.rho_factor, s.m0_factor, s.beta, s.eta_factor),
+            (2.0, 0.5, 5.0, 0.01)
+        );
+        assert!(s.lagrangian_before_update);
+        assert_eq!(o.to_string(), "rho=2,m0=0.5,beta=5,eta=0.01,lag=before");
+        assert_eq!(o.to_string().parse::<SmalbeOverrides>(), Ok(o));
+        // A subset changes only what it names.
+        let o: SmalbeOverrides = "lag=after".parse().unwrap();
+        let mut s = SmalbeSettings {
+            lagrangian_before_update: true,
+            ..SmalbeSettings::default()
+        };
+        o.apply(&mut s);
+        assert_eq!(
+            s,
+            SmalbeSettings {
+                lagrangian_before_update: false,
+                ..SmalbeSettings::default()
+            }
+        );
+        let none: SmalbeOverrides = "default".parse().unwrap();
+        assert!(none.is_empty() && !o.is_empty());
+        assert_eq!(none.to_string(), "default");
+        for (bad, says) in [
+            ("", "empty"),
+            ("rho", "not `key=value`"),
+            ("rho=x", "`x` is not a number"),
+            ("rho=-1", "rho must be a positive number"),
+            ("m0=0", "m0 must be a positive number"),
+            ("eta=inf", "eta must be a positive number"),
+            ("beta=1", "beta must be a number above 1"),
+            ("lag=sometimes", "`before` or `after`"),
+            ("gamma=1", "unknown SMALBE setting `gamma`"),
+            ("rho=1,rho=2", "`rho` is given twice"),
+        ] {
+            let err = bad.parse::<SmalbeOverrides>().unwrap_err();
+            assert!(err.contains(says), "{bad}: {err}");
         }
     }
 

@@ -5,6 +5,7 @@
 
 use crate::lang::scene::{LocalF, Preconditioner};
 use crate::lang::{compile, CheckOptions};
+use crate::qp::SmalbeOverrides;
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
 use clap::ValueEnum;
@@ -145,6 +146,7 @@ pub fn scaling_row_3d(
     tolerance: f64,
     preconditioner: Preconditioner,
     local_f: LocalF,
+    smalbe: SmalbeOverrides,
 ) -> Result<ScalingRow, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
     let options = CheckOptions {
@@ -156,6 +158,7 @@ pub fn scaling_row_3d(
     })?;
     scene.solver.preconditioner = preconditioner;
     scene.solver.local_f = local_f;
+    scene.solver.smalbe = smalbe;
     row_of(&scene, hh, (k, k))
 }
 
@@ -179,6 +182,8 @@ pub struct ScalingRow {
     pub converged: bool,
     pub preconditioner: Preconditioner,
     pub local_f: LocalF,
+    /// SMALBE's parameters overridden (`--smalbe`).
+    pub smalbe: SmalbeOverrides,
     /// Subdomains whose local `F_s` was held dense.
     pub explicit: usize,
     /// Seconds spent forming the dense `F_s` (part of `time_factorize`).
@@ -193,7 +198,8 @@ pub fn peak_memory() -> Option<u64> {
     Some(kib * 1024)
 }
 
-/// Solves one scaled scene with a dual preconditioner.
+/// Solves one scaled scene with a dual preconditioner, a form of the local
+/// `F` and SMALBE's parameters overridden.
 pub fn scaling_row(
     sx: usize,
     sy: usize,
@@ -201,10 +207,12 @@ pub fn scaling_row(
     tolerance: f64,
     preconditioner: Preconditioner,
     local_f: LocalF,
+    smalbe: SmalbeOverrides,
 ) -> Result<ScalingRow, SolveError> {
     let mut scene = scaled_scene(sx, sy, hh, tolerance)?;
     scene.solver.preconditioner = preconditioner;
     scene.solver.local_f = local_f;
+    scene.solver.smalbe = smalbe;
     row_of(&scene, hh, (sx, sy))
 }
 
@@ -232,6 +240,7 @@ fn row_of(
         converged: state.converged(),
         preconditioner: scene.solver.preconditioner,
         local_f: scene.solver.local_f,
+        smalbe: scene.solver.smalbe,
         explicit: state.dual.cluster().local_f_stats().explicit,
         time_local_f: state.dual.cluster().local_f_stats().seconds,
     })

@@ -29,7 +29,7 @@ pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
 }
 
 /// The columns of `cso bench scaling` after H/h and cuts.
-pub const SCALING_COLUMNS: [&str; 14] = [
+pub const SCALING_COLUMNS: [&str; 15] = [
     "subdomains",
     "primal",
     "dual",
@@ -44,12 +44,13 @@ pub const SCALING_COLUMNS: [&str; 14] = [
     "preconditioner",
     "local F",
     "ms per F",
+    "SMALBE",
 ];
 
 /// The cells of one [`SCALING_COLUMNS`] row.
 pub fn scaling_cells(r: &ScalingRow) -> String {
     format!(
-        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2}",
+        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2} | {}",
         r.subdomains,
         r.primal,
         r.dual,
@@ -68,6 +69,7 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         r.explicit,
         r.subdomains,
         1e3 * r.time_solve / r.hessian.max(1) as f64,
+        r.smalbe,
     )
 }
 
