@@ -135,7 +135,9 @@ try:
     import numpy as np
     import scipy.sparse as sp
     import pypardiso
-except ImportError as e:
+
+    pypardiso.PyPardisoSolver()  # finds MKL's mkl_rt, or raises ImportError
+except (ImportError, OSError) as e:
     print(f"SKIPPED: {e} (pip install pypardiso)", file=sys.stderr)
     sys.exit(77)
 
@@ -266,6 +268,8 @@ def pardiso_solver(overrides, mtype=-2):
 
 
 def call(solver, a, phase, b):
+    """One PARDISO phase on the matrix `a` (pypardiso's own solve() would run the
+    analysis again, phase 13, whenever the values change)."""
     solver.set_phase(phase)
     return solver._call_pardiso(a, b)
 
