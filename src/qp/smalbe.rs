@@ -55,7 +55,12 @@ pub struct SmalbeSettings {
     /// Hessian `A + rho G^T G` then has norm `max(||A||, rho) = ||A||`, so the
     /// penalty is as strong as it can be without worsening the conditioning.
     /// On seeded `P S P` test problems (n 150-300, cond(S) 1e2-1e5) 1.1 cost
-    /// 3 % more Hessian applications and 2.0 cost 20 % more.
+    /// 3 % more Hessian applications and 2.0 cost 20 % more. Kept after
+    /// tuning on `cso bench scaling` with and without the Dirichlet
+    /// preconditioner (issue 15 item 5, BENCHMARKS.md): 0.5 cost up to 25 %
+    /// more, 2 helped Dirichlet by 6 % up to 144 subdomains at H/h = 16 but
+    /// stalled MPRGP at 576 and H/h = 32 (with `eta = 0.01`: 6,192
+    /// applications against 124).
     pub rho_factor: f64,
     /// Initial precision control `M_0 = m0_factor * ||A||`. `M` relates a
     /// gradient to a displacement, so it is measured in units of `||A||`
@@ -63,14 +68,18 @@ pub struct SmalbeSettings {
     /// same test problems PERMON's `100` spent 7-12 extra outer iterations
     /// halving `M` before the Lagrangian test settled, for the same number of
     /// Hessian applications (within 3 %); `0.1` saved another 2 outer
-    /// iterations. The Lagrangian test lowers `M` further where needed.
+    /// iterations. The Lagrangian test lowers `M` further where needed. On
+    /// `cso bench scaling` 0.1 and 10 cost 1-9 % more (issue 15 item 5).
     pub m0_factor: f64,
     /// Divisor `beta > 1` of `M` when the Lagrangian does not increase enough.
     /// Default `2` (PERMON; ESPRESO's `M <- 0.8 M` is `beta = 1.25`, which
-    /// cost 6 % more Hessian applications on the test problems above).
+    /// cost 6 % more Hessian applications on the test problems above). On
+    /// `cso bench scaling` 5 and 10 cost 9-34 % more (issue 15 item 5).
     pub beta: f64,
     /// Cap of the inner tolerance, `eta = eta_factor * ||b||`. Default `0.1`
-    /// (PERMON): the first outer iterations need only a rough minimizer.
+    /// (PERMON): the first outer iterations need only a rough minimizer. On
+    /// `cso bench scaling` 1 saved 3-7 % up to 144 subdomains and cost 10-12 %
+    /// more at 576 (H/h = 32); 0.01 within 2 % (issue 15 item 5).
     pub eta_factor: f64,
     /// Relative tolerance `eps`: stop when `||g^P|| <= eps ||b||` and
     /// `||G x|| <= eps ||b||`. Default `1e-6`. Tighten it for finite-difference
