@@ -13,6 +13,27 @@
 //! which is what bounds the number of outer iterations independently of the
 //! conditioning of `A`.
 //!
+//! Which Lagrangians that test compares ([`SmalbeSettings::lagrangian_before_update`]):
+//! with `L_k = L(., mu_k, rho)`, `g_k` the gradient of `L_k` at `x_k` and
+//! `d = x_k - x_{k-1}`, the multiplier update `mu_k = mu_{k-1} + rho G x_{k-1}`
+//! gives exactly (a quadratic)
+//! `L_k(x_k) - L_{k-1}(x_{k-1}) = rho/2 ||G x_k||^2 + rho/2 ||G x_{k-1}||^2 + r_k`,
+//! `r_k = g_{k-1}^T d + 1/2 d^T A d >= -||g^P_{k-1}||^2 / (2 lambda_min)`
+//! (both iterates in the box, `A` positive definite; for `P F P` on
+//! `ker G`). So the test at each iterate's own multipliers,
+//! `L_k(x_k) < L_{k-1}(x_{k-1}) + rho/2 ||G x_k||^2`, fires only when
+//! `r_k < -rho/2 ||G x_{k-1}||^2`: when the inner solve stopped too early for
+//! its feasibility, i.e. `M` was too large; it cannot fire once
+//! `M^2 <= rho lambda_min`, which bounds the number of times `M` is lowered
+//! (Dostál's SMALBE; PERMON's SMALXE evaluates it so). Evaluated after each
+//! update (`L(x_k, mu_{k+1})` against `L(x_{k-1}, mu_k)`) both sides move by
+//! `rho ||G x||^2` of their iterate, and the test becomes
+//! `rho ||G x_k||^2 + r_k < rho/2 ||G x_{k-1}||^2`: with an exact inner solve
+//! (`r_k = 0`) it fires whenever the feasibility falls by more than `sqrt 2`,
+//! i.e. on ordinary progress, and `M` shrinks geometrically over a run,
+//! tightening every later inner solve for nothing (`cso bench scaling`:
+//! 208 -> 104 Hessian applications at 144 subdomains, BENCHMARKS.md).
+//!
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 6 (SMALBE).
 
@@ -34,7 +55,12 @@ pub struct SmalbeSettings {
     /// Hessian `A + rho G^T G` then has norm `max(||A||, rho) = ||A||`, so the
     /// penalty is as strong as it can be without worsening the conditioning.
     /// On seeded `P S P` test problems (n 150-300, cond(S) 1e2-1e5) 1.1 cost
-    /// 3 % more Hessian applications and 2.0 cost 20 % more.
+    /// 3 % more Hessian applications and 2.0 cost 20 % more. Kept after
+    /// tuning on `cso bench scaling` with and without the Dirichlet
+    /// preconditioner (issue 15 item 5, BENCHMARKS.md): 0.5 cost up to 25 %
+    /// more, 2 helped Dirichlet by 6 % up to 144 subdomains at H/h = 16 but
+    /// stalled MPRGP at 576 and H/h = 32 (with `eta = 0.01`: 6,192
+    /// applications against 124).
     pub rho_factor: f64,
     /// Initial precision control `M_0 = m0_factor * ||A||`. `M` relates a
     /// gradient to a displacement, so it is measured in units of `||A||`
@@ -42,14 +68,18 @@ pub struct SmalbeSettings {
     /// same test problems PERMON's `100` spent 7-12 extra outer iterations
     /// halving `M` before the Lagrangian test settled, for the same number of
     /// Hessian applications (within 3 %); `0.1` saved another 2 outer
-    /// iterations. The Lagrangian test lowers `M` further where needed.
+    /// iterations. The Lagrangian test lowers `M` further where needed. On
+    /// `cso bench scaling` 0.1 and 10 cost 1-9 % more (issue 15 item 5).
     pub m0_factor: f64,
     /// Divisor `beta > 1` of `M` when the Lagrangian does not increase enough.
     /// Default `2` (PERMON; ESPRESO's `M <- 0.8 M` is `beta = 1.25`, which
-    /// cost 6 % more Hessian applications on the test problems above).
+    /// cost 6 % more Hessian applications on the test problems above). On
+    /// `cso bench scaling` 5 and 10 cost 9-34 % more (issue 15 item 5).
     pub beta: f64,
     /// Cap of the inner tolerance, `eta = eta_factor * ||b||`. Default `0.1`
-    /// (PERMON): the first outer iterations need only a rough minimizer.
+    /// (PERMON): the first outer iterations need only a rough minimizer. On
+    /// `cso bench scaling` 1 saved 3-7 % up to 144 subdomains and cost 10-12 %
+    /// more at 576 (H/h = 32); 0.01 within 2 % (issue 15 item 5).
     pub eta_factor: f64,
     /// Relative tolerance `eps`: stop when `||g^P|| <= eps ||b||` and
     /// `||G x|| <= eps ||b||`. Default `1e-6`. Tighten it for finite-difference
@@ -62,14 +92,18 @@ pub struct SmalbeSettings {
     /// steps). Default `20_000`: the real limit on the cost of one solve,
     /// 10 to 200 times what the test problems above needed (100 to 1500).
     pub max_hessian: usize,
-    /// Which Lagrangians the test that lowers `M` compares. `true`: each
-    /// outer iterate's at the multipliers it was minimized for,
+    /// Which Lagrangians the test that lowers `M` compares. `true` (default):
+    /// each outer iterate's at the multipliers it was minimized for,
     /// `L(x_k, mu_k) < L(x_{k-1}, mu_{k-1}) + rho/2 ||G x_k||^2` (Dostál's
-    /// SMALBE, PERMON's SMALXE); `false`: both after their multiplier update,
-    /// `L(x_k, mu_{k+1}) < L(x_{k-1}, mu_k) + rho/2 ||G x_k||^2`, which is
-    /// the first plus `rho ||G x_k||^2 - rho ||G x_{k-1}||^2` and so also fires
-    /// whenever the feasibility falls by more than `sqrt 2` (ordinary
-    /// progress), lowering `M` and over-solving the inner problems.
+    /// SMALBE, PERMON's SMALXE); `false` (before issue 15 item 5): both after
+    /// their multiplier update, `L(x_k, mu_{k+1}) < L(x_{k-1}, mu_k) + rho/2
+    /// ||G x_k||^2`, whose two sides differ from the first's by `rho ||G
+    /// x_k||^2 - rho ||G x_{k-1}||^2`, so that it also fires whenever the
+    /// feasibility falls by more than `sqrt 2` (ordinary progress), lowering
+    /// `M` and over-solving the later inner problems (the module's
+    /// documentation derives both). On `cso bench scaling` `true` costs
+    /// 0.5-1x the Hessian applications of `false` in every one of 81
+    /// parameter sets, and removes the spike at 144 subdomains.
     pub lagrangian_before_update: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
@@ -85,7 +119,7 @@ impl Default for SmalbeSettings {
             m0_factor: 1.0,
             beta: 2.0,
             eta_factor: 0.1,
-            lagrangian_before_update: false,
+            lagrangian_before_update: true,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,
