@@ -14,7 +14,7 @@
 //! and in the multipliers of the rows both formulations share.
 
 use crate::options;
-use cso::lang::scene::{Preconditioner, SolverMethod};
+use cso::lang::scene::{LocalF, Preconditioner, SolverMethod};
 use cso::lang::{compile, Scene};
 use cso::model::{lower, Problem, RowKind};
 use cso::state::{solve, State};
@@ -481,18 +481,19 @@ pub(crate) fn compare(
 /// Lowers and solves a scene both ways at the initial design (TFETI or
 /// classical FETI as `method` says).
 pub(crate) fn both(src: &str, method: SolverMethod) -> (State, Global, Reference) {
-    both_with(src, method, Preconditioner::None)
+    both_with(src, method, (Preconditioner::None, LocalF::Auto))
 }
 
-/// [`both`] with a dual preconditioner.
+/// [`both`] with a dual preconditioner and a form of the local `F`.
 fn both_with(
     src: &str,
     method: SolverMethod,
-    preconditioner: Preconditioner,
+    (preconditioner, local_f): (Preconditioner, LocalF),
 ) -> (State, Global, Reference) {
     let mut scene = compile_scene(src);
     scene.solver.method = method;
     scene.solver.preconditioner = preconditioner;
+    scene.solver.local_f = local_f;
     scene.solver.tolerance = 1e-10;
     scene.solver.max_iterations = 20_000;
     let design = scene.design_init();
@@ -514,6 +515,8 @@ fn both_with(
 
 /// Asserts agreement of TFETI and of classical FETI with the reference, with
 /// every dual preconditioner.
+/// TFETI also with the local `F` forced implicit and forced dense (the
+/// default picks by size, so small scenes would test one of them only).
 pub(crate) fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
     for p in [
         Preconditioner::None,
@@ -524,7 +527,7 @@ pub(crate) fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
             &format!("{name} ({p:?})"),
             src,
             SolverMethod::Tfeti,
-            p,
+            (p, LocalF::Auto),
             tol_u,
             tol_mult,
         );
@@ -532,7 +535,17 @@ pub(crate) fn check(name: &str, src: &str, tol_u: f64, tol_mult: f64) {
             &format!("{name} (FETI, {p:?})"),
             src,
             SolverMethod::Feti,
-            p,
+            (p, LocalF::Auto),
+            tol_u,
+            tol_mult,
+        );
+    }
+    for l in [LocalF::Implicit, LocalF::Explicit] {
+        check_method_with(
+            &format!("{name} (local F {l:?})"),
+            src,
+            SolverMethod::Tfeti,
+            (Preconditioner::None, l),
             tol_u,
             tol_mult,
         );
@@ -547,7 +560,14 @@ pub(crate) fn check_method(
     tol_u: f64,
     tol_mult: f64,
 ) -> Diff {
-    check_method_with(name, src, method, Preconditioner::None, tol_u, tol_mult)
+    check_method_with(
+        name,
+        src,
+        method,
+        (Preconditioner::None, LocalF::Auto),
+        tol_u,
+        tol_mult,
+    )
 }
 
 /// Asserts agreement and returns the differences for the report.
@@ -555,11 +575,11 @@ fn check_method_with(
     name: &str,
     src: &str,
     method: SolverMethod,
-    preconditioner: Preconditioner,
+    variant: (Preconditioner, LocalF),
     tol_u: f64,
     tol_mult: f64,
 ) -> Diff {
-    let (state, g, r) = both_with(src, method, preconditioner);
+    let (state, g, r) = both_with(src, method, variant);
     let d = compare(&state.problem, &g, &state.u, &state.lambda, &r);
     eprintln!(
         "{name}: {} dofs, {} rows ({} contact, {} active), PDAS {} iterations, {} Hessian applications: rel. diff u {:.2e} at {:?}, multipliers {:.2e}",
