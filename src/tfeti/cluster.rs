@@ -340,6 +340,15 @@ impl Cluster {
         self.local_f
     }
 
+    /// Bytes of the dense `F_s` this process holds (its own subdomains).
+    pub fn local_f_held(&self) -> usize {
+        self.explicit
+            .iter()
+            .flatten()
+            .map(|f| dense_bytes(f.nrows()))
+            .sum()
+    }
+
     /// The communicator of the ranks that share the subdomains.
     pub fn comm(&self) -> &Arc<dyn Comm> {
         &self.comm

@@ -92,10 +92,11 @@ pub fn wants_explicit(choice: LocalF, rows: usize, shape: &FactorShape) -> bool 
     }
 }
 
-/// Memory the dense blocks of one process may hold under [`LocalF::Auto`]: a
-/// quarter of what a scene may use ([`crate::machine_memory_limit`]), so that
-/// the factors, the vectors of the solver and the preconditioner keep the
-/// rest.
+/// Memory the dense blocks of one process may hold under [`LocalF::Auto`],
+/// together with the Dirichlet preconditioner's dense `S_s` (which get what
+/// the `F_s` leave): a quarter of what a scene may use
+/// ([`crate::machine_memory_limit`]), so that the factors and the vectors of
+/// the solver keep the rest.
 pub fn budget() -> usize {
     usize::try_from(crate::machine_memory_limit() / 4).unwrap_or(usize::MAX)
 }

@@ -26,6 +26,7 @@
 
 use super::cluster::Cluster;
 use super::comm::{Comm, Op};
+use super::local_f::{budget, dense_bytes};
 use super::schur::{Schur, SchurForm};
 use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
 use faer::dyn_stack::MemBuffer;
@@ -192,11 +193,35 @@ impl DualPreconditioner {
     /// Builds every subdomain's block (in parallel) and the scaling of the
     /// first `n_equality` rows.
     pub fn new(cluster: &Cluster, kind: Kind, n_equality: usize, form: SchurForm) -> Self {
-        let blocks: Vec<Block> = cluster.map(|s, sub| {
-            let lr = cluster.local_rows(s);
-            let mut boundary: Vec<usize> = lr.entries.iter().map(|e| e.1).collect();
+        let touched = |s: usize| {
+            let mut boundary: Vec<usize> =
+                cluster.local_rows(s).entries.iter().map(|e| e.1).collect();
             boundary.sort_unstable();
             boundary.dedup();
+            boundary
+        };
+        // Dense S_s under the memory rule of the dense local F (and within
+        // what those leave of the budget): beyond it, implicit.
+        let mut held = cluster.local_f_held();
+        let forms: Vec<SchurForm> = cluster
+            .owned()
+            .map(|s| {
+                let bytes = dense_bytes(touched(s).len());
+                if kind != Kind::Dirichlet || form != SchurForm::Auto {
+                    form
+                } else if held + bytes <= budget() {
+                    held += bytes;
+                    form
+                } else {
+                    SchurForm::Implicit
+                }
+            })
+            .collect();
+        let first = cluster.owned().start;
+        let blocks: Vec<Block> = cluster.map(|s, sub| {
+            let lr = cluster.local_rows(s);
+            let boundary = touched(s);
+            let form = forms[s - first];
             let entries = lr
                 .entries
                 .iter()
