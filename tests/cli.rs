@@ -17,6 +17,23 @@ pub(crate) fn cso(args: &[&str]) -> (i32, String, String) {
     )
 }
 
+/// `cso bench scaling` on a tiny scene (H/h = `hh`, cuts up to `cuts`, one
+/// thread) with `extra` options.
+fn bench_scaling(hh: &str, cuts: &str, extra: &[&str]) -> (i32, String, String) {
+    let mut args = vec![
+        "bench",
+        "scaling",
+        "--hh",
+        hh,
+        "--max-cuts",
+        cuts,
+        "--threads",
+        "1",
+    ];
+    args.extend_from_slice(extra);
+    cso(&args)
+}
+
 #[test]
 fn check_passes_on_the_examples_and_fails_with_code_1_on_errors() {
     let (code, out, _) = cso(&["check", "examples/two_blocks.cso", "examples/hertz3d.cso"]);
@@ -160,17 +177,7 @@ fn bench_choices_and_cuts_are_checked_before_anything_runs() {
 
 #[test]
 fn bench_scaling_prints_one_row_per_hh_and_cut() {
-    let args = [
-        "bench",
-        "scaling",
-        "--hh",
-        "2",
-        "--max-cuts",
-        "2x2",
-        "--threads",
-        "1",
-    ];
-    let (code, out, err) = cso(&args);
+    let (code, out, err) = bench_scaling("2", "2x2", &[]);
     assert_eq!(code, 0, "{err}");
     let lines: Vec<&str> = out.lines().collect();
     assert_eq!(lines[0], "threads 1, tolerance 1e-6", "{out}");
@@ -766,18 +773,7 @@ fn the_preconditioner_is_chosen_on_the_command_line() {
     ]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("dirichlet"), "{err}");
-    let (code, out, err) = cso(&[
-        "bench",
-        "scaling",
-        "--hh",
-        "2",
-        "--max-cuts",
-        "2x1",
-        "--threads",
-        "1",
-        "--preconditioner",
-        "none,lumped",
-    ]);
+    let (code, out, err) = bench_scaling("2", "2x1", &["--preconditioner", "none,lumped"]);
     assert_eq!(code, 0, "{err}");
     let rows: Vec<&str> = out.lines().skip(3).collect();
     assert_eq!(rows.len(), 2, "{out}");
@@ -793,20 +789,16 @@ fn the_preconditioner_is_chosen_on_the_command_line() {
 
 #[test]
 fn smalbe_settings_are_chosen_on_the_command_line_one_row_each() {
-    let (code, out, err) = cso(&[
-        "bench",
-        "scaling",
-        "--hh",
+    let (code, out, err) = bench_scaling(
         "2",
-        "--max-cuts",
         "2x1",
-        "--threads",
-        "1",
-        "--smalbe",
-        "default",
-        "--smalbe",
-        "rho=2,m0=0.5,beta=5,eta=0.01,lag=before",
-    ]);
+        &[
+            "--smalbe",
+            "default",
+            "--smalbe",
+            "rho=2,m0=0.5,beta=5,eta=0.01,lag=before",
+        ],
+    );
     assert_eq!(code, 0, "{err}");
     let rows: Vec<&str> = out.lines().skip(3).collect();
     assert_eq!(rows.len(), 2, "{out}");
@@ -828,18 +820,7 @@ fn smalbe_settings_are_chosen_on_the_command_line_one_row_each() {
 
 #[test]
 fn dense_local_f_is_chosen_on_the_command_line_and_changes_no_count() {
-    let (code, out, err) = cso(&[
-        "bench",
-        "scaling",
-        "--hh",
-        "4",
-        "--max-cuts",
-        "4x2",
-        "--threads",
-        "1",
-        "--local-f",
-        "implicit,explicit",
-    ]);
+    let (code, out, err) = bench_scaling("4", "4x2", &["--local-f", "implicit,explicit"]);
     assert_eq!(code, 0, "{err}");
     // The 4x2 cut's two rows: same outer/inner/Hessian counts, every
     // subdomain dense in the second.

@@ -240,9 +240,8 @@ impl Cluster {
     }
 
     /// [`Cluster::with_rows`] with `m` rows in all (trailing rows may touch no
-    /// subdomain).
-    /// Dense `F_s` of this cluster carry over where every row of the new one
-    /// is one of this one's (a submatrix).
+    /// subdomain). Dense `F_s` of this cluster carry over where every row of
+    /// the new one is one of this one's (a submatrix).
     pub fn with_local_rows(&self, local: Vec<LocalRows>, m: usize) -> Cluster {
         let mut c =
             Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone());
@@ -252,8 +251,8 @@ impl Cluster {
                 .as_ref()
                 .and_then(|f| derive_block(f, &self.local[s], &c.local[s]));
         }
-        // Formed (or lent) for this cluster's parent: its counts and seconds,
-        // over every rank.
+        // Formed (or lent) for this cluster's parent: its seconds, and the
+        // counts of what carried over, over every rank.
         let mut counts = [
             c.explicit.iter().flatten().count(),
             c.explicit
@@ -273,7 +272,7 @@ impl Cluster {
     }
 
     /// Forms the dense `F_s` of the owned subdomains that `choice` picks
-    /// (by bytes moved, within [`budget`] for [`LocalF::Auto`]), in parallel.
+    /// ([`wants_explicit`]; within [`budget`] for [`LocalF::Auto`]), in parallel.
     /// A subdomain of `previous` (an earlier cluster, e.g. the previous design
     /// of an optimization) with the same factorization and the same rows
     /// lends its block instead. Without a choice of dense, products stay the

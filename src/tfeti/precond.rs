@@ -193,23 +193,26 @@ impl DualPreconditioner {
     /// Builds every subdomain's block (in parallel) and the scaling of the
     /// first `n_equality` rows.
     pub fn new(cluster: &Cluster, kind: Kind, n_equality: usize, form: SchurForm) -> Self {
-        let touched = |s: usize| {
-            let mut boundary: Vec<usize> =
-                cluster.local_rows(s).entries.iter().map(|e| e.1).collect();
-            boundary.sort_unstable();
-            boundary.dedup();
-            boundary
-        };
-        // Dense S_s under the memory rule of the dense local F (and within
-        // what those leave of the budget): beyond it, implicit.
-        let mut held = cluster.local_f_held();
-        let forms: Vec<SchurForm> = cluster
+        let first = cluster.owned().start;
+        let boundaries: Vec<Vec<usize>> = cluster
             .owned()
             .map(|s| {
-                let bytes = dense_bytes(touched(s).len());
+                let mut b: Vec<usize> = cluster.local_rows(s).entries.iter().map(|e| e.1).collect();
+                b.sort_unstable();
+                b.dedup();
+                b
+            })
+            .collect();
+        // Dense S_s under the memory rule of the dense local F (and within
+        // what those leave of the budget): beyond it, implicit.
+        let (cap, mut held) = (budget(), cluster.local_f_held());
+        let forms: Vec<SchurForm> = boundaries
+            .iter()
+            .map(|b| {
+                let bytes = dense_bytes(b.len());
                 if kind != Kind::Dirichlet || form != SchurForm::Auto {
                     form
-                } else if held + bytes <= budget() {
+                } else if held + bytes <= cap {
                     held += bytes;
                     form
                 } else {
@@ -217,10 +220,9 @@ impl DualPreconditioner {
                 }
             })
             .collect();
-        let first = cluster.owned().start;
         let blocks: Vec<Block> = cluster.map(|s, sub| {
             let lr = cluster.local_rows(s);
-            let boundary = touched(s);
+            let boundary = &boundaries[s - first];
             let form = forms[s - first];
             let entries = lr
                 .entries
@@ -228,10 +230,10 @@ impl DualPreconditioner {
                 .map(|&(k, d, v)| (k, boundary.partition_point(|&b| b < d), v))
                 .collect();
             let op = match kind {
-                Kind::Lumped => Local::Lumped(sub.boundary_stiffness(&boundary)),
-                Kind::Dirichlet => match sub.schur(&boundary, form) {
+                Kind::Lumped => Local::Lumped(sub.boundary_stiffness(boundary)),
+                Kind::Dirichlet => match sub.schur(boundary, form) {
                     Ok(s) => Local::Schur(Box::new(s)),
-                    Err(_) => Local::Lumped(sub.boundary_stiffness(&boundary)),
+                    Err(_) => Local::Lumped(sub.boundary_stiffness(boundary)),
                 },
             };
             let nb = boundary.len();
