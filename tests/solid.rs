@@ -389,15 +389,49 @@ fn hertz3d_equals_an_exact_sparse_solve_and_meets_the_kkt_conditions() {
 }
 
 /// Issue 13 asks for energy and contact force equal to an exact solve to 1e-6
-/// with the solver at tolerance 1e-6 (the scene's own setting). hertz3d does
-/// not meet that: measured energy 2.7e-5 and force 2.4e-5 off (2500.059 N for
-/// 2500 N); at 1e-8 it does (above). The tolerance is relative to the dual
-/// problem scaled by `||PFP||`, so this is what 1e-6 buys, not a wrong answer.
+/// with the solver at the scene's own tolerance 1e-6. SMALBE's tests alone
+/// (relative to the dual right-hand side, 14x the forces here) left them 2.5e-5
+/// off; with the primal equilibrium also held to the tolerance
+/// (`tfeti::solve`), every KKT residual is below 1e-6 and energy and force
+/// agree to 7e-7 and 6e-7 (displacements 1.4e-6).
 #[test]
-#[ignore = "fails: at the scene's tolerance 1e-6, hertz3d's energy and force are 3e-5 off an exact solve (issue 13 asks 1e-6)"]
+#[ignore = "slow: about 90 s in debug tests, most of it the exact sparse solve"]
 fn hertz3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
-    let x = against_exact("hertz3d", &example_src("hertz3d"), 1e-6, 1e-3);
-    assert_exact("hertz3d (tolerance 1e-6)", &x);
+    let x = against_exact("hertz3d", &example_src("hertz3d"), 1e-6, 1e-6);
+    assert_at_tolerance("hertz3d (tolerance 1e-6)", &x, 1e-6);
+}
+
+/// The same on the coarser hertz3d, in the default suite. What the tolerance
+/// guarantees is the KKT residuals (equilibrium 9.1e-7 here); energy and force
+/// follow the equilibrium residual within a small factor (measured 1.2e-6 and
+/// 1.1e-6 here; 2.5e-5 before the primal equilibrium test).
+#[test]
+fn coarse_hertz3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
+    let src = example_src("hertz3d").replace("mesh = 24 x 24 x 16", "mesh = 12 x 12 x 8");
+    let x = against_exact("hertz3d 12x12x8", &src, 1e-6, 1e-6);
+    assert_at_tolerance("hertz3d 12x12x8 (tolerance 1e-6)", &x, 2e-6);
+}
+
+/// What a solve at tolerance 1e-6 must give: energy and contact force within
+/// `bound` of the exact solve (the issue's check: 1e-6), displacements within
+/// 10 `bound`, the same active set.
+fn assert_at_tolerance(name: &str, x: &Exact, bound: f64) {
+    assert!(x.energy < bound, "{name}: energy differs by {:e}", x.energy);
+    assert!(
+        x.force < bound,
+        "{name}: contact force differs by {:e}",
+        x.force
+    );
+    assert!(
+        x.diff.u < 10.0 * bound,
+        "{name}: displacements differ: {:?}",
+        x.diff
+    );
+    assert!(
+        x.diff.active_mismatch.is_empty(),
+        "{name}: active sets differ: {:?}",
+        x.diff
+    );
 }
 
 // --- Hertz contact in 3D against the analytic solution. ---

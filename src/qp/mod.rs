@@ -10,7 +10,8 @@ mod smalbe;
 
 pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
 pub use smalbe::{
-    smalbe, smalbe_from, smalbe_preconditioned, SmalbeOverrides, SmalbeSettings, SmalbeWarm,
+    smalbe, smalbe_from, smalbe_preconditioned, FeasibilityTest, SmalbeOverrides, SmalbeSettings,
+    SmalbeWarm,
 };
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.

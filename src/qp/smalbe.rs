@@ -354,18 +354,27 @@ pub struct SmalbeWarm {
     pub gradient: Option<f64>,
 }
 
+/// A feasibility test in the caller's own terms, checked besides
+/// `||G x|| <= eps ||b||` before SMALBE stops. `||b||` is the scale of the
+/// gradient, not necessarily of the multipliers: the TFETI dual of a body held
+/// by contact alone has `||b||` many times `||x||`, and there `eps ||b||` lets
+/// the equilibrium of the subdomains (`G x = 0`) be off by many times `eps`
+/// of the forces (see `tfeti::solve`).
+pub type FeasibilityTest<'a> = &'a (dyn Fn(&[f64]) -> bool + Sync);
+
 /// [`smalbe_preconditioned`] started from the state of an earlier solve of a
 /// nearby problem (`None`: from scratch, exactly [`smalbe_preconditioned`]);
 /// returns, besides the usual info, the state at the end (every part set),
 /// to start the next nearby problem from. Starting from an earlier state
 /// changes the path, not the stopping test: the result meets the same
-/// tolerance.
+/// tolerance. `also_feasible`, when given, must hold too before it stops.
 #[allow(clippy::too_many_arguments)]
 pub fn smalbe_from(
     a: &dyn Operator,
     precond: Option<&dyn Operator>,
     b: &[f64],
     lower: &[f64],
+    also_feasible: Option<FeasibilityTest<'_>>,
     g: &dyn Equality,
     x: &mut [f64],
     settings: &SmalbeSettings,
@@ -374,7 +383,17 @@ pub fn smalbe_from(
 ) -> (QpInfo, SmalbeWarm) {
     let mut end = SmalbeWarm::default();
     let info = run_smalbe(
-        a, precond, b, lower, g, x, settings, start, &mut end, observer,
+        a,
+        precond,
+        b,
+        lower,
+        also_feasible,
+        g,
+        x,
+        settings,
+        start,
+        &mut end,
+        observer,
     );
     (info, end)
 }
@@ -399,7 +418,7 @@ pub fn smalbe_preconditioned(
 ) -> QpInfo {
     let mut end = SmalbeWarm::default();
     run_smalbe(
-        a, precond, b, lower, g, x, settings, None, &mut end, observer,
+        a, precond, b, lower, None, g, x, settings, None, &mut end, observer,
     )
 }
 
@@ -409,6 +428,7 @@ fn run_smalbe(
     precond: Option<&dyn Operator>,
     b: &[f64],
     lower: &[f64],
+    also_feasible: Option<FeasibilityTest<'_>>,
     g: &dyn Equality,
     x: &mut [f64],
     settings: &SmalbeSettings,
@@ -493,6 +513,9 @@ fn run_smalbe(
     };
     let eps_g = settings.tolerance * scale;
     let eps_f = settings.tolerance * scale;
+    let feasible = |x: &[f64], feasibility: f64| -> bool {
+        feasibility <= eps_f && also_feasible.is_none_or(|test| test(x))
+    };
     let eta = match start.and_then(|s| s.gradient) {
         Some(gp) => (10.0 * gp * scale)
             .max(eps_g)
@@ -537,7 +560,7 @@ fn run_smalbe(
                 }
                 g.apply(x, &mut gx);
                 let feasibility = norm2(&gx);
-                gp <= (big_m * feasibility).min(eta) || (gp <= eps_g && feasibility <= eps_f)
+                gp <= (big_m * feasibility).min(eta) || (gp <= eps_g && feasible(x, feasibility))
             };
             mprgp::run(
                 &hessian,
@@ -569,7 +592,7 @@ fn run_smalbe(
         let feasibility = norm2(&gx);
         info.feasibility = feasibility;
         info.history.push(run.gp_norm / scale);
-        if run.gp_norm <= eps_g && feasibility <= eps_f {
+        if run.gp_norm <= eps_g && feasible(x, feasibility) {
             info.status = Status::Converged;
             finish(end, &mu, big_m, run.gp_norm);
             observer(&info);
@@ -1056,6 +1079,7 @@ mod tests {
             None,
             &b,
             &lower,
+            None,
             &geq,
             &mut x_warm,
             &settings,
@@ -1079,6 +1103,7 @@ mod tests {
                 None,
                 &b,
                 &lower,
+                None,
                 &geq,
                 &mut x_warm,
                 &settings,
@@ -1125,6 +1150,7 @@ mod tests {
             None,
             &b,
             &lower,
+            None,
             &geq,
             &mut y,
             &tight(),
@@ -1141,6 +1167,7 @@ mod tests {
             None,
             &b,
             &lower,
+            None,
             &geq,
             &mut y,
             &tight(),
@@ -1149,6 +1176,51 @@ mod tests {
         );
         assert_eq!(again.status, Status::Converged);
         assert!(again.hessian_applications <= 2, "{again:?}");
+    }
+
+    /// A caller's own feasibility test keeps SMALBE going until it holds,
+    /// here `||G x||` a thousand times below what `eps ||b||` asks.
+    #[test]
+    fn the_callers_feasibility_test_must_hold_too() {
+        let mut rng = Lcg::new(47);
+        let n = 30;
+        let geq = DenseEq::random(3, n, &mut rng);
+        let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower = bounds(n, &mut rng);
+        let settings = SmalbeSettings {
+            tolerance: 1e-5,
+            ..SmalbeSettings::default()
+        };
+        let feasibility = |x: &[f64]| {
+            let mut gx = vec![0.0; 3];
+            geq.apply(x, &mut gx);
+            norm2(&gx)
+        };
+        let strict = 1e-3 * settings.tolerance * norm2(&b);
+        let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
+        let plain = smalbe(&a, &b, &lower, &geq, &mut x, &settings, &mut |_| {});
+        assert_eq!(plain.status, Status::Converged);
+        assert!(
+            feasibility(&x) > strict,
+            "the plain test must stop earlier: {plain:?}"
+        );
+        let test = |x: &[f64]| feasibility(x) <= strict;
+        let (checked, _) = smalbe_from(
+            &a,
+            None,
+            &b,
+            &lower,
+            Some(&test),
+            &geq,
+            &mut y,
+            &settings,
+            None,
+            &mut |_| {},
+        );
+        assert_eq!(checked.status, Status::Converged);
+        assert!(feasibility(&y) <= strict, "{checked:?}");
+        assert!(checked.outer_iterations > plain.outer_iterations);
     }
 
     #[test]

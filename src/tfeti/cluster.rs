@@ -387,17 +387,70 @@ impl Cluster {
     /// One vector per subdomain, the owned ones given: every subdomain's, on
     /// every rank (the identity on one rank).
     fn gather_primal(&self, mine: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+        self.gather_each(mine, |s| self.dofs[s])
+    }
+
+    /// One vector of length `len(s)` per subdomain, the owned ones given:
+    /// every subdomain's, on every rank.
+    fn gather_each(&self, mine: Vec<Vec<f64>>, len: impl Fn(usize) -> usize) -> Vec<Vec<f64>> {
         if !self.is_distributed() {
             return mine;
         }
-        let flat = self.gather(&mine.concat(), |s| self.dofs[s]);
+        let flat = self.gather(&mine.concat(), &len);
         let mut at = 0;
         (0..self.len())
             .map(|s| {
-                at += self.dofs[s];
-                flat[at - self.dofs[s]..at].to_vec()
+                at += len(s);
+                flat[at - len(s)..at].to_vec()
             })
             .collect()
+    }
+
+    /// Per subdomain the Gram matrix `N_s = M_s^T M_s` (kdim x kdim,
+    /// row-major) of `M_s = (I - K_s K_s^+) R_s`. The equilibrium residual of a
+    /// reconstructed state, `K u - f + B^T l = -(I - K K^+)(f - B^T l)`, depends
+    /// on `f - B^T l` only through its rigid-mode part `c_s = R_s^T (f_s - B_s^T
+    /// l)` (`K K^+` is the identity on `Im K`), so its norm is `sqrt(sum_s c_s^T
+    /// N_s c_s)`: the primal equilibrium without reconstructing `u`. One
+    /// `kdim`-column pass over each factor.
+    pub fn equilibrium_grams(&self) -> Vec<Vec<f64>> {
+        let mine = self.map(|_, sub| {
+            let (n, k) = (sub.dofs(), sub.kernel_dim());
+            let mut x: Vec<f64> = (0..k).flat_map(|j| sub.kernel_column(j).to_vec()).collect();
+            sub.apply_pinv_block(&mut x, k);
+            let mut m = vec![0.0; n * k];
+            for j in 0..k {
+                sub.apply_k(&x[j * n..(j + 1) * n], &mut m[j * n..(j + 1) * n]);
+                for (mi, ri) in m[j * n..(j + 1) * n].iter_mut().zip(sub.kernel_column(j)) {
+                    *mi = ri - *mi;
+                }
+            }
+            let mut gram = vec![0.0; k * k];
+            for a in 0..k {
+                for b in 0..k {
+                    gram[a * k + b] = (0..n).map(|i| m[a * n + i] * m[b * n + i]).sum();
+                }
+            }
+            gram
+        });
+        self.gather_each(mine, |s| self.kdim(s) * self.kdim(s))
+    }
+
+    /// `||K u - f + B^T l||` of the state reconstructed from `l`, from the
+    /// rigid-mode parts `c = e - G l` (kernel-sized) and the Grams of
+    /// [`Self::equilibrium_grams`].
+    pub fn equilibrium_residual(&self, grams: &[Vec<f64>], c: &[f64]) -> f64 {
+        let mut sum = 0.0;
+        for (s, gram) in grams.iter().enumerate() {
+            let k = self.kdim(s);
+            let cs = &c[self.offset[s]..self.offset[s] + k];
+            for a in 0..k {
+                for b in 0..k {
+                    sum += cs[a] * gram[a * k + b] * cs[b];
+                }
+            }
+        }
+        sum.max(0.0).sqrt()
     }
 
     /// `y = sum_s B_s y_s`, subdomains in order, from the gathered local row
@@ -592,6 +645,20 @@ impl Cluster {
             for j in 0..self.kdim(s) {
                 z[self.offset[s] + j] =
                     (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
+            }
+        }
+    }
+
+    /// `z = |G| |x|` entry by entry (kernel-sized, not orthonormalized): per
+    /// rigid mode of each subdomain, the sum of the magnitudes of the forces
+    /// `x` puts on it, the scale against which its balance `G x` is judged.
+    pub fn apply_g_abs(&self, x: &[f64], z: &mut [f64]) {
+        for (s, lr) in self.local.iter().enumerate() {
+            let nr = lr.rows.len();
+            for j in 0..self.kdim(s) {
+                z[self.offset[s] + j] = (0..nr)
+                    .map(|k| (self.g[s][j * nr + k] * x[lr.rows[k]]).abs())
+                    .sum();
             }
         }
     }

@@ -16,7 +16,7 @@ use super::schur::SchurForm;
 use crate::qp::{Equality, Operator};
 use faer::{Mat, Side};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
-use std::sync::Mutex;
+use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
 
 fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
@@ -61,6 +61,8 @@ pub struct Dual {
     setup_nanos: AtomicU64,
     /// The dual preconditioner, when one was asked for.
     precond: Option<DualPreconditioner>,
+    /// [`Cluster::equilibrium_grams`], formed on first use.
+    grams: OnceLock<Vec<Vec<f64>>>,
 }
 
 fn nanos(t: Instant) -> u64 {
@@ -105,6 +107,7 @@ impl Dual {
             apply_nanos: AtomicU64::new(0),
             setup_nanos: AtomicU64::new(nanos(t)),
             precond: None,
+            grams: OnceLock::new(),
         })
     }
 
@@ -185,6 +188,11 @@ impl Dual {
     /// Applications of `F` so far.
     pub fn f_applications(&self) -> usize {
         self.f_applications.load(Ordering::Relaxed)
+    }
+
+    /// [`Cluster::equilibrium_grams`] of this cluster, formed once.
+    pub fn equilibrium_grams(&self) -> &[Vec<f64>] {
+        self.grams.get_or_init(|| self.cluster.equilibrium_grams())
     }
 
     /// `y = F x` (deterministic: see [`Cluster::apply_f`]).

@@ -510,3 +510,47 @@ fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
     let bottom: Vec<usize> = (0..8).collect();
     assert!(sub.schur(&bottom, SchurForm::Auto).is_ok());
 }
+
+/// The equilibrium residual from the rigid-mode Grams equals the one of the
+/// reconstructed state, `||K K^+ y - y||` with `y = f - B^T l`, for multipliers
+/// that balance nothing (random `l`, random `f`): the stopping test that uses
+/// it measures what the KKT report measures.
+#[test]
+fn the_equilibrium_residual_from_the_grams_is_that_of_the_reconstructed_state() {
+    let (cluster, _, _) = glued_pair();
+    let m = cluster.multipliers();
+    let lambda = rand_vec(m, 3);
+    let f: Vec<Vec<f64>> = (0..2)
+        .map(|s| rand_vec(cluster.dofs(s), 11 + s as u64))
+        .collect();
+    let bt = cluster.apply_bt(&lambda);
+    let mut direct = 0.0;
+    let mut c = vec![0.0; cluster.kernel_dim()];
+    let mut at = 0;
+    for s in 0..2 {
+        let sub = cluster.subdomain(s);
+        let y: Vec<f64> = f[s].iter().zip(&bt[s]).map(|(a, b)| a - b).collect();
+        let mut x = y.clone();
+        sub.apply_pinv(&mut x);
+        let mut kx = vec![0.0; y.len()];
+        sub.apply_k(&x, &mut kx);
+        direct += kx.iter().zip(&y).map(|(a, b)| (a - b).powi(2)).sum::<f64>();
+        for j in 0..sub.kernel_dim() {
+            c[at] = sub
+                .kernel_column(j)
+                .iter()
+                .zip(&y)
+                .map(|(a, b)| a * b)
+                .sum();
+            at += 1;
+        }
+    }
+    let direct = direct.sqrt();
+    let grams = cluster.equilibrium_grams();
+    let from_grams = cluster.equilibrium_residual(&grams, &c);
+    assert!(direct > 1e-3, "the test needs an unbalanced y: {direct}");
+    assert!(
+        (from_grams - direct).abs() <= 1e-10 * direct,
+        "{from_grams} vs {direct}"
+    );
+}
