@@ -119,20 +119,34 @@ pub fn dual_solve_from(
     }
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
+    let mut power = 0;
     let pfp = match start.and_then(|s| s.pfp) {
         Some(pfp) => pfp,
         None => {
             let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
             dual.project(&mut v);
             let mut w = vec![0.0; m];
-            estimate_norm(&ProjectedF::new(dual, 1.0), &mut v, &mut w, 10).0
+            let (pfp, used) = estimate_norm(
+                &ProjectedF::new(dual, 1.0),
+                &mut v,
+                &mut w,
+                settings.mprgp.power_iterations,
+            );
+            power = used;
+            pfp
         }
     };
-    let scale = if pfp > 0.0 && pfp.is_finite() {
-        1.0 / pfp
-    } else {
-        1.0
-    };
+    let scaled = pfp > 0.0 && pfp.is_finite();
+    let scale = if scaled { 1.0 / pfp } else { 1.0 };
+    // SMALBE's Hessian is A = P F P / ||P F P||, so ||A|| = 1 (to the power
+    // iteration's accuracy, as SMALBE's own estimate would be), and
+    // A + rho G~^T G~ is A on Im P and rho on its complement (A = P A P,
+    // G~^T G~ = I - P): its norm is max(1, rho). SMALBE need not estimate them
+    // again (twice the power iterations saved per solve).
+    let mut smalbe_start = start.and_then(|s| s.smalbe.clone()).unwrap_or_default();
+    if scaled && smalbe_start.norms.is_none() {
+        smalbe_start.norms = Some((1.0, settings.rho_factor.max(1.0)));
+    }
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
     // The start, homogenized and projected (SMALBE puts it on the bounds).
     let mut lhat = match start {
@@ -186,7 +200,7 @@ pub fn dual_solve_from(
         let residual = cluster.equilibrium_residual(grams, &c);
         residual <= tolerance * f_norm.max(bt_norm)
     };
-    let (info, end) = smalbe_from(
+    let (mut info, end) = smalbe_from(
         &ProjectedF::new(dual, scale),
         precond.as_ref().map(|m| m as &dyn Operator),
         &b,
@@ -195,9 +209,11 @@ pub fn dual_solve_from(
         &g,
         &mut lhat,
         settings,
-        start.and_then(|s| s.smalbe.as_ref()),
+        Some(&smalbe_start),
         observer,
     );
+    // The power iterations for ||P F P|| are applications of the same F.
+    info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
     let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d).map_err(|e| match e {

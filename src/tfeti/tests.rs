@@ -554,3 +554,46 @@ fn the_equilibrium_residual_from_the_grams_is_that_of_the_reconstructed_state() 
         "{from_grams} vs {direct}"
     );
 }
+
+/// `A + rho G~^T G~` with `A = P F P / ||P F P||` has norm `max(||A||, rho)`:
+/// `A` lives on `Im P` and `G~^T G~ = I - P` on its complement. The dual solve
+/// gives SMALBE these norms instead of estimating them again.
+#[test]
+fn the_augmented_dual_hessian_has_norm_max_of_one_and_rho() {
+    use super::dual::{Orthonormal, ProjectedF};
+    use crate::qp::{estimate_norm, Equality, Operator};
+    let (cluster, _, _) = glued_pair();
+    let dual = Dual::new(cluster).expect("coarse space");
+    let m = dual.multipliers();
+    let start = |v: &mut Vec<f64>| *v = (0..m).map(|i| 1.0 + (i % 5) as f64).collect();
+    let (mut v, mut w) = (Vec::new(), vec![0.0; m]);
+    start(&mut v);
+    let pfp = estimate_norm(&ProjectedF::new(&dual, 1.0), &mut v, &mut w, 500).0;
+    let a = ProjectedF::new(&dual, 1.0 / pfp);
+    let g = Orthonormal(&dual);
+    for rho in [0.3, 1.0, 4.0] {
+        struct Augmented<'a>(&'a ProjectedF<'a>, &'a Orthonormal<'a>, f64);
+        impl Operator for Augmented<'_> {
+            fn dim(&self) -> usize {
+                self.0.dim()
+            }
+            fn apply(&self, x: &[f64], y: &mut [f64]) {
+                self.0.apply(x, y);
+                let mut gx = vec![0.0; self.1.rows()];
+                self.1.apply(x, &mut gx);
+                let mut gtgx = vec![0.0; x.len()];
+                self.1.apply_t(&gx, &mut gtgx);
+                for (yi, t) in y.iter_mut().zip(&gtgx) {
+                    *yi += self.2 * t;
+                }
+            }
+        }
+        start(&mut v);
+        let norm = estimate_norm(&Augmented(&a, &g, rho), &mut v, &mut w, 500).0;
+        let expected = f64::max(1.0, rho);
+        assert!(
+            (norm - expected).abs() < 1e-6 * expected,
+            "rho {rho}: {norm} vs {expected}"
+        );
+    }
+}
