@@ -208,12 +208,24 @@ struct Bench {
     /// one row each (repeatable).
     #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]
     smalbe: Vec<SmalbeOverrides>,
+    /// `scaling3d`: the subdomain factors' fill-reducing ordering, one row
+    /// each (repeatable, or comma-separated): `dissection` (nested dissection
+    /// where it stores fewer values than AMD, the default) or `amd`.
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [FactorOrdering::Dissection])]
+    ordering: Vec<FactorOrdering>,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     threads: Option<usize>,
     /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
     #[arg(short, long, value_name = "DIR")]
     out: Option<PathBuf>,
+}
+
+/// A fill-reducing ordering of the subdomain factors (`cso bench scaling3d`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum FactorOrdering {
+    Dissection,
+    Amd,
 }
 
 #[derive(Subcommand, Debug)]
@@ -1128,11 +1140,14 @@ impl Bench {
                 };
                 for &hh in &hhs {
                     for &k in &self.sides {
-                        for (&p, &l, &o) in self.preconditioner.iter().flat_map(|p| {
-                            self.local_f
-                                .iter()
-                                .flat_map(move |l| self.smalbe.iter().map(move |o| (p, l, o)))
+                        for (&p, &l, &o, &ord) in self.preconditioner.iter().flat_map(|p| {
+                            self.local_f.iter().flat_map(move |l| {
+                                self.smalbe.iter().flat_map(move |o| {
+                                    self.ordering.iter().map(move |ord| (p, l, o, ord))
+                                })
+                            })
                         }) {
+                            cso::tfeti::ordering::set_dissection(ord == FactorOrdering::Dissection);
                             match bench::scaling_row_3d(k, hh, tolerance, p, l, o) {
                                 Ok(r) => {
                                     outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))

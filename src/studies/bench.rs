@@ -188,6 +188,12 @@ pub struct ScalingRow {
     pub explicit: usize,
     /// Seconds spent forming the dense `F_s` (part of `time_factorize`).
     pub time_local_f: f64,
+    /// Values stored in the subdomains' Cholesky factors (what each
+    /// implicit application of `F` reads twice).
+    pub factor_values: usize,
+    /// The factors' fill-reducing ordering: `amd`, or `dissection` where 3D
+    /// subdomains may take nested dissection (`tfeti::ordering`).
+    pub ordering: &'static str,
 }
 
 /// Peak resident set size of this process (Linux), bytes.
@@ -243,6 +249,17 @@ fn row_of(
         smalbe: scene.solver.smalbe,
         explicit: state.dual.cluster().local_f_stats().explicit,
         time_local_f: state.dual.cluster().local_f_stats().seconds,
+        factor_values: state
+            .dual
+            .cluster()
+            .map(|_, s| s.factor_nonzeros())
+            .iter()
+            .sum(),
+        ordering: if state.problem.dim == 3 && crate::tfeti::ordering::dissection_on() {
+            "dissection"
+        } else {
+            "amd"
+        },
     })
 }
 

@@ -29,7 +29,7 @@ pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
 }
 
 /// The columns of `cso bench scaling` after H/h and cuts.
-pub const SCALING_COLUMNS: [&str; 15] = [
+pub const SCALING_COLUMNS: [&str; 17] = [
     "subdomains",
     "primal",
     "dual",
@@ -45,12 +45,14 @@ pub const SCALING_COLUMNS: [&str; 15] = [
     "local F",
     "ms per F",
     "SMALBE",
+    "factor MB",
+    "ordering",
 ];
 
 /// The cells of one [`SCALING_COLUMNS`] row.
 pub fn scaling_cells(r: &ScalingRow) -> String {
     format!(
-        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2} | {}",
+        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2} | {} | {:.0} | {}",
         r.subdomains,
         r.primal,
         r.dual,
@@ -70,6 +72,8 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         r.subdomains,
         1e3 * r.time_solve / r.hessian.max(1) as f64,
         r.smalbe,
+        8.0 * r.factor_values as f64 / 1e6,
+        r.ordering,
     )
 }
 

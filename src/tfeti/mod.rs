@@ -25,6 +25,7 @@ pub mod kkt;
 pub mod local_f;
 #[cfg(feature = "mpi")]
 pub mod mpi;
+pub mod ordering;
 pub mod precond;
 pub mod reconstruct;
 pub mod rows;

@@ -165,6 +165,37 @@ pub fn symbolic_amd(
     .map_err(|e| format!("symbolic factorization failed: {e:?}"))
 }
 
+/// The symbolic Cholesky of an upper triangle with the fill-reducing ordering
+/// `order` (`order[i]`: the row placed `i`-th) or AMD's, whichever stores
+/// fewer factor values (their count is what a solve reads).
+pub fn symbolic_best(
+    a: SymbolicSparseColMatRef<'_, usize>,
+    order: Option<&[usize]>,
+) -> Result<SymbolicCholesky<usize>, String> {
+    let amd = symbolic_amd(a)?;
+    let n = a.nrows();
+    let Some(order) = order.filter(|o| o.len() == n) else {
+        return Ok(amd);
+    };
+    let mut inverse = vec![usize::MAX; n];
+    for (i, &o) in order.iter().enumerate() {
+        match inverse.get_mut(o) {
+            Some(slot) if *slot == usize::MAX => *slot = i,
+            _ => return Ok(amd),
+        }
+    }
+    let perm = faer::perm::PermRef::new_checked(order, &inverse, n);
+    match factorize_symbolic_cholesky(
+        a,
+        Side::Upper,
+        SymmetricOrdering::Custom(perm),
+        CholeskySymbolicParams::default(),
+    ) {
+        Ok(custom) if custom.len_val() < amd.len_val() => Ok(custom),
+        _ => Ok(amd),
+    }
+}
+
 /// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
 pub fn ldlt_solve(
     symbolic: &SymbolicCholesky<usize>,

@@ -21,10 +21,11 @@
 
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
+use super::ordering;
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
     ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
-    lower_gram, mirror_lower, solve_scratch, symbolic_amd, FactorShape, UpperCsc,
+    lower_gram, mirror_lower, solve_scratch, symbolic_best, FactorShape, UpperCsc,
 };
 use crate::fem::Element;
 use crate::model::SubdomainMesh;
@@ -281,7 +282,22 @@ impl Subdomain {
                 let symbolic = match old {
                     Some(s) => s,
                     None => {
-                        Arc::new(symbolic_amd(a.symbolic()).map_err(SubdomainError::NotPositive)?)
+                        // 3D: nested dissection of the brick where it stores
+                        // fewer values than AMD (`super::ordering`).
+                        let order = (dim == 3 && ordering::dissection_on())
+                            .then(|| ordering::lattice(mesh.elements, n / dim))
+                            .flatten()
+                            .map(|at| {
+                                ordering::dof_order(
+                                    &ordering::nested_dissection(&at),
+                                    dim,
+                                    &reduced,
+                                )
+                            });
+                        Arc::new(
+                            symbolic_best(a.symbolic(), order.as_deref())
+                                .map_err(SubdomainError::NotPositive)?,
+                        )
                     }
                 };
                 let (l_values, buf) = llt_numeric(&symbolic, a, 1)
