@@ -15,7 +15,7 @@ use crate::tfeti::kkt::kkt;
 pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::{DualSolution, DualStart};
-use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError};
+use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, SymbolicCache};
 use rayon::prelude::*;
 use std::sync::Arc;
 use std::time::Instant;
@@ -406,6 +406,7 @@ fn setup_on(
         vec![0, problem.subdomains.len()]
     };
     let owned = bounds[comm.rank()]..bounds[comm.rank() + 1];
+    let symbolic = SymbolicCache::default();
     let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem.subdomains[owned.clone()]
         .par_iter()
         .enumerate()
@@ -426,7 +427,7 @@ fn setup_on(
                 Some((old, true)) => return Ok((old, true)),
                 Some((old, false)) => old.rebuilt(&g),
                 None => match kind(s) {
-                    Kind::Total => Subdomain::total(&g),
+                    Kind::Total => Subdomain::total_shared(&g, &symbolic),
                     Kind::Classical { eliminated, eps } => {
                         Subdomain::classical(&g, &eliminated, eps)
                     }

@@ -218,10 +218,72 @@ fn assemble(mesh: &Geometry) -> Result<UpperCsc, SubdomainError> {
     Ok(k)
 }
 
+/// Symbolic factorizations shared by the subdomains whose reduced stiffness
+/// has one pattern and one proposed ordering (the equal bricks of a body):
+/// each is analysed once, which in 3D costs as much as a numeric
+/// factorization. A shared analysis is the one the subdomain would have
+/// computed itself (same inputs), so results do not depend on which
+/// subdomains, or ranks, share it; a subdomain taking one still counts as
+/// symbolically factorized (not reused from an earlier design).
+#[derive(Default)]
+pub struct SymbolicCache {
+    entries: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
+}
+
+/// What a symbolic analysis is computed from.
+struct SymbolicKey<'a> {
+    col_ptr: &'a [usize],
+    row_idx: &'a [usize],
+    order: Option<&'a [usize]>,
+}
+
+type OwnedKey = (Vec<usize>, Vec<usize>, Option<Vec<usize>>);
+
+impl SymbolicKey<'_> {
+    fn matches(&self, k: &OwnedKey) -> bool {
+        k.0 == self.col_ptr && k.1 == self.row_idx && k.2.as_deref() == self.order
+    }
+}
+
+impl SymbolicCache {
+    fn entries(&self) -> std::sync::MutexGuard<'_, Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>> {
+        match self.entries.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        }
+    }
+
+    fn get(&self, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
+        self.entries()
+            .iter()
+            .find(|(k, _)| key.matches(k))
+            .map(|(_, s)| s.clone())
+    }
+
+    fn insert(&self, key: &SymbolicKey, symbolic: &Arc<SymbolicCholesky<usize>>) {
+        let mut entries = self.entries();
+        if !entries.iter().any(|(k, _)| key.matches(k)) {
+            let owned = (
+                key.col_ptr.to_vec(),
+                key.row_idx.to_vec(),
+                key.order.map(<[usize]>::to_vec),
+            );
+            entries.push((owned, symbolic.clone()));
+        }
+    }
+}
+
 impl Subdomain {
     /// A TFETI subdomain: assembles, fixes the kernel's dofs and factorizes.
     pub fn total(mesh: &Geometry) -> Result<Self, SubdomainError> {
-        Self::build(mesh, Kind::Total, None)
+        Self::build(mesh, Kind::Total, None, None)
+    }
+
+    /// [`Subdomain::total`] taking its symbolic factorization from `shared`
+    /// when another subdomain of the same pattern put one there (and putting
+    /// its own there otherwise).
+    pub fn total_shared(mesh: &Geometry, shared: &SymbolicCache) -> Result<Self, SubdomainError> {
+        Self::build(mesh, Kind::Total, None, Some(shared))
     }
 
     /// A classical FETI subdomain: `eliminated` (local dofs held by Dirichlet
@@ -235,20 +297,21 @@ impl Subdomain {
         let mut eliminated = eliminated.to_vec();
         eliminated.sort_unstable();
         eliminated.dedup();
-        Self::build(mesh, Kind::Classical { eliminated, eps }, None)
+        Self::build(mesh, Kind::Classical { eliminated, eps }, None, None)
     }
 
     /// The same kind of subdomain on a new mesh of the same pattern (a new
     /// design): reassembled and refactored numerically, the symbolic
     /// factorization reused when the pattern (and the fixing dofs) did not change.
     pub fn rebuilt(&self, mesh: &Geometry) -> Result<Self, SubdomainError> {
-        Self::build(mesh, self.kind.clone(), Some(self))
+        Self::build(mesh, self.kind.clone(), Some(self), None)
     }
 
     fn build(
         mesh: &Geometry,
         kind: Kind,
         previous: Option<&Subdomain>,
+        shared: Option<&SymbolicCache>,
     ) -> Result<Self, SubdomainError> {
         let k = assemble(mesh)?;
         let dim = mesh.element.dim();
@@ -294,10 +357,24 @@ impl Subdomain {
                                     &reduced,
                                 )
                             });
-                        Arc::new(
-                            symbolic_best(a.symbolic(), order.as_deref())
-                                .map_err(SubdomainError::NotPositive)?,
-                        )
+                        let key = SymbolicKey {
+                            col_ptr: krr.symbolic().col_ptr(),
+                            row_idx: krr.symbolic().row_idx(),
+                            order: order.as_deref(),
+                        };
+                        match shared.and_then(|c| c.get(&key)) {
+                            Some(s) => s,
+                            None => {
+                                let symbolic = Arc::new(
+                                    symbolic_best(a.symbolic(), order.as_deref())
+                                        .map_err(SubdomainError::NotPositive)?,
+                                );
+                                if let Some(c) = shared {
+                                    c.insert(&key, &symbolic);
+                                }
+                                symbolic
+                            }
+                        }
                     }
                 };
                 let (l_values, buf) = llt_numeric(&symbolic, a, 1)
@@ -952,5 +1029,25 @@ pub(crate) mod tests {
         let bottom: Vec<usize> = (0..16 * 3).collect();
         let held = Subdomain::classical(&g, &bottom, 1e-10).expect("sound eps");
         assert_eq!(held.kernel_dim(), 0);
+    }
+
+    /// Subdomains of one pattern share one symbolic analysis, and factor and
+    /// solve exactly as they would alone.
+    #[test]
+    fn subdomains_of_one_pattern_share_their_symbolic_factorization() {
+        let (a, b) = (grid(3, 2, 0.0), grid(3, 2, 0.2));
+        let cache = SymbolicCache::default();
+        let (sa, sb) = (
+            Subdomain::total_shared(&Geometry::of(&a), &cache).expect("factorizes"),
+            Subdomain::total_shared(&Geometry::of(&b), &cache).expect("factorizes"),
+        );
+        assert!(Arc::ptr_eq(sa.factor.symbolic(), sb.factor.symbolic()));
+        let alone = Subdomain::total(&Geometry::of(&b)).expect("factorizes");
+        assert!(!Arc::ptr_eq(alone.factor.symbolic(), sb.factor.symbolic()));
+        let mut x = rand_vec(sb.dofs(), 5);
+        let mut y = x.clone();
+        sb.apply_pinv(&mut x);
+        alone.apply_pinv(&mut y);
+        assert_eq!(x, y);
     }
 }
