@@ -12,10 +12,10 @@
 use super::functional::ring;
 use super::semi::Rhs;
 use crate::fem::facet::Facet;
-use crate::fem::hex::hex_gauss;
+use crate::fem::hex::hex_volume_gradient;
 use crate::lang::scene::Scene;
 use crate::model::geometry::{
-    contact_row, coords, face_loads, node_positions, normalize, obstacle_row, tie_row, NormalRow,
+    body_positions, contact_row, coords, face_loads, normalize, obstacle_row, tie_row, NormalRow,
     ObstacleShape, Pattern, Piece,
 };
 use crate::model::{ContactPrimary, Named, RowKind};
@@ -149,23 +149,8 @@ impl Tape {
     ) -> Tape {
         let p = &state.problem;
         let design = scene.design_init();
-        let m = design.len();
         let pos = coords::<DIM>(p);
-        let velocities: Vec<Vec<Vec<f64>>> = (0..m)
-            .map(|i| {
-                let x = node_positions::<D, DIM>(scene, &super::semi::seeded(&design, i));
-                x.iter()
-                    .map(|b| {
-                        let v: Vec<f64> = b.iter().flatten().map(|c| c.eps).collect();
-                        if v.iter().all(|x| *x == 0.0) {
-                            Vec::new()
-                        } else {
-                            v
-                        }
-                    })
-                    .collect()
-            })
-            .collect();
+        let velocities = velocities::<DIM>(scene, &design);
         let moves: Vec<bool> = (0..pos.len())
             .map(|b| velocities.iter().any(|v| !v[b].is_empty()))
             .collect();
@@ -253,31 +238,27 @@ impl Tape {
                 _ => RowMotion::Still,
             })
             .collect();
-        let measures = scene
+        // Each body's measure and its gradient (kept where the body moves).
+        let (measure_values, measures) = scene
             .bodies
             .iter()
             .enumerate()
             .map(|(b, body)| {
-                if !moves[b] {
-                    Vec::new()
-                } else if DIM == 2 {
+                let (value, g) = if DIM == 2 {
                     area_gradient(body, &pos[b])
                 } else {
                     volume_gradient(body, &pos[b])
-                }
+                };
+                (value, if moves[b] { g } else { Vec::new() })
             })
-            .collect();
+            .unzip();
         Tape {
             dim: DIM,
             velocities,
             loads,
             rows,
             measures,
-            measure_values: scene
-                .bodies
-                .iter()
-                .map(|b| super::functional::body_measure(b, &design))
-                .collect(),
+            measure_values,
         }
     }
 
@@ -404,6 +385,52 @@ impl Tape {
     }
 }
 
+/// Directions at a time in [`velocities`].
+const CHUNK: usize = 8;
+
+/// Node velocities per direction, per body (flat; empty where the body stays):
+/// the bodies whose formulas use the design, evaluated in dual numbers with
+/// [`CHUNK`] directions at a time (one pass over the columns serves them).
+fn velocities<const DIM: usize>(scene: &Scene, design: &[f64]) -> Vec<Vec<Vec<f64>>> {
+    let m = design.len();
+    let mut out = vec![vec![Vec::new(); scene.bodies.len()]; m];
+    for (b, body) in scene.bodies.iter().enumerate() {
+        let formulas = body.extent.iter().flat_map(|(lo, hi)| [lo, hi]);
+        if !formulas
+            .chain(&body.bottom)
+            .chain(&body.top)
+            .any(|f| f.uses_design())
+        {
+            continue;
+        }
+        for c0 in (0..m).step_by(CHUNK) {
+            let dd: Vec<DualSVec64<CHUNK>> = design
+                .iter()
+                .enumerate()
+                .map(|(k, v)| {
+                    let x = DualSVec64::from_re(*v);
+                    if (c0..c0 + CHUNK).contains(&k) {
+                        x.derivative(k - c0)
+                    } else {
+                        x
+                    }
+                })
+                .collect();
+            let t: Vec<[f64; CHUNK]> = body_positions::<_, DIM>(body, &dd)
+                .iter()
+                .flatten()
+                .map(tangents)
+                .collect();
+            for j in 0..CHUNK.min(m - c0) {
+                if t.iter().any(|r| r[j] != 0.0) {
+                    out[c0 + j][b] = t.iter().map(|r| r[j]).collect();
+                }
+            }
+        }
+    }
+    out
+}
+
 /// An obstacle row in a direction (its secondary node moving with `v`).
 fn obstacle_motion<const DIM: usize>(
     p: &crate::model::Problem,
@@ -477,21 +504,23 @@ where
 fn area_gradient<const DIM: usize>(
     body: &crate::lang::scene::Body,
     pos: &[[f64; DIM]],
-) -> Vec<f64> {
+) -> (f64, Vec<f64>) {
     let nx = body.mesh[0];
     let index = |i: [usize; 3]| i[1] * (nx + 1) + i[0];
     let ring: Vec<usize> = ring(body).into_iter().map(index).collect();
     let mut g = vec![0.0; DIM * pos.len()];
     let n = ring.len();
+    let mut twice = 0.0;
     for k in 0..n {
         let (a, b) = (ring[k], ring[(k + 1) % n]);
+        twice += pos[a][0] * pos[b][1] - pos[b][0] * pos[a][1];
         // d/dp, d/dq of (p0 q1 - q0 p1) / 2
         g[DIM * a] += 0.5 * pos[b][1];
         g[DIM * a + 1] -= 0.5 * pos[b][0];
         g[DIM * b + 1] += 0.5 * pos[a][0];
         g[DIM * b] -= 0.5 * pos[a][1];
     }
-    g
+    (0.5 * twice, g)
 }
 
 /// Gradient of a 3D body's volume (the sum of its hexahedra's, as
@@ -499,10 +528,11 @@ fn area_gradient<const DIM: usize>(
 fn volume_gradient<const DIM: usize>(
     body: &crate::lang::scene::Body,
     pos: &[[f64; DIM]],
-) -> Vec<f64> {
+) -> (f64, Vec<f64>) {
     let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
     let at = |i: usize, j: usize, k: usize| (k * (n[1] + 1) + j) * (n[0] + 1) + i;
     let mut g = vec![0.0; DIM * pos.len()];
+    let mut volume = 0.0;
     for k in 0..n[2] {
         for j in 0..n[1] {
             for i in 0..n[0] {
@@ -516,24 +546,18 @@ fn volume_gradient<const DIM: usize>(
                     at(i + 1, j + 1, k + 1),
                     at(i, j + 1, k + 1),
                 ];
-                let hex: [[DualSVec64<24>; 3]; 8] = std::array::from_fn(|c| {
-                    std::array::from_fn(|a| {
-                        DualSVec64::from_re(pos[nodes[c]].get(a).copied().unwrap_or(0.0))
-                            .derivative(3 * c + a)
-                    })
+                let hex: [[f64; 3]; 8] = std::array::from_fn(|c| {
+                    std::array::from_fn(|a| pos[nodes[c]].get(a).copied().unwrap_or(0.0))
                 });
-                let mut volume = DualSVec64::<24>::from_re(0.0);
-                for (_, det) in hex_gauss(&hex) {
-                    volume += det;
-                }
-                let t = tangents(&volume);
+                let (v, t) = hex_volume_gradient(&hex);
+                volume += v;
                 for (c, &node) in nodes.iter().enumerate() {
                     for a in 0..DIM.min(3) {
-                        g[DIM * node + a] += t[3 * c + a];
+                        g[DIM * node + a] += t[c][a];
                     }
                 }
             }
         }
     }
-    g
+    (volume, g)
 }

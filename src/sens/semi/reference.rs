@@ -188,7 +188,7 @@ mod tests {
                 a.measures
                     .iter()
                     .zip(&b.measures)
-                    .map(|(x, y)| (x.eps, y.eps)),
+                    .flat_map(|(x, y)| [(x.eps, y.eps), (x.re, y.re)]),
             )
             .collect();
         let top = pairs.iter().fold(0.0f64, |m, (x, _)| m.max(x.abs()));
@@ -219,7 +219,8 @@ mod tests {
 
     #[test]
     fn the_tape_equals_the_per_direction_rhs_in_2d() {
-        tape_matches::<FaceEdge, 2, 2>(&crate::studies::bench::scont_with(6));
+        // 10 directions: two chunks of the velocities.
+        tape_matches::<FaceEdge, 2, 2>(&crate::studies::bench::scont_with(10));
     }
 
     #[test]
