@@ -17,16 +17,21 @@ pub struct Eval<'a> {
     pub initial: Option<(&'a State, &'a [f64])>,
 }
 
-/// Area of a 2D body's mesh (shoelace over its boundary nodes) in any number
-/// type: with dual numbers, the exact derivative of the discrete area.
-pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
+/// The grid indices of a 2D body's boundary nodes, once around.
+pub(crate) fn ring(body: &Body) -> Vec<[usize; 3]> {
     let (nx, ny) = (body.mesh[0], body.mesh.get(1).copied().unwrap_or(1));
     let mut ring: Vec<[usize; 3]> = Vec::with_capacity(2 * (nx + ny));
     ring.extend((0..nx).map(|i| [i, 0, 0]));
     ring.extend((0..ny).map(|j| [nx, j, 0]));
     ring.extend((1..=nx).rev().map(|i| [i, ny, 0]));
     ring.extend((1..=ny).rev().map(|j| [0, j, 0]));
-    let pts: Vec<[T; 3]> = ring.iter().map(|&i| body.node_t(i, design)).collect();
+    ring
+}
+
+/// Area of a 2D body's mesh (shoelace over its boundary nodes) in any number
+/// type: with dual numbers, the exact derivative of the discrete area.
+pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
+    let pts: Vec<[T; 3]> = ring(body).iter().map(|&i| body.node_t(i, design)).collect();
     let mut twice = T::from(0.0);
     for k in 0..pts.len() {
         let (p, q) = (pts[k], pts[(k + 1) % pts.len()]);

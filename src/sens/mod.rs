@@ -7,6 +7,7 @@
 pub mod fd;
 pub mod functional;
 pub mod semi;
+mod tape;
 
 pub use fd::{check_step, finite_difference, Gradient, GradientError};
 pub use functional::{body_area, body_measure, body_volume, Eval};

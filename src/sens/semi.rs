@@ -13,14 +13,14 @@
 //! assembly and one factorization serve the state and every direction.
 
 use super::functional::body_measure;
-use crate::fem::facet::Facet;
+use super::tape::Tape;
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Scene};
 use crate::model::geometry::{
-    contact_row, face_loads, nodal_loads, node_positions, normalize, obstacle_row, selected_pieces,
-    tie_row, tributary_areas, FaceEdge, FaceQuad, NormalRow, ObstacleShape, Pattern, Piece,
+    face_loads, nodal_loads, node_positions, selected_pieces, tributary_areas, FaceEdge, FaceQuad,
+    Piece,
 };
-use crate::model::{ContactPrimary, Named, RowKind};
+use crate::model::{Named, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
@@ -28,6 +28,7 @@ use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
 use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
+use std::sync::OnceLock;
 use std::time::Instant;
 
 type D = Dual64;
@@ -48,6 +49,8 @@ pub struct Direction {
     /// Contact or tie rows whose node sits at a segment end while sliding along
     /// it: the derivative is one-sided there.
     pub kinks: usize,
+    /// Each body's measure (area or volume) and its derivative.
+    pub measures: Vec<D>,
 }
 
 /// The right-hand sides of one direction's sensitivity problem.
@@ -58,6 +61,8 @@ pub struct Rhs {
     pub ukpu: f64,
     pub scale: Vec<f64>,
     pub kinks: usize,
+    /// Each body's measure (area or volume) and its derivative.
+    pub measures: Vec<D>,
 }
 
 /// What the sensitivity solves of all directions cost.
@@ -131,7 +136,7 @@ pub fn classify(state: &State) -> Vec<Class> {
 }
 
 /// The design seeded in direction `i` (dual parts `e_i`).
-fn seeded(design: &[f64], i: usize) -> Vec<D> {
+pub(crate) fn seeded(design: &[f64], i: usize) -> Vec<D> {
     design
         .iter()
         .enumerate()
@@ -143,88 +148,6 @@ fn seeded(design: &[f64], i: usize) -> Vec<D> {
             }
         })
         .collect()
-}
-
-/// Is a projection parameter at a facet's boundary while it moves across it?
-/// The node-to-facet row has a kink there (it switches facet), so its
-/// derivative is one-sided. Moving means the parameter at the boundary (not one
-/// along it: a point sliding along an edge stays on the edge) changes by more
-/// than round-off: `1e-9` of the fastest node's speed over the facet's size.
-/// A point pinned to a corner or edge over a convex kink has a constant
-/// parameter there ([`Facet::clamp`]) and is no kink.
-fn at_kink<F: Facet<D, DIM, N>, const DIM: usize, const N: usize>(
-    facet: &F,
-    p: &[D; DIM],
-    at: F::Local,
-) -> bool {
-    let speed = facet
-        .nodes()
-        .iter()
-        .chain([p])
-        .flatten()
-        .fold(0.0f64, |m, x| m.max(x.eps.abs()));
-    // The facet's size: its length, or the square root of its area.
-    let size = facet.measure().re.powf(1.0 / (DIM - 1) as f64);
-    let noise = 1e-9 * speed / size;
-    facet
-        .boundary_axes(at, 1e-9)
-        .into_iter()
-        .zip(at.as_ref())
-        .any(|(at_bound, t)| at_bound && t.eps.abs() > noise)
-}
-
-/// Contact and tie rows at dual coordinates (None for rows that do not move):
-/// the state's rows, evaluated on the facets (pieces `P`) the state chose.
-fn moving_rows<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(
-    scene: &Scene,
-    state: &State,
-    pos: &[Vec<[D; DIM]>],
-    design: &[D],
-) -> (Vec<Option<NormalRow<D>>>, usize) {
-    let p = &state.problem;
-    let obstacles: Vec<ObstacleShape<D, DIM>> = scene
-        .obstacles
-        .iter()
-        .map(|o| ObstacleShape::at(o, design))
-        .collect();
-    let mut kinks = 0;
-    let rows = p
-        .rows
-        .iter()
-        .map(|row| match &row.kind {
-            RowKind::Contact {
-                body,
-                node,
-                primary,
-                ..
-            } => {
-                let xp = &pos[*body][*node];
-                if let ContactPrimary::Obstacle(o) = primary {
-                    let (n, gap) = obstacles[*o].normal_gap(xp)?;
-                    return normalize(obstacle_row(p, *body, *node, &n), gap);
-                }
-                let piece = P::of(primary)?;
-                let (e, pr) = contact_row(p, *body, *node, &piece, pos, Pattern::Full);
-                kinks += usize::from(at_kink(&piece.facet(pos), xp, pr.local));
-                normalize(e, pr.gap)
-            }
-            RowKind::Tie {
-                body,
-                node,
-                comp,
-                facet,
-                ..
-            } => {
-                let piece = P::of(facet)?;
-                let (e, pr) = tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
-                let xp = &pos[*body][*node];
-                kinks += usize::from(at_kink(&piece.facet(pos), xp, pr.local));
-                normalize(e, D::from(0.0))
-            }
-            _ => None,
-        })
-        .collect();
-    (rows, kinks)
 }
 
 /// `f'` per subdomain (owner copies, like the loads themselves).
@@ -346,6 +269,8 @@ pub struct Sensitivity<'a> {
     dual: DualSystem,
     /// `K u` of the state per subdomain (energy derivatives need it per direction).
     ku: Vec<Vec<f64>>,
+    /// The right-hand sides' linearization, made on first use.
+    tape: OnceLock<Tape>,
 }
 
 impl<'a> Sensitivity<'a> {
@@ -387,6 +312,7 @@ impl<'a> Sensitivity<'a> {
             n_equality,
             dual,
             ku: state.dual.cluster().apply_k(&state.u),
+            tape: OnceLock::new(),
         })
     }
 
@@ -536,80 +462,63 @@ impl<'a> Sensitivity<'a> {
             scale: rhs.scale,
             hessian_applications,
             kinks: rhs.kinks,
+            measures: rhs.measures,
         }
     }
 
     /// The data of direction `i`: `f_bar = f' - K'u - B'^T l` per subdomain,
     /// `c_bar = c' - B'u` on the kept rows, and what functionals need.
     pub fn rhs(&self, i: usize) -> Rhs {
-        self.rhs_with(i, true).0
+        self.rhs_with(i, true)
     }
 
     /// [`Self::rhs`], with `K'u` left out of `f_bar` (and `u^T K' u` zero) unless
-    /// `with_kpu`; and the node velocities of direction `i` (per body, flat).
-    fn rhs_with(&self, i: usize, with_kpu: bool) -> (Rhs, Vec<Vec<f64>>) {
+    /// `with_kpu`.
+    fn rhs_with(&self, i: usize, with_kpu: bool) -> Rhs {
         if self.state.problem.dim == 2 {
-            self.rhs_in::<FaceEdge, 2, 2>(i, with_kpu)
+            self.rhs_in::<FaceEdge, 2, 2, 6>(i, with_kpu)
         } else {
-            self.rhs_in::<FaceQuad, 3, 4>(i, with_kpu)
+            self.rhs_in::<FaceQuad, 3, 4, 15>(i, with_kpu)
         }
     }
 
-    /// [`Self::rhs_with`] in `DIM` dimensions, on pieces `P`.
-    fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(
+    /// The linearization of the right-hand sides (made on the first call).
+    fn tape(&self) -> &Tape {
+        self.tape.get_or_init(|| {
+            if self.state.problem.dim == 2 {
+                Tape::build::<FaceEdge, 2, 2, 6>(self.scene, self.state)
+            } else {
+                Tape::build::<FaceQuad, 3, 4, 15>(self.scene, self.state)
+            }
+        })
+    }
+
+    /// [`Self::rhs_with`] in `DIM` dimensions, on pieces `P`, from the tape;
+    /// `K'u` and gravity loads (element loads) by an element pass in direction `i`.
+    fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize, const K: usize>(
         &self,
         i: usize,
         with_kpu: bool,
-    ) -> (Rhs, Vec<Vec<f64>>) {
-        let scene = self.scene;
-        let state = self.state;
-        let design = scene.design_init();
-        let dd = seeded(&design, i);
-        let pos = node_positions::<D, DIM>(scene, &dd);
-        let velocities = pos
-            .iter()
-            .map(|b| b.iter().flatten().map(|x| x.eps).collect())
-            .collect();
-        let fprime = load_derivative::<P, DIM, N>(scene, state, &pos, &design);
-        let kpu = if with_kpu {
-            stiffness_derivative_times_u(state, &pos)
-        } else {
-            fprime.iter().map(|f| vec![0.0; f.len()]).collect()
-        };
-        let (rows, kinks) = moving_rows::<P, DIM, N>(scene, state, &pos, &dd);
-        let p = &state.problem;
-        let mut fbar: Vec<Vec<f64>> = fprime
-            .iter()
-            .zip(&kpu)
-            .map(|(f, k)| f.iter().zip(k).map(|(a, b)| a - b).collect())
-            .collect();
-        let mut scale = vec![0.0; p.rows.len()];
-        let mut cbar_all = vec![0.0; p.rows.len()];
-        for (r, row) in rows.iter().enumerate() {
-            let Some(row) = row else { continue };
-            scale[r] = row.scale.eps;
-            let mut bu = 0.0;
-            for &(sub, d, v) in &row.entries {
-                fbar[sub][d] -= v.eps * state.lambda[r];
-                bu += v.eps * state.u[sub][d];
+    ) -> Rhs {
+        let (scene, state) = (self.scene, self.state);
+        let tape = self.tape();
+        let elements = with_kpu || scene.gravity.is_some();
+        let pos = elements.then(|| tape.dual_positions::<DIM>(state, i));
+        let gravity = pos
+            .as_ref()
+            .filter(|_| scene.gravity.is_some())
+            .map(|pos| load_derivative::<P, DIM, N>(scene, state, pos, &scene.design_init()));
+        let mut rhs = tape.rhs::<DIM>(scene, state, &self.kept, i, gravity);
+        if let (true, Some(pos)) = (with_kpu, &pos) {
+            let kpu = stiffness_derivative_times_u(state, pos);
+            for (f, k) in rhs.fbar.iter_mut().zip(&kpu) {
+                for (a, b) in f.iter_mut().zip(k) {
+                    *a -= b;
+                }
             }
-            cbar_all[r] = row.c.eps - bu;
+            rhs.ukpu = Cluster::dot(&kpu, &state.u);
         }
-        let cbar: Vec<f64> = self.kept.iter().map(|&r| cbar_all[r]).collect();
-        let ukpu = kpu
-            .iter()
-            .zip(&state.u)
-            .map(|(k, u)| k.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
-            .sum();
-        let rhs = Rhs {
-            fbar,
-            cbar,
-            fprime,
-            ukpu,
-            scale,
-            kinks,
-        };
-        (rhs, velocities)
+        rhs
     }
 
     /// Adjoint gradient of one functional: [`Self::adjoint_all`] of it alone.
@@ -689,11 +598,12 @@ impl<'a> Sensitivity<'a> {
         let mut grad = vec![vec![0.0; m]; fs.len()];
         let mut kinked = Vec::new();
         for i in 0..m {
-            let (mut rhs, velocities) = self.rhs_with(i, false);
+            let mut rhs = self.rhs_with(i, false);
+            let velocities = &self.tape().velocities[i];
             if rhs.kinks > 0 {
                 kinked.push(i);
             }
-            rhs.ukpu = Cluster::dot(&gu, &velocities);
+            rhs.ukpu = Cluster::dot(&gu, velocities);
             // The explicit part: the derivative with u' = 0 and l' = 0.
             let explicit = Direction {
                 u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
@@ -703,6 +613,7 @@ impl<'a> Sensitivity<'a> {
                 scale: rhs.scale,
                 hessian_applications: 0,
                 kinks: rhs.kinks,
+                measures: rhs.measures,
             };
             for (k, f) in fs.iter().enumerate() {
                 let (w, nu, gw) = &adjoints[k];
@@ -710,7 +621,7 @@ impl<'a> Sensitivity<'a> {
                     .derivative(f, i, &explicit)
                     .map_err(SolveError::Unsupported)?;
                 // f_bar here leaves out K'u: w^T K'u comes from the shape gradient.
-                let wf = Cluster::dot(w, &rhs.fbar) - Cluster::dot(gw, &velocities);
+                let wf = Cluster::dot(w, &rhs.fbar) - Cluster::dot(gw, velocities);
                 let nc: f64 = nu.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
                 grad[k][i] = ja + wf + nc;
             }
@@ -913,7 +824,11 @@ impl<'a> Sensitivity<'a> {
                     .sum();
                 sum.powf(1.0 / q)
             }
-            Functional::Area(b) | Functional::Volume(b) => body_measure(&self.scene.bodies[*b], dd),
+            Functional::Area(b) | Functional::Volume(b) => dir
+                .measures
+                .get(*b)
+                .copied()
+                .unwrap_or_else(|| body_measure(&self.scene.bodies[*b], dd)),
             Functional::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
                 let (s, l) = p.bodies[body].copies(node)[0];
@@ -1189,28 +1104,4 @@ pub fn adjoint_at_from(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::fem::facet::{Orientation, Segment};
-
-    fn moving(x: [f64; 2], v: [f64; 2]) -> [D; 2] {
-        [D::new(x[0], v[0]), D::new(x[1], v[1])]
-    }
-
-    #[test]
-    fn a_kink_is_a_node_at_a_segment_end_that_slides() {
-        let (a, b) = ([0.1, 0.3], [1.7, 0.9]);
-        let kink = |vb: [f64; 2], p: [f64; 2], vp: [f64; 2]| {
-            let s = Segment::new(moving(a, [0.0; 2]), moving(b, vb), Orientation::Clockwise);
-            let p = moving(p, vp);
-            at_kink(&s, &p, s.clamp(s.project(&p)))
-        };
-        // On the end b and moving with it: t stays 1 (round-off aside).
-        assert!(!kink([0.3, 0.7], b, [0.3, 0.7]));
-        // On the end b, sliding along the segment or off it: a kink.
-        assert!(kink([0.0; 2], b, [1.0, 0.0]));
-        assert!(kink([0.3, 0.7], b, [0.0; 2]));
-        // Half way, sliding: no kink.
-        assert!(!kink([0.0; 2], [0.9, 0.6], [1.0, 0.0]));
-    }
-}
+mod reference;
