@@ -63,11 +63,10 @@ fn shape(xi: [f64; 3]) -> ([f64; 8], [[f64; 3]; 8]) {
     (n, dn)
 }
 
-/// Physical shape-function gradients and `det J` at `xi`.
-fn gradients<T: Scalar>(x: &Hex<T>, xi: [f64; 3]) -> ([[T; 3]; 8], T) {
-    let (_, dn) = shape(xi);
+/// The cofactors of the Jacobian `j[a][b] = d x_b / d xi_a` at shape
+/// derivatives `dn`, and its determinant.
+fn cofactors<T: Scalar>(x: &Hex<T>, dn: &[[f64; 3]; 8]) -> ([[T; 3]; 3], T) {
     let zero = T::from(0.0);
-    // j[a][b] = d x_b / d xi_a
     let mut j = [[zero; 3]; 3];
     for k in 0..8 {
         for a in 0..3 {
@@ -76,12 +75,23 @@ fn gradients<T: Scalar>(x: &Hex<T>, xi: [f64; 3]) -> ([[T; 3]; 8], T) {
             }
         }
     }
-    let cof = |r: usize, c: usize| {
-        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-        let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
-        j[r1][c1] * j[r2][c2] - j[r1][c2] * j[r2][c1]
-    };
-    let det = j[0][0] * cof(0, 0) + j[0][1] * cof(0, 1) + j[0][2] * cof(0, 2);
+    let cof: [[T; 3]; 3] = std::array::from_fn(|r| {
+        std::array::from_fn(|c| {
+            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+            let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
+            j[r1][c1] * j[r2][c2] - j[r1][c2] * j[r2][c1]
+        })
+    });
+    let det = j[0][0] * cof[0][0] + j[0][1] * cof[0][1] + j[0][2] * cof[0][2];
+    (cof, det)
+}
+
+/// Physical shape-function gradients and `det J` at `xi`.
+fn gradients<T: Scalar>(x: &Hex<T>, xi: [f64; 3]) -> ([[T; 3]; 8], T) {
+    let (_, dn) = shape(xi);
+    let zero = T::from(0.0);
+    let (cof, det) = cofactors(x, &dn);
+    let cof = |r: usize, c: usize| cof[r][c];
     // inv[a][b] = cof(b, a) / det: d xi_b / d x_a ordering below.
     let mut inv = [[zero; 3]; 3];
     for a in 0..3 {
@@ -196,23 +206,11 @@ pub fn hex_volume_gradient(x: &Hex<f64>) -> (f64, [[f64; 3]; 8]) {
     let mut g = [[0.0; 3]; 8];
     for xi in gauss() {
         let (_, dn) = shape(xi);
-        let mut j = [[0.0; 3]; 3];
-        for k in 0..8 {
-            for a in 0..3 {
-                for b in 0..3 {
-                    j[a][b] += x[k][b] * dn[k][a];
-                }
-            }
-        }
-        let cof = |r: usize, c: usize| {
-            let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
-            let (c1, c2) = ((c + 1) % 3, (c + 2) % 3);
-            j[r1][c1] * j[r2][c2] - j[r1][c2] * j[r2][c1]
-        };
-        volume += j[0][0] * cof(0, 0) + j[0][1] * cof(0, 1) + j[0][2] * cof(0, 2);
+        let (cof, det) = cofactors(x, &dn);
+        volume += det;
         for k in 0..8 {
             for b in 0..3 {
-                g[k][b] += (0..3).map(|a| cof(a, b) * dn[k][a]).sum::<f64>();
+                g[k][b] += (0..3).map(|a| cof[a][b] * dn[k][a]).sum::<f64>();
             }
         }
     }

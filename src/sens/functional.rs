@@ -53,12 +53,25 @@ pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
             }
         }
     }
-    let at = |i: usize, j: usize, k: usize| pts[(k * (n[1] + 1) + j) * (n[0] + 1) + i];
     let mut volume = T::from(0.0);
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                let hex = [
+    for nodes in hexahedra(n) {
+        let hex = nodes.map(|v| pts[v]);
+        for (_, det) in hex_gauss(&hex) {
+            volume += det;
+        }
+    }
+    volume
+}
+
+/// The node indices of a body's hexahedra (`n` elements each way, nodes
+/// numbered `i` fastest), bottom face counter-clockwise then the top, in
+/// element order.
+pub(super) fn hexahedra(n: [usize; 3]) -> impl Iterator<Item = [usize; 8]> {
+    let at = move |i: usize, j: usize, k: usize| (k * (n[1] + 1) + j) * (n[0] + 1) + i;
+    (0..n[2]).flat_map(move |k| {
+        (0..n[1]).flat_map(move |j| {
+            (0..n[0]).map(move |i| {
+                [
                     at(i, j, k),
                     at(i + 1, j, k),
                     at(i + 1, j + 1, k),
@@ -67,14 +80,10 @@ pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
                     at(i + 1, j, k + 1),
                     at(i + 1, j + 1, k + 1),
                     at(i, j + 1, k + 1),
-                ];
-                for (_, det) in hex_gauss(&hex) {
-                    volume += det;
-                }
-            }
-        }
-    }
-    volume
+                ]
+            })
+        })
+    })
 }
 
 /// The measure of a body: its area in 2D, its volume in 3D.

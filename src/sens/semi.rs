@@ -13,7 +13,7 @@
 //! assembly and one factorization serve the state and every direction.
 
 use super::functional::body_measure;
-use super::tape::Tape;
+use super::tape::{seeded, Rhs, Tape};
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Scene};
 use crate::model::geometry::{
@@ -48,18 +48,6 @@ pub struct Direction {
     pub hessian_applications: usize,
     /// Contact or tie rows whose node sits at a segment end while sliding along
     /// it: the derivative is one-sided there.
-    pub kinks: usize,
-    /// Each body's measure (area or volume) and its derivative.
-    pub measures: Vec<D>,
-}
-
-/// The right-hand sides of one direction's sensitivity problem.
-pub struct Rhs {
-    pub fbar: Vec<Vec<f64>>,
-    pub cbar: Vec<f64>,
-    pub fprime: Vec<Vec<f64>>,
-    pub ukpu: f64,
-    pub scale: Vec<f64>,
     pub kinks: usize,
     /// Each body's measure (area or volume) and its derivative.
     pub measures: Vec<D>,
@@ -135,20 +123,6 @@ pub fn classify(state: &State) -> Vec<Class> {
         .collect()
 }
 
-/// The design seeded in direction `i` (dual parts `e_i`).
-pub(crate) fn seeded(design: &[f64], i: usize) -> Vec<D> {
-    design
-        .iter()
-        .enumerate()
-        .map(|(k, v)| {
-            if k == i {
-                D::from(*v).derivative()
-            } else {
-                D::from(*v)
-            }
-        })
-        .collect()
-}
 
 /// `f'` per subdomain (owner copies, like the loads themselves).
 fn load_derivative<P: Piece<DIM, N>, const DIM: usize, const N: usize>(

@@ -9,8 +9,7 @@
 //! its velocities: the geometry code runs once, not once per direction
 //! (issue 16; numerics.md, "Shape sensitivity").
 
-use super::functional::ring;
-use super::semi::Rhs;
+use super::functional::{hexahedra, ring};
 use crate::fem::facet::Facet;
 use crate::fem::hex::hex_volume_gradient;
 use crate::lang::scene::Scene;
@@ -23,6 +22,33 @@ use crate::state::State;
 use num_dual::{Dual64, DualSVec64};
 
 type D = Dual64;
+
+/// The design seeded in direction `i` (dual parts `e_i`).
+pub(crate) fn seeded(design: &[f64], i: usize) -> Vec<D> {
+    design
+        .iter()
+        .enumerate()
+        .map(|(k, v)| {
+            if k == i {
+                D::from(*v).derivative()
+            } else {
+                D::from(*v)
+            }
+        })
+        .collect()
+}
+
+/// The right-hand sides of one direction's sensitivity problem.
+pub struct Rhs {
+    pub fbar: Vec<Vec<f64>>,
+    pub cbar: Vec<f64>,
+    pub fprime: Vec<Vec<f64>>,
+    pub ukpu: f64,
+    pub scale: Vec<f64>,
+    pub kinks: usize,
+    /// Each body's measure (area or volume) and its derivative.
+    pub measures: Vec<D>,
+}
 
 /// The tangents of a dual number with `K` of them (zero where it has none).
 fn tangents<const K: usize>(x: &DualSVec64<K>) -> [f64; K] {
@@ -320,7 +346,7 @@ impl Tape {
                     node,
                 } => {
                     let shapes = obstacles.get_or_insert_with(|| {
-                        let dd = super::semi::seeded(&scene.design_init(), i);
+                        let dd = seeded(&scene.design_init(), i);
                         scene
                             .obstacles
                             .iter()
@@ -530,32 +556,17 @@ fn volume_gradient<const DIM: usize>(
     pos: &[[f64; DIM]],
 ) -> (f64, Vec<f64>) {
     let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
-    let at = |i: usize, j: usize, k: usize| (k * (n[1] + 1) + j) * (n[0] + 1) + i;
     let mut g = vec![0.0; DIM * pos.len()];
     let mut volume = 0.0;
-    for k in 0..n[2] {
-        for j in 0..n[1] {
-            for i in 0..n[0] {
-                let nodes = [
-                    at(i, j, k),
-                    at(i + 1, j, k),
-                    at(i + 1, j + 1, k),
-                    at(i, j + 1, k),
-                    at(i, j, k + 1),
-                    at(i + 1, j, k + 1),
-                    at(i + 1, j + 1, k + 1),
-                    at(i, j + 1, k + 1),
-                ];
-                let hex: [[f64; 3]; 8] = std::array::from_fn(|c| {
-                    std::array::from_fn(|a| pos[nodes[c]].get(a).copied().unwrap_or(0.0))
-                });
-                let (v, t) = hex_volume_gradient(&hex);
-                volume += v;
-                for (c, &node) in nodes.iter().enumerate() {
-                    for a in 0..DIM.min(3) {
-                        g[DIM * node + a] += t[c][a];
-                    }
-                }
+    for nodes in hexahedra(n) {
+        let hex: [[f64; 3]; 8] = std::array::from_fn(|c| {
+            std::array::from_fn(|a| pos[nodes[c]].get(a).copied().unwrap_or(0.0))
+        });
+        let (v, t) = hex_volume_gradient(&hex);
+        volume += v;
+        for (c, &node) in nodes.iter().enumerate() {
+            for a in 0..DIM.min(3) {
+                g[DIM * node + a] += t[c][a];
             }
         }
     }
