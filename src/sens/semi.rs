@@ -123,7 +123,6 @@ pub fn classify(state: &State) -> Vec<Class> {
         .collect()
 }
 
-
 /// `f'` per subdomain (owner copies, like the loads themselves).
 fn load_derivative<P: Piece<DIM, N>, const DIM: usize, const N: usize>(
     scene: &Scene,
