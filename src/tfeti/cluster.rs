@@ -17,6 +17,7 @@
 use super::comm::{serial, Comm, Op};
 use super::floating::{Detection, Margin};
 use super::local_f::{budget, dense_bytes, wants_explicit, LocalF, LocalFStats};
+use super::lock;
 use super::rows::LocalRows;
 use super::subdomain::Subdomain;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
@@ -103,13 +104,6 @@ fn derive_block(f: &Arc<Mat<f64>>, parent: &LocalRows, child: &LocalRows) -> Opt
 /// parallel loop).
 fn dense_product(f: MatRef<'_, f64>, l: MatRef<'_, f64>, y: MatMut<'_, f64>) {
     faer::linalg::matmul::matmul(y, Accum::Replace, f, l, 1.0, Par::Seq);
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    match m.lock() {
-        Ok(g) => g,
-        Err(p) => p.into_inner(),
-    }
 }
 
 /// `G_s = R_s^T B_s^T` of one subdomain, kdim x (local rows), row-major.
@@ -645,20 +639,6 @@ impl Cluster {
             for j in 0..self.kdim(s) {
                 z[self.offset[s] + j] =
                     (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
-            }
-        }
-    }
-
-    /// `z = |G| |x|` entry by entry (kernel-sized, not orthonormalized): per
-    /// rigid mode of each subdomain, the sum of the magnitudes of the forces
-    /// `x` puts on it, the scale against which its balance `G x` is judged.
-    pub fn apply_g_abs(&self, x: &[f64], z: &mut [f64]) {
-        for (s, lr) in self.local.iter().enumerate() {
-            let nr = lr.rows.len();
-            for j in 0..self.kdim(s) {
-                z[self.offset[s] + j] = (0..nr)
-                    .map(|k| (self.g[s][j * nr + k] * x[lr.rows[k]]).abs())
-                    .sum();
             }
         }
     }

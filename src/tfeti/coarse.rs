@@ -21,6 +21,7 @@
 //! same bits.
 
 use super::cluster::Cluster;
+use super::lock;
 use super::sparse::{llt_numeric, UpperCsc};
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
@@ -318,13 +319,6 @@ enum Factor {
 pub struct CoarseFactor {
     n: usize,
     factor: Factor,
-}
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    match m.lock() {
-        Ok(g) => g,
-        Err(p) => p.into_inner(),
-    }
 }
 
 impl CoarseFactor {

@@ -11,6 +11,7 @@
 use super::cluster::Cluster;
 use super::coarse::{self, CoarseFactor, CoarseForm, Gram};
 use super::error::CoarseError;
+use super::lock;
 use super::precond::{Built, DualPreconditioner, Kind};
 use super::schur::SchurForm;
 use crate::qp::{Equality, Operator};
@@ -18,13 +19,6 @@ use faer::{Mat, Side};
 use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Mutex, OnceLock};
 use std::time::Instant;
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    match m.lock() {
-        Ok(g) => g,
-        Err(p) => p.into_inner(),
-    }
-}
 
 /// What the coarse problem cost so far.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]

@@ -34,5 +34,14 @@ pub mod solve;
 pub mod sparse;
 pub mod subdomain;
 
+/// A mutex's guard, also after a panic elsewhere poisoned it: the guarded
+/// values are work space or caches that every user overwrites or only adds to.
+pub(crate) fn lock<T>(m: &std::sync::Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    match m.lock() {
+        Ok(g) => g,
+        Err(p) => p.into_inner(),
+    }
+}
+
 #[cfg(test)]
 mod tests;

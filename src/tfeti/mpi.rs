@@ -3,6 +3,7 @@
 //! say how much of its wall time went into communication.
 
 use super::comm::{Comm, Op, Stats};
+use super::lock;
 use mpi::collective::SystemOperation;
 use mpi::datatype::PartitionMut;
 use mpi::environment::{Threading, Universe};
@@ -60,10 +61,7 @@ impl Mpi {
         let t = Instant::now();
         let out = f();
         let dt = t.elapsed().as_secs_f64();
-        let mut s = match self.stats.lock() {
-            Ok(g) => g,
-            Err(p) => p.into_inner(),
-        };
+        let mut s = lock(&self.stats);
         s.calls += 1;
         s.seconds += dt;
         s.bytes += bytes as u64;
@@ -133,9 +131,6 @@ impl Comm for Mpi {
     }
 
     fn stats(&self) -> Stats {
-        match self.stats.lock() {
-            Ok(g) => *g,
-            Err(p) => *p.into_inner(),
-        }
+        *lock(&self.stats)
     }
 }

@@ -27,6 +27,7 @@
 use super::cluster::Cluster;
 use super::comm::{Comm, Op};
 use super::local_f::{budget, dense_bytes};
+use super::lock;
 use super::schur::{Schur, SchurForm};
 use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
 use faer::dyn_stack::MemBuffer;
@@ -35,13 +36,6 @@ use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
-
-fn lock<T>(m: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
-    match m.lock() {
-        Ok(g) => g,
-        Err(p) => p.into_inner(),
-    }
-}
 
 /// Which dual preconditioner.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]

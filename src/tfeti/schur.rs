@@ -9,6 +9,7 @@
 //! kernel basis before factorizing, so a subdomain touched too little (one
 //! node, or one component along a line) is reported, not factorized singular.
 
+use super::lock;
 use super::sparse::{
     llt_forward_rows, llt_numeric, llt_solve, lower_gram, mirror_lower, symbolic_amd, UpperCsc,
 };
@@ -180,10 +181,7 @@ impl Schur {
                     l_values,
                     work,
                 } = &**i;
-                let mut guard = match work.lock() {
-                    Ok(g) => g,
-                    Err(p) => p.into_inner(),
-                };
+                let mut guard = lock(work);
                 let Work { buf, interior } = &mut *guard;
                 let ni = interior.len();
                 k_bb.mul(x, y);

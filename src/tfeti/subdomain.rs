@@ -21,6 +21,7 @@
 
 use super::floating::{detect, DetectError, Detection, KernelError};
 use super::kernel::{fixing_dofs, rigid_modes};
+use super::lock;
 use super::ordering;
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
@@ -247,10 +248,7 @@ impl SymbolicKey<'_> {
 
 impl SymbolicCache {
     fn entries(&self) -> std::sync::MutexGuard<'_, Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>> {
-        match self.entries.lock() {
-            Ok(g) => g,
-            Err(p) => p.into_inner(),
-        }
+        lock(&self.entries)
     }
 
     fn get(&self, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
@@ -521,10 +519,7 @@ impl Subdomain {
 
     /// `x <- K^+ x`.
     pub fn apply_pinv(&self, x: &mut [f64]) {
-        let mut guard = match self.work.lock() {
-            Ok(g) => g,
-            Err(p) => p.into_inner(),
-        };
+        let mut guard = lock(&self.work);
         let work = &mut *guard;
         match &self.factor {
             Factor::Fixed {
