@@ -131,11 +131,10 @@ fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
     Some(llt.solve(&x))
 }
 
-/// `P F P x_c` of every column, one pass over the factors.
+/// `P F x_c` of every column, one pass over the factors: the columns are in
+/// Im P (block CG's search blocks and starts stay there), so `P F P x_c`.
 fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let mut px = x.to_vec();
-    px.iter_mut().for_each(|c| dual.project(c));
-    let mut y = dual.apply_f_block(&px);
+    let mut y = dual.apply_f_block(x);
     y.iter_mut().for_each(|c| dual.project(c));
     y
 }
@@ -219,7 +218,7 @@ fn block_projected_cg(
             info.status = Status::MaxIterations;
             break;
         }
-        // Q = P F P p (p is in Im P: the projections only remove round-off).
+        // Q = P F P p = P F p (p is in Im P).
         let q = apply_block(dual, &p);
         info.iterations += 1;
         info.passes += 1;
@@ -297,7 +296,7 @@ pub fn dual_solve_block(
         .collect();
     let precond = dual
         .preconditioner()
-        .map(|pm| ProjectedM::new(dual, pm, 1.0));
+        .map(|pm| ProjectedM::on_image(dual, pm, 1.0));
     // The starts, homogenized and projected.
     let x0 = starts
         .filter(|l0| l0.len() == fs.len() && l0.iter().all(|l| l.len() == m))

@@ -181,7 +181,8 @@ impl DualSystem {
             }
             Some(elim) => {
                 let (reduced, local) = reduce(&elim, rows, n_equality);
-                let dual = Dual::new(cluster.with_local_rows(local, reduced.kept.len()))?;
+                let mut dual = Dual::new(cluster.with_local_rows(local, reduced.kept.len()))?;
+                dual.set_detected_kernels();
                 Ok(DualSystem::Classical {
                     dual,
                     elim,

@@ -635,23 +635,21 @@ impl Cluster {
     /// communication).
     pub fn apply_g(&self, x: &[f64], z: &mut [f64]) {
         for (s, lr) in self.local.iter().enumerate() {
-            let nr = lr.rows.len();
-            for j in 0..self.kdim(s) {
-                z[self.offset[s] + j] =
-                    (0..nr).map(|k| self.g[s][j * nr + k] * x[lr.rows[k]]).sum();
-            }
+            let zs = &mut z[self.offset[s]..self.offset[s] + self.kdim(s)];
+            g_block_times(&self.g[s], &lr.rows, x, zs);
         }
     }
 
     /// `x = G^T z` (not orthonormalized; replicated, no communication).
     pub fn apply_gt(&self, z: &[f64], x: &mut [f64]) {
         x.iter_mut().for_each(|v| *v = 0.0);
+        let mut t = Vec::new();
         for (s, lr) in self.local.iter().enumerate() {
-            let nr = lr.rows.len();
-            for k in 0..nr {
-                x[lr.rows[k]] += (0..self.kdim(s))
-                    .map(|j| self.g[s][j * nr + k] * z[self.offset[s] + j])
-                    .sum::<f64>();
+            t.resize(lr.rows.len(), 0.0);
+            let zs = &z[self.offset[s]..self.offset[s] + self.kdim(s)];
+            g_block_t_times(&self.g[s], zs, &mut t);
+            for (&row, v) in lr.rows.iter().zip(&t) {
+                x[row] += v;
             }
         }
     }
@@ -663,7 +661,9 @@ impl Cluster {
     }
 
     /// `G G^T` over the rows where `active` holds (all rows when None): block
-    /// `(s, t)` from the rows that subdomains `s` and `t` share.
+    /// `(s, t)` from the rows that subdomains `s` and `t` share. Entry by
+    /// entry: the reference that the assembled Gram is tested against.
+    #[cfg(test)]
     pub fn coarse_gram(&self, active: Option<&[bool]>) -> Mat<f64> {
         let n3 = self.kernel_dim();
         let mut owners: Vec<Vec<(usize, usize)>> = vec![Vec::new(); self.m];
@@ -923,5 +923,36 @@ impl Cluster {
         (0..cols)
             .map(|c| per_sub.iter().map(|cols| cols[c].clone()).collect())
             .collect()
+    }
+}
+
+/// Rigid modes of a subdomain at most (3D).
+const MAX_KDIM: usize = 6;
+
+/// `z = G_s x` of one subdomain: `g` is its block, `kdim x rows.len()`
+/// row-major, `x` the global multipliers. Every entry is the sum over the
+/// local rows in order (the same bits wherever it is computed).
+pub(crate) fn g_block_times(g: &[f64], rows: &[usize], x: &[f64], z: &mut [f64]) {
+    let nr = rows.len();
+    let mut acc = [-0.0f64; MAX_KDIM];
+    let acc = &mut acc[..z.len()];
+    for (k, &row) in rows.iter().enumerate() {
+        let xv = x[row];
+        for (j, a) in acc.iter_mut().enumerate() {
+            *a += g[j * nr + k] * xv;
+        }
+    }
+    z.copy_from_slice(acc);
+}
+
+/// `t = G_s^T z_s` of one subdomain, per local row (see [`g_block_times`]).
+pub(crate) fn g_block_t_times(g: &[f64], z: &[f64], t: &mut [f64]) {
+    let nr = t.len();
+    for (k, tk) in t.iter_mut().enumerate() {
+        let mut a = -0.0f64;
+        for (j, zj) in z.iter().enumerate() {
+            a += g[j * nr + k] * zj;
+        }
+        *tk = a;
     }
 }

@@ -20,7 +20,7 @@
 //! result, and the coarse problem is replicated: every MPI rank computes the
 //! same bits.
 
-use super::cluster::Cluster;
+use super::cluster::{g_block_t_times, g_block_times, Cluster};
 use super::lock;
 use super::sparse::{llt_numeric, UpperCsc};
 use faer::linalg::triangular_solve::{
@@ -94,7 +94,10 @@ impl Gram {
     /// (`Auto` resolved by size).
     pub fn assemble(cluster: &Cluster, active: Option<&[bool]>, form: CoarseForm) -> Gram {
         match form.resolve(cluster.kernel_dim()) {
-            CoarseForm::Dense => Gram::Dense(cluster.coarse_gram(active)),
+            // The sparse blocks, spread out: the same bits as the entrywise
+            // assembly (`Cluster::coarse_gram`, kept as the tests' reference),
+            // several times faster.
+            CoarseForm::Dense => Gram::Dense(Gram::Sparse(sparse_gram(cluster, active)).to_dense()),
             _ => Gram::Sparse(sparse_gram(cluster, active)),
         }
     }
@@ -250,14 +253,7 @@ pub fn apply_g(cluster: &Cluster, x: &[f64], z: &mut [f64]) {
         .into_par_iter()
         .enumerate()
         .with_min_len(G_CHUNK)
-        .for_each(|(s, zs)| {
-            let lr = cluster.local_rows(s);
-            let nr = lr.rows.len();
-            let g = cluster.g_block(s);
-            for (j, zj) in zs.iter_mut().enumerate() {
-                *zj = (0..nr).map(|k| g[j * nr + k] * x[lr.rows[k]]).sum();
-            }
-        });
+        .for_each(|(s, zs)| g_block_times(cluster.g_block(s), &cluster.local_rows(s).rows, x, zs));
 }
 
 /// `x = G^T z`: every subdomain's local row values in parallel (into `work`,
@@ -279,12 +275,8 @@ pub fn apply_gt(cluster: &Cluster, z: &[f64], x: &mut [f64], work: &mut Vec<f64>
         .enumerate()
         .with_min_len(G_CHUNK)
         .for_each(|(s, ts)| {
-            let nr = ts.len();
-            let g = cluster.g_block(s);
             let (o, k) = (cluster.kernel_offset(s), cluster.kernel_offset(s + 1));
-            for (i, t) in ts.iter_mut().enumerate() {
-                *t = (0..k - o).map(|j| g[j * nr + i] * z[o + j]).sum::<f64>();
-            }
+            g_block_t_times(cluster.g_block(s), &z[o..k], ts);
         });
     x.iter_mut().for_each(|v| *v = 0.0);
     let mut at = 0;
@@ -319,6 +311,8 @@ enum Factor {
 pub struct CoarseFactor {
     n: usize,
     factor: Factor,
+    /// Smallest pivot `l_ii^2` over the largest diagonal entry of `G G^T`.
+    pivot_ratio: f64,
 }
 
 impl CoarseFactor {
@@ -338,11 +332,16 @@ impl CoarseFactor {
                 None => return Err(gram),
             },
         };
-        let f = CoarseFactor { n, factor };
+        let mut f = CoarseFactor {
+            n,
+            factor,
+            pivot_ratio: f64::INFINITY,
+        };
         let min_pivot = f.min_pivot_squared();
         if n > 0 && min_pivot <= tol * scale {
             return Err(gram);
         }
+        f.pivot_ratio = min_pivot / scale;
         Ok(f)
     }
 
@@ -358,6 +357,12 @@ impl CoarseFactor {
     /// Number of coarse unknowns.
     pub fn dim(&self) -> usize {
         self.n
+    }
+
+    /// Whether every pivot `l_ii^2` is above `tol` times the largest diagonal
+    /// entry: the test [`Self::factor`] makes, passed with `tol`.
+    pub fn passes(&self, tol: f64) -> bool {
+        self.n == 0 || self.pivot_ratio > tol
     }
 
     /// Whether the factor is sparse.
@@ -609,12 +614,21 @@ mod tests {
     }
 
     #[test]
-    fn the_sparse_gram_is_the_dense_one_bit_for_bit() {
+    fn the_sparse_and_dense_grams_are_the_entrywise_one_bit_for_bit() {
         let cluster = patch(5, 4, true, None);
         let m = cluster.multipliers();
         let some: Vec<bool> = (0..m).map(|i| i % 3 != 1).collect();
         for active in [None, Some(some.as_slice())] {
             let dense = cluster.coarse_gram(active);
+            let Gram::Dense(assembled) = Gram::assemble(&cluster, active, CoarseForm::Dense) else {
+                panic!("asked for dense");
+            };
+            for r in 0..dense.nrows() {
+                for c in 0..dense.ncols() {
+                    let (a, b) = (assembled[(r, c)], dense[(r, c)]);
+                    assert_eq!(a.to_bits(), b.to_bits(), "dense entry ({r}, {c})");
+                }
+            }
             let Gram::Sparse(sparse) = Gram::assemble(&cluster, active, CoarseForm::Sparse) else {
                 panic!("asked for sparse");
             };
@@ -730,6 +744,7 @@ mod tests {
             let f = CoarseFactor {
                 n,
                 factor: Factor::Sparse(l),
+                pivot_ratio: f64::INFINITY,
             };
             let mut z = z0.clone();
             f.solve(&mut z);

@@ -57,6 +57,11 @@ pub struct Dual {
     precond: Option<DualPreconditioner>,
     /// [`Cluster::equilibrium_grams`], formed on first use.
     grams: OnceLock<Vec<Vec<f64>>>,
+    /// Whether `F` keeps the round-off that CG's directions carry outside
+    /// Im P at round-off (TFETI's exact kernels), so that they need not be
+    /// projected again before `F`; classical FETI's eps-detected kernels
+    /// amplify it (one more CG step per direction on scont2d).
+    exact_kernels: bool,
 }
 
 fn nanos(t: Instant) -> u64 {
@@ -102,7 +107,14 @@ impl Dual {
             setup_nanos: AtomicU64::new(nanos(t)),
             precond: None,
             grams: OnceLock::new(),
+            exact_kernels: true,
         })
+    }
+
+    /// Marks the kernels as detected numerically (classical FETI): see
+    /// [`ProjectedF::on_image`].
+    pub fn set_detected_kernels(&mut self) {
+        self.exact_kernels = false;
     }
 
     /// What the coarse problem cost so far.
@@ -212,6 +224,16 @@ impl Dual {
         self.coarse.solve_lt(z);
     }
 
+    /// `z <- (G G^T)^-1 z` when the coarse factor passes the pivot test
+    /// `tol` (see [`CoarseFactor::factor`]); false, `z` untouched, otherwise.
+    pub(crate) fn coarse_solve_if(&self, tol: f64, z: &mut [f64]) -> bool {
+        if !self.coarse.passes(tol) {
+            return false;
+        }
+        self.coarse.solve(z);
+        true
+    }
+
     /// `x <- P x = x - G~^T G~ x`.
     pub fn project(&self, x: &mut [f64]) {
         let t0 = Instant::now();
@@ -258,6 +280,8 @@ pub(crate) fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
 pub struct ProjectedF<'a> {
     dual: &'a Dual,
     scale: f64,
+    /// Operands are in Im P already: skip the first projection.
+    on_image: bool,
     work: Mutex<Vec<f64>>,
 }
 
@@ -266,7 +290,18 @@ impl<'a> ProjectedF<'a> {
         ProjectedF {
             dual,
             scale,
+            on_image: false,
             work: Mutex::new(vec![0.0; dual.multipliers()]),
+        }
+    }
+
+    /// `P F x` for `x` in Im P (projected CG's search directions, which stay
+    /// there): one projection per application instead of two where the
+    /// kernels are exact (TFETI). Not for SMALBE, whose iterates leave Im P.
+    pub fn on_image(dual: &'a Dual, scale: f64) -> Self {
+        ProjectedF {
+            on_image: dual.exact_kernels,
+            ..Self::new(dual, scale)
         }
     }
 }
@@ -277,11 +312,15 @@ impl Operator for ProjectedF<'_> {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let mut guard = lock(&self.work);
-        let t = &mut *guard;
-        t.copy_from_slice(x);
-        self.dual.project(t);
-        self.dual.apply_f(t, y);
+        if self.on_image {
+            self.dual.apply_f(x, y);
+        } else {
+            let mut guard = lock(&self.work);
+            let t = &mut *guard;
+            t.copy_from_slice(x);
+            self.dual.project(t);
+            self.dual.apply_f(t, y);
+        }
         self.dual.project(y);
         let scale = self.scale;
         y.iter_mut().for_each(|v| *v *= scale);
@@ -321,6 +360,8 @@ pub struct ProjectedM<'a> {
     dual: &'a Dual,
     m: &'a DualPreconditioner,
     scale: f64,
+    /// Operands are in Im P already: skip the first projection.
+    on_image: bool,
     work: Mutex<Vec<f64>>,
 }
 
@@ -330,7 +371,17 @@ impl<'a> ProjectedM<'a> {
             dual,
             m,
             scale,
+            on_image: false,
             work: Mutex::new(vec![0.0; dual.multipliers()]),
+        }
+    }
+
+    /// `scale P M r` for `r` in Im P (projected CG's residuals): one
+    /// projection per application instead of two.
+    pub fn on_image(dual: &'a Dual, m: &'a DualPreconditioner, scale: f64) -> Self {
+        ProjectedM {
+            on_image: true,
+            ..Self::new(dual, m, scale)
         }
     }
 }
@@ -341,11 +392,15 @@ impl Operator for ProjectedM<'_> {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        let mut guard = lock(&self.work);
-        let t = &mut *guard;
-        t.copy_from_slice(x);
-        self.dual.project(t);
-        self.m.apply(t, y);
+        if self.on_image {
+            self.m.apply(x, y);
+        } else {
+            let mut guard = lock(&self.work);
+            let t = &mut *guard;
+            t.copy_from_slice(x);
+            self.dual.project(t);
+            self.m.apply(t, y);
+        }
         self.dual.project(y);
         let scale = self.scale;
         y.iter_mut().for_each(|v| *v *= scale);

@@ -48,6 +48,10 @@ pub(crate) fn reconstruct_block(
     Ok(dual.cluster().primal_block(fs, lambdas, &alphas))
 }
 
+/// Smallest pivot `l_ii^2` of `G G^T` over the active rows, relative to its
+/// largest diagonal entry, that determines the rigid motions.
+const PIVOT: f64 = 1e-10;
+
 /// The kernel coefficients of each `(F l, d)`: `G G^T alpha = G r` with
 /// `r = F l - d` on the `active` rows (zero elsewhere).
 fn kernel_coefficients(
@@ -58,11 +62,34 @@ fn kernel_coefficients(
 ) -> Result<Vec<Vec<f64>>, SolveError> {
     let cluster = dual.cluster();
     let n3 = cluster.kernel_dim();
+    let residual = |fl: &[f64], d: &[f64]| -> Vec<f64> {
+        fl.iter()
+            .zip(d)
+            .zip(active)
+            .map(|((f, d), &a)| if a { f - d } else { 0.0 })
+            .collect()
+    };
+    // Every row active (equality-only problems): the Gram is the dual's own,
+    // already factorized; reused where it passes the same pivot test.
+    if active.iter().all(|a| *a) {
+        let mut alphas = Vec::with_capacity(fls.len());
+        for (fl, d) in fls.iter().zip(ds) {
+            let mut alpha = vec![0.0; n3];
+            cluster.apply_g(&residual(fl, d.as_ref()), &mut alpha);
+            if !dual.coarse_solve_if(PIVOT, &mut alpha) {
+                break;
+            }
+            alphas.push(alpha);
+        }
+        if alphas.len() == fls.len() {
+            return Ok(alphas);
+        }
+    }
     let t = Instant::now();
     let gg = Gram::assemble(cluster, Some(active), CoarseForm::Auto);
     // G G^T over the active rows must be regular: a round-off pivot means a
     // rigid motion no active row determines (the state is not unique).
-    let factor = CoarseFactor::factor(gg, 1e-10);
+    let factor = CoarseFactor::factor(gg, PIVOT);
     dual.add_coarse_setup(t);
     let factor = factor.map_err(|gg| SolveError::Undetermined {
         modes: super::dual::null_modes(&gg.to_dense())
@@ -73,14 +100,8 @@ fn kernel_coefficients(
     })?;
     let mut alphas = Vec::with_capacity(fls.len());
     for (fl, d) in fls.iter().zip(ds) {
-        let r: Vec<f64> = fl
-            .iter()
-            .zip(d.as_ref())
-            .zip(active)
-            .map(|((f, d), &a)| if a { f - d } else { 0.0 })
-            .collect();
         let mut alpha = vec![0.0; n3];
-        cluster.apply_g(&r, &mut alpha);
+        cluster.apply_g(&residual(fl, d.as_ref()), &mut alpha);
         factor.solve(&mut alpha);
         alphas.push(alpha);
     }

@@ -98,7 +98,9 @@ pub fn dual_solve_from(
     if n_equality == m {
         // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
         // Im P = ker G~, so the constraint holds without an outer loop.
-        let precond = dual.preconditioner().map(|m| ProjectedM::new(dual, m, 1.0));
+        let precond = dual
+            .preconditioner()
+            .map(|m| ProjectedM::on_image(dual, m, 1.0));
         let precond = precond.as_ref().map(|m| m as &dyn Operator);
         let x0 = start.filter(|s| s.lambda.len() == m).map(|s| {
             let mut x: Vec<f64> = s.lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
@@ -251,7 +253,8 @@ fn projected_cg(
     x0: Option<Vec<f64>>,
 ) -> (Vec<f64>, QpInfo) {
     let m = b.len();
-    let a = ProjectedF::new(dual, 1.0);
+    // b, the residuals and the search directions stay in Im P.
+    let a = ProjectedF::on_image(dual, 1.0);
     let bnorm = norm(b);
     let mut x = vec![0.0; m];
     let mut r = b.to_vec();
