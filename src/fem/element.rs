@@ -66,18 +66,18 @@ impl Element {
 }
 
 impl Element {
-    /// `d(w^T K_e u) / dX` for every node coordinate (node-major, like `x`), in
-    /// one pass ([`super::shape_gradient`]); `w` and `u` are element vectors.
-    /// None for an inverted or degenerate element.
+    /// `d(w^T K_e u) / dX` for every node coordinate (node-major, like `x`) and
+    /// every `w` of `ws`, in one pass ([`super::shape_gradient`]); `w` and `u`
+    /// are element vectors. None for an inverted or degenerate element.
     pub fn shape_gradient(
         self,
         x: &[f64],
         young: f64,
         poisson: f64,
         thickness: f64,
-        w: &[f64],
+        ws: &[&[f64]],
         u: &[f64],
-    ) -> Option<Vec<f64>> {
+    ) -> Option<Vec<Vec<f64>>> {
         let ok = |det: f64| det > 0.0 && det.is_finite();
         match self {
             Element::Quad4 => {
@@ -91,7 +91,7 @@ impl Element {
                 }
                 let d = plane_strain(young, poisson);
                 let rows: Vec<&[f64]> = d.iter().map(|r| r.as_slice()).collect();
-                Some(bilinear_shape_gradient(&points, &rows, w, u))
+                Some(bilinear_shape_gradient(&points, &rows, ws, u))
             }
             Element::Hex8 => {
                 let h = std::array::from_fn(|k| [x[3 * k], x[3 * k + 1], x[3 * k + 2]]);
@@ -101,7 +101,7 @@ impl Element {
                 }
                 let d = isotropic(young, poisson);
                 let rows: Vec<&[f64]> = d.iter().map(|r| r.as_slice()).collect();
-                Some(bilinear_shape_gradient(&points, &rows, w, u))
+                Some(bilinear_shape_gradient(&points, &rows, ws, u))
             }
         }
     }

@@ -15,36 +15,48 @@
 //! to round-off (the tests check that); the design directions then cost only a
 //! dot product with the node velocities each.
 
+/// Voigt entries at most (3D).
+const VOIGT: usize = 6;
+
 /// The strain of `grad` (`grad[i][k] = d u_i / d x_k`) in Voigt order with
-/// engineering shears: 2D `(xx, yy, xy)`, 3D `(xx, yy, zz, yz, xz, xy)`.
-fn voigt<const D: usize>(grad: &[[f64; D]; D]) -> Vec<f64> {
-    let mut e: Vec<f64> = (0..D).map(|i| grad[i][i]).collect();
-    for (i, j) in shear_pairs::<D>() {
-        e.push(grad[i][j] + grad[j][i]);
+/// engineering shears: 2D `(xx, yy, xy)`, 3D `(xx, yy, zz, yz, xz, xy)`
+/// (the first `D (D + 1) / 2` entries).
+fn voigt<const D: usize>(grad: &[[f64; D]; D]) -> [f64; VOIGT] {
+    let mut e = [0.0; VOIGT];
+    for i in 0..D {
+        e[i] = grad[i][i];
+    }
+    for (k, &(i, j)) in shear_pairs::<D>().iter().enumerate() {
+        e[D + k] = grad[i][j] + grad[j][i];
     }
     e
 }
 
 /// The off-diagonal pairs in Voigt order.
-fn shear_pairs<const D: usize>() -> Vec<(usize, usize)> {
+fn shear_pairs<const D: usize>() -> &'static [(usize, usize)] {
     if D == 2 {
-        vec![(0, 1)]
+        &[(0, 1)]
     } else {
-        vec![(1, 2), (0, 2), (0, 1)]
+        &[(1, 2), (0, 2), (0, 1)]
     }
 }
 
-/// The stress tensor `C : eps` from the Voigt matrix `d` (rows of `D (D+1) / 2`).
-fn stress<const D: usize>(d: &[&[f64]], eps: &[f64]) -> [[f64; D]; D] {
-    let s: Vec<f64> = d
-        .iter()
-        .map(|row| row.iter().zip(eps).map(|(a, b)| a * b).sum())
-        .collect();
+/// `C : eps` in Voigt order from the Voigt matrix `d` (rows of `D (D+1) / 2`).
+fn stress_voigt(d: &[&[f64]], eps: &[f64; VOIGT]) -> [f64; VOIGT] {
+    let mut s = [0.0; VOIGT];
+    for (si, row) in s.iter_mut().zip(d) {
+        *si = row.iter().zip(eps).map(|(a, b)| a * b).sum();
+    }
+    s
+}
+
+/// The stress tensor of Voigt stresses `s`.
+fn tensor<const D: usize>(s: &[f64; VOIGT]) -> [[f64; D]; D] {
     let mut t = [[0.0; D]; D];
     for i in 0..D {
         t[i][i] = s[i];
     }
-    for (k, (i, j)) in shear_pairs::<D>().into_iter().enumerate() {
+    for (k, &(i, j)) in shear_pairs::<D>().iter().enumerate() {
         t[i][j] = s[D + k];
         t[j][i] = s[D + k];
     }
@@ -66,36 +78,36 @@ fn gradient<const D: usize, const N: usize>(g: &[[f64; D]; N], v: &[f64]) -> [[f
 
 /// `d(w^T K_e u) / dX` (node-major, `N * D` entries) of an element whose Gauss
 /// points carry physical shape gradients and `det J` times weight (and
-/// thickness) in `points`; `d` is the Voigt elasticity matrix.
+/// thickness) in `points`, for every `w` of `ws` (one output each, the
+/// geometry and `u`'s stress shared); `d` is the Voigt elasticity matrix.
 pub fn bilinear_shape_gradient<const D: usize, const N: usize>(
     points: &[([[f64; D]; N], f64)],
     d: &[&[f64]],
-    w: &[f64],
+    ws: &[&[f64]],
     u: &[f64],
-) -> Vec<f64> {
-    let mut out = vec![0.0; N * D];
+) -> Vec<Vec<f64>> {
+    let mut out = vec![vec![0.0; N * D]; ws.len()];
     for (g, weight) in points {
-        let (gw, gu) = (gradient(g, w), gradient(g, u));
-        let (ew, eu) = (voigt(&gw), voigt(&gu));
-        let (sw, su) = (stress::<D>(d, &ew), stress::<D>(d, &eu));
-        let energy: f64 = ew
-            .iter()
-            .zip(
-                d.iter()
-                    .map(|row| row.iter().zip(&eu).map(|(a, b)| a * b).sum::<f64>()),
-            )
-            .map(|(a, b)| a * b)
-            .sum();
-        for (n, gn) in g.iter().enumerate() {
-            for k in 0..D {
-                // (grad w grad V) : sigma(u) with V = e_k N_n, and the same for u.
-                let mut v = energy * gn[k];
-                for i in 0..D {
-                    for j in 0..D {
-                        v -= (su[i][j] * gw[i][k] + sw[i][j] * gu[i][k]) * gn[j];
+        let gu = gradient(g, u);
+        let eu = voigt(&gu);
+        let su_v = stress_voigt(d, &eu);
+        let su = tensor::<D>(&su_v);
+        for (w, out) in ws.iter().zip(&mut out) {
+            let gw = gradient(g, w);
+            let ew = voigt(&gw);
+            let sw = tensor::<D>(&stress_voigt(d, &ew));
+            let energy: f64 = ew.iter().zip(&su_v).map(|(a, b)| a * b).sum();
+            for (n, gn) in g.iter().enumerate() {
+                for k in 0..D {
+                    // (grad w grad V) : sigma(u) with V = e_k N_n, and the same for u.
+                    let mut v = energy * gn[k];
+                    for i in 0..D {
+                        for j in 0..D {
+                            v -= (su[i][j] * gw[i][k] + sw[i][j] * gu[i][k]) * gn[j];
+                        }
                     }
+                    out[n * D + k] += v * weight;
                 }
-                out[n * D + k] += v * weight;
             }
         }
     }
@@ -144,9 +156,12 @@ mod tests {
             let n = x.len();
             let w: Vec<f64> = (0..n).map(noise).collect();
             let u: Vec<f64> = (0..n).map(|k| noise(k + 100)).collect();
-            let g = el
-                .shape_gradient(&x, 210.0, 0.3, 0.7, &w, &u)
+            let mut g = el
+                .shape_gradient(&x, 210.0, 0.3, 0.7, &[&w, &u], &u)
                 .expect("not inverted");
+            // The second output is u's own, d(u^T K_e u) / dX.
+            let gu = g.pop().expect("two outputs");
+            let g = g.pop().expect("two outputs");
             let scale = g.iter().fold(0.0f64, |a, b| a.max(b.abs()));
             // Every node coordinate alone, and one random direction of all.
             for k in 0..=n {
@@ -161,6 +176,13 @@ mod tests {
                 assert!(
                     (got - want).abs() <= 1e-12 * scale,
                     "{el:?} direction {k}: {got} vs {want}"
+                );
+                let want = by_duals(el, &x, &v, &u, &u);
+                let got: f64 = gu.iter().zip(&v).map(|(a, b)| a * b).sum();
+                let scale = gu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+                assert!(
+                    (got - want).abs() <= 1e-12 * scale,
+                    "{el:?} direction {k}, u's own: {got} vs {want}"
                 );
             }
         }

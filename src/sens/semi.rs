@@ -174,40 +174,63 @@ fn stiffness_derivative_times_u<const DIM: usize>(
 }
 
 /// `d(w^T K u) / dX` per body node (flat, `dim` per node) at the state's
-/// geometry: one pass over the elements, whatever the number of design
-/// directions; `w^T K' u` of a direction is then its dot product with the node
-/// velocities ([`crate::fem::shape_gradient`]).
-fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
+/// geometry, for every `w` of `ws`: one pass over the elements that have a
+/// node marked `moving` (per body node), whatever the number of design
+/// directions or of `w`; zero at the nodes that do not move. `w^T K' u` of a
+/// direction is then its dot product with the node velocities
+/// ([`crate::fem::shape_gradient`]).
+fn node_shape_gradients(
+    state: &State,
+    ws: &[&[Vec<f64>]],
+    moving: &[Vec<bool>],
+) -> Vec<Vec<Vec<f64>>> {
     let p = &state.problem;
     let dim = p.dim;
-    let mut out: Vec<Vec<f64>> = p
-        .bodies
+    let mut out: Vec<Vec<Vec<f64>>> = ws
         .iter()
-        .map(|b| vec![0.0; dim * b.coords.len()])
+        .map(|_| {
+            p.bodies
+                .iter()
+                .map(|b| vec![0.0; dim * b.coords.len()])
+                .collect()
+        })
         .collect();
-    let per_subdomain: Vec<(usize, Vec<(usize, f64)>)> = state.dual.cluster().map(|s, _| {
+    let per_subdomain: Vec<(usize, Vec<(usize, Vec<f64>)>)> = state.dual.cluster().map(|s, _| {
         let m = &p.subdomains[s];
         let coords = &p.bodies[m.body].coords;
+        let moves = &moving[m.body];
         let mut acc = Vec::new();
-        let (mut x, mut we, mut ue) = (Vec::new(), Vec::new(), Vec::new());
+        let mut x = Vec::new();
+        let mut we: Vec<Vec<f64>> = vec![Vec::new(); ws.len()];
+        let mut ue = Vec::new();
         for e in m.element_nodes() {
+            if !e.iter().any(|&k| moves[m.grid[k]]) {
+                continue;
+            }
             x.clear();
-            we.clear();
             ue.clear();
+            we.iter_mut().for_each(Vec::clear);
             for &k in e {
                 x.extend_from_slice(&coords[m.grid[k]][..dim]);
-                we.extend_from_slice(&w[s][dim * k..dim * k + dim]);
                 ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
+                for (wk, w) in we.iter_mut().zip(ws) {
+                    wk.extend_from_slice(&w[s][dim * k..dim * k + dim]);
+                }
             }
-            let Some(g) = m
-                .element
-                .shape_gradient(&x, m.young, m.poisson, m.thickness, &we, &ue)
+            let we_ref: Vec<&[f64]> = we.iter().map(Vec::as_slice).collect();
+            let Some(g) =
+                m.element
+                    .shape_gradient(&x, m.young, m.poisson, m.thickness, &we_ref, &ue)
             else {
                 continue;
             };
             for (a, &k) in e.iter().enumerate() {
+                if !moves[m.grid[k]] {
+                    continue;
+                }
                 for c in 0..dim {
-                    acc.push((dim * m.grid[k] + c, g[dim * a + c]));
+                    let at = dim * a + c;
+                    acc.push((dim * m.grid[k] + c, g.iter().map(|gw| gw[at]).collect()));
                 }
             }
         }
@@ -215,9 +238,11 @@ fn node_shape_gradient(state: &State, w: &[Vec<f64>]) -> Vec<Vec<f64>> {
     });
     // Summed in subdomain order: the same bits whatever the thread count.
     for (s, acc) in per_subdomain {
-        let body = &mut out[p.subdomains[s].body];
-        for (k, v) in acc {
-            body[k] += v;
+        let body = p.subdomains[s].body;
+        for (k, vs) in acc {
+            for (o, v) in out.iter_mut().zip(vs) {
+                o[body][k] += v;
+            }
         }
     }
     out
@@ -543,9 +568,8 @@ impl<'a> Sensitivity<'a> {
             });
         let starts = starts.as_deref();
         let (solved, cost) = self.adjoint_solves(fs, tolerance, starts)?;
-        let p = &self.state.problem;
         let mut ends = Vec::with_capacity(fs.len());
-        let adjoints: Vec<_> = solved
+        let solved: Vec<(Vec<Vec<f64>>, Vec<f64>)> = solved
             .into_iter()
             .map(|(w, nu)| {
                 let mut end = vec![0.0; rows];
@@ -553,19 +577,29 @@ impl<'a> Sensitivity<'a> {
                     end[r] = *v;
                 }
                 ends.push(end);
-                // A functional of the geometry alone (J_u = 0, J_l = 0) has w = 0.
-                let gw = if w.iter().flatten().all(|v| *v == 0.0) {
-                    p.bodies
-                        .iter()
-                        .map(|b| vec![0.0; p.dim * b.coords.len()])
-                        .collect()
-                } else {
-                    node_shape_gradient(self.state, &w)
-                };
-                (w, nu, gw)
+                (w, nu)
             })
             .collect();
-        let gu = node_shape_gradient(self.state, &self.state.u);
+        // The node shape gradients of u^T K u and of every w^T K u in one
+        // pass; a functional of the geometry alone (J_u = 0, J_l = 0) has
+        // w = 0 and needs none.
+        let nonzero: Vec<usize> = (0..solved.len())
+            .filter(|&k| solved[k].0.iter().flatten().any(|v| *v != 0.0))
+            .collect();
+        let ws: Vec<&[Vec<f64>]> = std::iter::once(self.state.u.as_slice())
+            .chain(nonzero.iter().map(|&k| solved[k].0.as_slice()))
+            .collect();
+        let mut shape = node_shape_gradients(self.state, &ws, &self.moving_nodes()).into_iter();
+        let gu = shape.next().unwrap_or_default();
+        let mut gws: Vec<Vec<Vec<f64>>> = vec![Vec::new(); solved.len()];
+        for (&k, g) in nonzero.iter().zip(shape) {
+            gws[k] = g;
+        }
+        let adjoints: Vec<_> = solved
+            .into_iter()
+            .zip(gws)
+            .map(|((w, nu), gw)| (w, nu, gw))
+            .collect();
         let m = self.scene.design.len();
         let p = &self.state.problem;
         let mut grad = vec![vec![0.0; m]; fs.len()];
@@ -600,6 +634,26 @@ impl<'a> Sensitivity<'a> {
             }
         }
         Ok(((grad, cost, kinked), ends))
+    }
+
+    /// Per body node: whether some design direction moves it.
+    fn moving_nodes(&self) -> Vec<Vec<bool>> {
+        let p = &self.state.problem;
+        let mut moving: Vec<Vec<bool>> = p
+            .bodies
+            .iter()
+            .map(|b| vec![false; b.coords.len()])
+            .collect();
+        for direction in &self.tape().velocities {
+            for (mv, v) in moving.iter_mut().zip(direction) {
+                for (k, c) in v.chunks(p.dim).enumerate() {
+                    if c.iter().any(|x| *x != 0.0) {
+                        mv[k] = true;
+                    }
+                }
+            }
+        }
+        moving
     }
 
     /// The adjoint solves of functionals, `(w, nu)` of each, and their cost:
