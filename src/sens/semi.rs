@@ -195,7 +195,9 @@ fn node_shape_gradients(
                 .collect()
         })
         .collect();
-    let per_subdomain: Vec<(usize, Vec<(usize, Vec<f64>)>)> = state.dual.cluster().map(|s, _| {
+    // Per subdomain: (body dof, one value per w) of its elements.
+    type Contributions = Vec<(usize, Vec<f64>)>;
+    let per_subdomain: Vec<(usize, Contributions)> = state.dual.cluster().map(|s, _| {
         let m = &p.subdomains[s];
         let coords = &p.bodies[m.body].coords;
         let moves = &moving[m.body];
