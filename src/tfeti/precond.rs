@@ -62,7 +62,7 @@ pub struct Built {
 
 enum Local {
     Lumped(UpperCsc),
-    Schur(Box<Schur>),
+    Schur(Arc<Schur>),
 }
 
 struct BlockWork {
@@ -226,7 +226,7 @@ impl DualPreconditioner {
             let op = match kind {
                 Kind::Lumped => Local::Lumped(sub.boundary_stiffness(boundary)),
                 Kind::Dirichlet => match sub.schur(boundary, form) {
-                    Ok(s) => Local::Schur(Box::new(s)),
+                    Ok(s) => Local::Schur(s),
                     Err(_) => Local::Lumped(sub.boundary_stiffness(boundary)),
                 },
             };

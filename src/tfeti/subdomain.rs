@@ -148,7 +148,19 @@ pub struct Subdomain {
     /// Whether the symbolic factorization came from an earlier build.
     symbolic_reused: bool,
     work: Mutex<Work>,
+    /// Schur complements formed so far, by touched dofs and form: the state's
+    /// and the sensitivity duals' Dirichlet preconditioners share them, and so
+    /// do later designs of an optimization, which reuse a subdomain whose
+    /// nodes did not move whole. The last [`SCHUR_MEMO`] only.
+    schurs: Mutex<Vec<SchurMemo>>,
 }
+
+/// A Schur complement of the subdomain with the dofs and form it was asked for.
+type SchurMemo = (Vec<usize>, SchurForm, Arc<Schur>);
+
+/// Schur complements a subdomain keeps (the state's touched dofs and the
+/// sensitivity problems', which lack the inactive contact rows).
+const SCHUR_MEMO: usize = 2;
 
 impl std::fmt::Debug for Subdomain {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -397,6 +409,7 @@ impl Subdomain {
                         buf,
                         x: vec![0.0; next],
                     }),
+                    schurs: Mutex::new(Vec::new()),
                 })
             }
             Kind::Classical { eliminated, eps } => {
@@ -424,6 +437,7 @@ impl Subdomain {
                         buf: reg.buf,
                         x: vec![0.0; n],
                     }),
+                    schurs: Mutex::new(Vec::new()),
                 })
             }
         }
@@ -507,14 +521,30 @@ impl Subdomain {
 
     /// The Schur complement of the stiffness on the dofs `boundary` (sorted,
     /// distinct; classical FETI's eliminated dofs are not in the interior),
-    /// the Dirichlet preconditioner's local operator. Fails, saying why, when
-    /// the interior block is singular.
-    pub fn schur(&self, boundary: &[usize], form: SchurForm) -> Result<Schur, String> {
+    /// the Dirichlet preconditioner's local operator; formed once per dofs and
+    /// form (see `schurs`). Fails, saying why, when the interior block is
+    /// singular.
+    pub fn schur(&self, boundary: &[usize], form: SchurForm) -> Result<Arc<Schur>, String> {
+        let found = lock(&self.schurs)
+            .iter()
+            .find(|(b, f, _)| b == boundary && *f == form)
+            .map(|(_, _, s)| s.clone());
+        if let Some(s) = found {
+            return Ok(s);
+        }
         let excluded: &[usize] = match &self.kind {
             Kind::Total => &[],
             Kind::Classical { eliminated, .. } => eliminated,
         };
-        Schur::new(&self.k, boundary, excluded, &self.r, self.kdim, form)
+        let s = Arc::new(Schur::new(
+            &self.k, boundary, excluded, &self.r, self.kdim, form,
+        )?);
+        let mut memo = lock(&self.schurs);
+        if memo.len() >= SCHUR_MEMO {
+            memo.remove(0);
+        }
+        memo.push((boundary.to_vec(), form, s.clone()));
+        Ok(s)
     }
 
     /// `x <- K^+ x`.

@@ -511,6 +511,49 @@ fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
     assert!(sub.schur(&bottom, SchurForm::Auto).is_ok());
 }
 
+/// A subdomain forms each Schur complement once per touched dofs and form
+/// (the state's and the sensitivity duals' preconditioners, and later designs
+/// that reuse the subdomain, share it), keeping the last two.
+#[test]
+fn a_subdomain_forms_each_schur_complement_once() {
+    let sub = Subdomain::total(&Geometry::of(&grid(3, 3, 0.0))).expect("factorizes");
+    let bottom: Vec<usize> = (0..8).collect();
+    let left: Vec<usize> = (0..4).flat_map(|j| [8 * j, 8 * j + 1]).collect();
+    let right: Vec<usize> = (0..4).flat_map(|j| [8 * j + 6, 8 * j + 7]).collect();
+    let a = sub.schur(&bottom, SchurForm::Auto).expect("regular");
+    let b = sub.schur(&bottom, SchurForm::Auto).expect("regular");
+    assert!(Arc::ptr_eq(&a, &b), "formed twice");
+    let dense = sub.schur(&bottom, SchurForm::Dense).expect("regular");
+    let implicit = sub.schur(&bottom, SchurForm::Implicit).expect("regular");
+    assert!(
+        !Arc::ptr_eq(&dense, &implicit),
+        "another form is another matrix"
+    );
+    // The same operator whichever way it is held.
+    let x: Vec<f64> = (0..8).map(|i| (i as f64 * 0.7).sin()).collect();
+    let (mut y1, mut y2) = (vec![0.0; 8], vec![0.0; 8]);
+    dense.apply(&x, &mut y1);
+    implicit.apply(&x, &mut y2);
+    let scale = y1.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(y1
+        .iter()
+        .zip(&y2)
+        .all(|(p, q)| (p - q).abs() <= 1e-10 * scale));
+    // Two more dof sets push the first out.
+    let l = sub.schur(&left, SchurForm::Auto).expect("regular");
+    let r = sub.schur(&right, SchurForm::Auto).expect("regular");
+    assert!(Arc::ptr_eq(
+        &l,
+        &sub.schur(&left, SchurForm::Auto).expect("regular")
+    ));
+    assert!(Arc::ptr_eq(
+        &r,
+        &sub.schur(&right, SchurForm::Auto).expect("regular")
+    ));
+    let again = sub.schur(&bottom, SchurForm::Auto).expect("regular");
+    assert!(!Arc::ptr_eq(&a, &again), "kept more than two");
+}
+
 /// The equilibrium residual from the rigid-mode Grams equals the one of the
 /// reconstructed state, `||K K^+ y - y||` with `y = f - B^T l`, for multipliers
 /// that balance nothing (random `l`, random `f`): the stopping test that uses
