@@ -28,6 +28,7 @@ use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
 use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
+use rayon::prelude::*;
 use std::sync::OnceLock;
 use std::time::Instant;
 
@@ -138,8 +139,10 @@ fn load_derivative<P: Piece<DIM, N>, const DIM: usize, const N: usize>(
         .collect()
 }
 
-/// `K' u` per subdomain (only elements whose nodes move).
-fn stiffness_derivative_times_u<const DIM: usize>(
+/// `K' u` per subdomain (only elements whose nodes move), by one pass over
+/// the elements in dual numbers: where [`ElementJacobians`] would not fit in
+/// memory, and their reference in the tests.
+fn stiffness_derivative_times_u_dual<const DIM: usize>(
     state: &State,
     pos: &[Vec<[D; DIM]>],
 ) -> Vec<Vec<f64>> {
@@ -171,6 +174,112 @@ fn stiffness_derivative_times_u<const DIM: usize>(
             out
         })
         .collect()
+}
+
+/// `d(K_e u_e) / dX_e` of every element that has a moving node, per
+/// subdomain: its local nodes and the `n x n` matrix (row-major, `n` its dofs,
+/// columns node-major like the coordinates). `K'u` of a direction is then one
+/// product per element with its node velocities, instead of an element pass in
+/// dual numbers per direction; the rows are the node shape gradients of
+/// `e_a^T K_e u_e` ([`crate::fem::shape_gradient`]), all in one Gauss loop.
+struct ElementJacobians(Vec<Vec<(Vec<usize>, Vec<f64>)>>);
+
+/// Bytes of element Jacobians a sensitivity keeps at most; beyond, `K'u`
+/// takes an element pass in dual numbers per direction.
+const JACOBIAN_BYTES: usize = 256 << 20;
+
+impl ElementJacobians {
+    /// The Jacobians at the state, or None beyond [`JACOBIAN_BYTES`].
+    fn new(state: &State, moving: &[Vec<bool>]) -> Option<Self> {
+        let p = &state.problem;
+        let dim = p.dim;
+        let bytes: usize = p
+            .subdomains
+            .iter()
+            .map(|m| {
+                let n = m.element.nodes() * dim;
+                let moved = m
+                    .element_nodes()
+                    .filter(|e| e.iter().any(|&k| moving[m.body][m.grid[k]]))
+                    .count();
+                moved * n * n * std::mem::size_of::<f64>()
+            })
+            .sum();
+        if bytes > JACOBIAN_BYTES {
+            return None;
+        }
+        let per_subdomain = p
+            .subdomains
+            .par_iter()
+            .enumerate()
+            .map(|(s, m)| {
+                let coords = &p.bodies[m.body].coords;
+                let moves = &moving[m.body];
+                let n = m.element.nodes() * dim;
+                let units: Vec<Vec<f64>> = (0..n)
+                    .map(|a| (0..n).map(|b| f64::from(u8::from(a == b))).collect())
+                    .collect();
+                let units: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
+                let (mut x, mut ue) = (Vec::with_capacity(n), Vec::with_capacity(n));
+                let mut out = Vec::new();
+                for e in m.element_nodes() {
+                    if !e.iter().any(|&k| moves[m.grid[k]]) {
+                        continue;
+                    }
+                    x.clear();
+                    ue.clear();
+                    for &k in e {
+                        x.extend_from_slice(&coords[m.grid[k]][..dim]);
+                        ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
+                    }
+                    // An inverted element has no stiffness to differentiate.
+                    if let Some(rows) =
+                        m.element
+                            .shape_gradient(&x, m.young, m.poisson, m.thickness, &units, &ue)
+                    {
+                        out.push((e.to_vec(), rows.concat()));
+                    }
+                }
+                out
+            })
+            .collect();
+        Some(ElementJacobians(per_subdomain))
+    }
+
+    /// `K' u` per subdomain along the node velocities `v` (per body, flat;
+    /// empty where the body stays).
+    fn times(&self, state: &State, v: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let p = &state.problem;
+        let dim = p.dim;
+        p.subdomains
+            .iter()
+            .zip(&self.0)
+            .map(|(m, elements)| {
+                let mut out = vec![0.0; m.f.len()];
+                let vb = &v[m.body];
+                if vb.is_empty() {
+                    return out;
+                }
+                let mut ve: Vec<f64> = Vec::new();
+                for (e, j) in elements {
+                    ve.clear();
+                    ve.extend(
+                        e.iter()
+                            .flat_map(|&k| &vb[dim * m.grid[k]..dim * m.grid[k] + dim]),
+                    );
+                    if ve.iter().all(|x| *x == 0.0) {
+                        continue;
+                    }
+                    let n = ve.len();
+                    for (a, row) in j.chunks_exact(n).enumerate() {
+                        out[dim * e[a / dim] + a % dim] +=
+                            row.iter().zip(&ve).map(|(x, y)| x * y).sum::<f64>();
+                    }
+                }
+                out
+            })
+            .collect()
+    }
 }
 
 /// `d(w^T K u) / dX` per body node (flat, `dim` per node) at the state's
@@ -271,6 +380,9 @@ pub struct Sensitivity<'a> {
     ku: Vec<Vec<f64>>,
     /// The right-hand sides' linearization, made on first use.
     tape: OnceLock<Tape>,
+    /// `d(K_e u_e) / dX_e` of the moving elements (semi-analytic `K'u`),
+    /// made on first use.
+    jacobians: OnceLock<Option<ElementJacobians>>,
 }
 
 impl<'a> Sensitivity<'a> {
@@ -313,6 +425,7 @@ impl<'a> Sensitivity<'a> {
             dual,
             ku: state.dual.cluster().apply_k(&state.u),
             tape: OnceLock::new(),
+            jacobians: OnceLock::new(),
         })
     }
 
@@ -502,15 +615,27 @@ impl<'a> Sensitivity<'a> {
     ) -> Rhs {
         let (scene, state) = (self.scene, self.state);
         let tape = self.tape();
-        let elements = with_kpu || scene.gravity.is_some();
+        let jacobians = with_kpu
+            .then(|| {
+                self.jacobians
+                    .get_or_init(|| ElementJacobians::new(state, &self.moving_nodes()))
+                    .as_ref()
+            })
+            .flatten();
+        let elements = scene.gravity.is_some() || (with_kpu && jacobians.is_none());
         let pos = elements.then(|| tape.dual_positions::<DIM>(state, i));
         let gravity = pos
             .as_ref()
             .filter(|_| scene.gravity.is_some())
             .map(|pos| load_derivative::<P, DIM, N>(scene, state, pos, &scene.design_init()));
         let mut rhs = tape.rhs::<DIM>(scene, state, &self.kept, i, gravity);
-        if let (true, Some(pos)) = (with_kpu, &pos) {
-            let kpu = stiffness_derivative_times_u(state, pos);
+        let kpu = match (with_kpu, jacobians, &pos) {
+            (false, _, _) => None,
+            (true, Some(j), _) => Some(j.times(state, &tape.velocities[i])),
+            (true, None, Some(pos)) => Some(stiffness_derivative_times_u_dual(state, pos)),
+            (true, None, None) => None,
+        };
+        if let Some(kpu) = kpu {
             for (f, k) in rhs.fbar.iter_mut().zip(&kpu) {
                 for (a, b) in f.iter_mut().zip(k) {
                     *a -= b;

@@ -108,7 +108,7 @@ impl Sensitivity<'_> {
         let pos = node_positions::<D, DIM>(scene, &dd);
         let fprime = load_derivative::<P, DIM, N>(scene, state, &pos, &design);
         let kpu = if with_kpu {
-            stiffness_derivative_times_u(state, &pos)
+            stiffness_derivative_times_u_dual(state, &pos)
         } else {
             fprime.iter().map(|f| vec![0.0; f.len()]).collect()
         };
