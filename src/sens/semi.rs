@@ -176,6 +176,34 @@ fn stiffness_derivative_times_u_dual<const DIM: usize>(
         .collect()
 }
 
+/// Calls `f(nodes, x, u)` for every element of subdomain `s` that has a node
+/// marked `moving` (per body node): its local nodes, coordinates and state
+/// displacements (node-major).
+fn for_moving_elements(
+    state: &State,
+    s: usize,
+    moving: &[Vec<bool>],
+    mut f: impl FnMut(&[usize], &[f64], &[f64]),
+) {
+    let p = &state.problem;
+    let (m, dim) = (&p.subdomains[s], p.dim);
+    let coords = &p.bodies[m.body].coords;
+    let moves = &moving[m.body];
+    let (mut x, mut ue) = (Vec::new(), Vec::new());
+    for e in m.element_nodes() {
+        if !e.iter().any(|&k| moves[m.grid[k]]) {
+            continue;
+        }
+        x.clear();
+        ue.clear();
+        for &k in e {
+            x.extend_from_slice(&coords[m.grid[k]][..dim]);
+            ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
+        }
+        f(e, &x, &ue);
+    }
+}
+
 /// `d(K_e u_e) / dX_e` of every element that has a moving node, per
 /// subdomain: its local nodes and the `n x n` matrix (row-major, `n` its dofs,
 /// columns node-major like the coordinates). `K'u` of a direction is then one
@@ -213,33 +241,21 @@ impl ElementJacobians {
             .par_iter()
             .enumerate()
             .map(|(s, m)| {
-                let coords = &p.bodies[m.body].coords;
-                let moves = &moving[m.body];
                 let n = m.element.nodes() * dim;
                 let units: Vec<Vec<f64>> = (0..n)
                     .map(|a| (0..n).map(|b| f64::from(u8::from(a == b))).collect())
                     .collect();
                 let units: Vec<&[f64]> = units.iter().map(Vec::as_slice).collect();
-                let (mut x, mut ue) = (Vec::with_capacity(n), Vec::with_capacity(n));
                 let mut out = Vec::new();
-                for e in m.element_nodes() {
-                    if !e.iter().any(|&k| moves[m.grid[k]]) {
-                        continue;
-                    }
-                    x.clear();
-                    ue.clear();
-                    for &k in e {
-                        x.extend_from_slice(&coords[m.grid[k]][..dim]);
-                        ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
-                    }
+                for_moving_elements(state, s, moving, |e, x, ue| {
                     // An inverted element has no stiffness to differentiate.
                     if let Some(rows) =
                         m.element
-                            .shape_gradient(&x, m.young, m.poisson, m.thickness, &units, &ue)
+                            .shape_gradient(x, m.young, m.poisson, m.thickness, &units, ue)
                     {
                         out.push((e.to_vec(), rows.concat()));
                     }
-                }
+                });
                 out
             })
             .collect();
@@ -308,32 +324,20 @@ fn node_shape_gradients(
     type Contributions = Vec<(usize, Vec<f64>)>;
     let per_subdomain: Vec<(usize, Contributions)> = state.dual.cluster().map(|s, _| {
         let m = &p.subdomains[s];
-        let coords = &p.bodies[m.body].coords;
         let moves = &moving[m.body];
         let mut acc = Vec::new();
-        let mut x = Vec::new();
         let mut we: Vec<Vec<f64>> = vec![Vec::new(); ws.len()];
-        let mut ue = Vec::new();
-        for e in m.element_nodes() {
-            if !e.iter().any(|&k| moves[m.grid[k]]) {
-                continue;
-            }
-            x.clear();
-            ue.clear();
-            we.iter_mut().for_each(Vec::clear);
-            for &k in e {
-                x.extend_from_slice(&coords[m.grid[k]][..dim]);
-                ue.extend_from_slice(&state.u[s][dim * k..dim * k + dim]);
-                for (wk, w) in we.iter_mut().zip(ws) {
-                    wk.extend_from_slice(&w[s][dim * k..dim * k + dim]);
-                }
+        for_moving_elements(state, s, moving, |e, x, ue| {
+            for (wk, w) in we.iter_mut().zip(ws) {
+                wk.clear();
+                wk.extend(e.iter().flat_map(|&k| &w[s][dim * k..dim * k + dim]));
             }
             let we_ref: Vec<&[f64]> = we.iter().map(Vec::as_slice).collect();
-            let Some(g) =
-                m.element
-                    .shape_gradient(&x, m.young, m.poisson, m.thickness, &we_ref, &ue)
+            let Some(g) = m
+                .element
+                .shape_gradient(x, m.young, m.poisson, m.thickness, &we_ref, ue)
             else {
-                continue;
+                return;
             };
             for (a, &k) in e.iter().enumerate() {
                 if !moves[m.grid[k]] {
@@ -344,7 +348,7 @@ fn node_shape_gradients(
                     acc.push((dim * m.grid[k] + c, g.iter().map(|gw| gw[at]).collect()));
                 }
             }
-        }
+        });
         (s, acc)
     });
     // Summed in subdomain order: the same bits whatever the thread count.

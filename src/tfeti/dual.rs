@@ -274,6 +274,30 @@ pub(crate) fn null_modes(ggt: &Mat<f64>) -> Vec<usize> {
     out
 }
 
+/// `y = scale P op(P x)`, or `scale P op(x)` for `x` in Im P already
+/// (`on_image`); `work` holds `P x`.
+fn projected(
+    dual: &Dual,
+    work: &Mutex<Vec<f64>>,
+    on_image: bool,
+    scale: f64,
+    op: impl Fn(&[f64], &mut [f64]),
+    x: &[f64],
+    y: &mut [f64],
+) {
+    if on_image {
+        op(x, y);
+    } else {
+        let mut guard = lock(work);
+        let t = &mut *guard;
+        t.copy_from_slice(x);
+        dual.project(t);
+        op(t, y);
+    }
+    dual.project(y);
+    y.iter_mut().for_each(|v| *v *= scale);
+}
+
 /// `P F P / ||P F P||` as the SMALBE Hessian. Scaling by the norm makes the
 /// dual problem dimensionless, so that SMALBE's tests `||g^P|| <= eps ||b||`
 /// and `||G l|| <= eps ||b||` compare like with like whatever the stiffness.
@@ -312,18 +336,8 @@ impl Operator for ProjectedF<'_> {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        if self.on_image {
-            self.dual.apply_f(x, y);
-        } else {
-            let mut guard = lock(&self.work);
-            let t = &mut *guard;
-            t.copy_from_slice(x);
-            self.dual.project(t);
-            self.dual.apply_f(t, y);
-        }
-        self.dual.project(y);
-        let scale = self.scale;
-        y.iter_mut().for_each(|v| *v *= scale);
+        let f = |x: &[f64], y: &mut [f64]| self.dual.apply_f(x, y);
+        projected(self.dual, &self.work, self.on_image, self.scale, f, x, y);
     }
 }
 
@@ -392,17 +406,7 @@ impl Operator for ProjectedM<'_> {
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
-        if self.on_image {
-            self.m.apply(x, y);
-        } else {
-            let mut guard = lock(&self.work);
-            let t = &mut *guard;
-            t.copy_from_slice(x);
-            self.dual.project(t);
-            self.m.apply(t, y);
-        }
-        self.dual.project(y);
-        let scale = self.scale;
-        y.iter_mut().for_each(|v| *v *= scale);
+        let m = |x: &[f64], y: &mut [f64]| self.m.apply(x, y);
+        projected(self.dual, &self.work, self.on_image, self.scale, m, x, y);
     }
 }
