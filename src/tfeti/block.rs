@@ -23,7 +23,7 @@
 use super::dual::{Dual, Orthonormal, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
-use crate::qp::{Equality, Operator, SmalbeSettings, Status};
+use crate::qp::{Equality, SmalbeSettings, Status};
 use faer::{Mat, Side};
 
 /// What a block solve did and cost.
@@ -147,7 +147,7 @@ fn block_projected_cg(
     b: &[Vec<f64>],
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
-    precond: Option<&dyn Operator>,
+    precond: Option<&ProjectedM<'_>>,
 ) -> (Vec<Vec<f64>>, BlockInfo) {
     let m = dual.multipliers();
     let mut info = BlockInfo {
@@ -192,20 +192,28 @@ fn block_projected_cg(
             .collect();
         (open, worst)
     };
-    // z = P M P r, or r where M gives no descent (round-off, semidefinite M).
-    let precondition = |r: &[f64]| -> Vec<f64> {
-        if let Some(pm) = precond {
-            let mut z = vec![0.0; m];
-            pm.apply(r, &mut z);
-            let rz = dot(r, &z);
-            if rz > 0.0 && rz.is_finite() {
-                return z;
-            }
-        }
-        r.to_vec()
+    // z = P M P r of every open column in one pass, or r where M gives no
+    // descent (round-off, semidefinite M).
+    let precondition = |open: &[usize], r: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        let rs: Vec<Vec<f64>> = open.iter().map(|&j| r[j].clone()).collect();
+        let Some(pm) = precond else {
+            return rs;
+        };
+        let zs = pm.apply_columns(&rs);
+        zs.into_iter()
+            .zip(rs)
+            .map(|(z, r)| {
+                let rz = dot(&r, &z);
+                if rz > 0.0 && rz.is_finite() {
+                    z
+                } else {
+                    r
+                }
+            })
+            .collect()
     };
     let (mut active, _) = open(&r);
-    let z: Vec<Vec<f64>> = active.iter().map(|&j| precondition(&r[j])).collect();
+    let z = precondition(&active, &r);
     let mut p = orthonormal(&z);
     while !active.is_empty() {
         if p.is_empty() {
@@ -240,7 +248,7 @@ fn block_projected_cg(
         if active.is_empty() {
             break;
         }
-        let mut y: Vec<Vec<f64>> = active.iter().map(|&j| precondition(&r[j])).collect();
+        let mut y = precondition(&active, &r);
         let Some(beta) = solve_spd(&pq, cross(&q, &y)) else {
             info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
             break;
@@ -310,13 +318,7 @@ pub fn dual_solve_block(
                 })
                 .collect()
         });
-    let (lhat, mut info) = block_projected_cg(
-        dual,
-        &b,
-        x0,
-        settings,
-        precond.as_ref().map(|pm| pm as &dyn Operator),
-    );
+    let (lhat, mut info) = block_projected_cg(dual, &b, x0, settings, precond.as_ref());
     let lambda: Vec<Vec<f64>> = lhat
         .iter()
         .zip(&l_tilde)

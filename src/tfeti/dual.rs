@@ -390,6 +390,23 @@ impl<'a> ProjectedM<'a> {
         }
     }
 
+    /// [`Operator::apply`] of every column, one pass over each subdomain's
+    /// operator for all of them.
+    pub fn apply_columns(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let mut ys = if self.on_image {
+            self.m.apply_block(xs)
+        } else {
+            let mut px = xs.to_vec();
+            px.iter_mut().for_each(|x| self.dual.project(x));
+            self.m.apply_block(&px)
+        };
+        for y in &mut ys {
+            self.dual.project(y);
+            y.iter_mut().for_each(|v| *v *= self.scale);
+        }
+        ys
+    }
+
     /// `scale P M r` for `r` in Im P (projected CG's residuals): one
     /// projection per application instead of two.
     pub fn on_image(dual: &'a Dual, m: &'a DualPreconditioner, scale: f64) -> Self {

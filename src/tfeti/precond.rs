@@ -29,7 +29,9 @@ use super::comm::{Comm, Op};
 use super::local_f::{budget, dense_bytes};
 use super::lock;
 use super::schur::{Schur, SchurForm};
-use super::sparse::{llt_numeric, llt_solve, symbolic_amd, UpperCsc};
+use super::sparse::{
+    llt_numeric, llt_solve, llt_solve_block, solve_scratch, symbolic_amd, UpperCsc,
+};
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
@@ -101,6 +103,43 @@ impl Block {
     }
 }
 
+impl Block {
+    /// `B_s M_s B_s^T t_c` at the block's rows for every column `t_c`
+    /// (global): local rows by columns, column-major.
+    fn apply_block(&self, ts: &[Vec<f64>]) -> Vec<f64> {
+        let cols = ts.len();
+        let nb = match &self.op {
+            Local::Lumped(k) => k.n,
+            Local::Schur(s) => s.dim(),
+        };
+        let mut xb = vec![0.0; nb * cols];
+        for (c, t) in ts.iter().enumerate() {
+            let xc = &mut xb[c * nb..(c + 1) * nb];
+            for &(k, j, v) in &self.entries {
+                xc[j] += v * t[self.rows[k]];
+            }
+        }
+        let mut yb = vec![0.0; nb * cols];
+        match &self.op {
+            Local::Lumped(k) => {
+                for c in 0..cols {
+                    k.mul(&xb[c * nb..(c + 1) * nb], &mut yb[c * nb..(c + 1) * nb]);
+                }
+            }
+            Local::Schur(s) => s.apply_block(&xb, &mut yb, cols),
+        }
+        let nr = self.rows.len();
+        let mut yl = vec![0.0; nr * cols];
+        for c in 0..cols {
+            let (yc, ybc) = (&mut yl[c * nr..(c + 1) * nr], &yb[c * nb..(c + 1) * nb]);
+            for &(k, j, v) in &self.entries {
+                yc[k] += v * ybc[j];
+            }
+        }
+        yl
+    }
+}
+
 /// `W = (B_E B_E^T)^-1` on the first `n` (equality) rows.
 struct Scaling {
     n: usize,
@@ -153,6 +192,20 @@ impl Scaling {
         scaling.solve(&mut probe);
         let worst = probe.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         (worst.is_finite() && worst < 1e6).then_some(scaling)
+    }
+
+    /// [`Self::solve`] of every column, one pass over the factor.
+    fn solve_block(&self, xs: &mut [Vec<f64>]) {
+        let cols = xs.len();
+        let mut block: Vec<f64> = xs
+            .iter()
+            .flat_map(|x| x[..self.n].iter().copied())
+            .collect();
+        let mut buf = solve_scratch(&self.symbolic, cols);
+        llt_solve_block(&self.symbolic, &self.l_values, &mut block, cols, &mut buf);
+        for (x, b) in xs.iter_mut().zip(block.chunks_exact(self.n)) {
+            x[..self.n].copy_from_slice(b);
+        }
     }
 
     /// `x[..n] <- (B_E B_E^T)^-1 x[..n]`.
@@ -282,6 +335,41 @@ impl DualPreconditioner {
 
     pub fn built(&self) -> &Built {
         &self.built
+    }
+
+    /// `M x_c` of every column, one pass over each subdomain's operator for
+    /// all of them (its Schur complement's factor or matrix); column by
+    /// column where the subdomains are spread over ranks.
+    pub fn apply_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        if self.spread.is_some() || xs.len() <= 1 {
+            return xs
+                .iter()
+                .map(|x| {
+                    let mut y = vec![0.0; x.len()];
+                    self.apply(x, &mut y);
+                    y
+                })
+                .collect();
+        }
+        let mut ts = xs.to_vec();
+        if let Some(w) = &self.scaling {
+            w.solve_block(&mut ts);
+        }
+        let parts: Vec<Vec<f64>> = self.blocks.par_iter().map(|b| b.apply_block(&ts)).collect();
+        let mut ys: Vec<Vec<f64>> = xs.iter().map(|x| vec![0.0; x.len()]).collect();
+        // Summed in subdomain order, as in `apply`.
+        for (b, yl) in self.blocks.iter().zip(&parts) {
+            let nr = b.rows.len();
+            for (c, y) in ys.iter_mut().enumerate() {
+                for (k, &row) in b.rows.iter().enumerate() {
+                    y[row] += yl[c * nr + k];
+                }
+            }
+        }
+        if let Some(w) = &self.scaling {
+            w.solve_block(&mut ys);
+        }
+        ys
     }
 
     /// `y = M x` (unprojected): blocks in parallel, summed in subdomain order.

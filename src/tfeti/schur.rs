@@ -11,7 +11,8 @@
 
 use super::lock;
 use super::sparse::{
-    llt_forward_rows, llt_numeric, llt_solve, lower_gram, mirror_lower, symbolic_amd, UpperCsc,
+    llt_forward_rows, llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower,
+    solve_scratch, symbolic_amd, UpperCsc,
 };
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -199,6 +200,48 @@ impl Schur {
                     Accum::Add,
                     k_ib.as_ref().transpose(),
                     MatRef::from_column_major_slice(interior, ni, 1),
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+        }
+    }
+}
+
+impl Schur {
+    /// `y = S x` for the `cols` columns of `x` (column-major, `dim x cols`):
+    /// one pass over the interior factor (implicit) or one matrix product
+    /// (dense) for all of them.
+    pub fn apply_block(&self, x: &[f64], y: &mut [f64], cols: usize) {
+        let nb = self.dim();
+        let xm = MatRef::from_column_major_slice(x, nb, cols);
+        match &self.0 {
+            Held::Dense(s) => {
+                let ym = MatMut::from_column_major_slice_mut(y, nb, cols);
+                faer::linalg::matmul::matmul(ym, Accum::Replace, s.as_ref(), xm, 1.0, Par::Seq);
+            }
+            Held::Implicit(i) => {
+                let ni = i.k_ib.nrows();
+                for c in 0..cols {
+                    i.k_bb
+                        .mul(&x[c * nb..(c + 1) * nb], &mut y[c * nb..(c + 1) * nb]);
+                }
+                let mut interior = vec![0.0; ni * cols];
+                sparse_dense_matmul(
+                    MatMut::from_column_major_slice_mut(&mut interior, ni, cols),
+                    Accum::Replace,
+                    i.k_ib.as_ref(),
+                    xm,
+                    1.0,
+                    Par::Seq,
+                );
+                let mut buf = solve_scratch(&i.symbolic, cols);
+                llt_solve_block(&i.symbolic, &i.l_values, &mut interior, cols, &mut buf);
+                sparse_dense_matmul(
+                    MatMut::from_column_major_slice_mut(y, nb, cols),
+                    Accum::Add,
+                    i.k_ib.as_ref().transpose(),
+                    MatRef::from_column_major_slice(&interior, ni, cols),
                     -1.0,
                     Par::Seq,
                 );
