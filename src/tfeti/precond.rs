@@ -101,9 +101,7 @@ impl Block {
             yl[k] += v * yb[j];
         }
     }
-}
 
-impl Block {
     /// `B_s M_s B_s^T t_c` at the block's rows for every column `t_c`
     /// (global): local rows by columns, column-major.
     fn apply_block(&self, ts: &[Vec<f64>]) -> Vec<f64> {
