@@ -30,7 +30,7 @@ use super::local_f::{budget, dense_bytes};
 use super::lock;
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
-    llt_numeric, llt_solve, llt_solve_block, solve_scratch, symbolic_amd, UpperCsc,
+    llt_numeric, llt_solve, llt_solve_block, solve_scratch, symbolic_amd, SymbolicCache, UpperCsc,
 };
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -265,6 +265,7 @@ impl DualPreconditioner {
                 }
             })
             .collect();
+        let symbolic = SymbolicCache::default();
         let blocks: Vec<Block> = cluster.map(|s, sub| {
             let lr = cluster.local_rows(s);
             let boundary = &boundaries[s - first];
@@ -276,7 +277,7 @@ impl DualPreconditioner {
                 .collect();
             let op = match kind {
                 Kind::Lumped => Local::Lumped(sub.boundary_stiffness(boundary)),
-                Kind::Dirichlet => match sub.schur(boundary, form) {
+                Kind::Dirichlet => match sub.schur(boundary, form, &symbolic) {
                     Ok(s) => Local::Schur(s),
                     Err(_) => Local::Lumped(sub.boundary_stiffness(boundary)),
                 },

@@ -12,14 +12,14 @@
 use super::lock;
 use super::sparse::{
     llt_forward_rows, llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower,
-    solve_scratch, symbolic_amd, UpperCsc,
+    solve_scratch, SymbolicCache, UpperCsc,
 };
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// How to hold `S`: chosen by bytes moved per application, or forced (tests).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -50,7 +50,7 @@ struct Implicit {
     k_bb: UpperCsc,
     /// `K_ib`, interior x touched.
     k_ib: SparseColMat<usize, f64>,
-    symbolic: SymbolicCholesky<usize>,
+    symbolic: Arc<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     work: Mutex<Work>,
 }
@@ -67,8 +67,10 @@ impl std::fmt::Debug for Schur {
 impl Schur {
     /// `S` of `k` on the dofs `boundary` (sorted, distinct), without the dofs
     /// `excluded` (classical FETI's eliminated ones, sorted); `kernel` is the
-    /// orthonormal basis of `ker K` (column-major, `kdim` columns). Fails, saying
-    /// why, when `K_ii` is singular.
+    /// orthonormal basis of `ker K` (column-major, `kdim` columns); the
+    /// symbolic factorization of `K_ii` comes from `symbolic` when a matrix of
+    /// the same pattern put it there (the subdomains of a body touched alike).
+    /// Fails, saying why, when `K_ii` is singular.
     pub fn new(
         k: &UpperCsc,
         boundary: &[usize],
@@ -76,6 +78,7 @@ impl Schur {
         kernel: &[f64],
         kdim: usize,
         form: SchurForm,
+        symbolic: &SymbolicCache,
     ) -> Result<Schur, String> {
         let n = k.n;
         let nb = boundary.len();
@@ -108,7 +111,7 @@ impl Schur {
             return Ok(Schur(Held::Dense(dense_upper(&k_bb))));
         }
         let a = SparseColMatRef::new(k_ii.symbolic(), &k_ii.values);
-        let symbolic = symbolic_amd(a.symbolic())?;
+        let symbolic = symbolic.amd(a.symbolic())?;
         let rhs_cols = if form == SchurForm::Implicit { 1 } else { nb };
         let (l_values, buf) = llt_numeric(&symbolic, a, rhs_cols)
             .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;

@@ -2,6 +2,7 @@
 //! that TFETI and classical FETI share: the symbolic factorization (once per
 //! pattern) and the solves with a numeric factor.
 
+use super::lock;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
 use faer::linalg::cholesky::llt::factor::LltRegularization;
 use faer::linalg::matmul::triangular::{self, BlockStructure};
@@ -14,6 +15,7 @@ use faer::sparse::linalg::triangular_solve::solve_lower_triangular_in_place;
 use faer::sparse::linalg::LltError;
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
+use std::sync::{Arc, Mutex};
 
 /// Upper triangle of a symmetric sparse matrix in compressed columns.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -424,6 +426,77 @@ impl FactorShape {
     }
 }
 
+/// Symbolic factorizations shared by the subdomains whose reduced stiffness
+/// has one pattern and one proposed ordering (the equal bricks of a body):
+/// each is analysed once, which in 3D costs as much as a numeric
+/// factorization. A shared analysis is the one the subdomain would have
+/// computed itself (same inputs), so results do not depend on which
+/// subdomains, or ranks, share it; a subdomain taking one still counts as
+/// symbolically factorized (not reused from an earlier design).
+#[derive(Default)]
+pub struct SymbolicCache {
+    entries: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
+}
+
+/// What a symbolic analysis is computed from.
+pub(crate) struct SymbolicKey<'a> {
+    pub col_ptr: &'a [usize],
+    pub row_idx: &'a [usize],
+    pub order: Option<&'a [usize]>,
+}
+
+type OwnedKey = (Vec<usize>, Vec<usize>, Option<Vec<usize>>);
+
+impl SymbolicKey<'_> {
+    fn matches(&self, k: &OwnedKey) -> bool {
+        k.0 == self.col_ptr && k.1 == self.row_idx && k.2.as_deref() == self.order
+    }
+}
+
+impl SymbolicCache {
+    fn entries(&self) -> std::sync::MutexGuard<'_, Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>> {
+        lock(&self.entries)
+    }
+
+    pub(crate) fn get(&self, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
+        self.entries()
+            .iter()
+            .find(|(k, _)| key.matches(k))
+            .map(|(_, s)| s.clone())
+    }
+
+    pub(crate) fn insert(&self, key: &SymbolicKey, symbolic: &Arc<SymbolicCholesky<usize>>) {
+        let mut entries = self.entries();
+        if !entries.iter().any(|(k, _)| key.matches(k)) {
+            let owned = (
+                key.col_ptr.to_vec(),
+                key.row_idx.to_vec(),
+                key.order.map(<[usize]>::to_vec),
+            );
+            entries.push((owned, symbolic.clone()));
+        }
+    }
+
+    /// AMD's symbolic factorization of `a` (what [`symbolic_best`] gives
+    /// without an ordering), shared by every matrix of the same pattern.
+    pub fn amd(
+        &self,
+        a: SymbolicSparseColMatRef<'_, usize>,
+    ) -> Result<Arc<SymbolicCholesky<usize>>, String> {
+        let key = SymbolicKey {
+            col_ptr: a.col_ptr(),
+            row_idx: a.row_idx(),
+            order: None,
+        };
+        if let Some(s) = self.get(&key) {
+            return Ok(s);
+        }
+        let s = Arc::new(symbolic_amd(a)?);
+        self.insert(&key, &s);
+        Ok(s)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -454,6 +527,24 @@ mod tests {
             a.col_ptr.push(a.row_idx.len());
         }
         a
+    }
+
+    /// One AMD analysis per pattern: a second matrix of the same pattern gets
+    /// the first one's (the same ordering AMD gives it alone), another
+    /// pattern its own.
+    #[test]
+    fn the_symbolic_cache_analyses_each_pattern_once() {
+        let cache = SymbolicCache::default();
+        let (a, b, c) = (laplacian(6), laplacian(6), laplacian(7));
+        let sa = cache.amd(a.symbolic()).expect("symbolic");
+        let sb = cache.amd(b.symbolic()).expect("symbolic");
+        let sc = cache.amd(c.symbolic()).expect("symbolic");
+        assert!(Arc::ptr_eq(&sa, &sb), "analysed twice");
+        assert!(!Arc::ptr_eq(&sa, &sc), "another pattern shared");
+        let alone = symbolic_amd(b.symbolic()).expect("symbolic");
+        let perm = |s: &SymbolicCholesky<usize>| s.perm().map(|p| p.arrays().0.to_vec());
+        assert_eq!(perm(&sb), perm(&alone));
+        assert_eq!(sb.len_val(), alone.len_val());
     }
 
     #[test]

@@ -24,6 +24,8 @@ use super::kernel::{fixing_dofs, rigid_modes};
 use super::lock;
 use super::ordering;
 use super::schur::{Schur, SchurForm};
+pub use super::sparse::SymbolicCache;
+use super::sparse::SymbolicKey;
 use super::sparse::{
     ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
     lower_gram, mirror_lower, solve_scratch, symbolic_best, FactorShape, UpperCsc,
@@ -229,58 +231,6 @@ fn assemble(mesh: &Geometry) -> Result<UpperCsc, SubdomainError> {
         }
     }
     Ok(k)
-}
-
-/// Symbolic factorizations shared by the subdomains whose reduced stiffness
-/// has one pattern and one proposed ordering (the equal bricks of a body):
-/// each is analysed once, which in 3D costs as much as a numeric
-/// factorization. A shared analysis is the one the subdomain would have
-/// computed itself (same inputs), so results do not depend on which
-/// subdomains, or ranks, share it; a subdomain taking one still counts as
-/// symbolically factorized (not reused from an earlier design).
-#[derive(Default)]
-pub struct SymbolicCache {
-    entries: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
-}
-
-/// What a symbolic analysis is computed from.
-struct SymbolicKey<'a> {
-    col_ptr: &'a [usize],
-    row_idx: &'a [usize],
-    order: Option<&'a [usize]>,
-}
-
-type OwnedKey = (Vec<usize>, Vec<usize>, Option<Vec<usize>>);
-
-impl SymbolicKey<'_> {
-    fn matches(&self, k: &OwnedKey) -> bool {
-        k.0 == self.col_ptr && k.1 == self.row_idx && k.2.as_deref() == self.order
-    }
-}
-
-impl SymbolicCache {
-    fn entries(&self) -> std::sync::MutexGuard<'_, Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>> {
-        lock(&self.entries)
-    }
-
-    fn get(&self, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
-        self.entries()
-            .iter()
-            .find(|(k, _)| key.matches(k))
-            .map(|(_, s)| s.clone())
-    }
-
-    fn insert(&self, key: &SymbolicKey, symbolic: &Arc<SymbolicCholesky<usize>>) {
-        let mut entries = self.entries();
-        if !entries.iter().any(|(k, _)| key.matches(k)) {
-            let owned = (
-                key.col_ptr.to_vec(),
-                key.row_idx.to_vec(),
-                key.order.map(<[usize]>::to_vec),
-            );
-            entries.push((owned, symbolic.clone()));
-        }
-    }
 }
 
 impl Subdomain {
@@ -524,7 +474,12 @@ impl Subdomain {
     /// the Dirichlet preconditioner's local operator; formed once per dofs and
     /// form (see `schurs`). Fails, saying why, when the interior block is
     /// singular.
-    pub fn schur(&self, boundary: &[usize], form: SchurForm) -> Result<Arc<Schur>, String> {
+    pub fn schur(
+        &self,
+        boundary: &[usize],
+        form: SchurForm,
+        symbolic: &SymbolicCache,
+    ) -> Result<Arc<Schur>, String> {
         let found = lock(&self.schurs)
             .iter()
             .find(|(b, f, _)| b == boundary && *f == form)
@@ -537,7 +492,7 @@ impl Subdomain {
             Kind::Classical { eliminated, .. } => eliminated,
         };
         let s = Arc::new(Schur::new(
-            &self.k, boundary, excluded, &self.r, self.kdim, form,
+            &self.k, boundary, excluded, &self.r, self.kdim, form, symbolic,
         )?);
         let mut memo = lock(&self.schurs);
         if memo.len() >= SCHUR_MEMO {

@@ -12,7 +12,7 @@ use super::rows::LocalRows;
 use super::schur::SchurForm;
 use super::solve::dual_solve_from;
 use super::subdomain::tests::{grid, rand_vec};
-use super::subdomain::{Geometry, Subdomain};
+use super::subdomain::{Geometry, Subdomain, SymbolicCache};
 use crate::qp::SmalbeSettings;
 use faer::linalg::solvers::DenseSolveCore;
 use faer::prelude::*;
@@ -538,10 +538,14 @@ fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
     // there, so K_ii is singular.
     let sub = Subdomain::total(&Geometry::of(&grid(3, 3, 0.0))).expect("factorizes");
     let bottom_y: Vec<usize> = (0..4).map(|i| 2 * i + 1).collect();
-    let err = sub.schur(&bottom_y, SchurForm::Auto).expect_err("singular");
+    let err = sub
+        .schur(&bottom_y, SchurForm::Auto, &SymbolicCache::default())
+        .expect_err("singular");
     assert!(err.contains("rigid motion"), "{err}");
     let bottom: Vec<usize> = (0..8).collect();
-    assert!(sub.schur(&bottom, SchurForm::Auto).is_ok());
+    assert!(sub
+        .schur(&bottom, SchurForm::Auto, &SymbolicCache::default())
+        .is_ok());
 }
 
 /// A subdomain forms each Schur complement once per touched dofs and form
@@ -550,14 +554,23 @@ fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
 #[test]
 fn a_subdomain_forms_each_schur_complement_once() {
     let sub = Subdomain::total(&Geometry::of(&grid(3, 3, 0.0))).expect("factorizes");
+    let cache = SymbolicCache::default();
     let bottom: Vec<usize> = (0..8).collect();
     let left: Vec<usize> = (0..4).flat_map(|j| [8 * j, 8 * j + 1]).collect();
     let right: Vec<usize> = (0..4).flat_map(|j| [8 * j + 6, 8 * j + 7]).collect();
-    let a = sub.schur(&bottom, SchurForm::Auto).expect("regular");
-    let b = sub.schur(&bottom, SchurForm::Auto).expect("regular");
+    let a = sub
+        .schur(&bottom, SchurForm::Auto, &cache)
+        .expect("regular");
+    let b = sub
+        .schur(&bottom, SchurForm::Auto, &cache)
+        .expect("regular");
     assert!(Arc::ptr_eq(&a, &b), "formed twice");
-    let dense = sub.schur(&bottom, SchurForm::Dense).expect("regular");
-    let implicit = sub.schur(&bottom, SchurForm::Implicit).expect("regular");
+    let dense = sub
+        .schur(&bottom, SchurForm::Dense, &cache)
+        .expect("regular");
+    let implicit = sub
+        .schur(&bottom, SchurForm::Implicit, &cache)
+        .expect("regular");
     assert!(
         !Arc::ptr_eq(&dense, &implicit),
         "another form is another matrix"
@@ -573,17 +586,19 @@ fn a_subdomain_forms_each_schur_complement_once() {
         .zip(&y2)
         .all(|(p, q)| (p - q).abs() <= 1e-10 * scale));
     // Two more dof sets push the first out.
-    let l = sub.schur(&left, SchurForm::Auto).expect("regular");
-    let r = sub.schur(&right, SchurForm::Auto).expect("regular");
+    let l = sub.schur(&left, SchurForm::Auto, &cache).expect("regular");
+    let r = sub.schur(&right, SchurForm::Auto, &cache).expect("regular");
     assert!(Arc::ptr_eq(
         &l,
-        &sub.schur(&left, SchurForm::Auto).expect("regular")
+        &sub.schur(&left, SchurForm::Auto, &cache).expect("regular")
     ));
     assert!(Arc::ptr_eq(
         &r,
-        &sub.schur(&right, SchurForm::Auto).expect("regular")
+        &sub.schur(&right, SchurForm::Auto, &cache).expect("regular")
     ));
-    let again = sub.schur(&bottom, SchurForm::Auto).expect("regular");
+    let again = sub
+        .schur(&bottom, SchurForm::Auto, &cache)
+        .expect("regular");
     assert!(!Arc::ptr_eq(&a, &again), "kept more than two");
 }
 
