@@ -555,22 +555,15 @@ fn a_schur_complement_with_a_free_rigid_motion_is_refused() {
 fn a_subdomain_forms_each_schur_complement_once() {
     let sub = Subdomain::total(&Geometry::of(&grid(3, 3, 0.0))).expect("factorizes");
     let cache = SymbolicCache::default();
+    let schur = |b: &[usize], form| sub.schur(b, form, &cache).expect("regular");
     let bottom: Vec<usize> = (0..8).collect();
     let left: Vec<usize> = (0..4).flat_map(|j| [8 * j, 8 * j + 1]).collect();
     let right: Vec<usize> = (0..4).flat_map(|j| [8 * j + 6, 8 * j + 7]).collect();
-    let a = sub
-        .schur(&bottom, SchurForm::Auto, &cache)
-        .expect("regular");
-    let b = sub
-        .schur(&bottom, SchurForm::Auto, &cache)
-        .expect("regular");
+    let a = schur(&bottom, SchurForm::Auto);
+    let b = schur(&bottom, SchurForm::Auto);
     assert!(Arc::ptr_eq(&a, &b), "formed twice");
-    let dense = sub
-        .schur(&bottom, SchurForm::Dense, &cache)
-        .expect("regular");
-    let implicit = sub
-        .schur(&bottom, SchurForm::Implicit, &cache)
-        .expect("regular");
+    let dense = schur(&bottom, SchurForm::Dense);
+    let implicit = schur(&bottom, SchurForm::Implicit);
     assert!(
         !Arc::ptr_eq(&dense, &implicit),
         "another form is another matrix"
@@ -586,19 +579,11 @@ fn a_subdomain_forms_each_schur_complement_once() {
         .zip(&y2)
         .all(|(p, q)| (p - q).abs() <= 1e-10 * scale));
     // Two more dof sets push the first out.
-    let l = sub.schur(&left, SchurForm::Auto, &cache).expect("regular");
-    let r = sub.schur(&right, SchurForm::Auto, &cache).expect("regular");
-    assert!(Arc::ptr_eq(
-        &l,
-        &sub.schur(&left, SchurForm::Auto, &cache).expect("regular")
-    ));
-    assert!(Arc::ptr_eq(
-        &r,
-        &sub.schur(&right, SchurForm::Auto, &cache).expect("regular")
-    ));
-    let again = sub
-        .schur(&bottom, SchurForm::Auto, &cache)
-        .expect("regular");
+    let l = schur(&left, SchurForm::Auto);
+    let r = schur(&right, SchurForm::Auto);
+    assert!(Arc::ptr_eq(&l, &schur(&left, SchurForm::Auto)));
+    assert!(Arc::ptr_eq(&r, &schur(&right, SchurForm::Auto)));
+    let again = schur(&bottom, SchurForm::Auto);
     assert!(!Arc::ptr_eq(&a, &again), "kept more than two");
 }
 
