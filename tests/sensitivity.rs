@@ -530,3 +530,53 @@ fn a_warm_start_of_a_direction_that_moves_nothing_gives_zero() {
         );
     }
 }
+
+/// The compliance adjoint's gradient and cost, started from the state's
+/// multipliers and (the cold solve) from zero, and whether each built the
+/// sensitivity dual's preconditioner.
+fn compliance_adjoint_started_and_cold(
+    s: &cso::lang::Scene,
+) -> [(Vec<f64>, cso::sens::semi::Cost, bool); 2] {
+    use cso::lang::scene::Functional;
+    let design = s.design_init();
+    let state = cso::state::solve(s, &design, &mut |_| {}).expect("solves");
+    // The state's own tolerance: a start cannot be more accurate than that.
+    let tol = s.solver.tolerance;
+    let zero = [vec![0.0; state.problem.rows.len()]];
+    [&[][..], &zero[..]].map(|starts| {
+        let sens = cso::sens::Sensitivity::new(s, &state).expect("sets up");
+        let ((mut g, cost, _), _) = sens
+            .adjoint_all_from(&[Functional::Compliance], tol, starts)
+            .expect("solves");
+        (g.remove(0), cost, sens.preconditioner_built())
+    })
+}
+
+#[test]
+fn the_compliance_adjoint_starts_from_the_state() {
+    // Where the rows that hold have no gap beyond a rigid motion (scont2d with
+    // a flat face above the base), the compliance's adjoint problem is the
+    // state's: the state's multipliers meet the tolerance, so the solve
+    // neither iterates nor builds the Dirichlet preconditioner. On the
+    // example's curved face the gaps differ from row to row, the start helps
+    // little, and costs one product at most. Both give the cold gradient.
+    let flat = compile(&cso::studies::bench::scont_with(6), &options()).expect("checks");
+    for (name, s, cheap) in [("flat", flat, true), ("curved", scont2d(), false)] {
+        let [(warm, warm_cost, warm_built), (cold, cold_cost, cold_built)] =
+            compliance_adjoint_started_and_cold(&s);
+        let scale = cold.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        for (i, (c, w)) in cold.iter().zip(&warm).enumerate() {
+            assert!(
+                (c - w).abs() <= 1e-5 * scale,
+                "{name}, direction {i}: cold {c} vs started {w}"
+            );
+        }
+        assert!(cold_built, "{name}: the cold solve iterates");
+        let costs = format!("{name}: {warm_cost:?} vs {cold_cost:?}");
+        assert!(warm_cost.products <= cold_cost.products + 1, "{costs}");
+        if cheap {
+            assert!(!warm_built, "{costs}");
+            assert!(warm_cost.products * 4 <= cold_cost.products, "{costs}");
+        }
+    }
+}

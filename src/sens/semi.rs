@@ -419,7 +419,7 @@ impl<'a> Sensitivity<'a> {
             state.elimination.clone(),
         )
             .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
-        dual.set_preconditioner(kind, n_equality);
+        dual.defer_preconditioner(kind, n_equality);
         Ok(Sensitivity {
             scene,
             state,
@@ -431,6 +431,13 @@ impl<'a> Sensitivity<'a> {
             tape: OnceLock::new(),
             jacobians: OnceLock::new(),
         })
+    }
+
+    /// Whether the sensitivity dual's preconditioner was built: it is built on
+    /// the first solve that iterates (a start that meets the tolerance needs
+    /// none).
+    pub fn preconditioner_built(&self) -> bool {
+        self.dual.dual().preconditioner_built()
     }
 
     /// Multipliers of the sensitivity dual problem (FETI: after elimination).
@@ -689,7 +696,18 @@ impl<'a> Sensitivity<'a> {
             )));
         }
         let rows = self.state.problem.rows.len();
-        // One start per functional, each per state row, or none at all.
+        // One start per functional, each per state row; without them, the
+        // state's multipliers, scaled by the solves (`galerkin_start`): the
+        // adjoint of the compliance is the state itself where the rows it
+        // holds have no gap, and close to it where they have, and any other
+        // functional's solve drops a start no better than zero.
+        let state_starts: Vec<Vec<f64>>;
+        let starts = if starts.is_empty() && self.state.lambda.len() == rows {
+            state_starts = vec![self.state.lambda.clone(); fs.len()];
+            &state_starts
+        } else {
+            starts
+        };
         let starts: Option<Vec<Vec<f64>>> =
             (starts.len() == fs.len() && starts.iter().all(|l| l.len() == rows)).then(|| {
                 starts

@@ -23,6 +23,7 @@
 use super::dual::{Dual, Orthonormal, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
+use super::solve::galerkin_start;
 use crate::qp::{Equality, SmalbeSettings, Status};
 use faer::{Mat, Side};
 
@@ -140,14 +141,15 @@ fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
 }
 
 /// Block CG on `P F P X = B` from `X = x0` (default 0; columns of `B` and
-/// `x0` in Im P), each column to `||r_j|| <= tol ||b_j||`, with `precond`
-/// (`P M P`) applied per column.
+/// `x0` in Im P, each start scaled by [`galerkin_start`]), each column to
+/// `||r_j|| <= tol ||b_j||`, with the dual's preconditioner (`P M P`) on the
+/// block, fetched (a deferred one built) only when the starts leave a column
+/// open.
 fn block_projected_cg(
     dual: &Dual,
     b: &[Vec<f64>],
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
-    precond: Option<&ProjectedM<'_>>,
 ) -> (Vec<Vec<f64>>, BlockInfo) {
     let m = dual.multipliers();
     let mut info = BlockInfo {
@@ -161,17 +163,16 @@ fn block_projected_cg(
     let mut r = b.to_vec();
     let x = match x0 {
         Some(x0) if x0.len() == b.len() && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
-            let ax = apply_block(dual, &x0);
+            let mut ax = apply_block(dual, &x0);
             info.passes += 1;
             info.products += x0.len();
             let mut x0 = x0;
-            for (j, (rj, axj)) in r.iter_mut().zip(&ax).enumerate() {
-                rj.iter_mut().zip(axj).for_each(|(a, b)| *a -= b);
+            for (j, (rj, axj)) in r.iter_mut().zip(&mut ax).enumerate() {
                 // A start no better than zero is dropped (as in projected CG);
                 // so is any start of a zero right-hand side, whose answer is 0.
-                if bnorm[j] == 0.0 || norm(rj) >= bnorm[j] {
-                    x0[j].iter_mut().for_each(|v| *v = 0.0);
-                    rj.copy_from_slice(&b[j]);
+                match galerkin_start(&b[j], &mut x0[j], axj) {
+                    Some(r0) if bnorm[j] > 0.0 => *rj = r0,
+                    _ => x0[j].iter_mut().for_each(|v| *v = 0.0),
                 }
             }
             x0
@@ -194,9 +195,16 @@ fn block_projected_cg(
     };
     // z = P M P r of every open column in one pass, or r where M gives no
     // descent (round-off, semidefinite M).
+    let (mut active, _) = open(&r);
+    let precond = if active.is_empty() {
+        None
+    } else {
+        dual.preconditioner()
+            .map(|pm| ProjectedM::on_image(dual, pm, 1.0))
+    };
     let precondition = |open: &[usize], r: &[Vec<f64>]| -> Vec<Vec<f64>> {
         let rs: Vec<Vec<f64>> = open.iter().map(|&j| r[j].clone()).collect();
-        let Some(pm) = precond else {
+        let Some(pm) = &precond else {
             return rs;
         };
         let zs = pm.apply_columns(&rs);
@@ -212,7 +220,6 @@ fn block_projected_cg(
             })
             .collect()
     };
-    let (mut active, _) = open(&r);
     let z = precondition(&active, &r);
     let mut p = orthonormal(&z);
     while !active.is_empty() {
@@ -302,9 +309,6 @@ pub fn dual_solve_block(
             b
         })
         .collect();
-    let precond = dual
-        .preconditioner()
-        .map(|pm| ProjectedM::on_image(dual, pm, 1.0));
     // The starts, homogenized and projected.
     let x0 = starts
         .filter(|l0| l0.len() == fs.len() && l0.iter().all(|l| l.len() == m))
@@ -318,7 +322,7 @@ pub fn dual_solve_block(
                 })
                 .collect()
         });
-    let (lhat, mut info) = block_projected_cg(dual, &b, x0, settings, precond.as_ref());
+    let (lhat, mut info) = block_projected_cg(dual, &b, x0, settings);
     let lambda: Vec<Vec<f64>> = lhat
         .iter()
         .zip(&l_tilde)

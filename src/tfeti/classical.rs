@@ -209,6 +209,21 @@ impl DualSystem {
         }
     }
 
+    /// [`DualSystem::set_preconditioner`] built on first use
+    /// ([`Dual::defer_preconditioner`]).
+    pub fn defer_preconditioner(
+        &mut self,
+        kind: Option<crate::tfeti::precond::Kind>,
+        n_equality: usize,
+    ) {
+        match self {
+            DualSystem::Total(d) => d.defer_preconditioner(kind, n_equality),
+            DualSystem::Classical { dual, reduced, .. } => {
+                dual.defer_preconditioner(kind, reduced.n_equality)
+            }
+        }
+    }
+
     /// The dual problem actually solved.
     pub fn dual(&self) -> &Dual {
         match self {

@@ -53,8 +53,12 @@ pub struct Dual {
     projections: AtomicUsize,
     apply_nanos: AtomicU64,
     setup_nanos: AtomicU64,
-    /// The dual preconditioner, when one was asked for.
-    precond: Option<DualPreconditioner>,
+    /// The dual preconditioner, when one was asked for: built at once
+    /// ([`Dual::set_preconditioner`]) or on first use
+    /// ([`Dual::defer_preconditioner`]).
+    precond: OnceLock<Option<DualPreconditioner>>,
+    /// What [`Dual::preconditioner`] builds on first use.
+    deferred: Option<(Kind, usize)>,
     /// [`Cluster::equilibrium_grams`], formed on first use.
     grams: OnceLock<Vec<Vec<f64>>>,
     /// Whether `F` keeps the round-off that CG's directions carry outside
@@ -105,7 +109,8 @@ impl Dual {
             projections: AtomicUsize::new(0),
             apply_nanos: AtomicU64::new(0),
             setup_nanos: AtomicU64::new(nanos(t)),
-            precond: None,
+            precond: OnceLock::from(None),
+            deferred: None,
             grams: OnceLock::new(),
             exact_kernels: true,
         })
@@ -182,13 +187,36 @@ impl Dual {
         n_equality: usize,
         form: SchurForm,
     ) -> Option<Built> {
-        self.precond = kind.map(|k| DualPreconditioner::new(&self.cluster, k, n_equality, form));
-        self.precond.as_ref().map(|p| p.built().clone())
+        let built = kind.map(|k| DualPreconditioner::new(&self.cluster, k, n_equality, form));
+        let what = built.as_ref().map(|p| p.built().clone());
+        self.precond = OnceLock::from(built);
+        self.deferred = None;
+        what
     }
 
-    /// The dual preconditioner, if one was built.
+    /// [`Dual::set_preconditioner`] built on first use instead: a solve whose
+    /// start already meets its tolerance (an adjoint started from the state
+    /// it is the adjoint of) never pays for the set-up. Every rank decides
+    /// alike (on global norms), so the set-up stays collective.
+    pub fn defer_preconditioner(&mut self, kind: Option<Kind>, n_equality: usize) {
+        self.precond = OnceLock::new();
+        self.deferred = kind.map(|k| (k, n_equality));
+    }
+
+    /// The dual preconditioner, if one was asked for (a deferred one is
+    /// built here).
     pub fn preconditioner(&self) -> Option<&DualPreconditioner> {
-        self.precond.as_ref()
+        self.precond
+            .get_or_init(|| {
+                self.deferred
+                    .map(|(k, n)| DualPreconditioner::new(&self.cluster, k, n, SchurForm::Auto))
+            })
+            .as_ref()
+    }
+
+    /// Whether a preconditioner was built (a deferred one only once used).
+    pub fn preconditioner_built(&self) -> bool {
+        self.precond.get().is_some_and(Option::is_some)
     }
 
     /// Applications of `F` so far.

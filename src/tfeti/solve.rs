@@ -15,7 +15,11 @@ use super::reconstruct::reconstruct;
 use crate::qp::{estimate_norm, smalbe_from, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
 fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
+    dot(v, v).sqrt()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
 /// A solved dual problem and the primal solution reconstructed from it.
@@ -98,16 +102,12 @@ pub fn dual_solve_from(
     if n_equality == m {
         // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
         // Im P = ker G~, so the constraint holds without an outer loop.
-        let precond = dual
-            .preconditioner()
-            .map(|m| ProjectedM::on_image(dual, m, 1.0));
-        let precond = precond.as_ref().map(|m| m as &dyn Operator);
         let x0 = start.filter(|s| s.lambda.len() == m).map(|s| {
             let mut x: Vec<f64> = s.lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
             dual.project(&mut x);
             x
         });
-        let (lhat, info) = projected_cg(dual, &b, settings, precond, x0);
+        let (lhat, info) = projected_cg(dual, &b, settings, x0);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
         let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
         return Ok(DualSolution {
@@ -244,9 +244,11 @@ pub fn dual_solve_from(
 }
 
 /// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;
-/// with `precond` (`P M P`) the ordinary preconditioned CG, the test still on
-/// the plain residual. From `x0` (in Im P) instead when given and its residual
-/// is below `||b||` (a warm start; one more application).
+/// with the dual's preconditioner (`P M P`) the ordinary preconditioned CG,
+/// the test still on the plain residual; the preconditioner is fetched (a
+/// deferred one built) only when the start leaves something to iterate. From
+/// a multiple of `x0` (in Im P) instead when given, see [`galerkin_start`]
+/// (a warm start; one more application).
 ///
 /// # Reference
 /// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
@@ -255,7 +257,6 @@ fn projected_cg(
     dual: &Dual,
     b: &[f64],
     settings: &SmalbeSettings,
-    precond: Option<&dyn Operator>,
     x0: Option<Vec<f64>>,
 ) -> (Vec<f64>, QpInfo) {
     let m = b.len();
@@ -277,16 +278,23 @@ fn projected_cg(
     if bnorm == 0.0 {
         return (x, info);
     }
-    if let Some(x0) = x0.filter(|v| v.len() == m) {
+    if let Some(mut x0) = x0.filter(|v| v.len() == m) {
         let mut ax = vec![0.0; m];
         crate::qp::Operator::apply(&a, &x0, &mut ax);
         info.hessian_applications += 1;
-        let r0: Vec<f64> = b.iter().zip(&ax).map(|(bi, ai)| bi - ai).collect();
-        if norm(&r0) < bnorm {
+        if let Some(r0) = galerkin_start(b, &mut x0, &mut ax) {
             x = x0;
             r = r0;
         }
     }
+    let mut rr: f64 = r.iter().map(|v| v * v).sum();
+    let pm = if rr.sqrt() > settings.tolerance * bnorm {
+        dual.preconditioner()
+            .map(|m| ProjectedM::on_image(dual, m, 1.0))
+    } else {
+        None
+    };
+    let precond = pm.as_ref().map(|m| m as &dyn Operator);
     let mut z = r.clone();
     // z = P M P r, or r when M gives no descent (round-off, semidefinite M).
     let precondition = |r: &[f64], z: &mut [f64]| {
@@ -302,7 +310,6 @@ fn projected_cg(
     precondition(&r, &mut z);
     let mut p = z.clone();
     let mut ap = vec![0.0; m];
-    let mut rr: f64 = r.iter().map(|v| v * v).sum();
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
     while rr.sqrt() > settings.tolerance * bnorm {
         if info.hessian_applications >= settings.max_hessian {
@@ -334,4 +341,77 @@ fn projected_cg(
     }
     info.projected_gradient = rr.sqrt();
     (x, info)
+}
+
+/// A warm start `x0` of CG on `A x = b` (`ax = A x0`), scaled by the `s`
+/// that minimizes the energy error `||x - s x0||_A` (`s = x0^T b / x0^T A
+/// x0`), so that a start that is right up to its size (an adjoint started
+/// from the state) counts in full and a poor one cannot be worse than zero in
+/// that norm (`||x - s x0||_A^2 = ||x||_A^2 - (x0^T b)^2 / x0^T A x0`).
+/// Scales `x0` and `ax` and returns the residual `b - s A x0`; `None` (start
+/// from zero) when `s = 0` or the residual is not below `||b||`.
+pub(crate) fn galerkin_start(b: &[f64], x0: &mut [f64], ax: &mut [f64]) -> Option<Vec<f64>> {
+    let xax = dot(x0, ax);
+    let s = dot(x0, b) / xax;
+    if !(xax > 0.0 && s != 0.0 && s.is_finite()) {
+        return None;
+    }
+    x0.iter_mut().for_each(|v| *v *= s);
+    ax.iter_mut().for_each(|v| *v *= s);
+    let r: Vec<f64> = b.iter().zip(ax.iter()).map(|(bi, ai)| bi - ai).collect();
+    (norm(&r) < norm(b)).then_some(r)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::galerkin_start;
+
+    /// `A = diag(1, 4)`, `x = (1, 1)`, `b = A x`.
+    const B: [f64; 2] = [1.0, 4.0];
+
+    fn energy_error(x0: &[f64]) -> f64 {
+        (x0[0] - 1.0).powi(2) + 4.0 * (x0[1] - 1.0).powi(2)
+    }
+
+    #[test]
+    fn a_galerkin_start_right_up_to_its_size_is_the_solution() {
+        for s in [3.0, 0.25, -2.0] {
+            let (mut x0, mut ax) = (vec![s, s], vec![s, 4.0 * s]);
+            let r = galerkin_start(&B, &mut x0, &mut ax).expect("kept");
+            assert!(r.iter().all(|v| v.abs() < 1e-15), "{s}: {r:?}");
+            assert!(x0.iter().all(|v| (v - 1.0).abs() < 1e-15), "{s}: {x0:?}");
+            assert_eq!(ax, [1.0, 4.0]);
+        }
+    }
+
+    #[test]
+    fn a_galerkin_start_is_never_worse_than_zero_in_the_energy_norm() {
+        let zero = energy_error(&[0.0, 0.0]);
+        // x0^T b = 0: no multiple helps, start from zero.
+        assert!(galerkin_start(&B, &mut [4.0, -1.0], &mut [4.0, -4.0]).is_none());
+        let mut kept = 0;
+        for (a, c) in [
+            (1.0f64, 0.0f64),
+            (0.0, -3.0),
+            (2.0, 0.5),
+            (-1.0, 7.0),
+            (5.0, -1.1),
+        ] {
+            let (mut x0, mut ax) = (vec![a, c], vec![a, 4.0 * c]);
+            // The best multiple by hand, and its residual against ||b||.
+            let s: f64 = (a + 4.0 * c) / (a * a + 4.0 * c * c);
+            let r: [f64; 2] = [1.0 - s * a, 4.0 - 4.0 * s * c];
+            let smaller = r[0].hypot(r[1]) < B[0].hypot(B[1]);
+            match galerkin_start(&B, &mut x0, &mut ax) {
+                Some(got) => {
+                    assert!(smaller, "({a}, {c}) kept with a larger residual");
+                    assert!((got[0] - r[0]).abs() < 1e-14 && (got[1] - r[1]).abs() < 1e-14);
+                    assert!(energy_error(&x0) < zero, "({a}, {c}): {x0:?}");
+                    kept += 1;
+                }
+                None => assert!(!smaller, "({a}, {c}) dropped with a smaller residual"),
+            }
+        }
+        assert!(kept >= 3, "{kept} of 5 starts kept");
+    }
 }
