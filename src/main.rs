@@ -1212,17 +1212,20 @@ impl Bench {
             Benchmark::Sensitivity | Benchmark::Sensitivity3d => {
                 let threads = pool.current_num_threads();
                 let (sizes, costs) = if self.which == Benchmark::Sensitivity {
-                    (bench::GRADIENT_COST_SIZES, bench::gradient_costs as CostsOf)
+                    (
+                        &bench::GRADIENT_COST_SIZES[..],
+                        bench::gradient_costs as CostsOf,
+                    )
                 } else {
                     (
-                        bench::GRADIENT_COST_SIZES_3D,
+                        &bench::GRADIENT_COST_SIZES_3D[..],
                         bench::gradient_costs_3d as CostsOf,
                     )
                 };
                 for &local_f in &self.local_f {
                     outln!("local F: {}\n", local_f.name());
                     outln!("{}", output::gradient_costs_header(threads, tolerance));
-                    for m in sizes {
+                    for &m in sizes {
                         match costs(m, tolerance, local_f) {
                             Ok(rows) => rows
                                 .iter()

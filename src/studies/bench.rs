@@ -13,8 +13,8 @@ use serde::Serialize;
 
 /// The benchmarks of `cso bench`: `scaling` (TFETI on the scaled scene),
 /// `compare` (FETI against TFETI on it), `hard` (the hard-scene sweeps of
-/// [`crate::studies::stability`]), `sensitivity` (gradient cost for m = 6, 24,
-/// 96), `sensitivity3d` (the same on scont3d for m = 4, 16, 36), `optimize`
+/// [`crate::studies::stability`]), `sensitivity` (gradient cost for m = 2, 6,
+/// 16, 36, 96), `sensitivity3d` (the same on scont3d for m = 4, 16, 36), `optimize`
 /// (reuse between design iterations) and `coarse`, `coarse3d` (the coarse
 /// problem dense against sparse, issue 15 item 4).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -39,8 +39,9 @@ pub enum Benchmark {
     Scene,
 }
 
-/// The design sizes `m` of the gradient-cost benchmark.
-pub const GRADIENT_COST_SIZES: [usize; 3] = [6, 24, 96];
+/// The design sizes `m` of the gradient-cost benchmark: issue 16's 2, 6, 16
+/// and 36, and 96 for where per-direction work shows.
+pub const GRADIENT_COST_SIZES: [usize; 5] = [2, 6, 16, 36, 96];
 
 /// The design sizes `m` of the 3D gradient-cost benchmark: control nets of
 /// 2 x 2, 4 x 4 and 6 x 6 heights.
