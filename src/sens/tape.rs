@@ -158,7 +158,9 @@ pub(crate) struct Tape {
     pub velocities: Vec<Vec<Vec<f64>>>,
     /// Face loads: the owner dofs of the outputs and their Jacobian.
     loads: Vec<(Vec<(usize, usize)>, Local)>,
-    rows: Vec<RowMotion>,
+    /// The rows that move, by state row index (the others contribute nothing:
+    /// a direction's pass visits only these).
+    rows: Vec<(usize, RowMotion)>,
     /// Gradient of each body's measure (area in 2D, volume in 3D) with respect
     /// to its node coordinates (flat; empty where the body does not move).
     measures: Vec<Vec<f64>>,
@@ -212,57 +214,65 @@ impl Tape {
         let rows = p
             .rows
             .iter()
-            .map(|row| match &row.kind {
-                RowKind::Contact {
-                    body,
-                    node,
-                    primary: ContactPrimary::Obstacle(o),
-                    ..
-                } => RowMotion::Obstacle {
-                    obstacle: *o,
-                    body: *body,
-                    node: *node,
-                },
-                RowKind::Contact {
-                    body,
-                    node,
-                    primary,
-                    ..
-                } => P::of(primary).map_or(RowMotion::Still, |piece| {
-                    row_tape(
-                        &mut seeded,
-                        *body,
-                        *node,
-                        &piece,
-                        moves[*body] || moves[piece.body()],
-                        |pos| {
-                            let (e, pr) = contact_row(p, *body, *node, &piece, pos, Pattern::Full);
-                            (normalize(e, pr.gap), pr.local)
+            .enumerate()
+            .map(|(r, row)| {
+                (
+                    r,
+                    match &row.kind {
+                        RowKind::Contact {
+                            body,
+                            node,
+                            primary: ContactPrimary::Obstacle(o),
+                            ..
+                        } => RowMotion::Obstacle {
+                            obstacle: *o,
+                            body: *body,
+                            node: *node,
                         },
-                    )
-                }),
-                RowKind::Tie {
-                    body,
-                    node,
-                    comp,
-                    facet,
-                    ..
-                } => P::of(facet).map_or(RowMotion::Still, |piece| {
-                    row_tape(
-                        &mut seeded,
-                        *body,
-                        *node,
-                        &piece,
-                        moves[*body] || moves[piece.body()],
-                        |pos| {
-                            let (e, pr) =
-                                tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
-                            (normalize(e, DualSVec64::from_re(0.0)), pr.local)
-                        },
-                    )
-                }),
-                _ => RowMotion::Still,
+                        RowKind::Contact {
+                            body,
+                            node,
+                            primary,
+                            ..
+                        } => P::of(primary).map_or(RowMotion::Still, |piece| {
+                            row_tape(
+                                &mut seeded,
+                                *body,
+                                *node,
+                                &piece,
+                                moves[*body] || moves[piece.body()],
+                                |pos| {
+                                    let (e, pr) =
+                                        contact_row(p, *body, *node, &piece, pos, Pattern::Full);
+                                    (normalize(e, pr.gap), pr.local)
+                                },
+                            )
+                        }),
+                        RowKind::Tie {
+                            body,
+                            node,
+                            comp,
+                            facet,
+                            ..
+                        } => P::of(facet).map_or(RowMotion::Still, |piece| {
+                            row_tape(
+                                &mut seeded,
+                                *body,
+                                *node,
+                                &piece,
+                                moves[*body] || moves[piece.body()],
+                                |pos| {
+                                    let (e, pr) =
+                                        tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
+                                    (normalize(e, DualSVec64::from_re(0.0)), pr.local)
+                                },
+                            )
+                        }),
+                        _ => RowMotion::Still,
+                    },
+                )
             })
+            .filter(|(_, motion)| !matches!(motion, RowMotion::Still))
             .collect();
         // Each body's measure and its gradient (kept where the body moves).
         let (measure_values, measures) = scene
@@ -318,7 +328,7 @@ impl Tape {
         let mut cbar_all = vec![0.0; p.rows.len()];
         let mut kinks = 0;
         let mut obstacles: Option<Vec<ObstacleShape<D, DIM>>> = None;
-        for (r, motion) in self.rows.iter().enumerate() {
+        for &(r, ref motion) in &self.rows {
             let (entries, c, s): (Vec<(usize, usize, f64)>, f64, f64) = match motion {
                 RowMotion::Still => continue,
                 RowMotion::Piece(row) => {
