@@ -214,64 +214,58 @@ impl Tape {
         let rows = p
             .rows
             .iter()
-            .enumerate()
-            .map(|(r, row)| {
-                (
-                    r,
-                    match &row.kind {
-                        RowKind::Contact {
-                            body,
-                            node,
-                            primary: ContactPrimary::Obstacle(o),
-                            ..
-                        } => RowMotion::Obstacle {
-                            obstacle: *o,
-                            body: *body,
-                            node: *node,
+            .map(|row| match &row.kind {
+                RowKind::Contact {
+                    body,
+                    node,
+                    primary: ContactPrimary::Obstacle(o),
+                    ..
+                } => RowMotion::Obstacle {
+                    obstacle: *o,
+                    body: *body,
+                    node: *node,
+                },
+                RowKind::Contact {
+                    body,
+                    node,
+                    primary,
+                    ..
+                } => P::of(primary).map_or(RowMotion::Still, |piece| {
+                    row_tape(
+                        &mut seeded,
+                        *body,
+                        *node,
+                        &piece,
+                        moves[*body] || moves[piece.body()],
+                        |pos| {
+                            let (e, pr) = contact_row(p, *body, *node, &piece, pos, Pattern::Full);
+                            (normalize(e, pr.gap), pr.local)
                         },
-                        RowKind::Contact {
-                            body,
-                            node,
-                            primary,
-                            ..
-                        } => P::of(primary).map_or(RowMotion::Still, |piece| {
-                            row_tape(
-                                &mut seeded,
-                                *body,
-                                *node,
-                                &piece,
-                                moves[*body] || moves[piece.body()],
-                                |pos| {
-                                    let (e, pr) =
-                                        contact_row(p, *body, *node, &piece, pos, Pattern::Full);
-                                    (normalize(e, pr.gap), pr.local)
-                                },
-                            )
-                        }),
-                        RowKind::Tie {
-                            body,
-                            node,
-                            comp,
-                            facet,
-                            ..
-                        } => P::of(facet).map_or(RowMotion::Still, |piece| {
-                            row_tape(
-                                &mut seeded,
-                                *body,
-                                *node,
-                                &piece,
-                                moves[*body] || moves[piece.body()],
-                                |pos| {
-                                    let (e, pr) =
-                                        tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
-                                    (normalize(e, DualSVec64::from_re(0.0)), pr.local)
-                                },
-                            )
-                        }),
-                        _ => RowMotion::Still,
-                    },
-                )
+                    )
+                }),
+                RowKind::Tie {
+                    body,
+                    node,
+                    comp,
+                    facet,
+                    ..
+                } => P::of(facet).map_or(RowMotion::Still, |piece| {
+                    row_tape(
+                        &mut seeded,
+                        *body,
+                        *node,
+                        &piece,
+                        moves[*body] || moves[piece.body()],
+                        |pos| {
+                            let (e, pr) =
+                                tie_row(p, *body, *node, *comp, &piece, pos, Pattern::Full);
+                            (normalize(e, DualSVec64::from_re(0.0)), pr.local)
+                        },
+                    )
+                }),
+                _ => RowMotion::Still,
             })
+            .enumerate()
             .filter(|(_, motion)| !matches!(motion, RowMotion::Still))
             .collect();
         // Each body's measure and its gradient (kept where the body moves).
