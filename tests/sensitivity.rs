@@ -542,6 +542,7 @@ fn compliance_adjoint_started_and_cold(
     let state = cso::state::solve(s, &design, &mut |_| {}).expect("solves");
     // The state's own tolerance: a start cannot be more accurate than that.
     let tol = s.solver.tolerance;
+    // Zeros carry nothing into Im P: a cold solve, at no extra product.
     let zero = [vec![0.0; state.problem.rows.len()]];
     [&[][..], &zero[..]].map(|starts| {
         let sens = cso::sens::Sensitivity::new(s, &state).expect("sets up");
@@ -575,8 +576,48 @@ fn the_compliance_adjoint_starts_from_the_state() {
         let costs = format!("{name}: {warm_cost:?} vs {cold_cost:?}");
         assert!(warm_cost.products <= cold_cost.products + 1, "{costs}");
         if cheap {
+            // The start's product, the homogenization and the reconstruction.
             assert!(!warm_built, "{costs}");
-            assert!(warm_cost.products * 4 <= cold_cost.products, "{costs}");
+            assert!(
+                warm_cost.products <= 3 && cold_cost.products >= 9,
+                "{costs}"
+            );
+        }
+    }
+}
+
+#[test]
+fn a_start_that_is_round_off_in_im_p_is_not_blown_up() {
+    // Multipliers of size 1e-13 leave, after homogenization and projection,
+    // nothing but the projector's round-off; scaled up to fit the right-hand
+    // side, its part outside Im P would break the rigid-body balance. Such a
+    // start must give the cold gradient, alone and in a block.
+    use cso::lang::scene::Functional;
+    let s = scont2d();
+    let design = s.design_init();
+    let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
+    let sens = cso::sens::Sensitivity::new(&s, &state).expect("sets up");
+    let rows = state.problem.rows.len();
+    let tiny: Vec<f64> = (0..rows).map(|r| 1e-13 * (1.0 + (r % 7) as f64)).collect();
+    for fs in [
+        vec![Functional::Compliance],
+        vec![Functional::Compliance, Functional::Energy],
+    ] {
+        let zero = vec![vec![0.0; rows]; fs.len()];
+        let ((cold, _, _), _) = sens.adjoint_all_from(&fs, 1e-10, &zero).expect("solves");
+        let starts = vec![tiny.clone(); fs.len()];
+        let ((warm, _, _), _) = sens.adjoint_all_from(&fs, 1e-10, &starts).expect("solves");
+        for (k, (c, w)) in cold.iter().zip(&warm).enumerate() {
+            let scale = c.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+            let worst = c
+                .iter()
+                .zip(w)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                worst <= 1e-7 * scale,
+                "{} functionals, {k}: {worst:e} of {scale:e}",
+                fs.len()
+            );
         }
     }
 }

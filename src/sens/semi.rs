@@ -433,6 +433,12 @@ impl<'a> Sensitivity<'a> {
         })
     }
 
+    /// Builds the sensitivity dual's preconditioner now rather than on the
+    /// first solve that iterates (so that timed solves do not include it).
+    pub fn build_preconditioner(&self) {
+        self.dual.dual().preconditioner();
+    }
+
     /// Whether the sensitivity dual's preconditioner was built: it is built on
     /// the first solve that iterates (a start that meets the tolerance needs
     /// none).
@@ -670,7 +676,8 @@ impl<'a> Sensitivity<'a> {
     /// velocities (no element pass per direction). Refused with weak contacts
     /// (the gradient does not exist there). Returns the gradients, the Hessian
     /// applications of the adjoint solves, and the directions along which
-    /// contact nodes cross facet boundaries (one-sided there).
+    /// contact nodes cross facet boundaries (one-sided there). The solves
+    /// start from the state's multipliers ([`Self::adjoint_all_from`]).
     pub fn adjoint_all(
         &self,
         fs: &[Functional],
@@ -681,8 +688,9 @@ impl<'a> Sensitivity<'a> {
 
     /// [`Self::adjoint_all`] with the adjoint solves started from `starts`
     /// (per functional, multipliers per state row: the adjoints of a nearby
-    /// design, as returned here; starts that do not fit are ignored). Returns
-    /// the adjoints' multipliers per state row too.
+    /// design, as returned here). Without starts that fit (none given, or not
+    /// one per functional and state row), from the state's multipliers; zeros
+    /// give a cold solve. Returns the adjoints' multipliers per state row too.
     pub fn adjoint_all_from(
         &self,
         fs: &[Functional],
@@ -701,20 +709,20 @@ impl<'a> Sensitivity<'a> {
         // adjoint of the compliance is the state itself where the rows it
         // holds have no gap, and close to it where they have, and any other
         // functional's solve drops a start no better than zero.
+        let fits = |st: &[Vec<f64>]| st.len() == fs.len() && st.iter().all(|l| l.len() == rows);
         let state_starts: Vec<Vec<f64>>;
-        let starts = if starts.is_empty() && self.state.lambda.len() == rows {
+        let starts = if fits(starts) {
+            starts
+        } else {
             state_starts = vec![self.state.lambda.clone(); fs.len()];
             &state_starts
-        } else {
-            starts
         };
-        let starts: Option<Vec<Vec<f64>>> =
-            (starts.len() == fs.len() && starts.iter().all(|l| l.len() == rows)).then(|| {
-                starts
-                    .iter()
-                    .map(|l| self.kept.iter().map(|&r| l[r]).collect())
-                    .collect()
-            });
+        let starts: Option<Vec<Vec<f64>>> = fits(starts).then(|| {
+            starts
+                .iter()
+                .map(|l| self.kept.iter().map(|&r| l[r]).collect())
+                .collect()
+        });
         let starts = starts.as_deref();
         let (solved, cost) = self.adjoint_solves(fs, tolerance, starts)?;
         let mut ends = Vec::with_capacity(fs.len());

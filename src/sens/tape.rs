@@ -324,6 +324,7 @@ impl Tape {
         let mut obstacles: Option<Vec<ObstacleShape<D, DIM>>> = None;
         for &(r, ref motion) in &self.rows {
             let (entries, c, s): (Vec<(usize, usize, f64)>, f64, f64) = match motion {
+                // Filtered out when the tape is built.
                 RowMotion::Still => continue,
                 RowMotion::Piece(row) => {
                     row.local.apply(v, dim, &mut t);

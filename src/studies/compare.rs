@@ -98,6 +98,8 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
         match Sensitivity::with_preconditioner(&s, &state, kind) {
             Err(e) => col.sensitivity_error = Some(e.to_string()),
             Ok(sens) => {
+                // Its set-up is the solver's, not the first direction's.
+                sens.build_preconditioner();
                 for i in 0..s.design.len() {
                     let t = Instant::now();
                     match sens.direction(i, s.solver.tolerance) {

@@ -23,7 +23,7 @@
 use super::dual::{Dual, Orthonormal, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
-use super::solve::galerkin_start;
+use super::solve::{galerkin_start, homogenized_start};
 use crate::qp::{Equality, SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par, Side};
@@ -328,17 +328,14 @@ pub fn dual_solve_block(
             b
         })
         .collect();
-    // The starts, homogenized and projected.
+    // The starts, homogenized and projected (zero where only round-off is
+    // left, see `homogenized_start`).
     let x0 = starts
         .filter(|l0| l0.len() == fs.len() && l0.iter().all(|l| l.len() == m))
         .map(|l0| {
             l0.iter()
                 .zip(&l_tilde)
-                .map(|(l, lt)| {
-                    let mut x: Vec<f64> = l.iter().zip(lt).map(|(a, b)| a - b).collect();
-                    dual.project(&mut x);
-                    x
-                })
+                .map(|(l, lt)| homogenized_start(dual, l, lt).unwrap_or_else(|| vec![0.0; m]))
                 .collect()
         });
     let (lhat, mut info) = block_projected_cg(dual, &b, x0, settings);

@@ -204,7 +204,9 @@ impl Dual {
     }
 
     /// The dual preconditioner, if one was asked for (a deferred one is
-    /// built here).
+    /// built here). Building is collective on a distributed cluster: every
+    /// rank must make its first call together, on decisions from replicated
+    /// values (the solves decide on global norms).
     pub fn preconditioner(&self) -> Option<&DualPreconditioner> {
         self.precond
             .get_or_init(|| {
