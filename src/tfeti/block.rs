@@ -23,7 +23,7 @@
 use super::dual::{Dual, Orthonormal, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
-use super::solve::{galerkin_start, homogenized_start};
+use super::solve::{dot, galerkin_start, homogenized_start, norm};
 use crate::qp::{Equality, SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, Par, Side};
@@ -52,14 +52,6 @@ pub struct BlockSolution {
     /// `u` per right-hand side (per subdomain).
     pub u: Vec<Vec<Vec<f64>>>,
     pub info: BlockInfo,
-}
-
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-fn norm(v: &[f64]) -> f64 {
-    dot(v, v).sqrt()
 }
 
 /// The columns as one column-major matrix, for faer's products (the copy is

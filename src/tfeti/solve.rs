@@ -14,11 +14,11 @@ use super::error::SolveError;
 use super::reconstruct::reconstruct;
 use crate::qp::{estimate_norm, smalbe_from, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
-fn norm(v: &[f64]) -> f64 {
+pub(super) fn norm(v: &[f64]) -> f64 {
     dot(v, v).sqrt()
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
+pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
