@@ -1218,6 +1218,16 @@ pub fn semi_analytic_at_from(
     Ok((gradient, dirs.into_iter().map(|d| d.lambda).collect()))
 }
 
+/// The adjoint solves' dual preconditioner: the scene's, or lumped where the
+/// scene asks for none. The adjoint solves a few columns (one per functional),
+/// too few to pay for the Dirichlet set-up (a Schur complement per subdomain,
+/// 56 Hessian applications' worth on scont3d): lumped costs nothing to set up
+/// and on the examples needs 20-40 % more iterations than Dirichlet, a third
+/// of what none needs (BENCHMARKS.md, "The adjoint's preconditioner").
+fn adjoint_preconditioner(scene: &Scene) -> Option<Kind> {
+    crate::state::preconditioner(scene).or(Some(Kind::Lumped))
+}
+
 /// The adjoint gradient of the objective and constraints (as `g <= 0`): one dual
 /// solve per functional, whatever the number of design variables.
 pub fn adjoint(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
@@ -1249,7 +1259,7 @@ pub fn adjoint_at_from(
 ) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
-    let sens = Sensitivity::new(scene, state)?;
+    let sens = Sensitivity::with_preconditioner(scene, state, adjoint_preconditioner(scene))?;
     let (names, rows) = gradient_rows(scene);
     let eval = super::Eval {
         scene,
