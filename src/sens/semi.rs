@@ -13,7 +13,7 @@
 //! assembly and one factorization serve the state and every direction.
 
 use super::functional::body_measure;
-use super::tape::{seeded, Rhs, Tape};
+use super::tape::{seeded, Rhs, RowDerivative, Tape};
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Scene};
 use crate::model::geometry::{
@@ -52,6 +52,84 @@ pub struct Direction {
     pub kinks: usize,
     /// Each body's measure (area or volume) and its derivative.
     pub measures: Vec<D>,
+}
+
+/// What a leaf functional reads of one direction's derivatives: a solved
+/// [`Direction`], or the [`Explicit`] part alone.
+trait Tangent {
+    /// `f'^T u + f^T u'`.
+    fn compliance(&self, state: &State) -> f64;
+    /// `1/2 u^T K' u + (K u)^T u'`.
+    fn energy(&self, ku: &[Vec<f64>]) -> f64;
+    /// `l'` of state row `r`.
+    fn lambda(&self, r: usize) -> f64;
+    /// The scale derivative of state row `r`.
+    fn scale(&self, r: usize) -> f64;
+    /// Body `b`'s measure and its derivative, where known.
+    fn measure(&self, b: usize) -> Option<D>;
+    /// `u'` at dof `k` of subdomain `s`.
+    fn u(&self, s: usize, k: usize) -> f64;
+}
+
+impl Tangent for Direction {
+    fn compliance(&self, state: &State) -> f64 {
+        let fu: f64 = state
+            .problem
+            .subdomains
+            .iter()
+            .zip(&self.u)
+            .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
+            .sum();
+        Cluster::dot(&self.f, &state.u) + fu
+    }
+    fn energy(&self, ku: &[Vec<f64>]) -> f64 {
+        0.5 * self.ukpu + Cluster::dot(ku, &self.u)
+    }
+    fn lambda(&self, r: usize) -> f64 {
+        self.lambda[r]
+    }
+    fn scale(&self, r: usize) -> f64 {
+        self.scale[r]
+    }
+    fn measure(&self, b: usize) -> Option<D> {
+        self.measures.get(b).copied()
+    }
+    fn u(&self, s: usize, k: usize) -> f64 {
+        self.u[s][k]
+    }
+}
+
+/// A direction's explicit derivatives (`u' = 0`, `l' = 0`): what the adjoint
+/// needs besides its solves, from dot products with the velocities.
+struct Explicit {
+    /// `f'^T u`.
+    fu: f64,
+    /// `u^T K' u`.
+    ukpu: f64,
+    /// Scale derivative per state row.
+    scale: Vec<f64>,
+    measures: Vec<D>,
+}
+
+impl Tangent for Explicit {
+    fn compliance(&self, _: &State) -> f64 {
+        self.fu
+    }
+    fn energy(&self, _: &[Vec<f64>]) -> f64 {
+        0.5 * self.ukpu
+    }
+    fn lambda(&self, _: usize) -> f64 {
+        0.0
+    }
+    fn scale(&self, r: usize) -> f64 {
+        self.scale[r]
+    }
+    fn measure(&self, b: usize) -> Option<D> {
+        self.measures.get(b).copied()
+    }
+    fn u(&self, _: usize, _: usize) -> f64 {
+        0.0
+    }
 }
 
 /// What the sensitivity solves of all directions cost.
@@ -599,17 +677,37 @@ impl<'a> Sensitivity<'a> {
     /// The data of direction `i`: `f_bar = f' - K'u - B'^T l` per subdomain,
     /// `c_bar = c' - B'u` on the kept rows, and what functionals need.
     pub fn rhs(&self, i: usize) -> Rhs {
-        self.rhs_with(i, true)
+        if self.state.problem.dim == 2 {
+            self.rhs_in::<FaceEdge, 2, 2, 6>(i)
+        } else {
+            self.rhs_in::<FaceQuad, 3, 4, 15>(i)
+        }
     }
 
-    /// [`Self::rhs`], with `K'u` left out of `f_bar` (and `u^T K' u` zero) unless
-    /// `with_kpu`.
-    fn rhs_with(&self, i: usize, with_kpu: bool) -> Rhs {
-        if self.state.problem.dim == 2 {
-            self.rhs_in::<FaceEdge, 2, 2, 6>(i, with_kpu)
+    /// [`Tape::visit_rows`] of direction `i`, the tape's rows giving their
+    /// scale only.
+    fn visit_rows(&self, i: usize, f: impl FnMut(usize, &RowDerivative)) -> usize {
+        let (scene, state, tape) = (self.scene, self.state, self.tape());
+        if state.problem.dim == 2 {
+            tape.visit_rows::<2>(scene, state, i, false, f)
         } else {
-            self.rhs_in::<FaceQuad, 3, 4, 15>(i, with_kpu)
+            tape.visit_rows::<3>(scene, state, i, false, f)
         }
+    }
+
+    /// `f'` of direction `i` by an element pass (gravity's element loads are
+    /// not on the tape); None without gravity.
+    fn gravity_load_derivative(&self, i: usize) -> Option<Vec<Vec<f64>>> {
+        let (scene, state) = (self.scene, self.state);
+        scene.gravity.as_ref()?;
+        let design = scene.design_init();
+        Some(if state.problem.dim == 2 {
+            let pos = self.tape().dual_positions::<2>(state, i);
+            load_derivative::<FaceEdge, 2, 2>(scene, state, &pos, &design)
+        } else {
+            let pos = self.tape().dual_positions::<3>(state, i);
+            load_derivative::<FaceQuad, 3, 4>(scene, state, &pos, &design)
+        })
     }
 
     /// The linearization of the right-hand sides (made on the first call).
@@ -623,43 +721,39 @@ impl<'a> Sensitivity<'a> {
         })
     }
 
-    /// [`Self::rhs_with`] in `DIM` dimensions, on pieces `P`, from the tape;
-    /// `K'u` and gravity loads (element loads) by an element pass in direction `i`.
+    /// [`Self::rhs`] in `DIM` dimensions, on pieces `P`, from the tape; `K'u`
+    /// from the element Jacobians, and gravity loads (element loads), or `K'u`
+    /// where the Jacobians would not fit, by an element pass in direction `i`.
     fn rhs_in<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize, const K: usize>(
         &self,
         i: usize,
-        with_kpu: bool,
     ) -> Rhs {
         let (scene, state) = (self.scene, self.state);
         let tape = self.tape();
-        let jacobians = with_kpu
-            .then(|| {
-                self.jacobians
-                    .get_or_init(|| ElementJacobians::new(state, &self.moving_nodes()))
-                    .as_ref()
-            })
-            .flatten();
-        let elements = scene.gravity.is_some() || (with_kpu && jacobians.is_none());
+        let jacobians = self
+            .jacobians
+            .get_or_init(|| ElementJacobians::new(state, &self.moving_nodes()))
+            .as_ref();
+        let elements = scene.gravity.is_some() || jacobians.is_none();
         let pos = elements.then(|| tape.dual_positions::<DIM>(state, i));
         let gravity = pos
             .as_ref()
             .filter(|_| scene.gravity.is_some())
             .map(|pos| load_derivative::<P, DIM, N>(scene, state, pos, &scene.design_init()));
         let mut rhs = tape.rhs::<DIM>(scene, state, &self.kept, i, gravity);
-        let kpu = match (with_kpu, jacobians, &pos) {
-            (false, _, _) => None,
-            (true, Some(j), _) => Some(j.times(state, &tape.velocities[i])),
-            (true, None, Some(pos)) => Some(stiffness_derivative_times_u_dual(state, pos)),
-            (true, None, None) => None,
-        };
-        if let Some(kpu) = kpu {
-            for (f, k) in rhs.fbar.iter_mut().zip(&kpu) {
-                for (a, b) in f.iter_mut().zip(k) {
-                    *a -= b;
-                }
+        let kpu = match (jacobians, &pos) {
+            (Some(j), _) => j.times(state, &tape.velocities[i]),
+            (None, Some(pos)) => stiffness_derivative_times_u_dual(state, pos),
+            (None, None) => {
+                stiffness_derivative_times_u_dual(state, &tape.dual_positions::<DIM>(state, i))
             }
-            rhs.ukpu = Cluster::dot(&kpu, &state.u);
+        };
+        for (f, k) in rhs.fbar.iter_mut().zip(&kpu) {
+            for (a, b) in f.iter_mut().zip(k) {
+                *a -= b;
+            }
         }
+        rhs.ukpu = Cluster::dot(&kpu, &state.u);
         rhs
     }
 
@@ -757,37 +851,77 @@ impl<'a> Sensitivity<'a> {
             .zip(gws)
             .map(|((w, nu), gw)| (w, nu, gw))
             .collect();
+        // The reverse pass: per functional the node gradient of
+        // w^T f_bar + nu^T c_bar (face loads and tape rows), and that of
+        // f'^T u for the compliance's explicit part; each direction is then a
+        // few dot products with its velocities, whatever m. Gravity's element
+        // loads are not on the tape: with gravity, f' per direction.
+        let (state, tape) = (self.state, self.tape());
+        let p = &state.problem;
+        let gravity = self.scene.gravity.is_some();
+        let nus: Vec<Vec<f64>> = adjoints
+            .iter()
+            .map(|(_, nu, _)| {
+                let mut all = vec![0.0; p.rows.len()];
+                for (&r, v) in self.kept.iter().zip(nu) {
+                    all[r] = *v;
+                }
+                all
+            })
+            .collect();
+        let pulled: Vec<Vec<Vec<f64>>> = adjoints
+            .iter()
+            .zip(&nus)
+            .map(|((w, _, _), nu)| tape.pullback(state, w, nu, !gravity))
+            .collect();
+        let fu = (!gravity).then(|| tape.pullback_loads(state, &state.u));
         let m = self.scene.design.len();
-        let p = &self.state.problem;
+        let design = self.scene.design_init();
         let mut grad = vec![vec![0.0; m]; fs.len()];
         let mut kinked = Vec::new();
+        let mut implicit = vec![0.0; fs.len()];
         for i in 0..m {
-            let mut rhs = self.rhs_with(i, false);
-            let velocities = &self.tape().velocities[i];
-            if rhs.kinks > 0 {
+            let v = &tape.velocities[i];
+            let fprime = gravity.then(|| self.gravity_load_derivative(i)).flatten();
+            for (k, (w, _, gw)) in adjoints.iter().enumerate() {
+                implicit[k] = Cluster::dot(&pulled[k], v) - Cluster::dot(gw, v)
+                    + fprime.as_ref().map_or(0.0, |f| Cluster::dot(w, f));
+            }
+            let mut scale = vec![0.0; p.rows.len()];
+            let kinks = self.visit_rows(i, |r, row| {
+                scale[r] = row.scale;
+                // Obstacle rows (the others are in the pullback).
+                for (k, (w, _, _)) in adjoints.iter().enumerate() {
+                    let (l, n) = (state.lambda[r], nus[k][r]);
+                    let mut bu = 0.0;
+                    for &(sub, d, x) in &row.entries {
+                        implicit[k] -= x * l * w[sub][d];
+                        bu += x * state.u[sub][d];
+                    }
+                    implicit[k] += n * (row.c - bu);
+                }
+            });
+            if kinks > 0 {
                 kinked.push(i);
             }
-            rhs.ukpu = Cluster::dot(&gu, velocities);
             // The explicit part: the derivative with u' = 0 and l' = 0.
-            let explicit = Direction {
-                u: p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect(),
-                lambda: vec![0.0; p.rows.len()],
-                f: rhs.fprime,
-                ukpu: rhs.ukpu,
-                scale: rhs.scale,
-                hessian_applications: 0,
-                kinks: rhs.kinks,
-                measures: rhs.measures,
+            let explicit = Explicit {
+                fu: match (&fu, &fprime) {
+                    (Some(g), _) => Cluster::dot(g, v),
+                    (None, Some(f)) => Cluster::dot(f, &state.u),
+                    (None, None) => 0.0,
+                },
+                ukpu: Cluster::dot(&gu, v),
+                scale,
+                measures: tape.measures(v),
             };
+            let dd = seeded(&design, i);
             for (k, f) in fs.iter().enumerate() {
-                let (w, nu, gw) = &adjoints[k];
                 let ja = self
-                    .derivative(f, i, &explicit)
-                    .map_err(SolveError::Unsupported)?;
-                // f_bar here leaves out K'u: w^T K'u comes from the shape gradient.
-                let wf = Cluster::dot(w, &rhs.fbar) - Cluster::dot(gw, velocities);
-                let nc: f64 = nu.iter().zip(&rhs.cbar).map(|(a, b)| a * b).sum();
-                grad[k][i] = ja + wf + nc;
+                    .dual_value(f, &dd, &explicit)
+                    .map_err(SolveError::Unsupported)?
+                    .eps;
+                grad[k][i] = ja + implicit[k];
             }
         }
         Ok(((grad, cost, kinked), ends))
@@ -956,12 +1090,12 @@ impl<'a> Sensitivity<'a> {
         Ok(self.dual_value(f, &dd, dir)?.eps)
     }
 
-    fn dual_value(&self, f: &Functional, dd: &[D], dir: &Direction) -> Result<D, String> {
+    fn dual_value(&self, f: &Functional, dd: &[D], dir: &dyn Tangent) -> Result<D, String> {
         Ok(self.eval_tree(f, &|l| self.leaf_dual(l, dd, dir)))
     }
 
     /// A leaf functional's value and derivative in one direction.
-    fn leaf_dual(&self, f: &Functional, dd: &[D], dir: &Direction) -> D {
+    fn leaf_dual(&self, f: &Functional, dd: &[D], dir: &dyn Tangent) -> D {
         let state = self.state;
         let p = &state.problem;
         match f {
@@ -969,30 +1103,16 @@ impl<'a> Sensitivity<'a> {
                 coords: [D::from(0.0); 3],
                 design: dd,
             }),
-            Functional::Compliance => {
-                let v = state.compliance();
-                let fu: f64 = p
-                    .subdomains
-                    .iter()
-                    .zip(&dir.u)
-                    .map(|(m, u)| m.f.iter().zip(u).map(|(a, b)| a * b).sum::<f64>())
-                    .sum();
-                D::new(v, Cluster::dot(&dir.f, &state.u) + fu)
-            }
-            Functional::Energy => {
-                // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
-                D::new(
-                    state.energy(),
-                    0.5 * dir.ukpu + Cluster::dot(&self.ku, &dir.u),
-                )
-            }
+            Functional::Compliance => D::new(state.compliance(), dir.compliance(state)),
+            // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
+            Functional::Energy => D::new(state.energy(), dir.energy(&self.ku)),
             Functional::ContactForce(c) => {
                 let mut v = D::from(0.0);
                 for (r, row) in p.rows.iter().enumerate() {
                     if let RowKind::Contact { contact, .. } = row.kind {
                         if contact == *c {
-                            let l = D::new(state.lambda[r], dir.lambda[r]);
-                            let s = D::new(row.scale, dir.scale[r]);
+                            let l = D::new(state.lambda[r], dir.lambda(r));
+                            let s = D::new(row.scale, dir.scale(r));
                             v += l / s;
                         }
                     }
@@ -1009,15 +1129,13 @@ impl<'a> Sensitivity<'a> {
                 sum.powf(1.0 / q)
             }
             Functional::Area(b) | Functional::Volume(b) => dir
-                .measures
-                .get(*b)
-                .copied()
+                .measure(*b)
                 .unwrap_or_else(|| body_measure(&self.scene.bodies[*b], dd)),
             Functional::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
                 let (s, l) = p.bodies[body].copies(node)[0];
                 let k = p.dim * l + comp;
-                D::new(state.u[s][k], dir.u[s][k])
+                D::new(state.u[s][k], dir.u(s, k))
             }
             _ => D::from(f64::NAN),
         }
@@ -1025,7 +1143,7 @@ impl<'a> Sensitivity<'a> {
 
     /// Per node of contact `c`: (row, normal force, tributary area), in dual
     /// numbers (force derivative from `dir`, area derivative from the design).
-    fn pressure_terms(&self, c: usize, dd: &[D], dir: Option<&Direction>) -> Vec<(usize, D, D)> {
+    fn pressure_terms(&self, c: usize, dd: &[D], dir: Option<&dyn Tangent>) -> Vec<(usize, D, D)> {
         let state = self.state;
         let p = &state.problem;
         let design = self.scene.design_init();
@@ -1045,7 +1163,7 @@ impl<'a> Sensitivity<'a> {
             .enumerate()
             .filter_map(|(r, row)| match row.kind {
                 RowKind::Contact { contact, node, .. } if contact == c => {
-                    let (dl, ds) = dir.map_or((0.0, 0.0), |d| (d.lambda[r], d.scale[r]));
+                    let (dl, ds) = dir.map_or((0.0, 0.0), |d| (d.lambda(r), d.scale(r)));
                     let force = D::new(state.lambda[r], dl) / D::new(row.scale, ds);
                     Some((r, force, area.get(&node).copied().unwrap_or(D::from(0.0))))
                 }

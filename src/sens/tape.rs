@@ -67,16 +67,43 @@ impl Local {
     /// The outputs' derivatives along the velocities `v` (per body, flat; an
     /// empty body does not move).
     fn apply(&self, v: &[Vec<f64>], dim: usize, out: &mut Vec<f64>) {
+        self.apply_from(v, dim, 0, out);
+    }
+
+    /// [`Self::apply`] of the outputs from `first` on only.
+    fn apply_from(&self, v: &[Vec<f64>], dim: usize, first: usize, out: &mut Vec<f64>) {
         let n = dim * self.nodes.len();
+        let outputs = self.jac.len() / n.max(1);
         out.clear();
-        out.resize(self.jac.len() / n.max(1), 0.0);
+        out.resize(outputs.saturating_sub(first), 0.0);
         for (k, &(b, node)) in self.nodes.iter().enumerate() {
             let Some(x) = v[b].get(dim * node..dim * node + dim) else {
                 continue;
             };
             for (o, r) in out.iter_mut().enumerate() {
+                let at = (first + o) * n + dim * k;
+                *r += self.jac[at..at + dim]
+                    .iter()
+                    .zip(x)
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>();
+            }
+        }
+    }
+
+    /// Adds `J^T weights` to the node gradient `g` (per body, flat): the
+    /// gradient of `weights^T outputs` (the first `weights.len()` outputs).
+    fn pull(&self, weights: &[f64], dim: usize, g: &mut [Vec<f64>]) {
+        let n = dim * self.nodes.len();
+        for (k, &(b, node)) in self.nodes.iter().enumerate() {
+            let Some(gx) = g[b].get_mut(dim * node..dim * node + dim) else {
+                continue;
+            };
+            for (o, w) in weights.iter().enumerate().filter(|(_, w)| **w != 0.0) {
                 let row = &self.jac[o * n + dim * k..o * n + dim * k + dim];
-                *r += row.iter().zip(x).map(|(a, b)| a * b).sum::<f64>();
+                for (x, a) in gx.iter_mut().zip(row) {
+                    *x += w * a;
+                }
             }
         }
     }
@@ -123,6 +150,14 @@ impl<const DIM: usize, const K: usize> Seeded<DIM, K> {
             }
         }
     }
+}
+
+/// A moving row's derivatives in one direction ([`Tape::visit_rows`]).
+pub struct RowDerivative {
+    /// `(subdomain, dof, derivative)` of the normalized row's entries.
+    pub entries: Vec<(usize, usize, f64)>,
+    pub c: f64,
+    pub scale: f64,
 }
 
 /// A linearized contact or tie row.
@@ -320,30 +355,90 @@ impl Tape {
         let mut fbar = fprime.clone();
         let mut scale = vec![0.0; p.rows.len()];
         let mut cbar_all = vec![0.0; p.rows.len()];
+        let kinks = self.visit_rows::<DIM>(scene, state, i, true, |r, row| {
+            scale[r] = row.scale;
+            let mut bu = 0.0;
+            for &(sub, d, x) in &row.entries {
+                fbar[sub][d] -= x * state.lambda[r];
+                bu += x * state.u[sub][d];
+            }
+            cbar_all[r] = row.c - bu;
+        });
+        Rhs {
+            fbar,
+            cbar: kept.iter().map(|&r| cbar_all[r]).collect(),
+            fprime,
+            ukpu: 0.0,
+            scale,
+            kinks,
+            measures: self.measures(v),
+        }
+    }
+
+    /// Each body's measure and its derivative along the velocities `v`.
+    pub fn measures(&self, v: &[Vec<f64>]) -> Vec<D> {
+        self.measures
+            .iter()
+            .zip(v)
+            .zip(&self.measure_values)
+            .map(|((g, v), &value)| D::new(value, g.iter().zip(v).map(|(a, b)| a * b).sum()))
+            .collect()
+    }
+
+    /// Visits the rows that move in direction `i` with their derivatives;
+    /// returns how many slide across a facet boundary (one-sided there). With
+    /// `full` false, the rows linearized on the tape give their scale only
+    /// (no entries, `c` zero: their part of `w^T f_bar + nu^T c_bar` is in
+    /// [`Self::pullback`]); the obstacle rows give everything either way.
+    pub fn visit_rows<const DIM: usize>(
+        &self,
+        scene: &Scene,
+        state: &State,
+        i: usize,
+        full: bool,
+        mut f: impl FnMut(usize, &RowDerivative),
+    ) -> usize {
+        let p = &state.problem;
+        let dim = self.dim;
+        let v = &self.velocities[i];
+        let mut t = Vec::new();
         let mut kinks = 0;
         let mut obstacles: Option<Vec<ObstacleShape<D, DIM>>> = None;
         for &(r, ref motion) in &self.rows {
-            let (entries, c, s): (Vec<(usize, usize, f64)>, f64, f64) = match motion {
+            let row = match motion {
                 // Filtered out when the tape is built.
                 RowMotion::Still => continue,
                 RowMotion::Piece(row) => {
-                    row.local.apply(v, dim, &mut t);
+                    // Outputs: the entries, c, the scale, the local coordinates.
                     let e = row.entries.len();
+                    let first = if full { 0 } else { e + 1 };
+                    row.local.apply_from(v, dim, first, &mut t);
                     let speed = row.local.speed(v, dim);
                     let noise = 1e-9 * speed / row.size;
                     kinks += usize::from(
                         row.boundary
                             .iter()
-                            .zip(&t[e + 2..])
+                            .zip(&t[e + 2 - first..])
                             .any(|(b, dt)| *b && dt.abs() > noise),
                     );
-                    let entries = row
-                        .entries
-                        .iter()
-                        .zip(&t)
-                        .map(|(&(s, d), x)| (s, d, *x))
-                        .collect();
-                    (entries, t[e], t[e + 1])
+                    if full {
+                        RowDerivative {
+                            entries: row
+                                .entries
+                                .iter()
+                                .zip(&t)
+                                .map(|(&(s, d), x)| (s, d, *x))
+                                .collect(),
+                            c: t[e],
+                            scale: t[e + 1],
+                        }
+                    } else {
+                        RowDerivative {
+                            entries: Vec::new(),
+                            c: 0.0,
+                            scale: t[0],
+                        }
+                    }
                 }
                 RowMotion::Obstacle {
                     obstacle,
@@ -361,36 +456,79 @@ impl Tape {
                     let Some(row) = obstacle_motion(p, &shapes[*obstacle], *body, *node, v) else {
                         continue;
                     };
-                    (
-                        row.entries.iter().map(|&(s, d, x)| (s, d, x.eps)).collect(),
-                        row.c.eps,
-                        row.scale.eps,
-                    )
+                    RowDerivative {
+                        entries: row.entries.iter().map(|&(s, d, x)| (s, d, x.eps)).collect(),
+                        c: row.c.eps,
+                        scale: row.scale.eps,
+                    }
                 }
             };
-            scale[r] = s;
-            let mut bu = 0.0;
-            for (sub, d, x) in entries {
-                fbar[sub][d] -= x * state.lambda[r];
-                bu += x * state.u[sub][d];
-            }
-            cbar_all[r] = c - bu;
+            f(r, &row);
         }
-        let measures = self
-            .measures
+        kinks
+    }
+
+    /// The node gradient (per body, flat, `dim` per node) of
+    /// `w^T f_bar + nu^T c_bar` as [`Self::rhs`] makes them, without `K'u`,
+    /// without the obstacle rows (see [`Self::visit_rows`]) and with the face
+    /// loads only where `loads`: a direction's value is then its dot product
+    /// with the velocities. `nu` per state row (zero where not kept). One pass
+    /// over the tape whatever the number of directions (the adjoint's reverse
+    /// pass, issue 16).
+    pub fn pullback(
+        &self,
+        state: &State,
+        w: &[Vec<f64>],
+        nu: &[f64],
+        loads: bool,
+    ) -> Vec<Vec<f64>> {
+        let mut g = self.zero_gradient(state);
+        let mut weights = Vec::new();
+        if loads {
+            self.pull_loads(w, &mut g);
+        }
+        for (r, motion) in &self.rows {
+            let RowMotion::Piece(row) = motion else {
+                continue;
+            };
+            // f_bar -= lambda_r B'_r, c_bar_r = c'_r - B'_r u.
+            let (l, n) = (state.lambda[*r], nu[*r]);
+            weights.clear();
+            weights.extend(
+                row.entries
+                    .iter()
+                    .map(|&(s, d)| -(l * w[s][d] + n * state.u[s][d])),
+            );
+            weights.push(n);
+            row.local.pull(&weights, self.dim, &mut g);
+        }
+        g
+    }
+
+    /// The node gradient of `x^T f'` (the face loads).
+    pub fn pullback_loads(&self, state: &State, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let mut g = self.zero_gradient(state);
+        self.pull_loads(x, &mut g);
+        g
+    }
+
+    fn zero_gradient(&self, state: &State) -> Vec<Vec<f64>> {
+        let dim = self.dim;
+        state
+            .problem
+            .bodies
             .iter()
-            .zip(v)
-            .zip(&self.measure_values)
-            .map(|((g, v), &value)| D::new(value, g.iter().zip(v).map(|(a, b)| a * b).sum()))
-            .collect();
-        Rhs {
-            fbar,
-            cbar: kept.iter().map(|&r| cbar_all[r]).collect(),
-            fprime,
-            ukpu: 0.0,
-            scale,
-            kinks,
-            measures,
+            .map(|b| vec![0.0; dim * b.coords.len()])
+            .collect()
+    }
+
+    /// Adds the node gradient of `x^T f'` to `g`.
+    fn pull_loads(&self, x: &[Vec<f64>], g: &mut [Vec<f64>]) {
+        let mut weights = Vec::new();
+        for (dofs, local) in &self.loads {
+            weights.clear();
+            weights.extend(dofs.iter().map(|&(s, d)| x[s][d]));
+            local.pull(&weights, self.dim, g);
         }
     }
 

@@ -196,23 +196,71 @@ mod tests {
     }
 
     /// The tape gives every direction's right-hand side as the per-direction
-    /// dual evaluation does (to round-off), kinks included.
+    /// dual evaluation does (to round-off), kinks included; and its reverse
+    /// pass gives `w^T f_bar + nu^T c_bar` (without `K'u`) and `u^T f'` of
+    /// every direction as dot products with the velocities, for any `w`, `nu`.
     fn tape_matches<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize>(src: &str) {
         let scene = crate::lang::compile(src, &crate::lang::CheckOptions::default())
             .unwrap_or_else(|d| panic!("{:?}", d.first()));
         let design = scene.design_init();
         let state = crate::state::solve(&scene, &design, &mut |_| {}).expect("solves");
         let sens = Sensitivity::new(&scene, &state).expect("sensitivity");
+        let p = &state.problem;
+        // Any weights will do; these are nowhere zero and not the state's.
+        let w: Vec<Vec<f64>> = state
+            .u
+            .iter()
+            .map(|u| {
+                (0..u.len())
+                    .map(|d| u[d] + (0.37 * d as f64).sin())
+                    .collect()
+            })
+            .collect();
+        let nu: Vec<f64> = (0..p.rows.len()).map(|r| (0.71 * r as f64).cos()).collect();
+        let tape = sens.tape();
+        let pulled = tape.pullback(&state, &w, &nu, true);
+        let fu = tape.pullback_loads(&state, &state.u);
         let mut moved = 0;
         for i in 0..design.len() {
-            for with_kpu in [false, true] {
-                let tape = sens.rhs_with(i, with_kpu);
-                let reference = sens.rhs_per_direction::<P, DIM, N>(i, with_kpu);
-                let diff = rhs_difference(&tape, &reference);
-                assert!(diff < 1e-12, "direction {i}, K'u {with_kpu}: {diff:e}");
-                assert_eq!(tape.kinks, reference.kinks);
-                moved += usize::from(tape.cbar.iter().any(|c| *c != 0.0));
-            }
+            let rhs = sens.rhs(i);
+            let reference = sens.rhs_per_direction::<P, DIM, N>(i, true);
+            let diff = rhs_difference(&rhs, &reference);
+            assert!(diff < 1e-12, "direction {i}: {diff:e}");
+            assert_eq!(rhs.kinks, reference.kinks);
+            moved += usize::from(rhs.cbar.iter().any(|c| *c != 0.0));
+            // The reverse pass against the forward one without K'u.
+            let forward = sens.rhs_per_direction::<P, DIM, N>(i, false);
+            let nu_kept: Vec<f64> = sens.kept.iter().map(|&r| nu[r]).collect();
+            let expected = Cluster::dot(&w, &forward.fbar)
+                + nu_kept
+                    .iter()
+                    .zip(&forward.cbar)
+                    .map(|(a, b)| a * b)
+                    .sum::<f64>();
+            let v = &tape.velocities[i];
+            let got = Cluster::dot(&pulled, v);
+            let size = expected.abs().max(Cluster::dot(&w, &w).sqrt() * 1e-3);
+            assert!(
+                (got - expected).abs() < 1e-11 * size,
+                "direction {i}: {got} vs {expected}"
+            );
+            let (got, expected) = (
+                Cluster::dot(&fu, v),
+                Cluster::dot(&forward.fprime, &state.u),
+            );
+            assert!((got - expected).abs() < 1e-11 * expected.abs().max(1e-300));
+            // The explicit pass: scales and kinks as the full one.
+            let mut scale = vec![0.0; p.rows.len()];
+            let kinks = tape.visit_rows::<DIM>(&scene, &state, i, false, |r, row| {
+                assert!(row.entries.is_empty() && row.c == 0.0, "no obstacle here");
+                scale[r] = row.scale;
+            });
+            assert_eq!(kinks, reference.kinks);
+            let worst = scale
+                .iter()
+                .zip(&reference.scale)
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(worst < 1e-12, "direction {i}: scales differ by {worst:e}");
         }
         assert!(moved > 0, "no direction moved a row");
     }
