@@ -147,7 +147,7 @@ fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
 /// Im P (block CG's search blocks and starts stay there), so `P F P x_c`.
 fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
     let mut y = dual.apply_f_block(x);
-    y.iter_mut().for_each(|c| dual.project(c));
+    dual.project_block(&mut y);
     y
 }
 

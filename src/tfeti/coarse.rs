@@ -23,6 +23,7 @@
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
 use super::lock;
 use super::sparse::{llt_numeric, UpperCsc};
+use faer::linalg::matmul::matmul;
 use faer::linalg::triangular_solve::{
     solve_lower_triangular_in_place, solve_upper_triangular_in_place,
 };
@@ -32,7 +33,7 @@ use faer::sparse::linalg::cholesky::{
 };
 use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::SparseColMatRef;
-use faer::{Mat, MatMut, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Mutex;
@@ -254,6 +255,79 @@ pub fn apply_g(cluster: &Cluster, x: &[f64], z: &mut [f64]) {
         .enumerate()
         .with_min_len(G_CHUNK)
         .for_each(|(s, zs)| g_block_times(cluster.g_block(s), &cluster.local_rows(s).rows, x, zs));
+}
+
+/// `z_c = G x_c` of every column `c` (kernel-sized each): per subdomain one
+/// product of its block with its rows of all columns (faer), instead of a
+/// pass over the block per column.
+pub fn apply_g_columns(cluster: &Cluster, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let (n, cols) = (cluster.len(), xs.len());
+    let parts: Vec<Mat<f64>> = (0..n)
+        .into_par_iter()
+        .with_min_len(G_CHUNK)
+        .map(|s| {
+            let rows = &cluster.local_rows(s).rows;
+            let (nr, k) = (
+                rows.len(),
+                cluster.kernel_offset(s + 1) - cluster.kernel_offset(s),
+            );
+            let mut z = Mat::zeros(k, cols);
+            if k > 0 && nr > 0 {
+                let x = Mat::from_fn(nr, cols, |i, c| xs[c][rows[i]]);
+                // The block is k x nr row-major: G_s^T column-major.
+                let gt = MatRef::from_column_major_slice(cluster.g_block(s), nr, k);
+                matmul(
+                    z.as_mut(),
+                    Accum::Replace,
+                    gt.transpose(),
+                    x.as_ref(),
+                    1.0,
+                    Par::Seq,
+                );
+            }
+            z
+        })
+        .collect();
+    let mut zs = vec![vec![0.0; cluster.kernel_offset(n)]; cols];
+    for (s, z) in parts.iter().enumerate() {
+        let o = cluster.kernel_offset(s);
+        for (c, zc) in zs.iter_mut().enumerate() {
+            for j in 0..z.nrows() {
+                zc[o + j] = z[(j, c)];
+            }
+        }
+    }
+    zs
+}
+
+/// `x_c -= G^T z_c` of every column, as [`apply_g_columns`]: per subdomain one
+/// product, subtracted in subdomain order (the same bits whatever the
+/// thread count).
+pub fn sub_gt_columns(cluster: &Cluster, zs: &[Vec<f64>], xs: &mut [Vec<f64>]) {
+    let (n, cols) = (cluster.len(), xs.len());
+    let parts: Vec<Mat<f64>> = (0..n)
+        .into_par_iter()
+        .with_min_len(G_CHUNK)
+        .map(|s| {
+            let nr = cluster.local_rows(s).rows.len();
+            let (o, k) = (cluster.kernel_offset(s), cluster.kernel_offset(s + 1));
+            let mut t = Mat::zeros(nr, cols);
+            if k > o && nr > 0 {
+                let z = Mat::from_fn(k - o, cols, |j, c| zs[c][o + j]);
+                let gt = MatRef::from_column_major_slice(cluster.g_block(s), nr, k - o);
+                matmul(t.as_mut(), Accum::Replace, gt, z.as_ref(), 1.0, Par::Seq);
+            }
+            t
+        })
+        .collect();
+    for (s, t) in parts.iter().enumerate() {
+        let rows = &cluster.local_rows(s).rows;
+        for (c, x) in xs.iter_mut().enumerate() {
+            for (i, &row) in rows.iter().enumerate() {
+                x[row] -= t[(i, c)];
+            }
+        }
+    }
 }
 
 /// `x = G^T z`: every subdomain's local row values in parallel (into `work`,

@@ -264,6 +264,23 @@ impl Dual {
         true
     }
 
+    /// [`Self::project`] of every column: one product with each subdomain's
+    /// block of `G` for all of them (block CG's columns).
+    pub fn project_block(&self, xs: &mut [Vec<f64>]) {
+        if xs.len() < 2 {
+            xs.iter_mut().for_each(|x| self.project(x));
+            return;
+        }
+        let t0 = Instant::now();
+        let mut zs = coarse::apply_g_columns(&self.cluster, xs);
+        for z in &mut zs {
+            self.coarse.solve(z);
+        }
+        coarse::sub_gt_columns(&self.cluster, &zs, xs);
+        self.projections.fetch_add(xs.len(), Ordering::Relaxed);
+        self.add_coarse_apply(t0);
+    }
+
     /// `x <- P x = x - G~^T G~ x`.
     pub fn project(&self, x: &mut [f64]) {
         let t0 = Instant::now();
@@ -427,11 +444,11 @@ impl<'a> ProjectedM<'a> {
             self.m.apply_block(xs)
         } else {
             let mut px = xs.to_vec();
-            px.iter_mut().for_each(|x| self.dual.project(x));
+            self.dual.project_block(&mut px);
             self.m.apply_block(&px)
         };
+        self.dual.project_block(&mut ys);
         for y in &mut ys {
-            self.dual.project(y);
             y.iter_mut().for_each(|v| *v *= self.scale);
         }
         ys

@@ -514,6 +514,32 @@ fn the_preconditioner_on_a_block_equals_it_column_by_column() {
 }
 
 #[test]
+fn the_projection_of_a_block_equals_it_column_by_column() {
+    let (cluster, rows) = four_blocks();
+    let m = rows.len();
+    let dual = Dual::new(cluster).expect("coarse space");
+    let xs: Vec<Vec<f64>> = (0..4).map(|c| rand_vec(m, 60 + c)).collect();
+    let mut block = xs.clone();
+    dual.project_block(&mut block);
+    for (x, pb) in xs.iter().zip(&block) {
+        let mut px = x.clone();
+        dual.project(&mut px);
+        let scale = x.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+        let diff = px
+            .iter()
+            .zip(pb)
+            .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+        assert!(diff <= 1e-13 * scale, "{diff:e}");
+        // Not the identity: the random columns have a part in Im G^T.
+        let moved = px
+            .iter()
+            .zip(x)
+            .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+        assert!(moved > 1e-3 * scale, "{moved:e}");
+    }
+}
+
+#[test]
 fn the_dirichlet_preconditioner_equals_p_w_b_s_bt_w_p_dense_and_implicit() {
     let (cluster, rows) = four_blocks();
     let m = rows.len();
