@@ -26,6 +26,7 @@ use crate::state::{SolveError, State};
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
+use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
 use rayon::prelude::*;
@@ -483,6 +484,22 @@ impl<'a> Sensitivity<'a> {
         state: &'a State,
         kind: Option<Kind>,
     ) -> Result<Self, SolveError> {
+        // Dense Schur complements (within the memory budget) where the
+        // per-application rule of `SchurForm::Auto` would keep some implicit:
+        // the directions' block applies the preconditioner to every column
+        // about ten times, which repays forming them (BENCHMARKS.md, "Dense
+        // Schur complements for the sensitivity directions").
+        Self::with_preconditioner_as(scene, state, kind, SchurForm::PreferDense)
+    }
+
+    /// [`Self::with_preconditioner`] with the Schur complements of a
+    /// Dirichlet preconditioner held in `form`.
+    pub fn with_preconditioner_as(
+        scene: &'a Scene,
+        state: &'a State,
+        kind: Option<Kind>,
+        form: SchurForm,
+    ) -> Result<Self, SolveError> {
         let classes = classify(state);
         let mut kept: Vec<usize> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))
@@ -497,7 +514,7 @@ impl<'a> Sensitivity<'a> {
             state.elimination.clone(),
         )
             .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
-        dual.defer_preconditioner(kind, n_equality);
+        dual.defer_preconditioner(kind, n_equality, form);
         Ok(Sensitivity {
             scene,
             state,
@@ -1377,7 +1394,14 @@ pub fn adjoint_at_from(
 ) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
     let state_seconds = t0.elapsed().as_secs_f64();
     let design = scene.design_init();
-    let sens = Sensitivity::with_preconditioner(scene, state, adjoint_preconditioner(scene))?;
+    // A few columns: Dirichlet (where the scene asks for it) by the
+    // per-application rule.
+    let sens = Sensitivity::with_preconditioner_as(
+        scene,
+        state,
+        adjoint_preconditioner(scene),
+        SchurForm::Auto,
+    )?;
     let (names, rows) = gradient_rows(scene);
     let eval = super::Eval {
         scene,

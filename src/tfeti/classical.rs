@@ -215,11 +215,12 @@ impl DualSystem {
         &mut self,
         kind: Option<crate::tfeti::precond::Kind>,
         n_equality: usize,
+        form: crate::tfeti::schur::SchurForm,
     ) {
         match self {
-            DualSystem::Total(d) => d.defer_preconditioner(kind, n_equality),
+            DualSystem::Total(d) => d.defer_preconditioner(kind, n_equality, form),
             DualSystem::Classical { dual, reduced, .. } => {
-                dual.defer_preconditioner(kind, reduced.n_equality)
+                dual.defer_preconditioner(kind, reduced.n_equality, form)
             }
         }
     }

@@ -58,7 +58,7 @@ pub struct Dual {
     /// ([`Dual::defer_preconditioner`]).
     precond: OnceLock<Option<DualPreconditioner>>,
     /// What [`Dual::preconditioner`] builds on first use.
-    deferred: Option<(Kind, usize)>,
+    deferred: Option<(Kind, usize, SchurForm)>,
     /// [`Cluster::equilibrium_grams`], formed on first use.
     grams: OnceLock<Vec<Vec<f64>>>,
     /// Whether `F` keeps the round-off that CG's directions carry outside
@@ -197,10 +197,11 @@ impl Dual {
     /// [`Dual::set_preconditioner`] built on first use instead: a solve whose
     /// start already meets its tolerance (an adjoint started from the state
     /// it is the adjoint of) never pays for the set-up. Every rank decides
-    /// alike (on global norms), so the set-up stays collective.
-    pub fn defer_preconditioner(&mut self, kind: Option<Kind>, n_equality: usize) {
+    /// alike (on global norms), so the set-up stays collective. `form`: how
+    /// to hold the Schur complements of a Dirichlet preconditioner.
+    pub fn defer_preconditioner(&mut self, kind: Option<Kind>, n_equality: usize, form: SchurForm) {
         self.precond = OnceLock::new();
-        self.deferred = kind.map(|k| (k, n_equality));
+        self.deferred = kind.map(|k| (k, n_equality, form));
     }
 
     /// The dual preconditioner, if one was asked for (a deferred one is
@@ -211,7 +212,7 @@ impl Dual {
         self.precond
             .get_or_init(|| {
                 self.deferred
-                    .map(|(k, n)| DualPreconditioner::new(&self.cluster, k, n, SchurForm::Auto))
+                    .map(|(k, n, form)| DualPreconditioner::new(&self.cluster, k, n, form))
             })
             .as_ref()
     }

@@ -255,7 +255,9 @@ impl DualPreconditioner {
             .iter()
             .map(|b| {
                 let bytes = dense_bytes(b.len());
-                if kind != Kind::Dirichlet || form != SchurForm::Auto {
+                if kind != Kind::Dirichlet
+                    || !matches!(form, SchurForm::Auto | SchurForm::PreferDense)
+                {
                     form
                 } else if held + bytes <= cap {
                     held += bytes;

@@ -27,6 +27,10 @@ pub enum SchurForm {
     /// Dense when `nb^2` values are fewer than what the implicit form reads
     /// (the factor of `K_ii` twice and the couplings).
     Auto,
+    /// Dense within the memory budget ([`super::precond::DualPreconditioner`]
+    /// falls back to implicit beyond it): where many right-hand sides repay
+    /// forming `S` (the sensitivity directions' block solves).
+    PreferDense,
     Dense,
     Implicit,
 }
@@ -117,7 +121,7 @@ impl Schur {
             .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
         let implicit_reads = 2 * l_values.len() + 2 * k_ib.compute_nnz() + k_bb.values.len();
         let dense = match form {
-            SchurForm::Dense => true,
+            SchurForm::Dense | SchurForm::PreferDense => true,
             SchurForm::Implicit => false,
             SchurForm::Auto => nb * nb <= implicit_reads,
         };

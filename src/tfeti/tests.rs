@@ -514,6 +514,33 @@ fn the_preconditioner_on_a_block_equals_it_column_by_column() {
 }
 
 #[test]
+fn prefer_dense_holds_every_schur_complement_dense_within_the_budget() {
+    let (cluster, rows) = four_blocks();
+    let m = rows.len();
+    let mut dual = Dual::new(cluster).expect("coarse space");
+    let x = rand_vec(m, 7);
+    let mut apply = |form| {
+        let built = dual
+            .set_preconditioner_as(Some(Kind::Dirichlet), m, form)
+            .expect("built");
+        let mut y = vec![0.0; m];
+        dual.preconditioner().expect("built").apply(&x, &mut y);
+        (built, y)
+    };
+    let (implicit, yi) = apply(SchurForm::Implicit);
+    let (prefer, yp) = apply(SchurForm::PreferDense);
+    assert_eq!((implicit.dense, implicit.implicit), (0, 4), "{implicit:?}");
+    // Four small blocks fit any machine's budget.
+    assert_eq!((prefer.dense, prefer.implicit), (4, 0), "{prefer:?}");
+    let scale = yi.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let diff = yi
+        .iter()
+        .zip(&yp)
+        .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+    assert!(diff <= 1e-12 * scale, "{diff:e}");
+}
+
+#[test]
 fn the_projection_of_a_block_equals_it_column_by_column() {
     let (cluster, rows) = four_blocks();
     let m = rows.len();
