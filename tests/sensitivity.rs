@@ -270,14 +270,15 @@ fn adjoint_and_semi_analytic_agree_to_1e_8() {
 
 /// What the adjoint's reverse pass treats apart: gravity (element loads, not
 /// on the tape), an obstacle that the design moves (its rows are not
-/// linearized in the node coordinates), a pressure on a face that moves.
+/// linearized in the node coordinates; curved, so that the rows' entries
+/// move too), a pressure on a face that moves.
 const BLOCK_ON_A_MOVING_FLOOR: &str = "scene floor { dim = 2 }
 material soft { E = 1000, nu = 0.3, rho = 50 }
 design h { init = 0.03, lower = 0, upper = 0.05 }
 design c { init = 0.02, lower = 0, upper = 0.05 }
 body block { material = soft, x = 0 .. 1, y = 0 .. 1, bottom = c * (2*x - 1)^2,
   mesh = 8 x 8, subdomains = 2 x 2 }
-obstacle floor { point = (0, h - 0.03 - 0.001), normal = (0.1, 1) }
+obstacle floor { center = (0.55, h - 0.031 - 5), radius = 5 }
 displace block.top { ux = 0, uy = -0.01 }
 pressure block.right = 2
 gravity = (0, -9.81)

@@ -93,9 +93,12 @@ fn column(scene: &Scene, method: SolverMethod) -> Result<(Column, State), String
         sensitivity_error: None,
     };
     if !s.design.is_empty() {
-        // As the scene says (the seed's table compares unpreconditioned solves).
+        // As the scene says (the seed's table compares unpreconditioned solves),
+        // and one direction at a time: Schur complements by the
+        // per-application rule.
         let kind = crate::state::preconditioner(&s);
-        match Sensitivity::with_preconditioner(&s, &state, kind) {
+        let form = crate::tfeti::schur::SchurForm::Auto;
+        match Sensitivity::with_preconditioner_as(&s, &state, kind, form) {
             Err(e) => col.sensitivity_error = Some(e.to_string()),
             Ok(sens) => {
                 // Its set-up is the solver's, not the first direction's.

@@ -150,8 +150,9 @@ pub struct Subdomain {
     /// Whether the symbolic factorization came from an earlier build.
     symbolic_reused: bool,
     work: Mutex<Work>,
-    /// Schur complements formed so far, by touched dofs and form: the state's
-    /// and the sensitivity duals' Dirichlet preconditioners share them, and so
+    /// Schur complements formed so far, by touched dofs and form (a dense one
+    /// also serves `Auto` and `PreferDense`): the state's and the
+    /// sensitivity duals' Dirichlet preconditioners share them, and so
     /// do later designs of an optimization, which reuse a subdomain whose
     /// nodes did not move whole. The last [`SCHUR_MEMO`] only.
     schurs: Mutex<Vec<SchurMemo>>,
@@ -480,10 +481,20 @@ impl Subdomain {
         form: SchurForm,
         symbolic: &SymbolicCache,
     ) -> Result<Arc<Schur>, String> {
-        let found = lock(&self.schurs)
-            .iter()
-            .find(|(b, f, _)| b == boundary && *f == form)
-            .map(|(_, _, s)| s.clone());
+        // The form asked for, or any dense one of the same dofs where a dense
+        // one may serve (`Auto` and `PreferDense`: the state's and the
+        // sensitivity's preconditioners share a dense S).
+        let found = {
+            let memo = lock(&self.schurs);
+            let same = |b: &Vec<usize>| b.as_slice() == boundary;
+            memo.iter()
+                .find(|(b, f, _)| same(b) && *f == form)
+                .or_else(|| {
+                    memo.iter()
+                        .find(|(b, _, s)| same(b) && s.is_dense() && form != SchurForm::Implicit)
+                })
+                .map(|(_, _, s)| s.clone())
+        };
         if let Some(s) = found {
             return Ok(s);
         }

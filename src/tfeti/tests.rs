@@ -615,7 +615,15 @@ fn a_subdomain_forms_each_schur_complement_once() {
     let a = schur(&bottom, SchurForm::Auto);
     let b = schur(&bottom, SchurForm::Auto);
     assert!(Arc::ptr_eq(&a, &b), "formed twice");
+    // A dense one serves whoever may take a dense one (the state's `Auto`
+    // and the sensitivity's `PreferDense`).
+    assert!(
+        a.is_dense(),
+        "8 touched dofs of a 3 x 3 grid: dense by Auto"
+    );
+    assert!(Arc::ptr_eq(&a, &schur(&bottom, SchurForm::PreferDense)));
     let dense = schur(&bottom, SchurForm::Dense);
+    assert!(Arc::ptr_eq(&a, &dense));
     let implicit = schur(&bottom, SchurForm::Implicit);
     assert!(
         !Arc::ptr_eq(&dense, &implicit),
