@@ -249,17 +249,22 @@ impl DualPreconditioner {
             })
             .collect();
         // Dense S_s under the memory rule of the dense local F (and within
-        // what those leave of the budget): beyond it, implicit.
+        // what those leave of the budget): beyond it, implicit. Forming one
+        // takes an interior-by-touched work block besides (`L^-1 K_ib`),
+        // freed after: it must fit too.
         let (cap, mut held) = (budget(), cluster.local_f_held());
         let forms: Vec<SchurForm> = boundaries
             .iter()
-            .map(|b| {
+            .zip(cluster.owned())
+            .map(|(b, s)| {
                 let bytes = dense_bytes(b.len());
+                let interior = cluster.dofs(s).saturating_sub(b.len());
+                let forming = interior * b.len() * std::mem::size_of::<f64>();
                 if kind != Kind::Dirichlet
                     || !matches!(form, SchurForm::Auto | SchurForm::PreferDense)
                 {
                     form
-                } else if held + bytes <= cap {
+                } else if held + bytes + forming <= cap {
                     held += bytes;
                     form
                 } else {
