@@ -876,19 +876,11 @@ impl<'a> Sensitivity<'a> {
         let (state, tape) = (self.state, self.tape());
         let p = &state.problem;
         let gravity = self.scene.gravity.is_some();
-        let nus: Vec<Vec<f64>> = adjoints
-            .iter()
-            .map(|(_, nu, _)| {
-                let mut all = vec![0.0; p.rows.len()];
-                for (&r, v) in self.kept.iter().zip(nu) {
-                    all[r] = *v;
-                }
-                all
-            })
-            .collect();
+        // The adjoints' multipliers per state row (zero where not kept).
+        let nus = &ends;
         let pulled: Vec<Vec<Vec<f64>>> = adjoints
             .iter()
-            .zip(&nus)
+            .zip(nus)
             .map(|((w, _, _), nu)| tape.pullback(state, w, nu, !gravity))
             .collect();
         let fu = (!gravity).then(|| tape.pullback_loads(state, &state.u));
