@@ -30,9 +30,8 @@ use super::local_f::{budget, dense_bytes};
 use super::lock;
 use super::schur::{Schur, SchurForm};
 use super::sparse::{
-    llt_numeric, llt_solve, llt_solve_block, solve_scratch, symbolic_amd, SymbolicCache, UpperCsc,
+    llt_numeric, llt_solve_block, solve_scratch, symbolic_amd, SymbolicCache, UpperCsc,
 };
-use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use rayon::prelude::*;
@@ -139,11 +138,19 @@ impl Block {
 }
 
 /// `W = (B_E B_E^T)^-1` on the first `n` (equality) rows.
+///
+/// Most rows overlap no other (a dof shared by two subdomains, normalized:
+/// `W = 1` there), so only the rows that do are solved for: the Cholesky
+/// factor is of `B_E B_E^T` restricted to them (its other rows and columns are
+/// those of the identity, up to round-off in the unit diagonal), and a
+/// product gathers and scatters just those rows.
 struct Scaling {
-    n: usize,
-    symbolic: SymbolicCholesky<usize>,
+    /// The rows that overlap another (global row of each factor row).
+    coupled: Vec<usize>,
+    symbolic: Option<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
-    buf: Mutex<MemBuffer>,
+    /// `1 / d` of the rows that overlap none, where `d` is not 1.
+    scale: Vec<(usize, f64)>,
 }
 
 impl Scaling {
@@ -154,7 +161,7 @@ impl Scaling {
         }
         // B_E B_E^T = sum_s B_s B_s^T: rows overlap only through a shared dof
         // of one subdomain. Upper triangle, summed in subdomain order.
-        let mut triplets = Vec::new();
+        let mut entries: BTreeMap<(usize, usize), f64> = BTreeMap::new();
         for s in 0..cluster.len() {
             let lr = cluster.local_rows(s);
             let mut by_dof: BTreeMap<usize, Vec<(usize, f64)>> = BTreeMap::new();
@@ -168,48 +175,96 @@ impl Scaling {
                 for &(r1, v1) in list {
                     for &(r2, v2) in list {
                         if r1 <= r2 {
-                            triplets.push(Triplet::new(r1, r2, v1 * v2));
+                            *entries.entry((r1, r2)).or_default() += v1 * v2;
                         }
                     }
                 }
             }
         }
-        let gram = SparseColMat::<usize, f64>::try_new_from_triplets(n, n, &triplets).ok()?;
-        let a = SparseColMatRef::new(gram.symbolic(), gram.val());
-        let symbolic = symbolic_amd(a.symbolic()).ok()?;
-        let (l_values, buf) = llt_numeric(&symbolic, a, 1).ok()?;
+        let mut overlaps = vec![false; n];
+        for &(r1, r2) in entries.keys().filter(|(r1, r2)| r1 != r2) {
+            overlaps[r1] = true;
+            overlaps[r2] = true;
+        }
+        let coupled: Vec<usize> = (0..n).filter(|&r| overlaps[r]).collect();
+        let mut at = vec![usize::MAX; n];
+        coupled.iter().enumerate().for_each(|(i, &r)| at[r] = i);
+        let mut scale = Vec::new();
+        let mut triplets = Vec::new();
+        for (&(r1, r2), &v) in &entries {
+            if overlaps[r1] {
+                triplets.push(Triplet::new(at[r1], at[r2], v));
+            } else if !(v > 0.0 && v.is_finite()) {
+                return None;
+            } else if (v - 1.0).abs() > 1e-12 {
+                scale.push((r1, 1.0 / v));
+            }
+        }
+        // A row of no subdomain's dof (none in the models we lower) is a zero
+        // row: B_E B_E^T is singular.
+        let diagonal: std::collections::BTreeSet<usize> = entries
+            .keys()
+            .filter(|(r1, r2)| r1 == r2)
+            .map(|k| k.0)
+            .collect();
+        if diagonal.len() < n {
+            return None;
+        }
+        let (symbolic, l_values) = if coupled.is_empty() {
+            (None, Vec::new())
+        } else {
+            let nc = coupled.len();
+            let gram = SparseColMat::<usize, f64>::try_new_from_triplets(nc, nc, &triplets).ok()?;
+            let a = SparseColMatRef::new(gram.symbolic(), gram.val());
+            let symbolic = symbolic_amd(a.symbolic()).ok()?;
+            let (l_values, _) = llt_numeric(&symbolic, a, 1).ok()?;
+            (Some(symbolic), l_values)
+        };
         // The rows are normalized, so the diagonal is 1; a pivot far below it
         // means dependent rows, and W would amplify round-off.
         let scaling = Scaling {
-            n,
+            coupled,
             symbolic,
             l_values,
-            buf: Mutex::new(buf),
+            scale,
         };
-        let mut probe = vec![1.0; n];
-        scaling.solve(&mut probe);
-        let worst = probe.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let mut probe = vec![vec![1.0; n]];
+        scaling.solve_block(&mut probe);
+        let worst = probe[0].iter().fold(0.0f64, |m, v| m.max(v.abs()));
         (worst.is_finite() && worst < 1e6).then_some(scaling)
     }
 
-    /// [`Self::solve`] of every column, one pass over the factor.
-    fn solve_block(&self, xs: &mut [Vec<f64>]) {
-        let cols = xs.len();
+    /// `x_c[..n] <- (B_E B_E^T)^-1 x_c[..n]` of every column, one pass over
+    /// the factor.
+    fn solve_block<X: AsRef<[f64]> + AsMut<[f64]>>(&self, xs: &mut [X]) {
+        for x in xs.iter_mut() {
+            let x = x.as_mut();
+            for &(r, s) in &self.scale {
+                x[r] *= s;
+            }
+        }
+        let Some(symbolic) = &self.symbolic else {
+            return;
+        };
+        let (cols, nc) = (xs.len(), self.coupled.len());
         let mut block: Vec<f64> = xs
             .iter()
-            .flat_map(|x| x[..self.n].iter().copied())
+            .flat_map(|x| {
+                let x: &[f64] = x.as_ref();
+                self.coupled.iter().map(move |&r| x[r])
+            })
             .collect();
-        let mut buf = solve_scratch(&self.symbolic, cols);
-        llt_solve_block(&self.symbolic, &self.l_values, &mut block, cols, &mut buf);
-        for (x, b) in xs.iter_mut().zip(block.chunks_exact(self.n)) {
-            x[..self.n].copy_from_slice(b);
+        let mut buf = solve_scratch(symbolic, cols);
+        llt_solve_block(symbolic, &self.l_values, &mut block, cols, &mut buf);
+        for (x, b) in xs.iter_mut().zip(block.chunks_exact(nc)) {
+            let x = x.as_mut();
+            self.coupled.iter().zip(b).for_each(|(&r, v)| x[r] = *v);
         }
     }
 
-    /// `x[..n] <- (B_E B_E^T)^-1 x[..n]`.
+    /// [`Self::solve_block`] of one column.
     fn solve(&self, x: &mut [f64]) {
-        let mut buf = lock(&self.buf);
-        llt_solve(&self.symbolic, &self.l_values, &mut x[..self.n], &mut buf);
+        self.solve_block(&mut [x]);
     }
 }
 
