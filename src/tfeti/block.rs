@@ -34,10 +34,11 @@ pub struct BlockInfo {
     pub status: Status,
     /// Block iterations: passes of `P F P` over the whole (shrinking) block.
     pub iterations: usize,
-    /// Passes over the subdomain factors with `F` (iterations, one each for
-    /// the homogenization and the reconstruction, one for a warm start's
-    /// residual; the two passes with `K^+` alone, for the loads and for `u`,
-    /// are not counted, as in the single solves).
+    /// Passes over the subdomain factors with `F` (iterations, one for the
+    /// homogenization, one for a warm start's residual; the two passes with
+    /// `K^+` alone, for the loads and for `u`, are not counted, as in the
+    /// single solves; the reconstruction's `F lambda` comes from the
+    /// iterations).
     pub passes: usize,
     /// Products with `F` counted per column (what single solves would count).
     pub products: usize,
@@ -143,25 +144,36 @@ fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
     Some(llt.solve(&x))
 }
 
-/// `P F x_c` of every column, one pass over the factors: the columns are in
-/// Im P (block CG's search blocks and starts stay there), so `P F P x_c`.
-fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let mut y = dual.apply_f_block(x);
+/// `F x_c` and `P F x_c` of every column, one pass over the factors: the
+/// columns are in Im P (block CG's search blocks and starts stay there), so
+/// the second is `P F P x_c`. The first adds up to `F x` of the solution,
+/// which the reconstruction needs (its rigid-body part), without another
+/// pass.
+fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let fx = dual.apply_f_block(x);
+    let mut y = fx.clone();
     dual.project_block(&mut y);
-    y
+    (fx, y)
+}
+
+/// What block CG returns: the solutions and their products with `F`.
+struct Solved {
+    x: Vec<Vec<f64>>,
+    fx: Vec<Vec<f64>>,
+    info: BlockInfo,
 }
 
 /// Block CG on `P F P X = B` from `X = x0` (default 0; columns of `B` and
 /// `x0` in Im P, each start scaled by [`galerkin_start`]), each column to
 /// `||r_j|| <= tol ||b_j||`, with the dual's preconditioner (`P M P`) on the
 /// block, fetched (a deferred one built) only when the starts leave a column
-/// open.
+/// open. `F X` is carried along by the same recurrence as `X`.
 fn block_projected_cg(
     dual: &Dual,
     b: &[Vec<f64>],
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
-) -> (Vec<Vec<f64>>, BlockInfo) {
+) -> Solved {
     let m = dual.multipliers();
     let mut info = BlockInfo {
         status: Status::Converged,
@@ -172,9 +184,9 @@ fn block_projected_cg(
     };
     let bnorm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
     let mut r = b.to_vec();
-    let x = match x0 {
+    let (mut x, mut fx) = match x0 {
         Some(x0) if x0.len() == b.len() && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
-            let mut ax = apply_block(dual, &x0);
+            let (mut fx0, mut ax) = apply_block(dual, &x0);
             info.passes += 1;
             info.products += x0.len();
             let mut x0 = x0;
@@ -182,15 +194,20 @@ fn block_projected_cg(
                 // A start no better than zero is dropped (as in projected CG);
                 // so is any start of a zero right-hand side, whose answer is 0.
                 match galerkin_start(&b[j], &mut x0[j], axj) {
-                    Some(r0) if bnorm[j] > 0.0 => *rj = r0,
-                    _ => x0[j].iter_mut().for_each(|v| *v = 0.0),
+                    Some((r0, s)) if bnorm[j] > 0.0 => {
+                        *rj = r0;
+                        fx0[j].iter_mut().for_each(|v| *v *= s);
+                    }
+                    _ => {
+                        x0[j].iter_mut().for_each(|v| *v = 0.0);
+                        fx0[j].iter_mut().for_each(|v| *v = 0.0);
+                    }
                 }
             }
-            x0
+            (x0, fx0)
         }
-        _ => vec![vec![0.0; m]; b.len()],
+        _ => (vec![vec![0.0; m]; b.len()], vec![vec![0.0; m]; b.len()]),
     };
-    let mut x = x;
     // The columns not yet converged, and the largest relative residual.
     let open = |r: &[Vec<f64>]| -> (Vec<usize>, f64) {
         let rel: Vec<f64> = r
@@ -245,7 +262,7 @@ fn block_projected_cg(
             break;
         }
         // Q = P F P p = P F p (p is in Im P).
-        let q = apply_block(dual, &p);
+        let (fp, q) = apply_block(dual, &p);
         info.iterations += 1;
         info.passes += 1;
         info.products += p.len();
@@ -259,6 +276,7 @@ fn block_projected_cg(
             break;
         };
         add_product(&mut x, &p, &alpha, 1.0);
+        add_product(&mut fx, &fp, &alpha, 1.0);
         add_product(&mut r, &q, &alpha, -1.0);
         let (still, worst) = open(&r);
         info.history.push(worst);
@@ -275,7 +293,7 @@ fn block_projected_cg(
         add_product(&mut y, &p, &beta, -1.0);
         p = orthonormal(&y);
     }
-    (x, info)
+    Solved { x, fx, info }
 }
 
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an equality)
@@ -330,14 +348,21 @@ pub fn dual_solve_block(
                 .map(|(l, lt)| homogenized_start(dual, l, lt).unwrap_or_else(|| vec![0.0; m]))
                 .collect()
         });
-    let (lhat, mut info) = block_projected_cg(dual, &b, x0, settings);
-    let lambda: Vec<Vec<f64>> = lhat
-        .iter()
-        .zip(&l_tilde)
-        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x + y).collect())
-        .collect();
-    let u = reconstruct_block(dual, fs, &lambda, &ds)?;
-    info.passes += 2;
-    info.products += 2 * fs.len();
+    let Solved {
+        x: lhat,
+        fx,
+        mut info,
+    } = block_projected_cg(dual, &b, x0, settings);
+    let sum = |a: &[Vec<f64>], b: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        a.iter()
+            .zip(b)
+            .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x + y).collect())
+            .collect()
+    };
+    let lambda = sum(&lhat, &l_tilde);
+    // F lambda = F l_tilde (the homogenization's pass) + F l_hat (block CG's).
+    let u = reconstruct_block(dual, fs, &lambda, &sum(&fx, &fl), &ds)?;
+    info.passes += 1;
+    info.products += fs.len();
     Ok(BlockSolution { lambda, u, info })
 }

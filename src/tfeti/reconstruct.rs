@@ -33,18 +33,19 @@ pub(crate) fn reconstruct(
     Ok((u, alpha))
 }
 
-/// [`reconstruct`] of a block of equality-only problems (every row holds): one
-/// `G G^T` factor and one pass over the subdomain factors for all of them.
-/// Returns `u` of each.
+/// [`reconstruct`] of a block of equality-only problems (every row holds),
+/// given `F lambda` of each (block CG carries it): one `G G^T` factor and one
+/// pass over the subdomain factors (`K^+`) for all of them. Returns `u` of
+/// each.
 pub(crate) fn reconstruct_block(
     dual: &Dual,
     fs: &[Vec<&[f64]>],
     lambdas: &[Vec<f64>],
+    fls: &[Vec<f64>],
     ds: &[Vec<f64>],
 ) -> Result<Vec<Vec<Vec<f64>>>, SolveError> {
     let active = vec![true; dual.multipliers()];
-    let fls = dual.apply_f_block(lambdas);
-    let alphas = kernel_coefficients(dual, &active, &fls, ds)?;
+    let alphas = kernel_coefficients(dual, &active, fls, ds)?;
     Ok(dual.cluster().primal_block(fs, lambdas, &alphas))
 }
 

@@ -280,7 +280,7 @@ fn projected_cg(
         let mut ax = vec![0.0; m];
         crate::qp::Operator::apply(&a, &x0, &mut ax);
         info.hessian_applications += 1;
-        if let Some(r0) = galerkin_start(b, &mut x0, &mut ax) {
+        if let Some((r0, _)) = galerkin_start(b, &mut x0, &mut ax) {
             x = x0;
             r = r0;
         }
@@ -360,11 +360,11 @@ pub(crate) fn homogenized_start(dual: &Dual, l0: &[f64], l_tilde: &[f64]) -> Opt
 /// x0`), so that a start that is right up to its size (an adjoint started
 /// from the state) counts in full and a poor one cannot be worse than zero in
 /// that norm (`||x - s x0||_A^2 = ||x||_A^2 - (x0^T b)^2 / x0^T A x0`).
-/// Scales `x0` and `ax` and returns the residual `b - s A x0`; `None` (start
+/// Scales `x0` and `ax` and returns the residual `b - s A x0` and `s`; `None` (start
 /// from zero; `x0` and `ax` are then left as they are, or scaled) when
 /// `x0^T A x0` is not positive and finite, `s = 0`, or the residual is not
 /// below `||b||`.
-pub(crate) fn galerkin_start(b: &[f64], x0: &mut [f64], ax: &mut [f64]) -> Option<Vec<f64>> {
+pub(crate) fn galerkin_start(b: &[f64], x0: &mut [f64], ax: &mut [f64]) -> Option<(Vec<f64>, f64)> {
     let xax = dot(x0, ax);
     let s = dot(x0, b) / xax;
     if !(xax > 0.0 && s != 0.0 && s.is_finite()) {
@@ -373,7 +373,7 @@ pub(crate) fn galerkin_start(b: &[f64], x0: &mut [f64], ax: &mut [f64]) -> Optio
     x0.iter_mut().for_each(|v| *v *= s);
     ax.iter_mut().for_each(|v| *v *= s);
     let r: Vec<f64> = b.iter().zip(ax.iter()).map(|(bi, ai)| bi - ai).collect();
-    (norm(&r) < norm(b)).then_some(r)
+    (norm(&r) < norm(b)).then_some((r, s))
 }
 
 #[cfg(test)]
@@ -391,7 +391,8 @@ mod tests {
     fn a_galerkin_start_right_up_to_its_size_is_the_solution() {
         for s in [3.0, 0.25, -2.0] {
             let (mut x0, mut ax) = (vec![s, s], vec![s, 4.0 * s]);
-            let r = galerkin_start(&B, &mut x0, &mut ax).expect("kept");
+            let (r, scale) = galerkin_start(&B, &mut x0, &mut ax).expect("kept");
+            assert!((scale * s - 1.0).abs() < 1e-15, "{s}: scale {scale}");
             assert!(r.iter().all(|v| v.abs() < 1e-15), "{s}: {r:?}");
             assert!(x0.iter().all(|v| (v - 1.0).abs() < 1e-15), "{s}: {x0:?}");
             assert_eq!(ax, [1.0, 4.0]);
@@ -417,7 +418,7 @@ mod tests {
             let r: [f64; 2] = [1.0 - s * a, 4.0 - 4.0 * s * c];
             let smaller = r[0].hypot(r[1]) < B[0].hypot(B[1]);
             match galerkin_start(&B, &mut x0, &mut ax) {
-                Some(got) => {
+                Some((got, _)) => {
                     assert!(smaller, "({a}, {c}) kept with a larger residual");
                     assert!((got[0] - r[0]).abs() < 1e-14 && (got[1] - r[1]).abs() < 1e-14);
                     assert!(energy_error(&x0) < zero, "({a}, {c}): {x0:?}");
