@@ -26,7 +26,7 @@ use super::reconstruct::reconstruct_block;
 use super::solve::{dot, galerkin_start, homogenized_start, norm};
 use crate::qp::{Equality, SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
-use faer::{Accum, Mat, Par, Side};
+use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
 /// What a block solve did and cost.
 #[derive(Debug, Clone, PartialEq)]
@@ -55,82 +55,72 @@ pub struct BlockSolution {
     pub info: BlockInfo,
 }
 
-/// The columns as one column-major matrix, for faer's products (the copy is
-/// `O(n k)`, the products `O(n k^2)`).
+// Blocks are held as faer matrices (`n x k`, one column per right-hand side
+// or search direction), so that block CG's small products are faer products
+// on them; they become columns only for the dual's operators.
+
+/// The columns as one column-major matrix.
 fn to_mat(cols: &[Vec<f64>]) -> Mat<f64> {
     let n = cols.first().map_or(0, Vec::len);
     Mat::from_fn(n, cols.len(), |i, j| cols[j][i])
 }
 
-/// `a^T b` of two blocks of columns.
-fn cross(a: &[Vec<f64>], b: &[Vec<f64>]) -> Mat<f64> {
-    let mut c = Mat::zeros(a.len(), b.len());
-    if a.is_empty() || b.is_empty() {
-        return c;
+/// The columns of `a` (those listed in `which`, or all).
+fn to_cols(a: MatRef<'_, f64>, which: Option<&[usize]>) -> Vec<Vec<f64>> {
+    let col = |j: usize| a.col(j).iter().copied().collect();
+    match which {
+        Some(w) => w.iter().map(|&j| col(j)).collect(),
+        None => (0..a.ncols()).map(col).collect(),
     }
-    matmul(
-        c.as_mut(),
-        Accum::Replace,
-        to_mat(a).transpose(),
-        to_mat(b).as_ref(),
-        1.0,
-        Par::Seq,
-    );
+}
+
+/// `a^T b`.
+fn cross(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Mat<f64> {
+    let mut c = Mat::zeros(a.ncols(), b.ncols());
+    if a.nrows() > 0 {
+        matmul(c.as_mut(), Accum::Replace, a.transpose(), b, 1.0, Par::Seq);
+    }
     c
 }
 
-/// `y_j += sign sum_i x_i c_ij` (columns `x`, coefficients `c`).
-fn add_product(y: &mut [Vec<f64>], x: &[Vec<f64>], c: &Mat<f64>, sign: f64) {
-    if x.is_empty() || y.is_empty() {
-        return;
-    }
-    let mut ym = to_mat(y);
-    matmul(
-        ym.as_mut(),
-        Accum::Add,
-        to_mat(x).as_ref(),
-        c.as_ref(),
-        sign,
-        Par::Seq,
-    );
-    for (j, yj) in y.iter_mut().enumerate() {
-        yj.iter_mut().enumerate().for_each(|(i, v)| *v = ym[(i, j)]);
+/// `y += sign x c`.
+fn add_product(y: MatMut<'_, f64>, x: MatRef<'_, f64>, c: &Mat<f64>, sign: f64) {
+    if x.ncols() > 0 && y.ncols() > 0 {
+        matmul(y, Accum::Add, x, c.as_ref(), sign, Par::Seq);
     }
 }
 
-/// An orthonormal basis of the span of `y`, its rank revealed: the columns
-/// scaled to unit norm (so that size is not mistaken for dependence), then
-/// eigenvectors of the Gram matrix with eigenvalues below `1e-12` of the
+/// An orthonormal basis of the span of `y`'s columns, its rank revealed: the
+/// columns scaled to unit norm (so that size is not mistaken for dependence),
+/// then eigenvectors of the Gram matrix with eigenvalues below `1e-12` of the
 /// largest dropped (directions dependent to about 1e-6), and a second pass
 /// restores orthonormality to round-off.
-fn orthonormal(y: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    let mut basis: Vec<Vec<f64>> = y
-        .iter()
-        .filter_map(|c| {
-            let n = norm(c);
-            (n > 0.0 && n.is_finite()).then(|| c.iter().map(|v| v / n).collect())
-        })
+fn orthonormal(y: Mat<f64>) -> Mat<f64> {
+    let keep: Vec<(usize, f64)> = (0..y.ncols())
+        .map(|j| (j, y.col(j).norm_l2()))
+        .filter(|(_, n)| *n > 0.0 && n.is_finite())
         .collect();
+    let mut basis = Mat::from_fn(y.nrows(), keep.len(), |i, c| y[(i, keep[c].0)] / keep[c].1);
     for pass in 0..2 {
-        if basis.is_empty() {
+        let k = basis.ncols();
+        if k == 0 {
             break;
         }
-        let gram = cross(&basis, &basis);
+        let gram = cross(basis.as_ref(), basis.as_ref());
         let Ok(evd) = gram.self_adjoint_eigen(Side::Lower) else {
-            return Vec::new();
+            return Mat::zeros(y.nrows(), 0);
         };
         let (s, v) = (evd.S(), evd.U());
-        let k = basis.len();
         let top = (0..k).map(|i| s[i]).fold(0.0f64, f64::max);
         if !(top > 0.0 && top.is_finite()) {
-            return Vec::new();
+            return Mat::zeros(y.nrows(), 0);
         }
         let cut = if pass == 0 { 1e-12 } else { 1e-15 };
         // The kept eigenvectors scaled by 1 / sqrt(s): basis W is orthonormal.
         let kept: Vec<usize> = (0..k).filter(|&i| s[i] > cut * top).collect();
         let w = Mat::from_fn(k, kept.len(), |j, c| v[(j, kept[c])] / s[kept[c]].sqrt());
-        let mut next = vec![vec![0.0; basis[0].len()]; kept.len()];
-        add_product(&mut next, &basis, &w, 1.0);
+        let mut next = Mat::zeros(basis.nrows(), kept.len());
+        add_product(next.as_mut(), basis.as_ref(), &w, 1.0);
         basis = next;
     }
     basis
@@ -149,11 +139,11 @@ fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
 /// the second is `P F P x_c`. The first adds up to `F x` of the solution,
 /// which the reconstruction needs (its rigid-body part), without another
 /// pass.
-fn apply_block(dual: &Dual, x: &[Vec<f64>]) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
-    let fx = dual.apply_f_block(x);
-    let mut y = fx.clone();
+fn apply_block(dual: &Dual, x: MatRef<'_, f64>) -> (Mat<f64>, Mat<f64>) {
+    let mut y = dual.apply_f_block(&to_cols(x, None));
+    let fx = to_mat(&y);
     dual.project_block(&mut y);
-    (fx, y)
+    (fx, to_mat(&y))
 }
 
 /// What block CG returns: the solutions and their products with `F`.
@@ -174,7 +164,7 @@ fn block_projected_cg(
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
 ) -> Solved {
-    let m = dual.multipliers();
+    let (m, nrhs) = (dual.multipliers(), b.len());
     let mut info = BlockInfo {
         status: Status::Converged,
         iterations: 0,
@@ -184,11 +174,13 @@ fn block_projected_cg(
     };
     let bnorm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
     let mut r = b.to_vec();
-    let (mut x, mut fx) = match x0 {
-        Some(x0) if x0.len() == b.len() && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
-            let (mut fx0, mut ax) = apply_block(dual, &x0);
+    let (x, fx) = match x0 {
+        Some(x0) if x0.len() == nrhs && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
+            let mut ax = dual.apply_f_block(&x0);
+            let mut fx0 = ax.clone();
+            dual.project_block(&mut ax);
             info.passes += 1;
-            info.products += x0.len();
+            info.products += nrhs;
             let mut x0 = x0;
             for (j, (rj, axj)) in r.iter_mut().zip(&mut ax).enumerate() {
                 // A start no better than zero is dropped (as in projected CG);
@@ -204,21 +196,24 @@ fn block_projected_cg(
                     }
                 }
             }
-            (x0, fx0)
+            (to_mat(&x0), to_mat(&fx0))
         }
-        _ => (vec![vec![0.0; m]; b.len()], vec![vec![0.0; m]; b.len()]),
+        _ => (Mat::zeros(m, nrhs), Mat::zeros(m, nrhs)),
     };
+    let (mut x, mut fx, mut r) = (x, fx, to_mat(&r));
     // The columns not yet converged, and the largest relative residual.
-    let open = |r: &[Vec<f64>]| -> (Vec<usize>, f64) {
-        let rel: Vec<f64> = r
-            .iter()
-            .zip(&bnorm)
-            .map(|(rj, bj)| if *bj > 0.0 { norm(rj) / bj } else { 0.0 })
+    let open = |r: &Mat<f64>| -> (Vec<usize>, f64) {
+        let rel: Vec<f64> = (0..nrhs)
+            .map(|j| {
+                if bnorm[j] > 0.0 {
+                    r.col(j).norm_l2() / bnorm[j]
+                } else {
+                    0.0
+                }
+            })
             .collect();
         let worst = rel.iter().copied().fold(0.0f64, f64::max);
-        let open = (0..r.len())
-            .filter(|&j| rel[j] > settings.tolerance)
-            .collect();
+        let open = (0..nrhs).filter(|&j| rel[j] > settings.tolerance).collect();
         (open, worst)
     };
     // z = P M P r of every open column in one pass, or r where M gives no
@@ -230,13 +225,14 @@ fn block_projected_cg(
         dual.preconditioner()
             .map(|pm| ProjectedM::on_image(dual, pm, 1.0))
     };
-    let precondition = |open: &[usize], r: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        let rs: Vec<Vec<f64>> = open.iter().map(|&j| r[j].clone()).collect();
+    let precondition = |open: &[usize], r: &Mat<f64>| -> Mat<f64> {
+        let rs = to_cols(r.as_ref(), Some(open));
         let Some(pm) = &precond else {
-            return rs;
+            return to_mat(&rs);
         };
         let zs = pm.apply_columns(&rs);
-        zs.into_iter()
+        let zs: Vec<Vec<f64>> = zs
+            .into_iter()
             .zip(rs)
             .map(|(z, r)| {
                 let rz = dot(&r, &z);
@@ -246,38 +242,37 @@ fn block_projected_cg(
                     r
                 }
             })
-            .collect()
+            .collect();
+        to_mat(&zs)
     };
-    let z = precondition(&active, &r);
-    let mut p = orthonormal(&z);
+    let mut p = orthonormal(precondition(&active, &r));
     while !active.is_empty() {
-        if p.is_empty() {
+        if p.ncols() == 0 {
             info.status = Status::Breakdown(
                 "the search block lost its rank before the residuals converged".into(),
             );
             break;
         }
-        if info.products + p.len() > settings.max_hessian {
+        if info.products + p.ncols() > settings.max_hessian {
             info.status = Status::MaxIterations;
             break;
         }
         // Q = P F P p = P F p (p is in Im P).
-        let (fp, q) = apply_block(dual, &p);
+        let (fp, q) = apply_block(dual, p.as_ref());
         info.iterations += 1;
         info.passes += 1;
-        info.products += p.len();
-        let mut pq = cross(&p, &q);
-        let pq_t = pq.transpose().to_owned();
-        pq = Mat::from_fn(pq.nrows(), pq.ncols(), |i, j| {
-            0.5 * (pq[(i, j)] + pq_t[(i, j)])
+        info.products += p.ncols();
+        let pq = cross(p.as_ref(), q.as_ref());
+        let pq = Mat::from_fn(pq.nrows(), pq.ncols(), |i, j| {
+            0.5 * (pq[(i, j)] + pq[(j, i)])
         });
-        let Some(alpha) = solve_spd(&pq, cross(&p, &r)) else {
+        let Some(alpha) = solve_spd(&pq, cross(p.as_ref(), r.as_ref())) else {
             info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
             break;
         };
-        add_product(&mut x, &p, &alpha, 1.0);
-        add_product(&mut fx, &fp, &alpha, 1.0);
-        add_product(&mut r, &q, &alpha, -1.0);
+        add_product(x.as_mut(), p.as_ref(), &alpha, 1.0);
+        add_product(fx.as_mut(), fp.as_ref(), &alpha, 1.0);
+        add_product(r.as_mut(), q.as_ref(), &alpha, -1.0);
         let (still, worst) = open(&r);
         info.history.push(worst);
         active = still;
@@ -285,15 +280,19 @@ fn block_projected_cg(
             break;
         }
         let mut y = precondition(&active, &r);
-        let Some(beta) = solve_spd(&pq, cross(&q, &y)) else {
+        let Some(beta) = solve_spd(&pq, cross(q.as_ref(), y.as_ref())) else {
             info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
             break;
         };
         // y - p (P^T A P)^-1 (A p)^T z: A-conjugate to the search block.
-        add_product(&mut y, &p, &beta, -1.0);
-        p = orthonormal(&y);
+        add_product(y.as_mut(), p.as_ref(), &beta, -1.0);
+        p = orthonormal(y);
     }
-    Solved { x, fx, info }
+    Solved {
+        x: to_cols(x.as_ref(), None),
+        fx: to_cols(fx.as_ref(), None),
+        info,
+    }
 }
 
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an equality)
