@@ -6,6 +6,7 @@
 use crate::lang::scene::{LocalF, Preconditioner};
 use crate::lang::{compile, CheckOptions};
 use crate::qp::SmalbeOverrides;
+use crate::sens::{Gradient, GradientError};
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
 use clap::ValueEnum;
@@ -347,7 +348,7 @@ pub fn gradient_costs(
     m: usize,
     tolerance: f64,
     local_f: LocalF,
-) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
+) -> Result<Vec<GradientCost>, GradientError> {
     gradient_costs_of(&scont_with(m), m, tolerance, local_f)
 }
 
@@ -356,7 +357,7 @@ pub fn gradient_costs_3d(
     m: usize,
     tolerance: f64,
     local_f: LocalF,
-) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
+) -> Result<Vec<GradientCost>, GradientError> {
     let n = crate::lang::expr::net_side(m).ok_or_else(|| {
         SolveError::Unsupported(format!("{m} control heights do not form a square net"))
     })?;
@@ -368,32 +369,55 @@ fn gradient_costs_of(
     m: usize,
     tolerance: f64,
     local_f: LocalF,
-) -> Result<Vec<GradientCost>, crate::sens::GradientError> {
+) -> Result<Vec<GradientCost>, GradientError> {
     let mut scene = compile(src, &CheckOptions::default()).map_err(|d| {
         SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
     })?;
     scene.solver.tolerance = tolerance;
     scene.solver.local_f = local_f;
-    let runs = [
-        crate::sens::semi_analytic(&scene, tolerance)?,
-        crate::sens::adjoint(&scene, tolerance)?,
-        crate::sens::finite_difference(&scene, 1e-5, crate::lang::scene::Scheme::Forward)?,
+    type Method = fn(&crate::lang::scene::Scene) -> Result<Gradient, GradientError>;
+    let methods: [Method; 3] = [
+        |s| Ok(crate::sens::semi_analytic(s, s.solver.tolerance)?),
+        |s| Ok(crate::sens::adjoint(s, s.solver.tolerance)?),
+        |s| crate::sens::finite_difference(s, 1e-5, crate::lang::scene::Scheme::Forward),
     ];
-    Ok(runs
-        .into_iter()
-        .map(|g| GradientCost {
-            m,
-            method: g.method,
-            hessian: g
-                .hessian_applications
-                .saturating_sub(g.state_hessian_applications),
-            passes: g.f_passes.saturating_sub(g.state_hessian_applications),
-            seconds: (g.seconds - g.state_seconds).max(0.0),
-            state_hessian: g.state_hessian_applications,
-            state_seconds: g.state_seconds,
-        })
-        .collect())
+    // Each method runs GRADIENT_COST_REPEATS times (its own state solve each
+    // time); the least seconds of each, the gradient's and the state's, are
+    // kept: at a few milliseconds a single run is mostly noise. Hessian
+    // counts are the same every time.
+    let mut costs = Vec::with_capacity(methods.len());
+    let mut state_seconds = f64::INFINITY;
+    for method in methods {
+        let mut best: Option<GradientCost> = None;
+        for _ in 0..GRADIENT_COST_REPEATS {
+            let g = method(&scene)?;
+            state_seconds = state_seconds.min(g.state_seconds);
+            let cost = GradientCost {
+                m,
+                method: g.method,
+                hessian: g
+                    .hessian_applications
+                    .saturating_sub(g.state_hessian_applications),
+                passes: g.f_passes.saturating_sub(g.state_hessian_applications),
+                seconds: (g.seconds - g.state_seconds).max(0.0),
+                state_hessian: g.state_hessian_applications,
+                state_seconds: g.state_seconds,
+            };
+            if best.as_ref().is_none_or(|b| cost.seconds < b.seconds) {
+                best = Some(cost);
+            }
+        }
+        costs.extend(best);
+    }
+    for c in &mut costs {
+        c.state_seconds = state_seconds;
+    }
+    Ok(costs)
 }
+
+/// Runs of each method per row of the gradient-cost benchmark (the least
+/// seconds are reported).
+pub const GRADIENT_COST_REPEATS: usize = 5;
 
 /// One optimization run of the reuse benchmark: what it reused and its iterates.
 #[derive(Debug, Clone, Serialize)]

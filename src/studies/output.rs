@@ -162,9 +162,10 @@ pub fn compare_cells(r: &CompareRow) -> String {
 /// The header of `cso bench sensitivity`.
 pub fn gradient_costs_header(threads: usize, tolerance: f64) -> String {
     format!(
-        "threads {threads}, tolerance {tolerance:e}\n\
+        "threads {threads}, tolerance {tolerance:e}, seconds the least of {} runs\n\
          | m | method | Hessian beyond the state | ratio | F passes beyond the state | ratio | seconds beyond the state | ratio |\n\
-         |---|---|---|---|---|---|---|---|"
+         |---|---|---|---|---|---|---|---|",
+        crate::studies::bench::GRADIENT_COST_REPEATS
     )
 }
 
