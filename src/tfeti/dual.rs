@@ -122,6 +122,11 @@ impl Dual {
         self.exact_kernels = false;
     }
 
+    /// Whether the kernels are exact (TFETI), see [`ProjectedF::on_image`].
+    pub fn exact_kernels(&self) -> bool {
+        self.exact_kernels
+    }
+
     /// What the coarse problem cost so far.
     pub fn coarse_stats(&self) -> CoarseStats {
         CoarseStats {

@@ -10,12 +10,14 @@ use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
 /// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
-/// `u = K^+ (f - B^T l) + R alpha`.
+/// `u = K^+ (f - B^T l) + R alpha`. `f_lambda`: `F l` where the solver
+/// carried it (else one more application of `F`).
 pub(crate) fn reconstruct(
     dual: &Dual,
     f: &[&[f64]],
     n_equality: usize,
     lambda: &[f64],
+    f_lambda: Option<Vec<f64>>,
     d: &[f64],
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>), SolveError> {
     let m = lambda.len();
@@ -25,8 +27,11 @@ pub(crate) fn reconstruct(
     let active: Vec<bool> = (0..m)
         .map(|i| i < n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
         .collect();
-    let mut fl = vec![0.0; m];
-    dual.apply_f(lambda, &mut fl);
+    let fl = f_lambda.filter(|fl| fl.len() == m).unwrap_or_else(|| {
+        let mut fl = vec![0.0; m];
+        dual.apply_f(lambda, &mut fl);
+        fl
+    });
     let mut alpha = kernel_coefficients(dual, &active, &[fl], std::slice::from_ref(&d))?;
     let alpha = alpha.pop().unwrap_or_default();
     let u = dual.cluster().primal(f, lambda, &alpha);

@@ -105,9 +105,11 @@ pub fn dual_solve_from(
         let x0 = start
             .filter(|s| s.lambda.len() == m)
             .and_then(|s| homogenized_start(dual, &s.lambda, &l_tilde));
-        let (lhat, info) = projected_cg(dual, &b, settings, x0);
+        let (lhat, f_lhat, info) = projected_cg(dual, &b, settings, x0);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
-        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d)?;
+        // F lambda = F l~ (the homogenization's) + F l^ (CG's recurrence).
+        let f_lambda = f_lhat.map(|fx| fx.iter().zip(&fl).map(|(a, b)| a + b).collect());
+        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, f_lambda, &d)?;
         return Ok(DualSolution {
             lambda,
             u,
@@ -222,7 +224,7 @@ pub fn dual_solve_from(
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
-    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, &d).map_err(|e| match e {
+    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, None, &d).map_err(|e| match e {
         SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
             SolveError::Undetermined {
                 modes,
@@ -246,7 +248,9 @@ pub fn dual_solve_from(
 /// the test still on the plain residual; the preconditioner is fetched (a
 /// deferred one built) only when the start leaves something to iterate. From
 /// a multiple of `x0` (in Im P) instead when given, see [`galerkin_start`]
-/// (a warm start; one more application).
+/// (a warm start; one more application). Returns `x`, `F x` by the same
+/// recurrence where the kernels are exact (TFETI: the search directions are
+/// applied as they are, not projected first; else None) and what it did.
 ///
 /// # Reference
 /// Dostál 2009, ch. 6 (SMALE with the projector: the equality constraint is
@@ -256,12 +260,25 @@ fn projected_cg(
     b: &[f64],
     settings: &SmalbeSettings,
     x0: Option<Vec<f64>>,
-) -> (Vec<f64>, QpInfo) {
+) -> (Vec<f64>, Option<Vec<f64>>, QpInfo) {
     let m = b.len();
-    // b, the residuals and the search directions stay in Im P.
+    // b, the residuals and the search directions stay in Im P: with exact
+    // kernels P F p is F p projected, and F p adds up to F x.
     let a = ProjectedF::on_image(dual, 1.0);
+    let exact = dual.exact_kernels();
+    let apply = |p: &[f64], fp: &mut [f64], ap: &mut [f64]| {
+        if exact {
+            dual.apply_f(p, fp);
+            ap.copy_from_slice(fp);
+            dual.project(ap);
+        } else {
+            crate::qp::Operator::apply(&a, p, ap);
+        }
+    };
     let bnorm = norm(b);
     let mut x = vec![0.0; m];
+    let mut fx = vec![0.0; m];
+    let mut fp = vec![0.0; m];
     let mut r = b.to_vec();
     let mut info = QpInfo {
         status: Status::Converged,
@@ -274,15 +291,16 @@ fn projected_cg(
         norm_estimate: f64::NAN,
     };
     if bnorm == 0.0 {
-        return (x, info);
+        return (x, exact.then_some(fx), info);
     }
     if let Some(mut x0) = x0.filter(|v| v.len() == m) {
         let mut ax = vec![0.0; m];
-        crate::qp::Operator::apply(&a, &x0, &mut ax);
+        apply(&x0, &mut fp, &mut ax);
         info.hessian_applications += 1;
-        if let Some((r0, _)) = galerkin_start(b, &mut x0, &mut ax) {
+        if let Some((r0, s)) = galerkin_start(b, &mut x0, &mut ax) {
             x = x0;
             r = r0;
+            fx.iter_mut().zip(&fp).for_each(|(a, b)| *a = s * b);
         }
     }
     let mut rr: f64 = r.iter().map(|v| v * v).sum();
@@ -314,7 +332,7 @@ fn projected_cg(
             info.status = Status::MaxIterations;
             break;
         }
-        crate::qp::Operator::apply(&a, &p, &mut ap);
+        apply(&p, &mut fp, &mut ap);
         info.hessian_applications += 1;
         info.inner_iterations += 1;
         let pap: f64 = p.iter().zip(&ap).map(|(x, y)| x * y).sum();
@@ -325,6 +343,7 @@ fn projected_cg(
         let alpha = rz / pap;
         for k in 0..m {
             x[k] += alpha * p[k];
+            fx[k] += alpha * fp[k];
             r[k] -= alpha * ap[k];
         }
         rr = r.iter().map(|v| v * v).sum();
@@ -338,7 +357,7 @@ fn projected_cg(
         info.history.push(rr.sqrt() / bnorm);
     }
     info.projected_gradient = rr.sqrt();
-    (x, info)
+    (x, exact.then_some(fx), info)
 }
 
 /// The start `P (l0 - l~)` of a CG on `P F P` from multipliers `l0` (`l~`
