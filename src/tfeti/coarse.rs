@@ -497,6 +497,24 @@ impl CoarseFactor {
         self.solve_l(z);
         self.solve_lt(z);
     }
+
+    /// [`Self::solve`] of every column: with a dense factor one blocked
+    /// triangular solve each way for all of them (a projection of a block
+    /// solved its columns one at a time, each a 48 x 48 solve dominated by
+    /// faer's per-call overhead on scont2d).
+    pub fn solve_columns(&self, zs: &mut [Vec<f64>]) {
+        match &self.factor {
+            Factor::Dense(l) if zs.len() > 1 => {
+                let mut z = Mat::from_fn(self.n, zs.len(), |i, j| zs[j][i]);
+                solve_lower_triangular_in_place(l.as_ref(), z.as_mut(), Par::Seq);
+                solve_upper_triangular_in_place(l.as_ref().transpose(), z.as_mut(), Par::Seq);
+                for (j, zj) in zs.iter_mut().enumerate() {
+                    zj.iter_mut().enumerate().for_each(|(i, v)| *v = z[(i, j)]);
+                }
+            }
+            _ => zs.iter_mut().for_each(|z| self.solve(z)),
+        }
+    }
 }
 
 /// faer's sparse Cholesky of `a` (its upper triangle) with the AMD ordering,

@@ -279,9 +279,7 @@ impl Dual {
         }
         let t0 = Instant::now();
         let mut zs = coarse::apply_g_columns(&self.cluster, xs);
-        for z in &mut zs {
-            self.coarse.solve(z);
-        }
+        self.coarse.solve_columns(&mut zs);
         coarse::sub_gt_columns(&self.cluster, &zs, xs);
         self.projections.fetch_add(xs.len(), Ordering::Relaxed);
         self.add_coarse_apply(t0);
