@@ -16,8 +16,11 @@ pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::{DualSolution, DualStart};
 use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, SymbolicCache};
+use active_set::Outcome;
 use rayon::prelude::*;
 use std::sync::Arc;
+
+mod active_set;
 use std::time::Instant;
 
 /// Wall time of each phase, seconds.
@@ -58,6 +61,9 @@ pub struct State {
     pub factorizations: Factorizations,
     /// Whether the dual solve started from a previous state's multipliers.
     pub warm_started: bool,
+    /// Whether the state is the solution on a predicted active set (a warm
+    /// start's `on_active_set`, kept by its KKT check) rather than SMALBE's.
+    pub on_active_set: bool,
     /// SMALBE's state at the end of the dual solve and `||P F P||` (contact
     /// scenes), for a warm start at the next design.
     pub end: Option<(SmalbeWarm, f64)>,
@@ -68,7 +74,9 @@ pub struct State {
 /// Every part changes the path of the dual solve, never its stopping test.
 ///
 /// The default is what measured best (`cso bench optimize`, BENCHMARKS.md):
-/// the multipliers with their active set, SMALBE's `mu` and the norm
+/// a solve on the previous active set first (kept only where it satisfies
+/// the contact problem's KKT conditions), and for SMALBE where it is not
+/// kept, the multipliers with their active set, SMALBE's `mu` and the norm
 /// estimates. Carrying `M` or starting `eta` from the previous final gradient
 /// made every warm solve dearer on scont2d (`M` has been halved ten times by
 /// the end of a solve, so the inner solves of the next one start far too
@@ -89,6 +97,10 @@ pub struct WarmStart {
     pub norms: bool,
     /// The first inner tolerance from the previous final gradient.
     pub eta: bool,
+    /// Solve on the previous active set first (contacts that carried load
+    /// held as equalities, the others left out; one projected CG), kept when
+    /// it satisfies the contact problem's KKT conditions (see `active_set`).
+    pub on_active_set: bool,
 }
 
 impl WarmStart {
@@ -100,6 +112,7 @@ impl WarmStart {
         precision: false,
         norms: false,
         eta: false,
+        on_active_set: false,
     };
     /// The previous multipliers only (SMALBE's own state from scratch).
     pub const MULTIPLIERS: WarmStart = WarmStart {
@@ -108,12 +121,19 @@ impl WarmStart {
     };
     /// What measured best: everything but `M` and `eta`.
     pub const BEST: WarmStart = WarmStart {
+        on_active_set: true,
+        ..WarmStart::SMALBE
+    };
+    /// SMALBE from the previous state (the best of it, everything but `M`
+    /// and `eta`), no solve on the active set first.
+    pub const SMALBE: WarmStart = WarmStart {
         multipliers: true,
         active_set: true,
         mu: true,
         precision: false,
         norms: true,
         eta: false,
+        on_active_set: false,
     };
 }
 
@@ -698,8 +718,31 @@ fn solve_on(
         })
     });
     let warm_started = start.is_some();
-    let sol = system
-        .solve(
+    // On the previous active set first, where asked (TFETI, one process).
+    let mut spent = (0, 0);
+    let mut kept_on_active_set = false;
+    let on_active_set = match (warm.on_active_set, &start, &system) {
+        (true, Some(s), DualSystem::Total(full)) => {
+            match active_set::solve(scene, &problem, full, &s.lambda, &f, &c, &settings) {
+                Outcome::Kept(mut sol, applications) => {
+                    // SMALBE's state stays the previous solve's, for a later
+                    // design whose active set changes.
+                    sol.end = previous.and_then(|p| p.end.clone());
+                    spent = (0, applications);
+                    kept_on_active_set = true;
+                    Some(*sol)
+                }
+                Outcome::Refused(hessian, applications) => {
+                    spent = (hessian, applications);
+                    None
+                }
+            }
+        }
+        _ => None,
+    };
+    let solved = match on_active_set {
+        Some(sol) => Ok(sol),
+        None => system.solve(
             &f,
             &c,
             problem.n_equality,
@@ -707,8 +750,9 @@ fn solve_on(
             &settings,
             start.as_ref(),
             observer,
-        )
-        .map_err(|e| match e {
+        ),
+    };
+    let sol = solved.map_err(|e| match e {
             SolveError::Undetermined { modes, stopped } => {
                 let mut names = name_modes(&problem, system.dual().cluster(), &modes).join("; ");
                 if names.is_empty() {
@@ -731,12 +775,14 @@ fn solve_on(
         lambda,
         u,
         alpha,
-        info,
+        mut info,
         b_norm,
         end,
     } = sol;
+    // A refused attempt on the active set counts with the solve.
+    info.hessian_applications += spent.0;
     let t = Instant::now();
-    let f_applications = system.f_applications();
+    let f_applications = system.f_applications() + spent.1;
     let multipliers = system.multipliers();
     let dual = match (dual, system) {
         (Some(d), _) | (None, DualSystem::Total(d)) => d,
@@ -760,6 +806,7 @@ fn solve_on(
         b_norm,
         factorizations,
         warm_started,
+        on_active_set: kept_on_active_set,
         end,
     })
 }

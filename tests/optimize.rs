@@ -328,3 +328,73 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
         d_cold.hessian_applications
     );
 }
+
+#[test]
+fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
+    use cso::state::{solve, solve_reusing, State, WarmStart};
+    let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
+    let s = compile(&src, &options()).expect("checks");
+    let tol = s.solver.tolerance;
+    let x0 = s.design_init();
+    let first = solve(&s, &x0, &mut |_| {}).expect("solves");
+    // The warm state is the cold one's: compliance and contact multipliers to
+    // the tolerance, and the contact problem's KKT residuals.
+    let agree = |warm: &State, cold: &State, what: &str| {
+        let (a, b) = (cold.compliance(), warm.compliance());
+        assert!((a - b).abs() <= 10.0 * tol * a.abs(), "{what}: {a} vs {b}");
+        let n = cold.problem.n_equality;
+        let lmax = cold.lambda[n..].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        let diff = cold.lambda[n..]
+            .iter()
+            .zip(&warm.lambda[n..])
+            .fold(0.0f64, |m, (p, q)| m.max((p - q).abs()));
+        assert!(
+            diff <= 1e-4 * lmax,
+            "{what}: contact multipliers off by {diff:e} of {lmax:e}"
+        );
+        let worst = (10.0 * tol).max(2.0 * cold.kkt.worst());
+        assert!(warm.kkt.worst() <= worst, "{what}: {:?}", warm.kkt);
+    };
+    // A small step keeps the active set: kept, for fewer applications than
+    // SMALBE from the same start. A flat face touches along its whole
+    // length, where the middle touched before: the set is corrected or
+    // SMALBE takes over, and either way the state is the cold one's.
+    let near: Vec<f64> = x0.iter().map(|v| v + 0.002).collect();
+    let flat = vec![0.02; x0.len()];
+    for (x, what) in [(&near, "a small step"), (&flat, "a flat face")] {
+        let cold = solve(&s, x, &mut |_| {}).expect("solves");
+        let smalbe = solve_reusing(&s, x, Some(&first), true, WarmStart::SMALBE, &mut |_| {})
+            .expect("solves");
+        let warm = solve_reusing(&s, x, Some(&first), true, WarmStart::default(), &mut |_| {})
+            .expect("solves");
+        assert!(!smalbe.on_active_set && warm.warm_started, "{what}");
+        agree(&smalbe, &cold, what);
+        agree(&warm, &cold, what);
+        if what == "a small step" {
+            assert!(warm.on_active_set, "{what}: not kept");
+            assert!(
+                warm.info.hessian_applications < smalbe.info.hessian_applications,
+                "{what}: {} vs SMALBE's {}",
+                warm.info.hessian_applications,
+                smalbe.info.hessian_applications
+            );
+        }
+    }
+    // A previous state whose contacts carried nothing: on that set the punch
+    // is free to move vertically (no coarse problem), so SMALBE solves it.
+    let mut open = solve(&s, &x0, &mut |_| {}).expect("solves");
+    let n = open.problem.n_equality;
+    open.lambda[n..].iter_mut().for_each(|l| *l = 0.0);
+    let cold = solve(&s, &near, &mut |_| {}).expect("solves");
+    let warm = solve_reusing(
+        &s,
+        &near,
+        Some(&open),
+        true,
+        WarmStart::default(),
+        &mut |_| {},
+    )
+    .expect("solves");
+    assert!(warm.warm_started && !warm.on_active_set);
+    agree(&warm, &cold, "no contact held");
+}

@@ -483,7 +483,7 @@ pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
         warm: w,
         warm_adjoint: false,
     };
-    let best = WarmStart::BEST;
+    let smalbe = WarmStart::SMALBE;
     vec![
         ("cold (full refactorization, cold start)", Reuse::COLD),
         (
@@ -505,21 +505,35 @@ pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
             "warm: multipliers, active set, mu",
             warm(WarmStart {
                 norms: false,
-                ..best
+                ..smalbe
             }),
         ),
+        ("warm: multipliers, active set, mu, norms", warm(smalbe)),
         (
-            "warm: multipliers, active set, mu, norms (default)",
-            warm(best),
-        ),
-        (
-            "warm: default + M",
+            "warm: that + M",
             warm(WarmStart {
                 precision: true,
-                ..best
+                ..smalbe
             }),
         ),
-        ("warm: default + eta", warm(WarmStart { eta: true, ..best })),
+        (
+            "warm: that + eta",
+            warm(WarmStart {
+                eta: true,
+                ..smalbe
+            }),
+        ),
+        (
+            "warm: the previous active set solved first, then SMALBE as above (default)",
+            warm(WarmStart::BEST),
+        ),
+        (
+            "partial refactorization + warm, SMALBE only",
+            Reuse {
+                warm: smalbe,
+                ..Reuse::default()
+            },
+        ),
         ("partial refactorization + warm (default)", Reuse::default()),
     ]
 }
@@ -556,6 +570,13 @@ pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
             "partial refactorization + warm state solve",
             Reuse {
                 warm_adjoint: false,
+                ..Reuse::default()
+            },
+        ),
+        (
+            "partial refactorization + warm state (SMALBE only) and adjoint solves",
+            Reuse {
+                warm: crate::state::WarmStart::SMALBE,
                 ..Reuse::default()
             },
         ),

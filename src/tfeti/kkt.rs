@@ -39,6 +39,15 @@ impl Kkt {
     }
 }
 
+/// What the rows' residuals `B u - c` are measured against: `max(||c||,
+/// 1e-3 rms(u))` (`u_norm = ||u||`).
+pub fn gap_scale(problem: &Problem, u_norm: f64) -> f64 {
+    let c_norm = norm(&problem.rows.iter().map(|r| r.c).collect::<Vec<_>>());
+    c_norm
+        .max(1e-3 * u_norm / (problem.primal_dofs() as f64).sqrt())
+        .max(f64::MIN_POSITIVE)
+}
+
 /// KKT residuals of the primal problem at `(u, l)`.
 pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
     let cluster = dual.cluster();
@@ -57,10 +66,7 @@ pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kk
         }
     }
     let bu = cluster.apply_b(u);
-    let c_norm = norm(&problem.rows.iter().map(|r| r.c).collect::<Vec<_>>());
-    let scale_u = c_norm
-        .max(1e-3 * u2.sqrt() / (problem.primal_dofs() as f64).sqrt())
-        .max(f64::MIN_POSITIVE);
+    let scale_u = gap_scale(problem, u2.sqrt());
     let lmax = lambda
         .iter()
         .fold(0.0f64, |a, b| a.max(b.abs()))

@@ -1,0 +1,155 @@
+//! A warm state solve on a predicted active set. The contact rows that carried
+//! load at the previous design are held as equalities, the others are left
+//! out, and that equality-only problem is solved by projected CG from the
+//! previous multipliers (what SMALE does for the sensitivities). Its answer is
+//! the contact problem's solution exactly when the KKT conditions that the
+//! equality solve does not impose hold too: no held contact pulls (a negative
+//! multiplier) and no row left out is penetrated. Then it is kept. Where one
+//! fails, the rows that pull are let go and the rows penetrated are held (a
+//! primal-dual active set step), and the solve is repeated from the last
+//! multipliers, a few times at most; after that SMALBE solves the contact
+//! problem from the original warm start, and the work spent here counts with
+//! it.
+//!
+//! Why: after an optimizer's step the active set changes little, and the
+//! state's multipliers move by the order of the step. A projected CG from such
+//! a start converges in a few iterations, whereas SMALBE's outer loop (the
+//! balance `G l = e` by an augmented Lagrangian) takes a dozen outer
+//! iterations even from a nearly exact start (BENCHMARKS.md, optimization).
+//!
+//! # Reference
+//! M. Hintermüller, K. Ito, K. Kunisch, "The primal-dual active set strategy as
+//! a semismooth Newton method", SIAM J. Optim. 13 (2003) 865-888.
+
+use crate::lang::scene::Scene;
+use crate::model::{Problem, Row};
+use crate::qp::{QpInfo, SmalbeSettings, Status};
+use crate::tfeti::classical::DualSystem;
+use crate::tfeti::dual::Dual;
+use crate::tfeti::kkt::{gap_scale, kkt};
+use crate::tfeti::precond::Kind;
+use crate::tfeti::schur::SchurForm;
+use crate::tfeti::solve::{DualSolution, DualStart};
+
+/// Active sets tried before SMALBE takes over: the predicted one and two
+/// corrections.
+const ATTEMPTS: usize = 3;
+
+/// What the attempt gave.
+pub(super) enum Outcome {
+    /// The solution of the contact problem (multipliers of every row; its
+    /// Hessian applications those of every attempt), and the applications
+    /// of `F` it took in all.
+    Kept(Box<DualSolution>, usize),
+    /// No solution found this way: the Hessian applications and
+    /// applications of `F` spent.
+    Refused(usize, usize),
+}
+
+/// Solves the state on the rows `problem` holds as equalities and the contact
+/// rows with a positive multiplier in `previous` (one per row of `problem`),
+/// correcting that set where the KKT conditions on every row of `dual` fail;
+/// keeps the first solution whose sign and penetration residuals are within
+/// the tolerance of `settings`. The dual preconditioner is the scene's,
+/// Dirichlet where it asks for none: its Schur complements are formed once
+/// per subdomain and kept with it (`Subdomain::schur`), so across an
+/// optimization only the subdomains the design moves form theirs again, and
+/// on scont_large it takes a third fewer applications than lumped
+/// (BENCHMARKS.md).
+pub(super) fn solve(
+    scene: &Scene,
+    problem: &Problem,
+    dual: &Dual,
+    previous: &[f64],
+    f: &[&[f64]],
+    c: &[f64],
+    settings: &SmalbeSettings,
+) -> Outcome {
+    let (n_eq, m) = (problem.n_equality, problem.rows.len());
+    if previous.len() != m || n_eq == m || dual.cluster().is_distributed() {
+        return Outcome::Refused(0, 0);
+    }
+    let tol = settings.tolerance;
+    let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
+    let mut held: Vec<bool> = (0..m)
+        .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
+        .collect();
+    let mut start = previous.to_vec();
+    let (mut hessian, mut applications) = (0, 0);
+    for _ in 0..ATTEMPTS {
+        let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
+        let rows: Vec<&Row> = kept.iter().map(|&i| &problem.rows[i]).collect();
+        // Rigid motions that only the contacts left out would hold: not
+        // this way.
+        let Ok(mut system) = DualSystem::new(dual.cluster(), &rows, kept.len(), None) else {
+            break;
+        };
+        let kind = crate::state::preconditioner(scene).or(Some(Kind::Dirichlet));
+        system.defer_preconditioner(kind, kept.len(), SchurForm::Auto);
+        let from = DualStart {
+            lambda: kept.iter().map(|&i| start[i]).collect(),
+            ..DualStart::default()
+        };
+        let c_kept: Vec<f64> = kept.iter().map(|&i| c[i]).collect();
+        let solved = system.solve(
+            f,
+            &c_kept,
+            kept.len(),
+            true,
+            settings,
+            Some(&from),
+            &mut |_| {},
+        );
+        applications += system.f_applications();
+        let sol = match solved {
+            Ok(sol) => sol,
+            Err(_) => break,
+        };
+        hessian += sol.info.hessian_applications;
+        if sol.info.status != Status::Converged {
+            break;
+        }
+        let mut lambda = vec![0.0; m];
+        for (k, &i) in kept.iter().enumerate() {
+            lambda[i] = sol.lambda[k];
+        }
+        let check = kkt(problem, dual, &sol.u, &lambda);
+        if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
+            let info = QpInfo {
+                outer_iterations: 0,
+                hessian_applications: hessian,
+                ..sol.info
+            };
+            let sol = DualSolution {
+                lambda,
+                info,
+                end: None,
+                ..sol
+            };
+            return Outcome::Kept(Box::new(sol), applications);
+        }
+        // Let go of the rows that pull, hold the rows penetrated, as the KKT
+        // check measures them.
+        let bu = dual.cluster().apply_b(&sol.u);
+        let u_norm = sol.u.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+        let scale = gap_scale(problem, u_norm);
+        let lmax = lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+        let mut changed = false;
+        for i in n_eq..m {
+            let (pulls, penetrated) = (
+                lambda[i] < -tol * lmax,
+                bu[i] - problem.rows[i].c > tol * scale,
+            );
+            if (held[i] && pulls) || (!held[i] && penetrated) {
+                held[i] = !held[i];
+                changed = true;
+            }
+        }
+        if !changed {
+            break;
+        }
+        start = lambda.iter().map(|l| l.max(0.0)).collect();
+        start[..n_eq].copy_from_slice(&lambda[..n_eq]);
+    }
+    Outcome::Refused(hessian, applications)
+}
