@@ -8,10 +8,12 @@
 //!
 //! From the second design on, each iterate reuses the previous one ([`Reuse`]):
 //! subdomains whose nodes did not move keep their factorizations (the moved
-//! ones refactor on their symbolic factorization), the state solve starts from
-//! the previous multipliers, active set and SMALBE state
-//! ([`crate::state::WarmStart`]), and adjoint solves from the previous
-//! adjoints. Each changes the path of a solve, never its tolerance.
+//! ones refactor on their symbolic factorization), the state is solved first
+//! on the previous active set (kept only where it satisfies the contact
+//! problem's KKT conditions), else by SMALBE from the previous multipliers,
+//! active set and SMALBE state ([`crate::state::WarmStart`]), and adjoint
+//! solves start from the previous adjoints. Each changes the path of a solve,
+//! never its tolerance.
 
 pub mod mma;
 
