@@ -32,10 +32,10 @@ use super::schur::{Schur, SchurForm};
 use super::sparse::{
     llt_numeric, llt_solve_block, solve_scratch, symbolic_amd, SymbolicCache, UpperCsc,
 };
+use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use rayon::prelude::*;
-use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
 /// Which dual preconditioner.
@@ -151,6 +151,9 @@ struct Scaling {
     l_values: Vec<f64>,
     /// `1 / d` of the rows that overlap none, where `d` is not 1.
     scale: Vec<(usize, f64)>,
+    /// Work space of a one-column solve (the gathered rows, the factor's
+    /// scratch): single applications are the CG solves' and SMALBE's.
+    work: Mutex<(Vec<f64>, MemBuffer)>,
 }
 
 impl Scaling {
@@ -160,29 +163,38 @@ impl Scaling {
             return None;
         }
         // B_E B_E^T = sum_s B_s B_s^T: rows overlap only through a shared dof
-        // of one subdomain. Upper triangle, summed in subdomain order.
-        let mut entries: BTreeMap<(usize, usize), f64> = BTreeMap::new();
+        // of one subdomain. Upper triangle, summed in subdomain order (the
+        // sorts are stable).
+        let mut products: Vec<(usize, usize, f64)> = Vec::new();
+        let mut by_dof: Vec<(usize, usize, f64)> = Vec::new();
         for s in 0..cluster.len() {
             let lr = cluster.local_rows(s);
-            let mut by_dof: BTreeMap<usize, Vec<(usize, f64)>> = BTreeMap::new();
-            for &(k, d, v) in &lr.entries {
+            by_dof.clear();
+            by_dof.extend(lr.entries.iter().filter_map(|&(k, d, v)| {
                 let row = lr.rows[k];
-                if row < n {
-                    by_dof.entry(d).or_default().push((row, v));
-                }
-            }
-            for list in by_dof.values() {
-                for &(r1, v1) in list {
-                    for &(r2, v2) in list {
+                (row < n).then_some((d, row, v))
+            }));
+            by_dof.sort_by_key(|e| e.0);
+            for list in by_dof.chunk_by(|a, b| a.0 == b.0) {
+                for &(_, r1, v1) in list {
+                    for &(_, r2, v2) in list {
                         if r1 <= r2 {
-                            *entries.entry((r1, r2)).or_default() += v1 * v2;
+                            products.push((r1, r2, v1 * v2));
                         }
                     }
                 }
             }
         }
+        products.sort_by_key(|p| (p.0, p.1));
+        let mut entries: Vec<((usize, usize), f64)> = Vec::new();
+        for (r1, r2, v) in products {
+            match entries.last_mut() {
+                Some((key, sum)) if *key == (r1, r2) => *sum += v,
+                _ => entries.push(((r1, r2), v)),
+            }
+        }
         let mut overlaps = vec![false; n];
-        for &(r1, r2) in entries.keys().filter(|(r1, r2)| r1 != r2) {
+        for &((r1, r2), _) in entries.iter().filter(|((r1, r2), _)| r1 != r2) {
             overlaps[r1] = true;
             overlaps[r2] = true;
         }
@@ -191,7 +203,7 @@ impl Scaling {
         coupled.iter().enumerate().for_each(|(i, &r)| at[r] = i);
         let mut scale = Vec::new();
         let mut triplets = Vec::new();
-        for (&(r1, r2), &v) in &entries {
+        for &((r1, r2), v) in &entries {
             if overlaps[r1] {
                 triplets.push(Triplet::new(at[r1], at[r2], v));
             } else if !(v > 0.0 && v.is_finite()) {
@@ -202,12 +214,7 @@ impl Scaling {
         }
         // A row of no subdomain's dof (none in the models we lower) is a zero
         // row: B_E B_E^T is singular.
-        let diagonal: std::collections::BTreeSet<usize> = entries
-            .keys()
-            .filter(|(r1, r2)| r1 == r2)
-            .map(|k| k.0)
-            .collect();
-        if diagonal.len() < n {
+        if entries.iter().filter(|((r1, r2), _)| r1 == r2).count() < n {
             return None;
         }
         let (symbolic, l_values) = if coupled.is_empty() {
@@ -222,11 +229,19 @@ impl Scaling {
         };
         // The rows are normalized, so the diagonal is 1; a pivot far below it
         // means dependent rows, and W would amplify round-off.
+        let work = Mutex::new((
+            vec![0.0; coupled.len()],
+            match &symbolic {
+                Some(sym) => solve_scratch(sym, 1),
+                None => MemBuffer::new(faer::dyn_stack::StackReq::EMPTY),
+            },
+        ));
         let scaling = Scaling {
             coupled,
             symbolic,
             l_values,
             scale,
+            work,
         };
         let mut probe = vec![vec![1.0; n]];
         scaling.solve_block(&mut probe);
@@ -262,9 +277,19 @@ impl Scaling {
         }
     }
 
-    /// [`Self::solve_block`] of one column.
+    /// [`Self::solve_block`] of one column, in the held work space.
     fn solve(&self, x: &mut [f64]) {
-        self.solve_block(&mut [x]);
+        for &(r, s) in &self.scale {
+            x[r] *= s;
+        }
+        let Some(symbolic) = &self.symbolic else {
+            return;
+        };
+        let mut guard = lock(&self.work);
+        let (t, buf) = &mut *guard;
+        self.coupled.iter().zip(t.iter_mut()).for_each(|(&r, v)| *v = x[r]);
+        llt_solve_block(symbolic, &self.l_values, t, 1, buf);
+        self.coupled.iter().zip(t.iter()).for_each(|(&r, v)| x[r] = *v);
     }
 }
 
