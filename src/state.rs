@@ -16,6 +16,7 @@ pub use crate::tfeti::kkt::Kkt;
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::{DualSolution, DualStart};
 use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, SymbolicCache};
+pub use active_set::KeptDual;
 use active_set::Outcome;
 use rayon::prelude::*;
 use std::sync::Arc;
@@ -64,6 +65,8 @@ pub struct State {
     /// Whether the state is the solution on a predicted active set (a warm
     /// start's `on_active_set`, kept by its KKT check) rather than SMALBE's.
     pub on_active_set: bool,
+    /// The equality-only dual it was solved on, if so.
+    pub kept_dual: Option<Arc<KeptDual>>,
     /// SMALBE's state at the end of the dual solve and `||P F P||` (contact
     /// scenes), for a warm start at the next design.
     pub end: Option<(SmalbeWarm, f64)>,
@@ -720,16 +723,16 @@ fn solve_on(
     let warm_started = start.is_some();
     // On the previous active set first, where asked (TFETI, one process).
     let mut spent = (0, 0);
-    let mut kept_on_active_set = false;
+    let mut kept_dual = None;
     let on_active_set = match (warm.on_active_set, &start, &system) {
         (true, Some(s), DualSystem::Total(full)) => {
             match active_set::solve(scene, &problem, full, &s.lambda, &f, &c, &settings) {
-                Outcome::Kept(mut sol, applications) => {
+                Outcome::Kept(mut sol, applications, dual) => {
                     // SMALBE's state stays the previous solve's, for a later
                     // design whose active set changes.
                     sol.end = previous.and_then(|p| p.end.clone());
                     spent = (0, applications);
-                    kept_on_active_set = true;
+                    kept_dual = Some(Arc::new(dual));
                     Some(*sol)
                 }
                 Outcome::Refused(hessian, applications) => {
@@ -806,7 +809,8 @@ fn solve_on(
         b_norm,
         factorizations,
         warm_started,
-        on_active_set: kept_on_active_set,
+        on_active_set: kept_dual.is_some(),
+        kept_dual,
         end,
     })
 }

@@ -30,7 +30,7 @@ use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::DualStart;
 use num_dual::{Dual64, DualNum};
 use rayon::prelude::*;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 use std::time::Instant;
 
 type D = Dual64;
@@ -458,7 +458,8 @@ pub struct Sensitivity<'a> {
     /// State rows kept (equalities and strong contacts first, weak after).
     pub kept: Vec<usize>,
     pub n_equality: usize,
-    dual: DualSystem,
+    /// Built here, or the state's own where it was solved on these rows.
+    dual: Arc<DualSystem>,
     /// `K u` of the state per subdomain (energy derivatives need it per direction).
     ku: Vec<Vec<f64>>,
     /// The right-hand sides' linearization, made on first use.
@@ -506,6 +507,26 @@ impl<'a> Sensitivity<'a> {
             .collect();
         let n_equality = kept.len();
         kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
+        // The state solved on exactly these rows (an optimization's warm
+        // state on the previous active set): its dual, coarse problem and
+        // preconditioner serve here too.
+        let shared = state
+            .kept_dual
+            .as_ref()
+            .filter(|k| k.rows == kept && n_equality == kept.len());
+        if let Some(k) = shared {
+            return Ok(Sensitivity {
+                scene,
+                state,
+                classes,
+                kept,
+                n_equality,
+                dual: Arc::clone(&k.system),
+                ku: state.dual.cluster().apply_k(&state.u),
+                tape: OnceLock::new(),
+                jacobians: OnceLock::new(),
+            });
+        }
         let rows: Vec<&crate::model::Row> = kept.iter().map(|&i| &state.problem.rows[i]).collect();
         let mut dual = DualSystem::new(
             state.dual.cluster(),
@@ -521,7 +542,7 @@ impl<'a> Sensitivity<'a> {
             classes,
             kept,
             n_equality,
-            dual,
+            dual: Arc::new(dual),
             ku: state.dual.cluster().apply_k(&state.u),
             tape: OnceLock::new(),
             jacobians: OnceLock::new(),

@@ -30,6 +30,17 @@ use crate::tfeti::kkt::{gap_scale, kkt};
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::{DualSolution, DualStart};
+use std::sync::Arc;
+
+/// The equality-only dual a state was solved on: the state's rows `rows`
+/// (equalities first, then the contacts held), with its coarse problem and
+/// preconditioner. The sensitivities of that state hold the same rows
+/// (equalities and strong contacts) where no contact is weak, and solve on it
+/// instead of building their own ([`crate::sens::semi::Sensitivity`]).
+pub struct KeptDual {
+    pub rows: Vec<usize>,
+    pub system: Arc<DualSystem>,
+}
 
 /// Active sets tried before SMALBE takes over: the predicted one and two
 /// corrections.
@@ -38,9 +49,9 @@ const ATTEMPTS: usize = 3;
 /// What the attempt gave.
 pub(super) enum Outcome {
     /// The solution of the contact problem (multipliers of every row; its
-    /// Hessian applications those of every attempt), and the applications
-    /// of `F` it took in all.
-    Kept(Box<DualSolution>, usize),
+    /// Hessian applications those of every attempt), the applications of
+    /// `F` it took in all, and the dual it was solved on.
+    Kept(Box<DualSolution>, usize, KeptDual),
     /// No solution found this way: the Hessian applications and
     /// applications of `F` spent.
     Refused(usize, usize),
@@ -126,7 +137,14 @@ pub(super) fn solve(
                 end: None,
                 ..sol
             };
-            return Outcome::Kept(Box::new(sol), applications);
+            return Outcome::Kept(
+                Box::new(sol),
+                applications,
+                KeptDual {
+                    rows: kept,
+                    system: Arc::new(system),
+                },
+            );
         }
         // Let go of the rows that pull, hold the rows penetrated, as the KKT
         // check measures them.

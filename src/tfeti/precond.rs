@@ -287,9 +287,15 @@ impl Scaling {
         };
         let mut guard = lock(&self.work);
         let (t, buf) = &mut *guard;
-        self.coupled.iter().zip(t.iter_mut()).for_each(|(&r, v)| *v = x[r]);
+        self.coupled
+            .iter()
+            .zip(t.iter_mut())
+            .for_each(|(&r, v)| *v = x[r]);
         llt_solve_block(symbolic, &self.l_values, t, 1, buf);
-        self.coupled.iter().zip(t.iter()).for_each(|(&r, v)| x[r] = *v);
+        self.coupled
+            .iter()
+            .zip(t.iter())
+            .for_each(|(&r, v)| x[r] = *v);
     }
 }
 
