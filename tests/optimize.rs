@@ -372,6 +372,39 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
         agree(&warm, &cold, what);
         if what == "a small step" {
             assert!(warm.on_active_set, "{what}: not kept");
+            // Its sensitivities solve on the state's own dual and give the
+            // gradients of the SMALBE state's (its own dual built), adjoint
+            // and semi-analytic alike.
+            use cso::sens::semi::{adjoint_at, semi_analytic_at, Sensitivity};
+            let mut at = s.clone();
+            for (d, v) in at.design.iter_mut().zip(x.iter()) {
+                d.init = *v;
+            }
+            assert!(Sensitivity::new(&at, &warm)
+                .expect("sets up")
+                .shares_state_dual());
+            assert!(!Sensitivity::new(&at, &smalbe)
+                .expect("sets up")
+                .shares_state_dual());
+            let now = std::time::Instant::now();
+            let pairs = [
+                (
+                    adjoint_at(&at, &warm, tol, now).expect("adjoint"),
+                    adjoint_at(&at, &smalbe, tol, now).expect("adjoint"),
+                ),
+                (
+                    semi_analytic_at(&at, &warm, tol, now).expect("semi"),
+                    semi_analytic_at(&at, &smalbe, tol, now).expect("semi"),
+                ),
+            ];
+            for (a, b) in pairs {
+                for (p, q) in a.gradient.iter().zip(&b.gradient) {
+                    let scale = q.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+                    for (g, h) in p.iter().zip(q) {
+                        assert!((g - h).abs() <= 1e-4 * scale, "{p:?} vs {q:?}");
+                    }
+                }
+            }
             assert!(
                 warm.info.hessian_applications < smalbe.info.hessian_applications,
                 "{what}: {} vs SMALBE's {}",

@@ -555,6 +555,15 @@ impl<'a> Sensitivity<'a> {
         self.dual.dual().preconditioner();
     }
 
+    /// Whether it solves on the state's own dual (a state solved on its
+    /// active set, with the rows kept here).
+    pub fn shares_state_dual(&self) -> bool {
+        self.state
+            .kept_dual
+            .as_ref()
+            .is_some_and(|k| Arc::ptr_eq(&k.system, &self.dual))
+    }
+
     /// Whether the sensitivity dual's preconditioner was built: it is built on
     /// the first solve that iterates (a start that meets the tolerance needs
     /// none).
