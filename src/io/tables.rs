@@ -139,8 +139,9 @@ pub fn termination(scene: &Scene, t: &Termination) -> String {
 ///
 /// Per iterate also its cost: Hessian applications of the state solve and of
 /// state + gradient, subdomains refactored, seconds (state, then state +
-/// gradient), and whether the state solve started cold or warm (from the
-/// previous design's multipliers and SMALBE state).
+/// gradient), and how the state was solved: `cold`, `warm` (SMALBE from the
+/// previous design's multipliers and SMALBE state) or `set` (on the previous
+/// design's active set, kept by its KKT check).
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
     let mut o = format!(
         "{:>4} {:>14} {:>12} {:>10} {:>10} {:>7} {:>7} {:>6} {:>8} {:>8} {:>5}",
@@ -170,7 +171,11 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
             it.numeric_factorizations,
             it.state_seconds,
             it.seconds,
-            if it.warm_started { "warm" } else { "cold" }
+            match (it.warm_started, it.on_active_set) {
+                (_, true) => "set",
+                (true, false) => "warm",
+                (false, false) => "cold",
+            }
         );
     }
     let _ = write!(o, "\nstopped: {}", termination(scene, &run.termination));

@@ -69,6 +69,9 @@ pub struct Iterate {
     pub symbolic_factorizations: usize,
     pub numeric_factorizations: usize,
     pub warm_started: bool,
+    /// The state is the solution on the previous design's active set (not
+    /// SMALBE's).
+    pub on_active_set: bool,
 }
 
 /// The run: every iterate, the best feasible design, why it stopped.
@@ -309,6 +312,7 @@ pub fn optimize_with(
             symbolic_factorizations: counts.symbolic,
             numeric_factorizations: counts.numeric,
             warm_started: warm,
+            on_active_set: state.on_active_set,
             iteration: k,
             design: x.clone(),
             objective: f0,
