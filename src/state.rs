@@ -20,9 +20,9 @@ pub use active_set::KeptDual;
 use active_set::Outcome;
 use rayon::prelude::*;
 use std::sync::Arc;
+use std::time::Instant;
 
 mod active_set;
-use std::time::Instant;
 
 /// Wall time of each phase, seconds.
 #[derive(Debug, Clone, Default, serde::Serialize)]
