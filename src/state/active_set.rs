@@ -62,10 +62,12 @@ pub(super) enum Outcome {
 /// correcting that set where the KKT conditions on every row of `dual` fail;
 /// keeps the first solution whose sign and penetration residuals are within
 /// the tolerance of `settings`. The dual preconditioner is the scene's,
-/// Dirichlet where it asks for none: its Schur complements are formed once
-/// per subdomain and kept with it (`Subdomain::schur`), so across an
-/// optimization only the subdomains the design moves form theirs again, and
-/// on scont_large it takes a third fewer applications than lumped
+/// Dirichlet where it asks for none, its Schur complements dense within the
+/// memory budget: they are formed once per subdomain and kept with it
+/// (`Subdomain::schur`), so across an optimization only the subdomains the
+/// design moves form theirs again (implicit ones cost two solves with the
+/// interior factor per application, about an application of `F`). On
+/// scont_large it takes a third fewer applications than lumped
 /// (BENCHMARKS.md).
 pub(super) fn solve(
     scene: &Scene,
@@ -96,7 +98,7 @@ pub(super) fn solve(
             break;
         };
         let kind = crate::state::preconditioner(scene).or(Some(Kind::Dirichlet));
-        system.defer_preconditioner(kind, kept.len(), SchurForm::Auto);
+        system.defer_preconditioner(kind, kept.len(), SchurForm::PreferDense);
         let from = DualStart {
             lambda: kept.iter().map(|&i| start[i]).collect(),
             ..DualStart::default()
