@@ -727,12 +727,12 @@ fn solve_on(
     let on_active_set = match (warm.on_active_set, &start, &system) {
         (true, Some(s), DualSystem::Total(full)) => {
             match active_set::solve(scene, &problem, full, &s.lambda, &f, &c, &settings) {
-                Outcome::Kept(mut sol, applications, dual) => {
+                Outcome::Kept(mut sol, applications, dual, residuals) => {
                     // SMALBE's state stays the previous solve's, for a later
                     // design whose active set changes.
                     sol.end = previous.and_then(|p| p.end.clone());
                     spent = (0, applications);
-                    kept_dual = Some(Arc::new(dual));
+                    kept_dual = Some((Arc::new(dual), residuals));
                     Some(*sol)
                 }
                 Outcome::Refused(hessian, applications) => {
@@ -791,7 +791,11 @@ fn solve_on(
         (Some(d), _) | (None, DualSystem::Total(d)) => d,
         (None, DualSystem::Classical { dual, .. }) => dual,
     };
-    let kkt = kkt(&problem, &dual, &u, &lambda);
+    // Checked already where kept on the active set.
+    let (kept_dual, kkt) = match kept_dual {
+        Some((d, k)) => (Some(d), k),
+        None => (None, kkt(&problem, &dual, &u, &lambda)),
+    };
     times.reconstruct = t.elapsed().as_secs_f64();
     times.total = t0.elapsed().as_secs_f64();
     Ok(State {

@@ -26,7 +26,7 @@ use crate::model::{Problem, Row};
 use crate::qp::{QpInfo, SmalbeSettings, Status};
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::dual::Dual;
-use crate::tfeti::kkt::{gap_scale, kkt};
+use crate::tfeti::kkt::{gap_scale, kkt, Kkt};
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::{DualSolution, DualStart};
@@ -50,8 +50,8 @@ const ATTEMPTS: usize = 3;
 pub(super) enum Outcome {
     /// The solution of the contact problem (multipliers of every row; its
     /// Hessian applications those of every attempt), the applications of
-    /// `F` it took in all, and the dual it was solved on.
-    Kept(Box<DualSolution>, usize, KeptDual),
+    /// `F` it took in all, the dual it was solved on, and its KKT residuals.
+    Kept(Box<DualSolution>, usize, KeptDual, Kkt),
     /// No solution found this way: the Hessian applications and
     /// applications of `F` spent.
     Refused(usize, usize),
@@ -146,6 +146,7 @@ pub(super) fn solve(
                     rows: kept,
                     system: Arc::new(system),
                 },
+                check,
             );
         }
         // Let go of the rows that pull, hold the rows penetrated, as the KKT
