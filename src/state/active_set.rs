@@ -89,7 +89,17 @@ pub(super) fn solve(
         .collect();
     let mut start = previous.to_vec();
     let (mut hessian, mut applications) = (0, 0);
+    // The attempts together spend at most half the solve's budget of Hessian
+    // applications, so that SMALBE keeps the rest where they fail.
+    let budget = settings.max_hessian / 2;
     for _ in 0..ATTEMPTS {
+        if hessian >= budget {
+            break;
+        }
+        let settings = SmalbeSettings {
+            max_hessian: budget - hessian,
+            ..settings.clone()
+        };
         let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
         let rows: Vec<&Row> = kept.iter().map(|&i| &problem.rows[i]).collect();
         // Rigid motions that only the contacts left out would hold: not
@@ -109,7 +119,7 @@ pub(super) fn solve(
             &c_kept,
             kept.len(),
             true,
-            settings,
+            &settings,
             Some(&from),
             &mut |_| {},
         );
