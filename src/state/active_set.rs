@@ -7,7 +7,8 @@
 //! multiplier) and no row left out is penetrated. Then it is kept. Where one
 //! fails, the rows that pull are let go and the rows penetrated are held (a
 //! primal-dual active set step), and the solve is repeated from the last
-//! multipliers, a few times at most; after that SMALBE solves the contact
+//! multipliers, a few times at most and within half the solve's budget of
+//! Hessian applications; after that SMALBE solves the contact
 //! problem from the original warm start, and the work spent here counts with
 //! it.
 //!
@@ -60,8 +61,8 @@ pub(super) enum Outcome {
 /// Solves the state on the rows `problem` holds as equalities and the contact
 /// rows with a positive multiplier in `previous` (one per row of `problem`),
 /// correcting that set where the KKT conditions on every row of `dual` fail;
-/// keeps the first solution whose sign and penetration residuals are within
-/// the tolerance of `settings`. The dual preconditioner is the scene's,
+/// keeps the first solution whose sign, penetration and equilibrium
+/// residuals are within the tolerance of `settings`. The dual preconditioner is the scene's,
 /// Dirichlet where it asks for none, its Schur complements dense within the
 /// memory budget: they are formed once per subdomain and kept with it
 /// (`Subdomain::schur`), so across an optimization only the subdomains the
