@@ -509,7 +509,9 @@ impl<'a> Sensitivity<'a> {
         kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
         // The state solved on exactly these rows (an optimization's warm
         // state on the previous active set): its dual, coarse problem and
-        // preconditioner serve here too.
+        // preconditioner serve here too. Its preconditioner wins over `kind`
+        // and `form` (Dirichlet where the scene asks for none, at least as
+        // good as what the directions and adjoints ask for, and built).
         let shared = state
             .kept_dual
             .as_ref()

@@ -127,7 +127,11 @@ pub(super) fn solve(
         applications += system.f_applications();
         let sol = match solved {
             Ok(sol) => sol,
-            Err(_) => break,
+            // Its applications of F bound its Hessian applications below.
+            Err(_) => {
+                hessian += system.f_applications();
+                break;
+            }
         };
         hessian += sol.info.hessian_applications;
         if sol.info.status != Status::Converged {
@@ -137,6 +141,9 @@ pub(super) fn solve(
         for (k, &i) in kept.iter().enumerate() {
             lambda[i] = sol.lambda[k];
         }
+        // The held rows (gluing, supports, held contacts) hold to the CG's
+        // tolerance, as SMALBE's do to its own; what the equality solve does
+        // not impose is tested here.
         let check = kkt(problem, dual, &sol.u, &lambda);
         if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
             let info = QpInfo {
