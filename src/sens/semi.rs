@@ -516,35 +516,29 @@ impl<'a> Sensitivity<'a> {
             .kept_dual
             .as_ref()
             .filter(|k| k.rows == kept && n_equality == kept.len());
-        if let Some(k) = shared {
-            return Ok(Sensitivity {
-                scene,
-                state,
-                classes,
-                kept,
-                n_equality,
-                dual: Arc::clone(&k.system),
-                ku: state.dual.cluster().apply_k(&state.u),
-                tape: OnceLock::new(),
-                jacobians: OnceLock::new(),
-            });
-        }
-        let rows: Vec<&crate::model::Row> = kept.iter().map(|&i| &state.problem.rows[i]).collect();
-        let mut dual = DualSystem::new(
-            state.dual.cluster(),
-            &rows,
-            n_equality,
-            state.elimination.clone(),
-        )
-            .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
-        dual.defer_preconditioner(kind, n_equality, form);
+        let dual = match shared {
+            Some(k) => Arc::clone(&k.system),
+            None => {
+                let rows: Vec<&crate::model::Row> =
+                    kept.iter().map(|&i| &state.problem.rows[i]).collect();
+                let mut dual = DualSystem::new(
+                    state.dual.cluster(),
+                    &rows,
+                    n_equality,
+                    state.elimination.clone(),
+                )
+                    .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
+                dual.defer_preconditioner(kind, n_equality, form);
+                Arc::new(dual)
+            }
+        };
         Ok(Sensitivity {
             scene,
             state,
             classes,
             kept,
             n_equality,
-            dual: Arc::new(dual),
+            dual,
             ku: state.dual.cluster().apply_k(&state.u),
             tape: OnceLock::new(),
             jacobians: OnceLock::new(),

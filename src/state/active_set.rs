@@ -93,6 +93,7 @@ pub(super) fn solve(
     // The attempts together spend at most half the solve's budget of Hessian
     // applications, so that SMALBE keeps the rest where they fail.
     let budget = settings.max_hessian / 2;
+    let kind = crate::state::preconditioner(scene).or(Some(Kind::Dirichlet));
     for _ in 0..ATTEMPTS {
         if hessian >= budget {
             break;
@@ -108,7 +109,6 @@ pub(super) fn solve(
         let Ok(mut system) = DualSystem::new(dual.cluster(), &rows, kept.len(), None) else {
             break;
         };
-        let kind = crate::state::preconditioner(scene).or(Some(Kind::Dirichlet));
         system.defer_preconditioner(kind, kept.len(), SchurForm::PreferDense);
         let from = DualStart {
             lambda: kept.iter().map(|&i| start[i]).collect(),

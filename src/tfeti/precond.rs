@@ -152,7 +152,7 @@ struct Scaling {
     /// `1 / d` of the rows that overlap none, where `d` is not 1.
     scale: Vec<(usize, f64)>,
     /// Work space of a one-column solve (the gathered rows, the factor's
-    /// scratch): single applications are the CG solves' and SMALBE's.
+    /// scratch).
     work: Mutex<(Vec<f64>, MemBuffer)>,
 }
 
@@ -262,40 +262,32 @@ impl Scaling {
             return;
         };
         let (cols, nc) = (xs.len(), self.coupled.len());
-        let mut block: Vec<f64> = xs
-            .iter()
-            .flat_map(|x| {
-                let x: &[f64] = x.as_ref();
-                self.coupled.iter().map(move |&r| x[r])
-            })
-            .collect();
-        let mut buf = solve_scratch(symbolic, cols);
-        llt_solve_block(symbolic, &self.l_values, &mut block, cols, &mut buf);
+        // One column (the CG solves' and SMALBE's applications) in the held
+        // work space; a block in its own.
+        let mut guard = lock(&self.work);
+        let mut own;
+        let (block, buf) = if cols == 1 {
+            let (t, buf) = &mut *guard;
+            (t, buf)
+        } else {
+            own = (Vec::new(), solve_scratch(symbolic, cols));
+            (&mut own.0, &mut own.1)
+        };
+        block.clear();
+        block.extend(xs.iter().flat_map(|x| {
+            let x: &[f64] = x.as_ref();
+            self.coupled.iter().map(move |&r| x[r])
+        }));
+        llt_solve_block(symbolic, &self.l_values, block, cols, buf);
         for (x, b) in xs.iter_mut().zip(block.chunks_exact(nc)) {
             let x = x.as_mut();
             self.coupled.iter().zip(b).for_each(|(&r, v)| x[r] = *v);
         }
     }
 
-    /// [`Self::solve_block`] of one column, in the held work space.
+    /// [`Self::solve_block`] of one column.
     fn solve(&self, x: &mut [f64]) {
-        for &(r, s) in &self.scale {
-            x[r] *= s;
-        }
-        let Some(symbolic) = &self.symbolic else {
-            return;
-        };
-        let mut guard = lock(&self.work);
-        let (t, buf) = &mut *guard;
-        self.coupled
-            .iter()
-            .zip(t.iter_mut())
-            .for_each(|(&r, v)| *v = x[r]);
-        llt_solve_block(symbolic, &self.l_values, t, 1, buf);
-        self.coupled
-            .iter()
-            .zip(t.iter())
-            .for_each(|(&r, v)| x[r] = *v);
+        self.solve_block(&mut [x]);
     }
 }
 
