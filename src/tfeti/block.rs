@@ -20,11 +20,11 @@
 //! (2017) 379-403; D. P. O'Leary, "The block conjugate gradient algorithm and
 //! related methods", Linear Algebra Appl. 29 (1980) 293-322.
 
-use super::dual::{Dual, Orthonormal, ProjectedM};
+use super::dual::{Dual, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
-use super::solve::{dot, galerkin_start, homogenized_start, norm};
-use crate::qp::{Equality, SmalbeSettings, Status};
+use super::solve::{dot, galerkin_start, homogenized_rhs, homogenized_start, norm, particular};
+use crate::qp::{SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
@@ -34,11 +34,11 @@ pub struct BlockInfo {
     pub status: Status,
     /// Block iterations: passes of `P F P` over the whole (shrinking) block.
     pub iterations: usize,
-    /// Passes over the subdomain factors with `F` (iterations, one for the
-    /// homogenization, one for a warm start's residual; the two passes with
-    /// `K^+` alone, for the loads and for `u`, are not counted, as in the
-    /// single solves; the reconstruction's `F lambda` comes from the
-    /// iterations).
+    /// Passes over the subdomain factors with `F` (iterations, one for a
+    /// warm start's residual; the two passes with `K^+` alone, for the loads
+    /// (less the homogenization's `F l~`, taken off before `K^+`) and for
+    /// `u`, are not counted, as in the single solves; the reconstruction's
+    /// `F lambda` comes from the iterations).
     pub passes: usize,
     /// Products with `F` counted per column (what single solves would count).
     pub products: usize,
@@ -297,7 +297,7 @@ fn block_projected_cg(
 
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an equality)
 /// for every right-hand side `(fs[c], cs[c])` at once on the operators of
-/// `dual`: the homogenization, the block CG and the reconstruction each take
+/// `dual`: the loads (homogenized), the block CG and the reconstruction each take
 /// one pass over the subdomain factors for the whole block. `starts`: the
 /// multipliers of nearby problems to start from (a warm start; one per
 /// right-hand side, else ignored).
@@ -309,33 +309,16 @@ pub fn dual_solve_block(
     starts: Option<&[Vec<f64>]>,
 ) -> Result<BlockSolution, SolveError> {
     let m = dual.multipliers();
-    let loads = dual.cluster().loads_block(fs);
-    let g = Orthonormal(dual);
-    let mut ds = Vec::with_capacity(fs.len());
-    let mut l_tilde = Vec::with_capacity(fs.len());
-    for ((mut d, e), c) in loads.into_iter().zip(cs) {
+    let l_tilde: Vec<Vec<f64>> = fs.iter().map(|f| particular(dual, f)).collect();
+    // d - F l~ with d = B K^+ f - c, one pass over the factors for all.
+    let mut ds = dual.cluster().loads_less_block(fs, &l_tilde);
+    for (d, c) in ds.iter_mut().zip(cs) {
         d.iter_mut().zip(c).for_each(|(di, ci)| *di -= ci);
-        let mut et = e;
-        dual.solve_l(&mut et);
-        let mut lt = vec![0.0; m];
-        g.apply_t(&et, &mut lt);
-        ds.push(d);
-        l_tilde.push(lt);
     }
-    let fl = dual.apply_f_block(&l_tilde);
     let b: Vec<Vec<f64>> = ds
         .iter()
-        .zip(&fl)
-        .map(|(d, f)| {
-            let mut b: Vec<f64> = d.iter().zip(f).map(|(a, b)| a - b).collect();
-            dual.project(&mut b);
-            // A right-hand side at round-off of its data is zero (see
-            // `dual_solve_from`).
-            if norm(&b) <= 1e3 * f64::EPSILON * (norm(d) + norm(f)) {
-                b.iter_mut().for_each(|x| *x = 0.0);
-            }
-            b
-        })
+        .zip(cs)
+        .map(|(d, c)| homogenized_rhs(dual, d, c))
         .collect();
     // The starts, homogenized and projected (zero where only round-off is
     // left, see `homogenized_start`).
@@ -347,11 +330,7 @@ pub fn dual_solve_block(
                 .map(|(l, lt)| homogenized_start(dual, l, lt).unwrap_or_else(|| vec![0.0; m]))
                 .collect()
         });
-    let Solved {
-        x: lhat,
-        fx,
-        mut info,
-    } = block_projected_cg(dual, &b, x0, settings);
+    let Solved { x: lhat, fx, info } = block_projected_cg(dual, &b, x0, settings);
     let sum = |a: &[Vec<f64>], b: &[Vec<f64>]| -> Vec<Vec<f64>> {
         a.iter()
             .zip(b)
@@ -359,9 +338,6 @@ pub fn dual_solve_block(
             .collect()
     };
     let lambda = sum(&lhat, &l_tilde);
-    // F lambda = F l_tilde (the homogenization's pass) + F l_hat (block CG's).
-    let u = reconstruct_block(dual, fs, &lambda, &sum(&fx, &fl), &ds)?;
-    info.passes += 1;
-    info.products += fs.len();
+    let u = reconstruct_block(dual, fs, &lambda, &fx, &ds)?;
     Ok(BlockSolution { lambda, u, info })
 }

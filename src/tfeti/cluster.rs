@@ -586,7 +586,14 @@ impl Cluster {
             sub.apply_pinv(&mut w.x);
             lr.gather(&w.x, &mut w.y);
         });
+        self.sum_work_rows(y);
+    }
+
+    /// `y = sum_s` of the subdomains' local rows held in their work space,
+    /// in subdomain order (distributed: the owned parts gathered first).
+    fn sum_work_rows(&self, y: &mut [f64]) {
         if self.is_distributed() {
+            let first = self.first;
             let mut mine =
                 Vec::with_capacity(self.row_start[self.owned().end] - self.row_start[first]);
             for w in &self.work {
@@ -605,10 +612,11 @@ impl Cluster {
         }
     }
 
-    /// The data of the dual problem from the loads: `(B K^+ f, R^T f)`.
-    pub fn loads(&self, f: &[&[f64]]) -> (Vec<f64>, Vec<f64>) {
-        let parts: Vec<(Vec<f64>, Vec<f64>)> = self.map(|s, sub| {
-            let e = (0..sub.kernel_dim())
+    /// `e = R^T f`, the loads' rigid-body components (gathered where
+    /// distributed).
+    pub fn kernel_loads(&self, f: &[&[f64]]) -> Vec<f64> {
+        let parts: Vec<Vec<f64>> = self.map(|s, sub| {
+            (0..sub.kernel_dim())
                 .map(|j| {
                     sub.kernel_column(j)
                         .iter()
@@ -616,29 +624,33 @@ impl Cluster {
                         .map(|(a, b)| a * b)
                         .sum()
                 })
-                .collect();
-            let mut x = f[s].to_vec();
-            sub.apply_pinv(&mut x);
-            let mut y = vec![0.0; self.local[s].rows.len()];
-            self.local[s].gather(&x, &mut y);
-            (y, e)
+                .collect()
+        });
+        if self.is_distributed() {
+            return self.gather(&parts.concat(), |s| self.kdim(s));
+        }
+        parts.concat()
+    }
+
+    /// `B K^+ (f - B^T l)`: the dual problem's load less `F l`, in one pass
+    /// over the factors (the homogenization's `F l~` taken off the loads
+    /// before `K^+`, not applied on its own).
+    pub fn loads_less(&self, f: &[&[f64]], l: &[f64]) -> Vec<f64> {
+        let first = self.first;
+        self.subs.par_iter().enumerate().for_each(|(i, sub)| {
+            let mut guard = lock(&self.work[i]);
+            let w = &mut *guard;
+            let lr = &self.local[first + i];
+            lr.scatter_t(l, &mut w.x);
+            for (x, fi) in w.x.iter_mut().zip(f[first + i]) {
+                *x = fi - *x;
+            }
+            sub.apply_pinv(&mut w.x);
+            lr.gather(&w.x, &mut w.y);
         });
         let mut d = vec![0.0; self.m];
-        if self.is_distributed() {
-            let (ys, es): (Vec<Vec<f64>>, Vec<Vec<f64>>) = parts.into_iter().unzip();
-            let all = self.gather(&ys.concat(), |s| self.local[s].rows.len());
-            self.add_rows(&all, &mut d);
-            let e = self.gather(&es.concat(), |s| self.offset[s + 1] - self.offset[s]);
-            return (d, e);
-        }
-        let mut e = vec![0.0; self.kernel_dim()];
-        for (s, (y, es)) in parts.into_iter().enumerate() {
-            for (k, &row) in self.local[s].rows.iter().enumerate() {
-                d[row] += y[k];
-            }
-            e[self.offset[s]..self.offset[s + 1]].copy_from_slice(&es);
-        }
-        (d, e)
+        self.sum_work_rows(&mut d);
+        d
     }
 
     /// Kernel dimension of subdomain `s` (any subdomain).
@@ -866,36 +878,27 @@ impl Cluster {
         y
     }
 
-    /// [`Self::loads`] of every load `fs[c]` (per subdomain).
-    pub fn loads_block(&self, fs: &[Vec<&[f64]>]) -> Vec<(Vec<f64>, Vec<f64>)> {
+    /// [`Self::loads_less`] of every `(fs[c], ls[c])`.
+    pub fn loads_less_block(&self, fs: &[Vec<&[f64]>], ls: &[Vec<f64>]) -> Vec<Vec<f64>> {
         let cols = fs.len();
         if self.is_distributed() || cols <= 1 {
-            return fs.iter().map(|f| self.loads(f)).collect();
+            return fs
+                .iter()
+                .zip(ls)
+                .map(|(f, l)| self.loads_less(f, l))
+                .collect();
         }
         let parts = self.pinv_block(
             cols,
-            |s, c, out| out.copy_from_slice(fs[c][s]),
+            |s, c, out| {
+                self.local[s].scatter_t(&ls[c], out);
+                for (o, f) in out.iter_mut().zip(fs[c][s]) {
+                    *o = f - *o;
+                }
+            },
             |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
         );
-        let d = self.sum_rows_block(&parts, cols);
-        d.into_iter()
-            .zip(fs)
-            .map(|(d, f)| {
-                let mut e = vec![0.0; self.kernel_dim()];
-                for s in 0..self.len() {
-                    let sub = self.subdomain(s);
-                    for j in 0..sub.kernel_dim() {
-                        e[self.offset[s] + j] = sub
-                            .kernel_column(j)
-                            .iter()
-                            .zip(f[s])
-                            .map(|(a, b)| a * b)
-                            .sum();
-                    }
-                }
-                (d, e)
-            })
-            .collect()
+        self.sum_rows_block(&parts, cols)
     }
 
     /// [`Self::primal`] of every `(f, lambda, alpha)`.

@@ -10,14 +10,16 @@ use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
 /// contacts): `G~^T alpha = (F l - d)~` in the least-squares sense; then
-/// `u = K^+ (f - B^T l) + R alpha`. `f_lambda`: `F l` where the solver
-/// carried it (else one more application of `F`).
+/// `u = K^+ (f - B^T l) + R alpha`. The dual problems are homogenized,
+/// `l = l~ + l^`, and `F l - d = F l^ - (d - F l~)`: `lhat` is `l^` with
+/// `F l^` where the solver carried it (else one more application of `F`),
+/// `d` is `d - F l~`.
 pub(crate) fn reconstruct(
     dual: &Dual,
     f: &[&[f64]],
     n_equality: usize,
     lambda: &[f64],
-    f_lambda: Option<Vec<f64>>,
+    lhat: (&[f64], Option<Vec<f64>>),
     d: &[f64],
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>), SolveError> {
     let m = lambda.len();
@@ -27,9 +29,10 @@ pub(crate) fn reconstruct(
     let active: Vec<bool> = (0..m)
         .map(|i| i < n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
         .collect();
-    let fl = f_lambda.filter(|fl| fl.len() == m).unwrap_or_else(|| {
+    let (lhat, f_lhat) = lhat;
+    let fl = f_lhat.filter(|fl| fl.len() == m).unwrap_or_else(|| {
         let mut fl = vec![0.0; m];
-        dual.apply_f(lambda, &mut fl);
+        dual.apply_f(lhat, &mut fl);
         fl
     });
     let mut alpha = kernel_coefficients(dual, &active, &[fl], std::slice::from_ref(&d))?;
@@ -39,9 +42,9 @@ pub(crate) fn reconstruct(
 }
 
 /// [`reconstruct`] of a block of equality-only problems (every row holds),
-/// given `F lambda` of each (block CG carries it): one `G G^T` factor and one
-/// pass over the subdomain factors (`K^+`) for all of them. Returns `u` of
-/// each.
+/// given `F l^` of each (block CG carries it) and `d - F l~`: one `G G^T`
+/// factor and one pass over the subdomain factors (`K^+`) for all of them.
+/// Returns `u` of each.
 pub(crate) fn reconstruct_block(
     dual: &Dual,
     fs: &[Vec<&[f64]>],

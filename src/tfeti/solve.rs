@@ -68,28 +68,14 @@ pub fn dual_solve_from(
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let m = dual.multipliers();
-    // d = B K^+ f - c, e = R^T f
-    let (mut d, e) = dual.cluster().loads(f);
+    let g = Orthonormal(dual);
+    let l_tilde = particular(dual, f);
+    // d - F l~ with d = B K^+ f - c, one pass over the factors.
+    let mut d = dual.cluster().loads_less(f, &l_tilde);
     for (di, ci) in d.iter_mut().zip(c) {
         *di -= ci;
     }
-    // l~ = G~^T e~ with e~ = L^-1 e.
-    let mut et = e.clone();
-    dual.solve_l(&mut et);
-    let g = Orthonormal(dual);
-    let mut l_tilde = vec![0.0; m];
-    crate::qp::Equality::apply_t(&g, &et, &mut l_tilde);
-    let mut fl = vec![0.0; m];
-    dual.apply_f(&l_tilde, &mut fl);
-    let mut b: Vec<f64> = d.iter().zip(&fl).map(|(a, b)| a - b).collect();
-    dual.project(&mut b);
-    // A right-hand side at round-off of the data it came from is zero: a scene
-    // moved only rigidly (prescribed displacements, no load) has lambda = 0.
-    // Iterating on the round-off instead would chase components outside Im P,
-    // where P F P is singular, and diverge.
-    if norm(&b) <= 1e3 * f64::EPSILON * (norm(&d) + norm(&fl)) {
-        b.iter_mut().for_each(|x| *x = 0.0);
-    }
+    let b = homogenized_rhs(dual, &d, c);
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
             if i < n_equality {
@@ -107,9 +93,7 @@ pub fn dual_solve_from(
             .and_then(|s| homogenized_start(dual, &s.lambda, &l_tilde));
         let (lhat, f_lhat, info) = projected_cg(dual, &b, settings, x0);
         let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
-        // F lambda = F l~ (the homogenization's) + F l^ (CG's recurrence).
-        let f_lambda = f_lhat.map(|fx| fx.iter().zip(&fl).map(|(a, b)| a + b).collect());
-        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, f_lambda, &d)?;
+        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, (&lhat, f_lhat), &d)?;
         return Ok(DualSolution {
             lambda,
             u,
@@ -224,15 +208,16 @@ pub fn dual_solve_from(
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
-    let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, None, &d).map_err(|e| match e {
-        SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
-            SolveError::Undetermined {
-                modes,
-                stopped: Some(format!("{:?}", info.status)),
+    let (u, alpha) =
+        reconstruct(dual, f, n_equality, &lambda, (&lhat, None), &d).map_err(|e| match e {
+            SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
+                SolveError::Undetermined {
+                    modes,
+                    stopped: Some(format!("{:?}", info.status)),
+                }
             }
-        }
-        e => e,
-    })?;
+            e => e,
+        })?;
     Ok(DualSolution {
         lambda,
         u,
@@ -358,6 +343,31 @@ fn projected_cg(
     }
     info.projected_gradient = rr.sqrt();
     (x, exact.then_some(fx), info)
+}
+
+/// `l~ = G~^T L^-1 R^T f`: multipliers that balance every subdomain's
+/// rigid modes (`G l~ = e`), the particular solution the dual problem is
+/// homogenized with.
+pub(crate) fn particular(dual: &Dual, f: &[&[f64]]) -> Vec<f64> {
+    let mut et = dual.cluster().kernel_loads(f);
+    dual.solve_l(&mut et);
+    let mut l_tilde = vec![0.0; dual.multipliers()];
+    crate::qp::Equality::apply_t(&Orthonormal(dual), &et, &mut l_tilde);
+    l_tilde
+}
+
+/// `b = P (d - F l~)` from `d - F l~` (`d` with the gaps `c` taken off).
+/// A right-hand side at round-off of the data it came from is zero: a scene
+/// moved only rigidly (prescribed displacements, no load) has lambda = 0.
+/// Iterating on the round-off instead would chase components outside Im P,
+/// where P F P is singular, and diverge.
+pub(crate) fn homogenized_rhs(dual: &Dual, d: &[f64], c: &[f64]) -> Vec<f64> {
+    let mut b = d.to_vec();
+    dual.project(&mut b);
+    if norm(&b) <= 1e3 * f64::EPSILON * (norm(d) + norm(c)) {
+        b.iter_mut().for_each(|x| *x = 0.0);
+    }
+    b
 }
 
 /// The start `P (l0 - l~)` of a CG on `P F P` from multipliers `l0` (`l~`
