@@ -368,6 +368,16 @@ impl Setup {
             SolveError::FreeRigidModes(name_modes(&self.problem, &self.cluster, &free_modes))
         })
     }
+
+    /// [`Setup::dual_system`] with its coarse problem left for first use
+    /// (TFETI; [`Dual::deferred`]): checked only where SMALBE needs it.
+    fn dual_system_deferred(&self) -> Result<DualSystem, SolveError> {
+        if self.elimination.is_some() {
+            return self.dual_system();
+        }
+        let rows: Vec<&crate::model::Row> = self.problem.rows.iter().collect();
+        Ok(DualSystem::deferred(&self.cluster, &rows))
+    }
 }
 
 /// [`setup`], reusing what `previous` (a state of the same scene) allows:
@@ -660,7 +670,13 @@ fn solve_on(
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
-    let mut system = setup.dual_system()?;
+    // A warm solve tries the previous active set first, on a system of its
+    // own: the full one's coarse problem waits until SMALBE needs it.
+    let mut system = if warm.on_active_set && previous.is_some() {
+        setup.dual_system_deferred()?
+    } else {
+        setup.dual_system()?
+    };
     system.set_preconditioner(preconditioner(scene), setup.problem.n_equality);
     let Setup {
         problem,
@@ -745,15 +761,23 @@ fn solve_on(
     };
     let solved = match on_active_set {
         Some(sol) => Ok(sol),
-        None => system.solve(
-            &f,
-            &c,
-            problem.n_equality,
-            true,
-            &settings,
-            start.as_ref(),
-            observer,
-        ),
+        None => {
+            let t = Instant::now();
+            system
+                .dual()
+                .check_coarse()
+                .map_err(|CoarseError { free_modes }| name(&free_modes))?;
+            times.coarse += t.elapsed().as_secs_f64();
+            system.solve(
+                &f,
+                &c,
+                problem.n_equality,
+                true,
+                &settings,
+                start.as_ref(),
+                observer,
+            )
+        }
     };
     let sol = solved.map_err(|e| match e {
             SolveError::Undetermined { modes, stopped } => {

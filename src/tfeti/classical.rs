@@ -193,6 +193,16 @@ impl DualSystem {
         }
     }
 
+    /// [`DualSystem::new`] in TFETI with the coarse problem left for first
+    /// use ([`Dual::deferred`]).
+    pub fn deferred(cluster: &Cluster, rows: &[&Row]) -> Self {
+        let local = LocalRows::split(
+            cluster.len(),
+            rows.iter().map(|r| r.entries.iter().copied()),
+        );
+        DualSystem::Total(Dual::deferred(cluster.with_local_rows(local, rows.len())))
+    }
+
     /// Builds the dual preconditioner `kind` (None: none) on the dual problem
     /// solved, whose equalities come first (`n_equality` of the rows given to
     /// [`DualSystem::new`]; FETI keeps fewer).

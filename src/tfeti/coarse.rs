@@ -419,6 +419,40 @@ impl CoarseFactor {
         Ok(f)
     }
 
+    /// The factor of `gram + delta I`, `delta = shift` times its largest
+    /// diagonal entry (1 where that is zero): positive definite for any
+    /// finite `gram`, so it always factors; the identity's factor where the
+    /// entries are not finite. Its pivot ratio is 0, so it passes no pivot
+    /// test.
+    pub fn shifted(gram: Gram, shift: f64) -> CoarseFactor {
+        let n = gram.dim();
+        let top = gram.diagonal().into_iter().fold(0.0f64, f64::max);
+        let delta = shift * if top > 0.0 { top } else { 1.0 };
+        let gram = match gram {
+            Gram::Dense(mut a) => {
+                for i in 0..n {
+                    a[(i, i)] += delta;
+                }
+                Gram::Dense(a)
+            }
+            Gram::Sparse(mut a) => {
+                for c in 0..n {
+                    if let Some(p) = a.find(c, c) {
+                        a.values[p] += delta;
+                    }
+                }
+                Gram::Sparse(a)
+            }
+        };
+        let mut f = CoarseFactor::factor(gram, 0.0).unwrap_or_else(|_| CoarseFactor {
+            n,
+            factor: Factor::Dense(Mat::identity(n, n)),
+            pivot_ratio: 0.0,
+        });
+        f.pivot_ratio = 0.0;
+        f
+    }
+
     /// Smallest `l_ii^2` (infinite when empty).
     fn min_pivot_squared(&self) -> f64 {
         let pivots: Box<dyn Iterator<Item = f64>> = match &self.factor {
@@ -874,6 +908,40 @@ mod tests {
                 // A subdomain without rows: its three modes, by the diagonal.
                 assert_eq!(d, vec![(k, 0), (k, 1), (k, 2)]);
             }
+        }
+    }
+
+    #[test]
+    fn a_deferred_coarse_problem_is_the_same_factor_and_the_same_check_on_first_use() {
+        // Regular: the same projection, bit for bit.
+        let eager = Dual::new(patch(4, 3, true, None)).expect("held patch");
+        let deferred = Dual::deferred(patch(4, 3, true, None));
+        let m = eager.multipliers();
+        let x: Vec<f64> = (0..m).map(|i| ((i * 7 + 3) % 11) as f64 - 5.0).collect();
+        let (mut a, mut b) = (x.clone(), x);
+        eager.project(&mut a);
+        deferred.project(&mut b);
+        assert_eq!(a, b);
+        assert!(deferred.check_coarse().is_ok());
+        // Singular: the check names the modes `Dual::new` names; used
+        // unchecked, the shifted factor projects without failing and passes
+        // no pivot test (the reconstruction factorizes its own).
+        for (held, skip) in [(false, None), (true, Some(7))] {
+            let named = match Dual::new(patch(4, 3, held, skip)) {
+                Ok(_) => panic!("singular coarse problem accepted"),
+                Err(CoarseError { free_modes }) => free_modes,
+            };
+            let checked = Dual::deferred(patch(4, 3, held, skip));
+            match checked.check_coarse() {
+                Ok(()) => panic!("singular coarse problem accepted when deferred"),
+                Err(CoarseError { free_modes }) => assert_eq!(free_modes, named),
+            }
+            let unchecked = Dual::deferred(patch(4, 3, held, skip));
+            let mut y = vec![1.0; unchecked.multipliers()];
+            unchecked.project(&mut y);
+            assert!(y.iter().all(|v| v.is_finite()));
+            let mut z = vec![1.0; unchecked.kernel_dim()];
+            assert!(!unchecked.coarse_solve_if(0.0, &mut z));
         }
     }
 

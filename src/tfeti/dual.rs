@@ -41,8 +41,11 @@ pub struct CoarseStats {
 /// `F`, `G~`, `P` of one decomposed problem.
 pub struct Dual {
     cluster: Cluster,
-    /// Cholesky factor of `G G^T`: `G~ = L^-1 Q G` (`Q` its ordering).
-    coarse: CoarseFactor,
+    /// Cholesky factor of `G G^T`: `G~ = L^-1 Q G` (`Q` its ordering);
+    /// factorized at construction, or on first use for [`Dual::deferred`].
+    coarse: OnceLock<CoarseFactor>,
+    /// The form asked for the coarse problem.
+    form: CoarseForm,
     /// Work space of the projector: kernel-sized, multiplier-sized, and the
     /// local row values of `G^T z`.
     proj: Mutex<(Vec<f64>, Vec<f64>, Vec<f64>)>,
@@ -72,6 +75,26 @@ fn nanos(t: Instant) -> u64 {
     u64::try_from(t.elapsed().as_nanos()).unwrap_or(u64::MAX)
 }
 
+/// `G G^T` assembled and factorized, or the rigid modes that no row touches.
+fn factor_coarse(cluster: &Cluster, form: CoarseForm) -> Result<CoarseFactor, CoarseError> {
+    let ggt = Gram::assemble(cluster, None, form);
+    let diag = ggt.diagonal();
+    let scale = diag.iter().copied().fold(0.0f64, f64::max).max(1e-300);
+    let free: Vec<(usize, usize)> = (0..cluster.kernel_dim())
+        .filter(|&i| diag[i] <= 1e-12 * scale)
+        .map(|i| cluster.mode(i))
+        .collect();
+    if !free.is_empty() {
+        return Err(CoarseError { free_modes: free });
+    }
+    CoarseFactor::factor(ggt, 1e-12).map_err(|ggt| CoarseError {
+        free_modes: null_modes(&ggt.to_dense())
+            .into_iter()
+            .map(|i| cluster.mode(i))
+            .collect(),
+    })
+}
+
 impl Dual {
     /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
     /// some subdomain is not touched by any row (G G^T singular).
@@ -82,37 +105,68 @@ impl Dual {
     /// [`Dual::new`] with the form of the coarse problem given (`Auto`: by
     /// size).
     pub fn with_coarse(cluster: Cluster, form: CoarseForm) -> Result<Self, CoarseError> {
-        let t = Instant::now();
-        let ggt = Gram::assemble(&cluster, None, form);
+        let dual = Dual::deferred_as(cluster, form);
+        dual.check_coarse()?;
+        Ok(dual)
+    }
+
+    /// A dual whose coarse problem is assembled and factorized only when
+    /// first used, not now: the state's full system at a new design, which
+    /// a solve on the previous active set does not need
+    /// (`crate::state::active_set`). [`Dual::check_coarse`] factorizes it
+    /// with [`Dual::new`]'s check; a dual used unchecked is one whose rows
+    /// include a set with a regular coarse problem (the kept active set), so
+    /// its own `G G^T` (a sum over more rows) is regular too.
+    pub fn deferred(cluster: Cluster) -> Self {
+        Dual::deferred_as(cluster, CoarseForm::Auto)
+    }
+
+    fn deferred_as(cluster: Cluster, form: CoarseForm) -> Self {
         let n3 = cluster.kernel_dim();
-        let diag = ggt.diagonal();
-        let scale = diag.iter().copied().fold(0.0f64, f64::max).max(1e-300);
-        let free: Vec<(usize, usize)> = (0..n3)
-            .filter(|&i| diag[i] <= 1e-12 * scale)
-            .map(|i| cluster.mode(i))
-            .collect();
-        if !free.is_empty() {
-            return Err(CoarseError { free_modes: free });
-        }
-        let coarse = CoarseFactor::factor(ggt, 1e-12).map_err(|ggt| CoarseError {
-            free_modes: null_modes(&ggt.to_dense())
-                .into_iter()
-                .map(|i| cluster.mode(i))
-                .collect(),
-        })?;
         let proj = Mutex::new((vec![0.0; n3], vec![0.0; cluster.multipliers()], Vec::new()));
-        Ok(Dual {
+        Dual {
             cluster,
-            coarse,
+            coarse: OnceLock::new(),
+            form,
             proj,
             f_applications: AtomicUsize::new(0),
             projections: AtomicUsize::new(0),
             apply_nanos: AtomicU64::new(0),
-            setup_nanos: AtomicU64::new(nanos(t)),
+            setup_nanos: AtomicU64::new(0),
             precond: OnceLock::from(None),
             deferred: None,
             grams: OnceLock::new(),
             exact_kernels: true,
+        }
+    }
+
+    /// Factorizes the coarse problem where not done yet. Fails, naming the
+    /// modes, when a rigid motion of some subdomain is not touched by any
+    /// row (G G^T singular).
+    pub fn check_coarse(&self) -> Result<(), CoarseError> {
+        if self.coarse.get().is_some() {
+            return Ok(());
+        }
+        let t = Instant::now();
+        let factor = factor_coarse(&self.cluster, self.form)?;
+        // Another thread's factor of the same matrix may have come first.
+        let _ = self.coarse.set(factor);
+        self.add_coarse_setup(t);
+        Ok(())
+    }
+
+    /// The coarse factor, factorized here for a deferred dual never checked:
+    /// regular by construction (see [`Dual::deferred`]); should the relative
+    /// pivot test fail at round-off all the same, `G G^T` is factorized
+    /// shifted by `1e-12` of its largest diagonal entry rather than not at all.
+    fn coarse(&self) -> &CoarseFactor {
+        self.coarse.get_or_init(|| {
+            let t = Instant::now();
+            let factor = factor_coarse(&self.cluster, self.form).unwrap_or_else(|_| {
+                CoarseFactor::shifted(Gram::assemble(&self.cluster, None, self.form), 1e-12)
+            });
+            self.add_coarse_setup(t);
+            factor
         })
     }
 
@@ -130,13 +184,13 @@ impl Dual {
     /// What the coarse problem cost so far.
     pub fn coarse_stats(&self) -> CoarseStats {
         CoarseStats {
-            form: if self.coarse.is_sparse() {
+            form: if self.coarse().is_sparse() {
                 CoarseForm::Sparse
             } else {
                 CoarseForm::Dense
             },
-            dim: self.coarse.dim(),
-            factor_nonzeros: self.coarse.nonzeros(),
+            dim: self.coarse().dim(),
+            factor_nonzeros: self.coarse().nonzeros(),
             setup_seconds: self.setup_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
             projections: self.projections.load(Ordering::Relaxed),
             apply_seconds: self.apply_nanos.load(Ordering::Relaxed) as f64 * 1e-9,
@@ -252,21 +306,21 @@ impl Dual {
 
     /// `z <- L^-1 Q z` (`G~ = L^-1 Q G`).
     pub fn solve_l(&self, z: &mut [f64]) {
-        self.coarse.solve_l(z);
+        self.coarse().solve_l(z);
     }
 
     /// `z <- Q^T L^-T z`.
     pub fn solve_lt(&self, z: &mut [f64]) {
-        self.coarse.solve_lt(z);
+        self.coarse().solve_lt(z);
     }
 
     /// `z <- (G G^T)^-1 z` when the coarse factor passes the pivot test
     /// `tol` (see [`CoarseFactor::factor`]); false, `z` untouched, otherwise.
     pub(crate) fn coarse_solve_if(&self, tol: f64, z: &mut [f64]) -> bool {
-        if !self.coarse.passes(tol) {
+        if !self.coarse().passes(tol) {
             return false;
         }
-        self.coarse.solve(z);
+        self.coarse().solve(z);
         true
     }
 
@@ -279,7 +333,7 @@ impl Dual {
         }
         let t0 = Instant::now();
         let mut zs = coarse::apply_g_columns(&self.cluster, xs);
-        self.coarse.solve_columns(&mut zs);
+        self.coarse().solve_columns(&mut zs);
         coarse::sub_gt_columns(&self.cluster, &zs, xs);
         self.projections.fetch_add(xs.len(), Ordering::Relaxed);
         self.add_coarse_apply(t0);
@@ -291,7 +345,7 @@ impl Dual {
         let mut guard = lock(&self.proj);
         let (z, t, w) = &mut *guard;
         coarse::apply_g(&self.cluster, x, z);
-        self.coarse.solve(z);
+        self.coarse().solve(z);
         coarse::apply_gt(&self.cluster, z, t, w);
         for (a, b) in x.iter_mut().zip(t.iter()) {
             *a -= b;
