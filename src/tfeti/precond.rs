@@ -163,8 +163,10 @@ impl Scaling {
             return None;
         }
         // B_E B_E^T = sum_s B_s B_s^T: rows overlap only through a shared dof
-        // of one subdomain. Upper triangle, summed in subdomain order (the
-        // sorts are stable).
+        // of one subdomain. The diagonal summed in place, the few products
+        // off it sorted; both in subdomain order (the sort is stable), the
+        // order of the sums of a full sort.
+        let mut diagonal = vec![0.0; n];
         let mut products: Vec<(usize, usize, f64)> = Vec::new();
         let mut by_dof: Vec<(usize, usize, f64)> = Vec::new();
         for s in 0..cluster.len() {
@@ -178,7 +180,9 @@ impl Scaling {
             for list in by_dof.chunk_by(|a, b| a.0 == b.0) {
                 for &(_, r1, v1) in list {
                     for &(_, r2, v2) in list {
-                        if r1 <= r2 {
+                        if r1 == r2 {
+                            diagonal[r1] += v1 * v2;
+                        } else if r1 < r2 {
                             products.push((r1, r2, v1 * v2));
                         }
                     }
@@ -186,11 +190,25 @@ impl Scaling {
             }
         }
         products.sort_by_key(|p| (p.0, p.1));
-        let mut entries: Vec<((usize, usize), f64)> = Vec::new();
+        let mut off: Vec<((usize, usize), f64)> = Vec::new();
         for (r1, r2, v) in products {
-            match entries.last_mut() {
+            match off.last_mut() {
                 Some((key, sum)) if *key == (r1, r2) => *sum += v,
-                _ => entries.push(((r1, r2), v)),
+                _ => off.push(((r1, r2), v)),
+            }
+        }
+        // A row of no subdomain's dof (none in the models we lower) is a zero
+        // row: B_E B_E^T is singular.
+        if diagonal.contains(&0.0) {
+            return None;
+        }
+        // Upper triangle in row-major order, as the full sort gave it.
+        let mut entries: Vec<((usize, usize), f64)> = Vec::with_capacity(n + off.len());
+        let mut rest = off.into_iter().peekable();
+        for (r, d) in diagonal.into_iter().enumerate() {
+            entries.push(((r, r), d));
+            while let Some(e) = rest.next_if(|((r1, _), _)| *r1 == r) {
+                entries.push(e);
             }
         }
         let mut overlaps = vec![false; n];
@@ -211,11 +229,6 @@ impl Scaling {
             } else if (v - 1.0).abs() > 1e-12 {
                 scale.push((r1, 1.0 / v));
             }
-        }
-        // A row of no subdomain's dof (none in the models we lower) is a zero
-        // row: B_E B_E^T is singular.
-        if entries.iter().filter(|((r1, r2), _)| r1 == r2).count() < n {
-            return None;
         }
         let (symbolic, l_values) = if coupled.is_empty() {
             (None, Vec::new())
