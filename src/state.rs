@@ -202,15 +202,29 @@ pub fn precheck(
     problem: &Problem,
     elimination: Option<&Elimination>,
 ) -> Result<(), SolveError> {
-    if let Some(p) = problem.penetrations.first() {
-        if design == scene.design_init().as_slice() {
-            return Err(SolveError::Penetration {
-                contact: scene.contacts[p.contact].name.clone(),
-                depth: p.depth,
-                at: p.at[..problem.dim].to_vec(),
-            });
-        }
+    precheck_start(scene, design, problem)?;
+    precheck_balance(problem, elimination)
+}
+
+/// [`precheck`]'s test of where the bodies start: none inside another at the
+/// scene's own design.
+fn precheck_start(scene: &Scene, design: &[f64], problem: &Problem) -> Result<(), SolveError> {
+    match problem.penetrations.first() {
+        Some(p) if design == scene.design_init().as_slice() => Err(SolveError::Penetration {
+            contact: scene.contacts[p.contact].name.clone(),
+            depth: p.depth,
+            at: p.at[..problem.dim].to_vec(),
+        }),
+        _ => Ok(()),
     }
+}
+
+/// [`precheck`]'s tests of the loads and supports: every load balanced by
+/// supports and contacts pushing, no contact row that supports alone violate.
+fn precheck_balance(
+    problem: &Problem,
+    elimination: Option<&Elimination>,
+) -> Result<(), SolveError> {
     if let Some(u) = crate::model::balance::unbalanced_force(problem) {
         return Err(SolveError::Unbalanced {
             body: problem.bodies[u.body].name.clone(),
@@ -389,25 +403,32 @@ pub fn setup_reusing(
     design: &[f64],
     previous: Option<&State>,
 ) -> Result<Setup, SolveError> {
-    setup_on(scene, design, previous, serial())
+    setup_on(scene, design, previous, serial(), false)
 }
 
 /// [`setup_reusing`] on the ranks of `comm`: every rank lowers the scene (the
 /// same on all), then builds only the subdomains of its part of a balanced
 /// contiguous partition; a failure on any rank stops every rank with the
-/// same message. Collective.
+/// same message. Collective. `defer_precheck`: leave [`precheck_balance`] to
+/// the caller (a warm solve whose state on the previous active set, once
+/// kept, shows the loads balanced and no row violated).
 fn setup_on(
     scene: &Scene,
     design: &[f64],
     previous: Option<&State>,
     comm: Arc<dyn Comm>,
+    defer_precheck: bool,
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let problem = lower(scene, design).map_err(SolveError::Lower)?;
     let lower_time = t0.elapsed().as_secs_f64();
     let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
     let elimination = feti.then(|| Arc::new(Elimination::new(&problem)));
-    precheck(scene, design, &problem, elimination.as_deref())?;
+    if defer_precheck {
+        precheck_start(scene, design, &problem)?;
+    } else {
+        precheck(scene, design, &problem, elimination.as_deref())?;
+    }
     let kind = |s: usize| match &elimination {
         None => Kind::Total,
         Some(e) => Kind::Classical {
@@ -665,14 +686,23 @@ fn solve_on(
 ) -> Result<State, SolveError> {
     let t0 = Instant::now();
     let mut times = Times::default();
-    let setup = setup_on(scene, design, previous.filter(|_| factorizations), comm)?;
+    // A warm solve tries the previous active set first. A state kept there
+    // satisfies the KKT conditions, so what `precheck` and the full system's
+    // coarse problem would refuse (loads nothing balances, a violated row,
+    // a free rigid motion) cannot hold; both wait until SMALBE runs.
+    let first_on_active_set = warm.on_active_set && previous.is_some();
+    let setup = setup_on(
+        scene,
+        design,
+        previous.filter(|_| factorizations),
+        comm,
+        first_on_active_set,
+    )?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
-    // A warm solve tries the previous active set first, on a system of its
-    // own: the full one's coarse problem waits until SMALBE needs it.
-    let mut system = if warm.on_active_set && previous.is_some() {
+    let mut system = if first_on_active_set {
         setup.dual_system_deferred()?
     } else {
         setup.dual_system()?
@@ -762,6 +792,9 @@ fn solve_on(
     let solved = match on_active_set {
         Some(sol) => Ok(sol),
         None => {
+            if first_on_active_set {
+                precheck_balance(&problem, elimination.as_deref())?;
+            }
             let t = Instant::now();
             system
                 .dual()
