@@ -339,24 +339,29 @@ fn a_warm_solve_refuses_a_design_as_the_cold_solve_does() {
     // (loads nothing balances, a free rigid motion) still run before SMALBE:
     // a face lifted off the base (no contact row: the punch's load is
     // unbalanced) and a face pulled away in the middle (the contacts left
-    // do not hold the punch sideways) are refused with the cold messages.
+    // do not hold the punch sideways) are refused with the cold messages, in
+    // TFETI and in classical FETI (which solves no active set first).
+    use cso::lang::scene::SolverMethod;
     use cso::state::{solve, solve_reusing, SolveError, WarmStart};
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
-    let s = compile(&src, &options()).expect("checks");
-    let x0 = s.design_init();
-    let first = solve(&s, &x0, &mut |_| {}).expect("solves");
-    let lifted: Vec<f64> = x0.iter().map(|v| v - 0.3).collect();
-    let mut pulled = x0.clone();
-    pulled[2] -= 0.5;
-    for (what, far) in [("lifted", lifted), ("pulled", pulled)] {
-        let cold = solve(&s, &far, &mut |_| {}).err().expect("refused cold");
-        if what == "lifted" {
-            assert!(matches!(cold, SolveError::Unbalanced { .. }), "{cold:?}");
+    for method in [SolverMethod::Tfeti, SolverMethod::Feti] {
+        let mut s = compile(&src, &options()).expect("checks");
+        s.solver.method = method;
+        let x0 = s.design_init();
+        let first = solve(&s, &x0, &mut |_| {}).expect("solves");
+        let lifted: Vec<f64> = x0.iter().map(|v| v - 0.3).collect();
+        let mut pulled = x0.clone();
+        pulled[2] -= 0.5;
+        for (what, far) in [("lifted", lifted), ("pulled", pulled)] {
+            let cold = solve(&s, &far, &mut |_| {}).err().expect("refused cold");
+            if what == "lifted" {
+                assert!(matches!(cold, SolveError::Unbalanced { .. }), "{cold:?}");
+            }
+            let warm = solve_reusing(&s, &far, Some(&first), true, WarmStart::BEST, &mut |_| {})
+                .err()
+                .expect("refused warm");
+            assert_eq!(warm.to_string(), cold.to_string(), "{method:?} {what}");
         }
-        let warm = solve_reusing(&s, &far, Some(&first), true, WarmStart::BEST, &mut |_| {})
-            .err()
-            .expect("refused warm");
-        assert_eq!(warm.to_string(), cold.to_string(), "{what}");
     }
 }
 

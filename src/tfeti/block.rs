@@ -318,7 +318,8 @@ pub fn dual_solve_block(
     let b: Vec<Vec<f64>> = ds
         .iter()
         .zip(cs)
-        .map(|(d, c)| homogenized_rhs(dual, d, c))
+        .zip(fs.iter().zip(&l_tilde))
+        .map(|((d, c), (f, l))| homogenized_rhs(dual, d, c, dual.cluster().cancellation(f, l)))
         .collect();
     // The starts, homogenized and projected (zero where only round-off is
     // left, see `homogenized_start`).

@@ -632,6 +632,31 @@ impl Cluster {
         parts.concat()
     }
 
+    /// `(||f|| + ||B^T l||) / ||f - B^T l||`: how much of the loads `f` the
+    /// forces of `l` cancel (1 where both are zero, infinite where they
+    /// cancel exactly), to tell round-off in [`Self::loads_less`] from data.
+    /// Every subdomain, no communication (`f` and `l` are replicated).
+    pub fn cancellation(&self, f: &[&[f64]], l: &[f64]) -> f64 {
+        let (mut f2, mut b2, mut left) = (0.0f64, 0.0f64, 0.0f64);
+        for s in 0..self.len() {
+            let mut btl = vec![0.0; self.dofs[s]];
+            self.local[s].scatter_t(l, &mut btl);
+            for (fi, bi) in f[s].iter().zip(&btl) {
+                f2 += fi * fi;
+                b2 += bi * bi;
+                left += (fi - bi) * (fi - bi);
+            }
+        }
+        let (parts, left) = (f2.sqrt() + b2.sqrt(), left.sqrt());
+        if left > 0.0 {
+            parts / left
+        } else if parts > 0.0 {
+            f64::INFINITY
+        } else {
+            1.0
+        }
+    }
+
     /// `B K^+ (f - B^T l)`: the dual problem's load less `F l`, in one pass
     /// over the factors (the homogenization's `F l~` taken off the loads
     /// before `K^+`, not applied on its own).

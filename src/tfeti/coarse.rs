@@ -942,6 +942,11 @@ mod tests {
             assert!(y.iter().all(|v| v.is_finite()));
             let mut z = vec![1.0; unchecked.kernel_dim()];
             assert!(!unchecked.coarse_solve_if(0.0, &mut z));
+            // Checked after such a use, it is refused all the same.
+            match unchecked.check_coarse() {
+                Ok(()) => panic!("a shifted coarse factor passed the check"),
+                Err(CoarseError { free_modes }) => assert_eq!(free_modes, named),
+            }
         }
     }
 

@@ -75,7 +75,7 @@ pub fn dual_solve_from(
     for (di, ci) in d.iter_mut().zip(c) {
         *di -= ci;
     }
-    let b = homogenized_rhs(dual, &d, c);
+    let b = homogenized_rhs(dual, &d, c, dual.cluster().cancellation(f, &l_tilde));
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
             if i < n_equality {
@@ -356,15 +356,29 @@ pub(crate) fn particular(dual: &Dual, f: &[&[f64]]) -> Vec<f64> {
     l_tilde
 }
 
-/// `b = P (d - F l~)` from `d - F l~` (`d` with the gaps `c` taken off).
-/// A right-hand side at round-off of the data it came from is zero: a scene
-/// moved only rigidly (prescribed displacements, no load) has lambda = 0.
-/// Iterating on the round-off instead would chase components outside Im P,
-/// where P F P is singular, and diverge.
-pub(crate) fn homogenized_rhs(dual: &Dual, d: &[f64], c: &[f64]) -> Vec<f64> {
+/// `b = P (d - F l~)` from `d - F l~` (`d` with the gaps `c` taken off) and
+/// the loads' [`Cluster::cancellation`](super::cluster::Cluster::cancellation)
+/// by `l~`. A right-hand side at round-off of the data it came from is zero:
+/// a scene moved only rigidly (prescribed displacements, no load) has
+/// lambda = 0. Iterating on the round-off instead would chase components
+/// outside Im P, where P F P is singular, and diverge. The data's size is
+/// `||c||` and that of `B K^+ f` and `F l~`, which `d + c = B K^+ (f - B^T l~)`
+/// understates by the factor the loads cancelled.
+pub(crate) fn homogenized_rhs(dual: &Dual, d: &[f64], c: &[f64], cancellation: f64) -> Vec<f64> {
     let mut b = d.to_vec();
     dual.project(&mut b);
-    if norm(&b) <= 1e3 * f64::EPSILON * (norm(d) + norm(c)) {
+    let loads: f64 = d
+        .iter()
+        .zip(c)
+        .map(|(d, c)| (d + c) * (d + c))
+        .sum::<f64>()
+        .sqrt();
+    let loads = if loads > 0.0 {
+        loads * cancellation
+    } else {
+        0.0
+    };
+    if norm(&b) <= 1e3 * f64::EPSILON * (loads + norm(c)) {
         b.iter_mut().for_each(|x| *x = 0.0);
     }
     b

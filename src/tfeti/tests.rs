@@ -279,6 +279,39 @@ fn the_dual_solve_and_reconstruction_equal_a_direct_solve() {
     }
 }
 
+#[test]
+fn loads_that_the_balancing_multipliers_carry_exactly_need_no_iteration() {
+    // f = B^T l with l = G^T a: the rigid-mode balance l~ = G^T (G G^T)^-1 G l
+    // is l itself, u = 0 and lambda = l. d - F l~ = B K^+ (f - B^T l~) is
+    // round-off of f's size (f - B^T l~ cancels before K^+): the right-hand
+    // side is zero, not iterated on.
+    let (cluster, rows, _) = glued_pair();
+    let m = rows.len();
+    let a: Vec<f64> = rand_vec(cluster.kernel_dim(), 3)
+        .iter()
+        .map(|v| 1e3 * v)
+        .collect();
+    let mut l = vec![0.0; m];
+    cluster.apply_gt(&a, &mut l);
+    let f = cluster.apply_bt(&l);
+    let c = vec![0.0; m];
+    let dual = Dual::new(cluster).expect("coarse space");
+    let settings = SmalbeSettings {
+        tolerance: 1e-10,
+        ..SmalbeSettings::default()
+    };
+    let fs: Vec<&[f64]> = f.iter().map(Vec::as_slice).collect();
+    let sol = dual_solve_from(&dual, &fs, &c, m, &settings, None, &mut |_| {}).expect("solves");
+    assert_eq!(sol.b_norm, 0.0);
+    assert_eq!(sol.info.hessian_applications, 0);
+    let lmax = l.iter().fold(0.0f64, |x, v| x.max(v.abs()));
+    for (got, want) in sol.lambda.iter().zip(&l) {
+        assert!((got - want).abs() <= 1e-10 * lmax, "{got} vs {want}");
+    }
+    let umax = sol.u.iter().flatten().fold(0.0f64, |x, v| x.max(v.abs()));
+    assert!(umax <= 1e-10 * lmax, "u = {umax:e}");
+}
+
 /// The dual solution against the direct solve `x = [u; lambda]`.
 fn check_against(
     sol: &super::solve::DualSolution,
