@@ -311,16 +311,13 @@ pub fn dual_solve_block(
     let m = dual.multipliers();
     let l_tilde: Vec<Vec<f64>> = fs.iter().map(|f| particular(dual, f)).collect();
     // d - F l~ with d = B K^+ f - c, one pass over the factors for all.
-    let mut ds = dual.cluster().loads_less_block(fs, &l_tilde);
-    for (d, c) in ds.iter_mut().zip(cs) {
-        d.iter_mut().zip(c).for_each(|(di, ci)| *di -= ci);
-    }
-    let b: Vec<Vec<f64>> = ds
-        .iter()
+    let loads = dual.cluster().loads_less_block(fs, &l_tilde);
+    let (ds, b): (Vec<Vec<f64>>, Vec<Vec<f64>>) = loads
+        .into_iter()
         .zip(cs)
         .zip(fs.iter().zip(&l_tilde))
-        .map(|((d, c), (f, l))| homogenized_rhs(dual, d, c, dual.cluster().cancellation(f, l)))
-        .collect();
+        .map(|((y, c), (f, l))| homogenized_rhs(dual, y, c, dual.cluster().cancellation(f, l)))
+        .unzip();
     // The starts, homogenized and projected (zero where only round-off is
     // left, see `homogenized_start`).
     let x0 = starts

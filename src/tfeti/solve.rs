@@ -71,11 +71,8 @@ pub fn dual_solve_from(
     let g = Orthonormal(dual);
     let l_tilde = particular(dual, f);
     // d - F l~ with d = B K^+ f - c, one pass over the factors.
-    let mut d = dual.cluster().loads_less(f, &l_tilde);
-    for (di, ci) in d.iter_mut().zip(c) {
-        *di -= ci;
-    }
-    let b = homogenized_rhs(dual, &d, c, dual.cluster().cancellation(f, &l_tilde));
+    let loads = dual.cluster().loads_less(f, &l_tilde);
+    let (d, b) = homogenized_rhs(dual, loads, c, dual.cluster().cancellation(f, &l_tilde));
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
             if i < n_equality {
@@ -356,32 +353,33 @@ pub(crate) fn particular(dual: &Dual, f: &[&[f64]]) -> Vec<f64> {
     l_tilde
 }
 
-/// `b = P (d - F l~)` from `d - F l~` (`d` with the gaps `c` taken off) and
-/// the loads' [`Cluster::cancellation`](super::cluster::Cluster::cancellation)
-/// by `l~`. A right-hand side at round-off of the data it came from is zero:
-/// a scene moved only rigidly (prescribed displacements, no load) has
-/// lambda = 0. Iterating on the round-off instead would chase components
-/// outside Im P, where P F P is singular, and diverge. The data's size is
-/// `||c||` and that of `B K^+ f` and `F l~`, which `d + c = B K^+ (f - B^T l~)`
-/// understates by the factor the loads cancelled.
-pub(crate) fn homogenized_rhs(dual: &Dual, d: &[f64], c: &[f64], cancellation: f64) -> Vec<f64> {
-    let mut b = d.to_vec();
-    dual.project(&mut b);
-    let loads: f64 = d
-        .iter()
-        .zip(c)
-        .map(|(d, c)| (d + c) * (d + c))
-        .sum::<f64>()
-        .sqrt();
-    let loads = if loads > 0.0 {
-        loads * cancellation
-    } else {
-        0.0
+/// `(d - F l~, b = P (d - F l~))` from `loads = B K^+ (f - B^T l~)` (`d`
+/// has the gaps `c` taken off) and the loads'
+/// [`Cluster::cancellation`](super::cluster::Cluster::cancellation) by `l~`.
+/// A right-hand side at round-off of the data it came from is zero: a scene
+/// moved only rigidly (prescribed displacements, no load) has lambda = 0.
+/// Iterating on the round-off instead would chase components outside Im P,
+/// where P F P is singular, and diverge. The data's size is `||c||` and that
+/// of `B K^+ f` and `F l~`, which `loads` understates by the factor the
+/// loads cancelled.
+pub(crate) fn homogenized_rhs(
+    dual: &Dual,
+    loads: Vec<f64>,
+    c: &[f64],
+    cancellation: f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let size = match norm(&loads) {
+        n if n > 0.0 => n * cancellation,
+        _ => 0.0,
     };
-    if norm(&b) <= 1e3 * f64::EPSILON * (loads + norm(c)) {
+    let mut d = loads;
+    d.iter_mut().zip(c).for_each(|(di, ci)| *di -= ci);
+    let mut b = d.clone();
+    dual.project(&mut b);
+    if norm(&b) <= 1e3 * f64::EPSILON * (size + norm(c)) {
         b.iter_mut().for_each(|x| *x = 0.0);
     }
-    b
+    (d, b)
 }
 
 /// The start `P (l0 - l~)` of a CG on `P F P` from multipliers `l0` (`l~`
