@@ -1,5 +1,6 @@
 //! The `cso` command as a user runs it: exit codes, output streams, `--set`, `--json`.
 
+use crate::fixture::{example_src, Edit};
 use crate::root;
 use std::process::Command;
 
@@ -291,7 +292,7 @@ fn an_output_path_that_is_a_file_fails_before_any_solve() {
 
 /// A scene file in the temp folder: `example` with `extra` appended.
 fn scene_with(example: &str, extra: &str, tag: &str) -> std::path::PathBuf {
-    let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
+    let src = example_src(example.trim_end_matches(".cso"));
     let path = std::env::temp_dir().join(format!("cso-{tag}-{}.cso", std::process::id()));
     std::fs::write(&path, format!("{src}\n{extra}\n")).expect("temp scene");
     path
@@ -321,7 +322,7 @@ fn why_the_optimizer_stopped_is_said_in_words() {
     let path = scene_with("scont2d.cso", "", "optimize-words");
     let src = std::fs::read_to_string(&path)
         .expect("scene")
-        .replace("max_iterations = 30", "max_iterations = 1");
+        .edit("max_iterations = 30", "max_iterations = 1");
     std::fs::write(&path, src).expect("scene");
     let (code, out, err) = cso(&["optimize", &path.to_string_lossy()]);
     assert_eq!(code, 0, "{err}");
@@ -569,9 +570,9 @@ fn optimize_names_the_design_and_writes_a_best_scene_that_solves_again() {
     let path = scene_with("scont2d.cso", "", "best-scene");
     let src = std::fs::read_to_string(&path)
         .expect("scene")
-        .replace("max_iterations = 30", "max_iterations = 2")
-        .replace("lower = 0, upper = 0.1", "lower = 0 m, upper = 100 mm")
-        .replace(
+        .edit("max_iterations = 30", "max_iterations = 2")
+        .edit("lower = 0, upper = 0.1", "lower = 0 m, upper = 100 mm")
+        .edit(
             "traction punch.top = (0, -5)",
             "let P = 5\ntraction punch.top = (0, -P)",
         );
@@ -649,10 +650,9 @@ fn compile_json_carries_the_warnings() {
 
 /// A copy of an example with text replaced, in the target folder.
 fn scene_replacing(example: &str, from: &str, to: &str, tag: &str) -> std::path::PathBuf {
-    let src = std::fs::read_to_string(root().join("examples").join(example)).expect("example");
-    assert!(src.contains(from), "{example} has no `{from}`");
+    let src = example_src(example.trim_end_matches(".cso"));
     let path = std::env::temp_dir().join(format!("cso-cli-{tag}-{}.cso", std::process::id()));
-    std::fs::write(&path, src.replace(from, to)).expect("writable");
+    std::fs::write(&path, src.edit(from, to)).expect("writable");
     path
 }
 
@@ -740,8 +740,7 @@ fn a_contact_whose_surfaces_never_meet_is_warned_about() {
 /// `path` with text replaced, in place.
 fn scene_replacing_in(path: &std::path::Path, from: &str, to: &str) -> std::path::PathBuf {
     let src = std::fs::read_to_string(path).expect("scene");
-    assert!(src.contains(from), "no `{from}`");
-    std::fs::write(path, src.replace(from, to)).expect("writable");
+    std::fs::write(path, src.edit(from, to)).expect("writable");
     path.to_path_buf()
 }
 

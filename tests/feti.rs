@@ -1,19 +1,11 @@
 //! Classical FETI against Total FETI: the same discrete problem, so the same
 //! displacements and multipliers, with fewer unknowns and eps-dependent kernels.
 
-use crate::{options, root};
+use crate::fixture::example;
+use crate::options;
 use cso::lang::scene::SolverMethod;
 use cso::lang::{compile, Scene};
 use cso::state::{solve, SolveError, State};
-
-fn example(name: &str) -> Scene {
-    let src = std::fs::read_to_string(root().join("examples").join(format!("{name}.cso")))
-        .expect("example");
-    match compile(&src, &options()) {
-        Ok(s) => s,
-        Err(d) => panic!("{}", cso::lang::diag::render(&d, "test.cso", &src)),
-    }
-}
 
 fn solve_with(scene: &Scene, method: SolverMethod, eps: f64) -> Result<State, SolveError> {
     let mut s = scene.clone();

@@ -1,6 +1,7 @@
 //! The front end's meaning: units, overrides, expressions, selections, derivatives,
 //! error collection. Each test checks a number or a message that a bug would change.
 
+use crate::fixture::Edit;
 use crate::options;
 use cso::lang::expr::{Formula, Point};
 use cso::lang::scene::{Condition, Dimension, Functional, Primary};
@@ -212,7 +213,7 @@ obstacle wall { point = (h + 1 mm, 0), normal = (-1, 0) }
 
 #[test]
 fn a_scene_too_large_for_the_machine_is_refused_with_the_estimate() {
-    let src = BASE.replace("mesh = 4 x 2", "mesh = 100000 x 100000");
+    let src = BASE.edit("mesh = 4 x 2", "mesh = 100000 x 100000");
     let mut opts = options();
     let e = errors(&src, &opts);
     assert_eq!(e.len(), 1, "{e:?}");
@@ -237,13 +238,13 @@ fn formulas_without_design_fold_to_constants() {
 
 #[test]
 fn the_scene_title_is_kept_and_must_be_a_string() {
-    let src = BASE.replace(
+    let src = BASE.edit(
         "scene s { dim = 2 }",
         "scene s { dim = 2, title = \"punch test\" }",
     );
     let s = compile(&src, &options()).expect("checks");
     assert_eq!(s.title.as_deref(), Some("punch test"));
-    let bad = BASE.replace("scene s { dim = 2 }", "scene s { dim = 2, title = punch }");
+    let bad = BASE.edit("scene s { dim = 2 }", "scene s { dim = 2, title = punch }");
     let e = errors(&bad, &options());
     assert!(e.iter().any(|m| m == "`title` expects a string"), "{e:?}");
 }

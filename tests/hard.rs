@@ -11,19 +11,12 @@
 //! Bounds on costs are generous (a regression that doubles the cost or breaks
 //! convergence trips them); the measured values are not expected values.
 
-use crate::options;
+use crate::fixture::{scene, Edit};
 use cso::io::report::Report;
 use cso::lang::scene::Scheme;
-use cso::lang::{compile, Scene};
+use cso::lang::Scene;
 use cso::state::{solve, SolveError, State};
 use cso::studies::stability::{cantilever_scene, contrast_scene, indentation_scene, rocking_scene};
-
-fn scene(src: &str) -> Scene {
-    match compile(src, &options()) {
-        Ok(s) => s,
-        Err(d) => panic!("{}", cso::lang::diag::render(&d, "hard.cso", src)),
-    }
-}
 
 /// Solves at the scene's initial design with `tolerance`.
 fn solve_at(src: &str, tolerance: f64) -> (Scene, Result<State, SolveError>) {
@@ -292,8 +285,8 @@ fn hard_floating_punch_on_a_flat_seat_is_refused_for_its_free_sliding() {
     // Flat, frictionless seat: nothing acts along x on the punch, so its x
     // translation is free even though the vertical load is carried.
     let src = BOWL
-        .replace("top = 1 + 0.1 * (x - 1.5)^2,", "")
-        .replace("0.3 * (x - 1.5)^2", "0.05 * (2*x - 3)^2");
+        .edit("top = 1 + 0.1 * (x - 1.5)^2,", "")
+        .edit("0.3 * (x - 1.5)^2", "0.05 * (2*x - 3)^2");
     let (_, r) = solve_at(&format!("{src}traction punch.top = (0, -5)\n"), 1e-8);
     row("floating punch on a flat seat, pushed down", &r, "");
     match r {

@@ -1,5 +1,6 @@
 //! Shape optimization: convergence on scont2d, a known optimum, robustness.
 
+use crate::fixture::Edit;
 use crate::{options, root};
 use cso::lang::compile;
 use cso::opt::{optimize, Termination};
@@ -171,8 +172,8 @@ fn scont3d_lowers_the_compliance_keeps_the_volume_and_stays_symmetric() {
     // the test suite fast; `cso optimize examples/scont3d.cso` runs the full one.
     let src = std::fs::read_to_string(root().join("examples/scont3d.cso"))
         .expect("example")
-        .replace("mesh = 12 x 12 x 4", "mesh = 6 x 6 x 2")
-        .replace("mesh = 8 x 8 x 4", "mesh = 4 x 4 x 2");
+        .edit("mesh = 12 x 12 x 4", "mesh = 6 x 6 x 2")
+        .edit("mesh = 8 x 8 x 4", "mesh = 4 x 4 x 2");
     let s = compile(&src, &options()).expect("checks");
     let run = optimize(&s, &mut |_, _| true).expect("runs");
     let best = assert_converged_lower_and_active(&run);

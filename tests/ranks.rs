@@ -2,20 +2,12 @@
 //! (`cso::tfeti::comm::thread_ranks`): the code paths `mpirun` takes, without
 //! MPI, bitwise against the serial solve.
 
-use crate::{options, root};
+use crate::fixture::example;
+use crate::options;
 use cso::io::report::Report;
 use cso::lang::{compile, Scene};
 use cso::tfeti::comm::{thread_ranks, Comm};
 use std::sync::Arc;
-
-fn example(name: &str) -> Scene {
-    let path = root().join("examples").join(format!("{name}.cso"));
-    let src = std::fs::read_to_string(path).expect("example");
-    match compile(&src, &options()) {
-        Ok(s) => s,
-        Err(d) => panic!("{}", cso::lang::diag::render(&d, "test.cso", &src)),
-    }
-}
 
 /// The report as JSON without wall times, or the error's message.
 fn outcome(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Result<serde_json::Value, String> {

@@ -1,6 +1,7 @@
 //! Sensitivity building blocks: exact geometric derivatives by dual numbers and
 //! the finite-difference baseline.
 
+use crate::fixture::Edit;
 use crate::{options, root};
 use cso::lang::compile;
 use cso::lang::scene::Scheme;
@@ -222,7 +223,7 @@ fn matching_meshes_make_sliding_derivatives_one_sided() {
     // Punch and base nodes coincide (spacing 0.125 both): moving the punch's
     // width slides every contact node off a segment end, where node-to-segment
     // rows have a kink; the method says so instead of reporting a gradient.
-    let src = TWO_BLOCKS_DESIGN.replace(
+    let src = TWO_BLOCKS_DESIGN.edit(
         "x = 0 .. 3.05, y = 0 .. 1, mesh = 27 x 8",
         "x = 0 .. 3, y = 0 .. 1, mesh = 24 x 8",
     );
@@ -402,17 +403,17 @@ pub(crate) fn forward_error(study: &cso::studies::sensitivity::Study, h: f64) ->
 #[test]
 fn the_speed_accuracy_study_finds_the_exact_methods_accurate_and_fd_unstable_at_extremes() {
     let src = TWO_BLOCKS_DESIGN
-        .replace(
+        .edit(
             "mesh = 27 x 8, subdomains = 3 x 2",
             "mesh = 9 x 4, subdomains = 3 x 1",
         )
-        .replace(
+        .edit(
             "mesh = 8 x 8, subdomains = 2 x 2",
             "mesh = 4 x 4, subdomains = 1 x 1",
         )
-        .replace("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
-        .replace("1 + w", "2")
-        .replace("/w", "/1");
+        .edit("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
+        .edit("1 + w", "2")
+        .edit("/w", "/1");
     let mut s = compile(&src, &options()).expect("checks");
     // The sparse triangular solves round more than dense local F, which makes
     // the small steps' breakdown larger and surer.
@@ -512,11 +513,11 @@ fn a_step_that_moves_the_geometry_too_far_is_blamed_not_the_supports() {
 fn scont2d_with_a_face_term(name: &str, term: &str, tolerance: f64) -> cso::lang::Scene {
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso"))
         .expect("example")
-        .replace(
+        .edit(
             "bottom = 1 + bezier(a, x - 1)",
             &format!("bottom = 1 + bezier(a, x - 1) + {term}"),
         )
-        .replace(
+        .edit(
             "body base",
             &format!("design {name} {{ init = 0, lower = -0.01, upper = 0.01 }}\nbody base"),
         );

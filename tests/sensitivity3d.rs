@@ -3,6 +3,7 @@
 //! against central differences of an exact sparse solve of the same discrete
 //! problem (no TFETI, no tolerance); the exact volume derivative; weak contacts.
 
+use crate::fixture::Edit;
 use crate::reference::{assemble, sparse_reference_solve};
 use crate::sensitivity::{
     assert_agree, assert_exact_methods_accurate, central_differences, forward_error,
@@ -137,17 +138,14 @@ minimize volume(punch)
 fn the_speed_accuracy_study_runs_in_3d_and_says_where_differences_break() {
     // punch3d with the curvature as the only design variable, on fewer elements.
     let src = punch3d()
-        .replace("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
-        .replace("0.5 + w", "1.5")
-        .replace("/w", "/1")
-        .replace(
+        .edit("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
+        .edit("0.5 + w", "1.5")
+        .edit("/w", "/1")
+        .edit(
             "mesh = 8 x 5 x 2, subdomains = 2 x 1 x 1",
             "mesh = 4 x 3 x 1",
         )
-        .replace(
-            "mesh = 4 x 4 x 2, subdomains = 2 x 1 x 1",
-            "mesh = 2 x 2 x 1",
-        );
+        .edit("mesh = 4 x 4 x 2\n  subdomains = 2 x 1 x 1", "mesh = 2 x 2 x 1");
     let s = compile(&src, &options()).expect("checks");
     let study = cso::studies::sensitivity::study(&s, &mut |_| {}).expect("runs");
     assert_exact_methods_accurate(&study);

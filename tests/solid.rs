@@ -3,6 +3,7 @@
 //! examples against an exact sparse solve of the same discrete problem, Hertz
 //! contact against the analytic solution, KKT residuals and report snapshots.
 
+use crate::fixture::{example_src, Edit};
 use crate::reference::{
     assemble, both, check_method, compare, compile_scene, sparse_reference_solve,
 };
@@ -281,10 +282,6 @@ fn the_3d_comparison_detects_a_wrong_solution() {
 
 // --- The full-size 3D examples against an exact sparse solve. ---
 
-fn example_src(name: &str) -> String {
-    std::fs::read_to_string(root().join("examples").join(format!("{name}.cso"))).expect("example")
-}
-
 /// Relative differences of energy, of each contact's total force, and the
 /// comparison of the fields (TFETI at `tolerance` vs the exact sparse solve);
 /// also asserts the KKT residuals of TFETI below `kkt`.
@@ -366,7 +363,7 @@ fn semicoercive3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
 /// quickly; the full example is checked by the ignored test below.
 #[test]
 fn coarse_hertz3d_equals_an_exact_sparse_solve() {
-    let src = example_src("hertz3d").replace("mesh = 24 x 24 x 16", "mesh = 12 x 12 x 8");
+    let src = example_src("hertz3d").edit("mesh = 24 x 24 x 16", "mesh = 12 x 12 x 8");
     let x = against_exact("hertz3d 12x12x8", &src, 1e-8, 1e-6);
     assert_exact("hertz3d 12x12x8", &x);
 }
@@ -400,7 +397,7 @@ fn hertz3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
 /// 1.1e-6 here; 2.5e-5 before the primal equilibrium test).
 #[test]
 fn coarse_hertz3d_at_the_scenes_tolerance_equals_an_exact_sparse_solve() {
-    let src = example_src("hertz3d").replace("mesh = 24 x 24 x 16", "mesh = 12 x 12 x 8");
+    let src = example_src("hertz3d").edit("mesh = 24 x 24 x 16", "mesh = 12 x 12 x 8");
     let x = against_exact("hertz3d 12x12x8", &src, 1e-6, 1e-6);
     assert_at_tolerance("hertz3d 12x12x8 (tolerance 1e-6)", &x, 2e-6);
 }
@@ -463,7 +460,7 @@ struct HertzRun {
 /// hertz3d with `mesh = n x n x nz` (the example is 24 x 24 x 16).
 fn hertz_run(n: usize, nz: usize) -> HertzRun {
     let src =
-        example_src("hertz3d").replace("mesh = 24 x 24 x 16", &format!("mesh = {n} x {n} x {nz}"));
+        example_src("hertz3d").edit("mesh = 24 x 24 x 16", &format!("mesh = {n} x {n} x {nz}"));
     let mut scene = compile_scene(&src);
     scene.solver.tolerance = 1e-7;
     scene.solver.max_iterations = 20_000;
@@ -696,7 +693,7 @@ fn every_node_over_a_convex_face_gets_a_contact_row_and_none_beyond_it() {
     // 14 x 14 nodes, all over the dome; some over its edges, off both faces.
     assert_eq!(contact_rows(&problem), 14 * 14);
     // The slab wider than the dome: the nodes beyond its rim get no row.
-    let wide = DOME.replace("x = 0.55 .. 2.45", "x = -0.45 .. 3.45");
+    let wide = DOME.edit("x = 0.55 .. 2.45", "x = -0.45 .. 3.45");
     let problem = lower(&compile_scene(&wide), &[]).expect("lowers");
     // Slab nodes at x = -0.45 + 3.9 i / 13 = -0.45 + 0.3 i: i = 2 .. 11 are over x in [0, 3].
     assert_eq!(contact_rows(&problem), 10 * 14);

@@ -1,22 +1,10 @@
 //! The state solve against exact solutions and its own optimality conditions.
 
-use crate::{options, root};
+use crate::fixture::{example, scene, Edit};
+use crate::root;
 use cso::io::report::Report;
-use cso::lang::{compile, Scene};
+use cso::lang::Scene;
 use cso::state::{solve, SolveError};
-
-fn scene(src: &str) -> Scene {
-    match compile(src, &options()) {
-        Ok(s) => s,
-        Err(d) => panic!("{}", cso::lang::diag::render(&d, "test.cso", src)),
-    }
-}
-
-fn example(name: &str) -> Scene {
-    let src = std::fs::read_to_string(root().join("examples").join(format!("{name}.cso")))
-        .expect("example");
-    scene(&src)
-}
 
 #[test]
 fn patch_test_uniform_stress_is_reproduced_to_round_off() {
@@ -101,7 +89,7 @@ fn hertz2d_converges_to_the_analytic_half_width_and_peak_pressure() {
     for n in [40, 80, 160] {
         let src = std::fs::read_to_string(root().join("examples/hertz2d.cso"))
             .expect("example")
-            .replace("mesh = 80 x 80", &format!("mesh = {n} x {n}"));
+            .edit("mesh = 80 x 80", &format!("mesh = {n} x {n}"));
         let s = scene(&src);
         let state = solve(&s, &[], &mut |_| {}).expect("solves");
         assert!(state.converged(), "{n}: {:?}", state.info.status);
@@ -190,7 +178,7 @@ fn report_summaries_of_the_2d_examples() {
 fn a_floating_body_pulled_away_from_its_contact_is_refused_before_solving() {
     let src = std::fs::read_to_string(root().join("examples/semicoercive2d.cso"))
         .expect("example")
-        .replace(
+        .edit(
             "traction punch.top = (0, -5)",
             "traction punch.top = (0, 5)",
         );
@@ -205,7 +193,7 @@ fn a_floating_body_pulled_away_from_its_contact_is_refused_before_solving() {
     // The same body pushed sideways is held by its symmetry plane: it solves.
     let src = std::fs::read_to_string(root().join("examples/semicoercive2d.cso"))
         .expect("example")
-        .replace(
+        .edit(
             "traction punch.top = (0, -5)",
             "traction punch.top = (1, -5)",
         );

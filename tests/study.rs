@@ -3,17 +3,11 @@
 //! files and errors.
 
 use crate::cli::cso;
-use crate::{options, root};
-use cso::lang::{compile, Scene};
+use crate::fixture::{example, Edit};
+use crate::root;
 use cso::studies::convergence::{richardson, series, study, Settings};
 use cso::studies::hertz::hertz;
 use std::path::PathBuf;
-
-fn example(name: &str) -> Scene {
-    let src = std::fs::read_to_string(root().join("examples").join(format!("{name}.cso")))
-        .expect("example");
-    compile(&src, &options()).expect("checks")
-}
 
 fn temp(tag: &str) -> PathBuf {
     std::env::temp_dir().join(format!("cso-study-{tag}-{}", std::process::id()))
@@ -194,8 +188,8 @@ fn study_tolerance_writes_its_table_json_and_chart() {
     let scene = temp("tolerance-scene.cso");
     let src = std::fs::read_to_string(root().join("examples/hertz2d.cso"))
         .expect("example")
-        .replace("mesh = 80 x 80", "mesh = 20 x 20")
-        .replace("subdomains = 4 x 4", "subdomains = 2 x 2");
+        .edit("mesh = 80 x 80", "mesh = 20 x 20")
+        .edit("subdomains = 4 x 4", "subdomains = 2 x 2");
     std::fs::write(&scene, src).expect("writable");
     let (code, out, err) = cso(&[
         "-q",

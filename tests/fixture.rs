@@ -1,0 +1,51 @@
+//! Scenes the tests start from: the canonical examples (compiled, or as text)
+//! and edits of a scene's text that fail when the text they edit is gone, so
+//! that a changed example cannot silently turn a test into one of another
+//! scene.
+
+use crate::{options, root};
+use cso::lang::{compile, Scene};
+
+/// The text of `examples/NAME.cso`.
+pub fn example_src(name: &str) -> String {
+    let path = root().join("examples").join(format!("{name}.cso"));
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// `examples/NAME.cso`, checked with the tests' options.
+pub fn example(name: &str) -> Scene {
+    scene(&example_src(name))
+}
+
+/// A scene's text checked with the tests' options; a scene that does not check
+/// fails the test with the rendered diagnostics.
+pub fn scene(src: &str) -> Scene {
+    match compile(src, &options()) {
+        Ok(s) => s,
+        Err(d) => panic!("{}", cso::lang::diag::render(&d, "test.cso", src)),
+    }
+}
+
+/// Replacing text in a scene: `str::replace` that fails the test when `from`
+/// does not occur (an edit of an example that matches nothing would test the
+/// unedited scene).
+pub trait Edit {
+    fn edit(&self, from: &str, to: &str) -> String;
+}
+
+impl Edit for str {
+    fn edit(&self, from: &str, to: &str) -> String {
+        assert!(
+            self.contains(from),
+            "the scene edit `{from}` -> `{to}` matches nothing: the scene it edits changed"
+        );
+        self.replace(from, to)
+    }
+}
+
+#[test]
+fn an_edit_that_matches_nothing_fails() {
+    assert_eq!("mesh = 4 x 2".edit("4 x 2", "8 x 4"), "mesh = 8 x 4");
+    let missed = std::panic::catch_unwind(|| "mesh = 4 x 2".edit("5 x 2", "8 x 4"));
+    assert!(missed.is_err());
+}
