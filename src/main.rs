@@ -1147,8 +1147,13 @@ impl Bench {
                                 })
                             })
                         }) {
-                            cso::tfeti::ordering::set_dissection(ord == FactorOrdering::Dissection);
-                            match bench::scaling_row_3d(k, hh, tolerance, p, l, o) {
+                            let ord = match ord {
+                                FactorOrdering::Dissection => {
+                                    cso::tfeti::settings::FactorOrdering::Dissection
+                                }
+                                FactorOrdering::Amd => cso::tfeti::settings::FactorOrdering::Amd,
+                            };
+                            match bench::scaling_row_3d(k, hh, tolerance, p, l, o, ord) {
                                 Ok(r) => {
                                     outln!("| {hh} | {k}x{k}x{k} | {} |", output::scaling_cells(&r))
                                 }

@@ -435,7 +435,9 @@ fn setup_on(
         precheck(scene, design, &problem, elimination.as_deref())?;
     }
     let kind = |s: usize| match &elimination {
-        None => Kind::Total,
+        None => Kind::Total {
+            ordering: scene.solver.ordering,
+        },
         Some(e) => Kind::Classical {
             eliminated: e.dofs(s),
             eps: scene.solver.eps,
@@ -486,7 +488,7 @@ fn setup_on(
                 Some((old, true)) => return Ok((old, true)),
                 Some((old, false)) => old.rebuilt(&g),
                 None => match kind(s) {
-                    Kind::Total => Subdomain::total_shared(&g, &symbolic),
+                    Kind::Total { ordering } => Subdomain::total_shared(&g, ordering, &symbolic),
                     Kind::Classical { eliminated, eps } => {
                         Subdomain::classical(&g, &eliminated, eps)
                     }
@@ -544,6 +546,7 @@ fn setup_on(
     // Dense local F where it moves fewer bytes; unchanged subdomains of the
     // previous design keep theirs.
     cluster.set_local_f(scene.solver.local_f, previous.map(|p| p.dual.cluster()));
+    cluster.set_coarse_form(scene.solver.coarse);
     Ok(Setup {
         problem,
         cluster,
@@ -579,9 +582,11 @@ fn same_on_every_rank(comm: &dyn Comm, sol: &DualSolution) -> Result<(), SolveEr
     }
 }
 
-/// Distributed runs only: whether `CSO_MPI_FAIL_RANK` names this rank, making
-/// its first subdomain `s` fail as a singular factorization would (the test of
-/// a rank that fails while the others succeed).
+/// Distributed runs of a build with the test-only feature `fault-injection`:
+/// whether `CSO_MPI_FAIL_RANK` names this rank, making its first subdomain `s`
+/// fail as a singular factorization would (the test of a rank that fails
+/// while the others succeed). Other builds never read the variable.
+#[cfg(feature = "fault-injection")]
 fn injected_fault(comm: &dyn Comm, s: usize, first: usize) -> bool {
     comm.size() > 1
         && s == first
@@ -589,6 +594,12 @@ fn injected_fault(comm: &dyn Comm, s: usize, first: usize) -> bool {
             .ok()
             .and_then(|v| v.trim().parse::<usize>().ok())
             == Some(comm.rank())
+}
+
+/// See the `fault-injection` build's version: no fault here.
+#[cfg(not(feature = "fault-injection"))]
+fn injected_fault(_comm: &dyn Comm, _s: usize, _first: usize) -> bool {
+    false
 }
 
 /// Sizes of the TFETI operators of a scene, as `cso compile` prints them.

@@ -108,6 +108,7 @@ fn more_ranks_than_subdomains_stops_every_rank_with_one_message() {
 }
 
 #[test]
+#[cfg(feature = "fault-injection")]
 fn a_failing_rank_stops_every_rank_with_its_message() {
     let env = [("CSO_MPI_FAIL_RANK", "1"), ("CSO_MPI_ALL_RANKS", "1")];
     let (code, _, err) = run(Some(3), &env, &["solve", "examples/two_blocks.cso"]);

@@ -145,7 +145,10 @@ fn the_speed_accuracy_study_runs_in_3d_and_says_where_differences_break() {
             "mesh = 8 x 5 x 2, subdomains = 2 x 1 x 1",
             "mesh = 4 x 3 x 1",
         )
-        .edit("mesh = 4 x 4 x 2\n  subdomains = 2 x 1 x 1", "mesh = 2 x 2 x 1");
+        .edit(
+            "mesh = 4 x 4 x 2\n  subdomains = 2 x 1 x 1",
+            "mesh = 2 x 2 x 1",
+        );
     let s = compile(&src, &options()).expect("checks");
     let study = cso::studies::sensitivity::study(&s, &mut |_| {}).expect("runs");
     assert_exact_methods_accurate(&study);

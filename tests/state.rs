@@ -276,3 +276,44 @@ traction base.top = (1, -5)
         );
     }
 }
+
+#[test]
+fn factor_ordering_and_coarse_form_are_settings_of_each_solve_not_of_the_process() {
+    // Two solves at once in one process, one with AMD and a dense coarse
+    // problem, the other with nested dissection and a sparse one: each gets
+    // what its settings say (they were process-wide switches once, which a
+    // benchmark beside a test would have flipped for both).
+    use cso::tfeti::settings::{CoarseForm, FactorOrdering};
+    let src = cso::studies::bench::scaled_punch_3d(2, 4, 1e-8);
+    let opts = cso::lang::CheckOptions {
+        memory_limit: None,
+        ..cso::lang::CheckOptions::default()
+    };
+    let base = cso::lang::compile(&src, &opts).expect("the bench scene checks");
+    let with = |ordering, coarse| {
+        let mut s = base.clone();
+        s.solver.ordering = ordering;
+        s.solver.coarse = coarse;
+        s
+    };
+    let (amd, nd) = (
+        with(FactorOrdering::Amd, CoarseForm::Dense),
+        with(FactorOrdering::Dissection, CoarseForm::Sparse),
+    );
+    let (a, b) = std::thread::scope(|t| {
+        let a = t.spawn(|| solve(&amd, &[], &mut |_| {}).expect("solves"));
+        let b = t.spawn(|| solve(&nd, &[], &mut |_| {}).expect("solves"));
+        (a.join().expect("joins"), b.join().expect("joins"))
+    });
+    let values = |s: &cso::state::State| -> usize {
+        s.dual.cluster().map(|_, x| x.factor_nonzeros()).iter().sum()
+    };
+    assert!(values(&b) < values(&a), "{} vs {}", values(&b), values(&a));
+    assert_eq!(a.dual.coarse_form(), CoarseForm::Dense);
+    assert_eq!(b.dual.coarse_form(), CoarseForm::Sparse);
+    // The same discrete problem: the same state to the tolerance.
+    let (ua, ub) = (a.u.concat(), b.u.concat());
+    let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let diff = ua.iter().zip(&ub).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(diff < 1e-5 * scale, "{diff:e} vs {scale:e}");
+}

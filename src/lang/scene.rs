@@ -658,6 +658,14 @@ pub struct SolverSettings {
     /// not in the language, default none.
     #[serde(skip)]
     pub smalbe: crate::qp::SmalbeOverrides,
+    /// The subdomains' factor ordering; not in the language (`cso bench
+    /// scaling3d --ordering`), default nested dissection where it pays.
+    #[serde(skip)]
+    pub ordering: crate::tfeti::settings::FactorOrdering,
+    /// The coarse problem's storage; not in the language (`cso bench
+    /// coarse`), default by size.
+    #[serde(skip)]
+    pub coarse: crate::tfeti::settings::CoarseForm,
 }
 
 impl Default for SolverSettings {
@@ -670,6 +678,8 @@ impl Default for SolverSettings {
             local_f: LocalF::Auto,
             eps: 1e-10,
             smalbe: crate::qp::SmalbeOverrides::default(),
+            ordering: Default::default(),
+            coarse: Default::default(),
         }
     }
 }

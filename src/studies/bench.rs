@@ -149,6 +149,7 @@ pub fn scaling_row_3d(
     preconditioner: Preconditioner,
     local_f: LocalF,
     smalbe: SmalbeOverrides,
+    ordering: crate::tfeti::settings::FactorOrdering,
 ) -> Result<ScalingRow, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
     let options = CheckOptions {
@@ -161,6 +162,7 @@ pub fn scaling_row_3d(
     scene.solver.preconditioner = preconditioner;
     scene.solver.local_f = local_f;
     scene.solver.smalbe = smalbe;
+    scene.solver.ordering = ordering;
     row_of(&scene, hh, (k, k))
 }
 
@@ -257,7 +259,9 @@ fn row_of(
             .map(|_, s| s.factor_nonzeros())
             .iter()
             .sum(),
-        ordering: if state.problem.dim == 3 && crate::tfeti::ordering::dissection_on() {
+        ordering: if state.problem.dim == 3
+            && scene.solver.ordering == crate::tfeti::settings::FactorOrdering::Dissection
+        {
             "dissection"
         } else {
             "amd"
@@ -700,11 +704,11 @@ fn projection_parts(dual: &crate::tfeti::dual::Dual) -> [f64; 3] {
     t.map(|s| 1e3 * s / reps as f64)
 }
 
-/// Solves `scene` with the coarse problem dense, then sparse (process-wide
-/// [`crate::tfeti::coarse::force_form`], restored to `Auto` after), and
-/// measures the coarse problem's share of each solve.
+/// Solves `scene` with the coarse problem dense, then sparse
+/// (`SolverSettings::coarse`), and measures the coarse problem's share of
+/// each solve.
 pub fn coarse_rows(scene: &crate::lang::Scene) -> Result<Vec<CoarseRow>, SolveError> {
-    use crate::tfeti::coarse::{force_form, CoarseForm};
+    use crate::tfeti::coarse::CoarseForm;
     let rel = |a: &[f64], b: &[f64]| {
         let d = a
             .iter()
@@ -720,10 +724,9 @@ pub fn coarse_rows(scene: &crate::lang::Scene) -> Result<Vec<CoarseRow>, SolveEr
     let mut rows = Vec::new();
     let mut dense: Option<(Vec<f64>, Vec<f64>)> = None;
     for form in [CoarseForm::Dense, CoarseForm::Sparse] {
-        force_form(form);
-        let state = solve(scene, &[], &mut |_| {});
-        force_form(CoarseForm::Auto);
-        let state = state?;
+        let mut scene = scene.clone();
+        scene.solver.coarse = form;
+        let state = solve(&scene, &[], &mut |_| {})?;
         let stats = state.dual.coarse_stats();
         let u: Vec<f64> = state.u.concat();
         let (du, dl) = match &dense {

@@ -19,6 +19,7 @@ use super::floating::{Detection, Margin};
 use super::local_f::{budget, dense_bytes, wants_explicit, LocalF, LocalFStats};
 use super::lock;
 use super::rows::LocalRows;
+use super::settings::CoarseForm;
 use super::subdomain::Subdomain;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
@@ -68,6 +69,9 @@ pub struct Cluster {
     /// this one.
     explicit: Vec<Option<Arc<Mat<f64>>>>,
     local_f: LocalFStats,
+    /// How the coarse problems of this cluster's duals are stored
+    /// (`SolverSettings::coarse`); carried to clusters derived from it.
+    coarse: CoarseForm,
 }
 
 /// The entries of each local row, `(dof, coefficient bits)`: two rows with the
@@ -218,6 +222,7 @@ impl Cluster {
             factor_nonzeros: nnz[0] as usize,
             explicit: vec![None; subs.len()],
             local_f: LocalFStats::default(),
+            coarse: CoarseForm::Auto,
             subs,
             first,
             comm,
@@ -230,6 +235,17 @@ impl Cluster {
             m,
             work,
         }
+    }
+
+    /// Stores the coarse problems of this cluster's duals (and of clusters
+    /// derived from it) in `form` (`Auto`: by size).
+    pub fn set_coarse_form(&mut self, form: CoarseForm) {
+        self.coarse = form;
+    }
+
+    /// See [`Cluster::set_coarse_form`].
+    pub fn coarse_form(&self) -> CoarseForm {
+        self.coarse
     }
 
     /// The same subdomains (sharing their factorizations) with other rows,
@@ -254,6 +270,7 @@ impl Cluster {
     pub fn with_local_rows(&self, local: Vec<LocalRows>, m: usize) -> Cluster {
         let mut c =
             Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone());
+        c.coarse = self.coarse;
         for (i, f) in self.explicit.iter().enumerate() {
             let s = self.first + i;
             c.explicit[i] = f

@@ -35,54 +35,9 @@ use faer::sparse::linalg::SupernodalThreshold;
 use faer::sparse::SparseColMatRef;
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU8, Ordering};
 use std::sync::Mutex;
 
-/// How the coarse problem is stored and factored.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum CoarseForm {
-    /// Dense below [`DENSE_UP_TO`] unknowns, sparse from there on.
-    #[default]
-    Auto,
-    Dense,
-    Sparse,
-}
-
-/// Coarse unknowns below which `Auto` assembles and factors dense: there the
-/// dense factor is as fast to build and to apply (measured by `cso bench
-/// coarse`, BENCHMARKS.md) and small scenes keep the bits they always had.
-pub const DENSE_UP_TO: usize = 100;
-
-/// Process-wide choice for `Auto` (0: by size, 1: dense, 2: sparse); set only
-/// by benchmarks that compare the two on whole solves.
-static FORCED: AtomicU8 = AtomicU8::new(0);
-
-/// Makes `Auto` mean `form` in this process (`Auto`: by size again). For
-/// benchmarks; tests pass the form explicitly instead.
-pub fn force_form(form: CoarseForm) {
-    let v = match form {
-        CoarseForm::Auto => 0,
-        CoarseForm::Dense => 1,
-        CoarseForm::Sparse => 2,
-    };
-    FORCED.store(v, Ordering::Relaxed);
-}
-
-impl CoarseForm {
-    /// `Dense` or `Sparse` for a coarse problem of `n` unknowns.
-    pub fn resolve(self, n: usize) -> CoarseForm {
-        match self {
-            CoarseForm::Auto => match FORCED.load(Ordering::Relaxed) {
-                1 => CoarseForm::Dense,
-                2 => CoarseForm::Sparse,
-                _ if n < DENSE_UP_TO => CoarseForm::Dense,
-                _ => CoarseForm::Sparse,
-            },
-            f => f,
-        }
-    }
-}
+pub use super::settings::{CoarseForm, DENSE_UP_TO};
 
 /// `G G^T` (over the active rows), dense or as its sparse upper triangle.
 pub enum Gram {

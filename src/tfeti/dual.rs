@@ -99,11 +99,12 @@ impl Dual {
     /// Sets up the coarse space. Fails, naming the modes, when a rigid motion of
     /// some subdomain is not touched by any row (G G^T singular).
     pub fn new(cluster: Cluster) -> Result<Self, CoarseError> {
-        Dual::with_coarse(cluster, CoarseForm::Auto)
+        let form = cluster.coarse_form();
+        Dual::with_coarse(cluster, form)
     }
 
     /// [`Dual::new`] with the form of the coarse problem given (`Auto`: by
-    /// size).
+    /// size) rather than the cluster's.
     pub fn with_coarse(cluster: Cluster, form: CoarseForm) -> Result<Self, CoarseError> {
         let dual = Dual::deferred_as(cluster, form);
         dual.check_coarse()?;
@@ -118,7 +119,8 @@ impl Dual {
     /// include a set with a regular coarse problem (the kept active set), so
     /// its own `G G^T` (a sum over more rows) is regular too.
     pub fn deferred(cluster: Cluster) -> Self {
-        Dual::deferred_as(cluster, CoarseForm::Auto)
+        let form = cluster.coarse_form();
+        Dual::deferred_as(cluster, form)
     }
 
     fn deferred_as(cluster: Cluster, form: CoarseForm) -> Self {

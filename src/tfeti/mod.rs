@@ -30,6 +30,7 @@ pub mod precond;
 pub mod reconstruct;
 pub mod rows;
 pub mod schur;
+pub mod settings;
 pub mod solve;
 pub mod sparse;
 pub mod subdomain;

@@ -10,22 +10,6 @@
 //! as straight ones; a mesh that is not a lattice gets no ordering here (AMD
 //! then).
 
-use std::sync::atomic::{AtomicBool, Ordering};
-
-static DISSECTION: AtomicBool = AtomicBool::new(true);
-
-/// Whether 3D subdomains try nested dissection (default) or take AMD's
-/// ordering alone: a switch for benchmarks that compare the two in one run
-/// (`cso bench scaling3d --ordering`), for the subdomains factorized after it.
-pub fn set_dissection(on: bool) {
-    DISSECTION.store(on, Ordering::Relaxed);
-}
-
-/// See [`set_dissection`].
-pub fn dissection_on() -> bool {
-    DISSECTION.load(Ordering::Relaxed)
-}
-
 /// Lattice offsets of a hexahedron's nodes from its first: bottom face
 /// counter-clockwise, then the top face above it.
 const HEX: [[i32; 3]; 8] = [

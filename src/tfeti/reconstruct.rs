@@ -3,7 +3,7 @@
 //! `u = K^+ (f - B^T l) + R alpha`. A rigid motion that no active row
 //! determines is refused (the state is not unique), never guessed.
 
-use super::coarse::{CoarseFactor, CoarseForm, Gram};
+use super::coarse::{CoarseFactor, Gram};
 use super::dual::Dual;
 use super::error::SolveError;
 use std::time::Instant;
@@ -95,7 +95,7 @@ fn kernel_coefficients(
         }
     }
     let t = Instant::now();
-    let gg = Gram::assemble(cluster, Some(active), CoarseForm::Auto);
+    let gg = Gram::assemble(cluster, Some(active), cluster.coarse_form());
     // G G^T over the active rows must be regular: a round-off pivot means a
     // rigid motion no active row determines (the state is not unique).
     let factor = CoarseFactor::factor(gg, PIVOT);

@@ -24,6 +24,7 @@ use super::kernel::{fixing_dofs, rigid_modes};
 use super::lock;
 use super::ordering;
 use super::schur::{Schur, SchurForm};
+use super::settings::FactorOrdering;
 pub use super::sparse::SymbolicCache;
 use super::sparse::SymbolicKey;
 use super::sparse::{
@@ -76,8 +77,9 @@ impl From<DetectError> for SubdomainError {
 /// Which generalized inverse a subdomain uses.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Kind {
-    /// TFETI: kernel a priori, `K^+` by fixing dofs.
-    Total,
+    /// TFETI: kernel a priori, `K^+` by fixing dofs, the factor ordered by
+    /// `ordering`.
+    Total { ordering: FactorOrdering },
     /// Classical FETI: these dofs held by Dirichlet conditions (sorted), the
     /// kernel by pivot detection with tolerance `eps`.
     Classical { eliminated: Vec<usize>, eps: f64 },
@@ -235,16 +237,24 @@ fn assemble(mesh: &Geometry) -> Result<UpperCsc, SubdomainError> {
 }
 
 impl Subdomain {
-    /// A TFETI subdomain: assembles, fixes the kernel's dofs and factorizes.
+    /// A TFETI subdomain: assembles, fixes the kernel's dofs and factorizes
+    /// (the default ordering).
     pub fn total(mesh: &Geometry) -> Result<Self, SubdomainError> {
-        Self::build(mesh, Kind::Total, None, None)
+        let kind = Kind::Total {
+            ordering: FactorOrdering::default(),
+        };
+        Self::build(mesh, kind, None, None)
     }
 
-    /// [`Subdomain::total`] taking its symbolic factorization from `shared`
-    /// when another subdomain of the same pattern put one there (and putting
-    /// its own there otherwise).
-    pub fn total_shared(mesh: &Geometry, shared: &SymbolicCache) -> Result<Self, SubdomainError> {
-        Self::build(mesh, Kind::Total, None, Some(shared))
+    /// [`Subdomain::total`] with the factor ordered by `ordering`, taking its
+    /// symbolic factorization from `shared` when another subdomain of the
+    /// same pattern put one there (and putting its own there otherwise).
+    pub fn total_shared(
+        mesh: &Geometry,
+        ordering: FactorOrdering,
+        shared: &SymbolicCache,
+    ) -> Result<Self, SubdomainError> {
+        Self::build(mesh, Kind::Total { ordering }, None, Some(shared))
     }
 
     /// A classical FETI subdomain: `eliminated` (local dofs held by Dirichlet
@@ -280,7 +290,7 @@ impl Subdomain {
         let n = k.n;
         let same_pattern = previous.is_some_and(|p| p.kind == kind && p.k.same_pattern(&k));
         match &kind {
-            Kind::Total => {
+            Kind::Total { ordering: order_by } => {
                 let r = rigid_modes(coords, dim);
                 let fixed = fixing_dofs(coords, dim, mesh.corners);
                 let old = previous
@@ -308,7 +318,7 @@ impl Subdomain {
                     None => {
                         // 3D: nested dissection of the brick where it stores
                         // fewer values than AMD (`super::ordering`).
-                        let order = (dim == 3 && ordering::dissection_on())
+                        let order = (dim == 3 && *order_by == FactorOrdering::Dissection)
                             .then(|| ordering::lattice(mesh.elements, n / dim))
                             .flatten()
                             .map(|at| {
@@ -499,7 +509,7 @@ impl Subdomain {
             return Ok(s);
         }
         let excluded: &[usize] = match &self.kind {
-            Kind::Total => &[],
+            Kind::Total { .. } => &[],
             Kind::Classical { eliminated, .. } => eliminated,
         };
         let s = Arc::new(Schur::new(
@@ -1029,8 +1039,8 @@ pub(crate) mod tests {
         let (a, b) = (grid(3, 2, 0.0), grid(3, 2, 0.2));
         let cache = SymbolicCache::default();
         let (sa, sb) = (
-            Subdomain::total_shared(&Geometry::of(&a), &cache).expect("factorizes"),
-            Subdomain::total_shared(&Geometry::of(&b), &cache).expect("factorizes"),
+            Subdomain::total_shared(&Geometry::of(&a), FactorOrdering::default(), &cache).expect("factorizes"),
+            Subdomain::total_shared(&Geometry::of(&b), FactorOrdering::default(), &cache).expect("factorizes"),
         );
         assert!(Arc::ptr_eq(sa.factor.symbolic(), sb.factor.symbolic()));
         let alone = Subdomain::total(&Geometry::of(&b)).expect("factorizes");
