@@ -306,7 +306,11 @@ fn factor_ordering_and_coarse_form_are_settings_of_each_solve_not_of_the_process
         (a.join().expect("joins"), b.join().expect("joins"))
     });
     let values = |s: &cso::state::State| -> usize {
-        s.dual.cluster().map(|_, x| x.factor_nonzeros()).iter().sum()
+        s.dual
+            .cluster()
+            .map(|_, x| x.factor_nonzeros())
+            .iter()
+            .sum()
     };
     assert!(values(&b) < values(&a), "{} vs {}", values(&b), values(&a));
     assert_eq!(a.dual.coarse_form(), CoarseForm::Dense);
@@ -314,6 +318,9 @@ fn factor_ordering_and_coarse_form_are_settings_of_each_solve_not_of_the_process
     // The same discrete problem: the same state to the tolerance.
     let (ua, ub) = (a.u.concat(), b.u.concat());
     let scale = ua.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let diff = ua.iter().zip(&ub).fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    let diff = ua
+        .iter()
+        .zip(&ub)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
     assert!(diff < 1e-5 * scale, "{diff:e} vs {scale:e}");
 }

@@ -9,6 +9,7 @@
 //! code as `cso solve`.
 
 pub mod bench;
+pub mod bench_tables;
 pub mod compare;
 pub mod convergence;
 pub mod hertz;

@@ -1039,8 +1039,10 @@ pub(crate) mod tests {
         let (a, b) = (grid(3, 2, 0.0), grid(3, 2, 0.2));
         let cache = SymbolicCache::default();
         let (sa, sb) = (
-            Subdomain::total_shared(&Geometry::of(&a), FactorOrdering::default(), &cache).expect("factorizes"),
-            Subdomain::total_shared(&Geometry::of(&b), FactorOrdering::default(), &cache).expect("factorizes"),
+            Subdomain::total_shared(&Geometry::of(&a), FactorOrdering::default(), &cache)
+                .expect("factorizes"),
+            Subdomain::total_shared(&Geometry::of(&b), FactorOrdering::default(), &cache)
+                .expect("factorizes"),
         );
         assert!(Arc::ptr_eq(sa.factor.symbolic(), sb.factor.symbolic()));
         let alone = Subdomain::total(&Geometry::of(&b)).expect("factorizes");

@@ -1,0 +1,77 @@
+//! The commands that read a scene and answer without solving it: `check`,
+//! `compile` and `export`.
+
+use super::args::{Check, Compile, Export};
+use super::job::{load, load_as};
+use super::print::{fail, fail_solve, Outcome, EXIT_IO};
+use cso::lang::{diag, CheckOptions};
+
+impl Check {
+    /// Every file, in order; the worst exit code of them.
+    pub fn run(&self, opts: &CheckOptions) -> Outcome {
+        let codes = self.files.iter().map(|file| match load(file, opts) {
+            // What lowering can tell without factorizing: overlaps, loads
+            // nothing can carry, supports against contacts.
+            Ok(scene) => match cso::state::precheck_scene(&scene) {
+                Ok(warnings) => {
+                    for w in warnings {
+                        errln!("warning: {}: {w}", file.display());
+                    }
+                    outln!("{}", cso::io::summary::check_line(file, &scene));
+                    0
+                }
+                Err(e) => fail_solve(&file.display(), &scene, &e),
+            },
+            Err(code) => code,
+        });
+        match codes.fold(0, u8::max) {
+            0 => Ok(()),
+            worst => Err(worst),
+        }
+    }
+}
+
+impl Compile {
+    pub fn run(&self, opts: &CheckOptions) -> Outcome {
+        let scene = load_as(&self.file, opts, self.json)?;
+        let summary = cso::io::summary::summarize_with_operators(&scene);
+        if self.json {
+            // The scene's warnings come with it, as `check` would print them.
+            #[derive(serde::Serialize)]
+            struct WithWarnings<'a> {
+                #[serde(flatten)]
+                summary: &'a cso::io::summary::Summary,
+                warnings: Vec<diag::JsonDiagnostic>,
+            }
+            let name = self.file.display().to_string();
+            let src = scene.source.text.as_ref();
+            let doc = WithWarnings {
+                summary: &summary,
+                warnings: diag::to_json(&scene.warnings, &name, src),
+            };
+            let s = serde_json::to_string_pretty(&doc)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+            outln!("{s}");
+        } else {
+            out!("{summary}");
+        }
+        Ok(())
+    }
+}
+
+impl Export {
+    /// The QP at the scene's design (or `--set`), lowered and factorized, not solved.
+    pub fn run(&self, opts: &CheckOptions) -> Outcome {
+        let (scene, file) = (load(&self.file, opts)?, self.file.display());
+        let cannot = |e: std::io::Error| {
+            let msg = format!("cannot export into {}: {e}", self.out.display());
+            fail(EXIT_IO, msg)
+        };
+        cso::io::export::check_dir(&self.out, self.force).map_err(cannot)?;
+        let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
+            .map_err(|e| fail_solve(&file, &scene, &e))?;
+        cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;
+        outln!("{} files written to {}", files.len(), self.out.display());
+        Ok(())
+    }
+}

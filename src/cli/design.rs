@@ -1,0 +1,115 @@
+//! The commands about the design: `sensitivity` (gradients, or the study of
+//! their speed against accuracy) and `optimize` (MMA, Ctrl-C keeps the best).
+
+use super::args::{Optimize, Sensitivity};
+use super::job::{write_into, Job};
+use super::print::{fail, fail_solve, Outcome, Progress, EXIT_IO, EXIT_SCENE};
+use cso::io::atomic::write_files;
+use cso::io::tables;
+use cso::lang::CheckOptions;
+use cso::studies::output;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+impl Sensitivity {
+    /// A table of dJ/da_i for the objective and each constraint (or the study).
+    pub fn run(&self, opts: &CheckOptions) -> Outcome {
+        let job = Job::load(&self.file, opts, self.out.as_deref(), self.threads)?;
+        let scene = &job.scene;
+        if self.study {
+            return self.run_study(&job);
+        }
+        if scene.design.is_empty() {
+            let msg = "the scene has no design variables (`design NAME { init, lower, upper }`)";
+            return Err(fail(EXIT_SCENE, msg));
+        }
+        let method = self.method.unwrap_or(scene.sensitivity.method);
+        let h = self.step.unwrap_or(scene.sensitivity.step);
+        let scheme = self.scheme.unwrap_or(scene.sensitivity.scheme);
+        let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
+        let g = job.run(bar, |_| cso::sens::gradient(scene, method, h, scheme));
+        let g = g.map_err(|e| match e {
+            // A bad `--step` is a usage error, not the scene's.
+            cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
+            cso::sens::GradientError::Solve(e) => fail_solve(&self.file.display(), scene, &e),
+            e => fail(EXIT_SCENE, e),
+        })?;
+        outln!("{}", tables::gradient(scene, &g));
+        if let Some(dir) = &self.out {
+            let header = cso::io::provenance::Header::of(scene, "sensitivity", &[("time", "s")])
+                .with_units(cso::io::provenance::scene_units(scene));
+            let json = cso::io::provenance::to_json(&header, &g)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write JSON: {e}")))?;
+            write_files(dir, &[("sensitivity.json", json)])
+                .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+        }
+        Ok(())
+    }
+
+    /// `--study`: the speed-against-accuracy table, rows as they finish, and chart.
+    fn run_study(&self, job: &Job) -> Outcome {
+        let scene = &job.scene;
+        if scene.design.is_empty() || scene.objective.is_none() {
+            let msg = "a study needs design variables and an objective";
+            return Err(fail(EXIT_SCENE, msg));
+        }
+        outln!("{}", output::STUDY_HEADER);
+        let study = job
+            .install(|| {
+                cso::studies::sensitivity::study(scene, &mut |r| outln!("{}", output::study_row(r)))
+            })
+            .map_err(|e| fail(EXIT_SCENE, e))?;
+        outln!("{}", output::study_summary(&study));
+        write_into(self.out.as_deref(), || output::study_files(scene, &study))?;
+        if let Some(dir) = &self.out {
+            outln!("study written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
+
+impl Optimize {
+    /// MMA iterations with a progress line, then the best design.
+    pub fn run(&self, opts: &CheckOptions) -> Outcome {
+        let job = Job::load(&self.file, opts, self.out.as_deref(), self.threads)?;
+        let scene = &job.scene;
+        let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
+        // Ctrl-C: finish the current design, then stop with the best one written.
+        // Without a handler (one is already set) Ctrl-C simply ends the process.
+        let stop = Arc::new(AtomicBool::new(false));
+        let handler_stop = stop.clone();
+        let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
+        let out = self.out.as_deref();
+        let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
+        let result = job.run(bar, |bar| {
+            cso::opt::optimize(scene, &mut |it, state| {
+                if let Some(series) = series.as_mut() {
+                    series.record(scene, it.iteration, state);
+                }
+                bar.update(|| {
+                    format!(
+                        "iteration {} {}",
+                        it.iteration,
+                        tables::iterate_progress(it)
+                    )
+                });
+                bar.inc();
+                !stop.load(Ordering::SeqCst)
+            })
+        });
+        let run = result.map_err(|e| match e {
+            cso::sens::GradientError::Solve(e) => fail_solve(&self.file.display(), scene, &e),
+            e => fail(EXIT_SCENE, e),
+        })?;
+        if let Some(series) = series {
+            series.finish(scene).map_err(|e| fail(EXIT_IO, e))?;
+        }
+        outln!("{}", tables::optimization(scene, &run));
+        if let Some(dir) = out {
+            cso::io::optimization::write(dir, scene, &run)
+                .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
+            outln!("results written to {}", dir.display());
+        }
+        Ok(())
+    }
+}
