@@ -19,10 +19,13 @@ use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, Symboli
 pub use active_set::KeptDual;
 use active_set::Outcome;
 use rayon::prelude::*;
+use search::solve_searching;
+pub use search::{Search, MAX_ROUNDS as MAX_SEARCH_ROUNDS};
 use std::sync::Arc;
 use std::time::Instant;
 
 mod active_set;
+mod search;
 
 /// Wall time of each phase, seconds.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -70,6 +73,9 @@ pub struct State {
     /// SMALBE's state at the end of the dual solve and `||P F P||` (contact
     /// scenes), for a warm start at the next design.
     pub end: Option<(SmalbeWarm, f64)>,
+    /// What the contact search loop did: solves repeated with a wider search,
+    /// and the distances it set (the ones used are `problem.searches`).
+    pub search: Search,
 }
 
 /// What a state solve takes from the state of the same scene at a nearby
@@ -288,6 +294,26 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
             Some(d.help(
                 "move the secondary body out of the primary one, or flip the primary face or the obstacle's normal so that it points at the secondary body",
             ))
+        }
+        SolveError::SearchUnsettled {
+            contact,
+            depth,
+            off_face,
+            ..
+        } => {
+            let c = scene.contacts.iter().position(|c| &c.name == contact)?;
+            let d = Diagnostic::new("cso::search", message).label(
+                *places.contacts.get(c)?,
+                format!(
+                    "a secondary node without a row ends {} m inside the primary side",
+                    crate::lang::diag::num(*depth)
+                ),
+            );
+            Some(d.help(if *off_face {
+                "contact rows are chosen at the start: extend the primary face under where the secondary body slides to"
+            } else {
+                "set `search` on this contact above the largest displacement"
+            }))
         }
         SolveError::Unbalanced { body, .. } => {
             let b = scene.bodies.iter().position(|x| &x.name == body)?;
@@ -647,6 +673,11 @@ pub fn preconditioner(scene: &Scene) -> Option<crate::tfeti::precond::Kind> {
 }
 
 /// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
+/// Every entry (this, [`solve_reusing`], [`solve_distributed`]) runs the
+/// contact search loop: a secondary node without a contact row that the
+/// displacements carry into its primary side widens that contact's search
+/// and the state is solved again ([`Search`]; refused with
+/// [`SolveError::SearchUnsettled`] where that cannot settle).
 pub fn solve(
     scene: &Scene,
     design: &[f64],
@@ -655,9 +686,32 @@ pub fn solve(
     solve_reusing(scene, design, None, false, WarmStart::OFF, observer)
 }
 
+/// [`solve`] with at most `rounds` solves repeated with a wider contact
+/// search (every other entry allows [`MAX_SEARCH_ROUNDS`]): with 0, a first
+/// solve that leaves a node without a contact row inside its primary side is
+/// refused. For tests of the refusal.
+pub fn solve_with_search_rounds(
+    scene: &Scene,
+    design: &[f64],
+    rounds: usize,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<State, SolveError> {
+    solve_searching(
+        scene,
+        design,
+        None,
+        false,
+        WarmStart::OFF,
+        serial(),
+        observer,
+        rounds,
+    )
+}
+
 /// [`solve`] at a new design, reusing what `previous` (a state of the same scene
 /// at a nearby design) allows: the factorizations of subdomains whose nodes did
-/// not move, and its multipliers as the starting point when the rows match.
+/// not move, and its multipliers as the starting point when the rows match
+/// (its widened contact searches are kept, so that they do).
 pub fn solve_reusing(
     scene: &Scene,
     design: &[f64],
@@ -666,7 +720,7 @@ pub fn solve_reusing(
     warm: WarmStart,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_on(
+    solve_searching(
         scene,
         design,
         previous,
@@ -674,6 +728,7 @@ pub fn solve_reusing(
         warm,
         serial(),
         observer,
+        MAX_SEARCH_ROUNDS,
     )
 }
 
@@ -688,9 +743,19 @@ pub fn solve_distributed(
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_on(scene, design, None, false, WarmStart::OFF, comm, observer)
+    solve_searching(
+        scene,
+        design,
+        None,
+        false,
+        WarmStart::OFF,
+        comm,
+        observer,
+        MAX_SEARCH_ROUNDS,
+    )
 }
 
+/// One state solve on the rows lowering gives (no search loop).
 fn solve_on(
     scene: &Scene,
     design: &[f64],
@@ -897,6 +962,7 @@ fn solve_on(
         on_active_set: kept_dual.is_some(),
         kept_dual,
         end,
+        search: Search::default(),
     })
 }
 

@@ -15,6 +15,7 @@ mod optimize;
 mod ranks;
 mod reference;
 mod schema;
+mod search;
 mod sensitivity;
 mod sensitivity3d;
 mod solid;

@@ -71,6 +71,8 @@ pub struct SolverReport {
     pub projected_gradient: f64,
     pub feasibility: f64,
     pub history: Vec<f64>,
+    /// Solves repeated with a wider contact search (0: the first settled).
+    pub search_rounds: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -88,6 +90,8 @@ pub struct ContactNode {
 #[derive(Debug, Clone, Serialize)]
 pub struct ContactReport {
     pub name: String,
+    /// The search distance of the solve reported (m), widened where needed.
+    pub search: f64,
     pub total_force: f64,
     pub active: usize,
     pub nodes: Vec<ContactNode>,
@@ -174,6 +178,7 @@ impl Report {
             projected_gradient: state.info.projected_gradient / state.b_norm.max(f64::MIN_POSITIVE),
             feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
             history: state.info.history.clone(),
+            search_rounds: state.search.rounds,
         };
         let bodies = p
             .bodies
@@ -197,8 +202,10 @@ impl Report {
         let mut contacts: Vec<ContactReport> = scene
             .contacts
             .iter()
-            .map(|c| ContactReport {
+            .enumerate()
+            .map(|(ci, c)| ContactReport {
                 name: c.name.clone(),
+                search: p.searches.get(ci).copied().unwrap_or(0.0),
                 total_force: 0.0,
                 active: 0,
                 nodes: Vec::new(),
@@ -345,6 +352,19 @@ impl Report {
                     l.seconds
                 );
             }
+        }
+        if v.search_rounds > 0 {
+            let searches: Vec<String> = self
+                .contacts
+                .iter()
+                .map(|c| format!("{} {} m", c.name, num(c.search)))
+                .collect();
+            let _ = writeln!(
+                o,
+                "  contact search widened ({} more solves): {}",
+                v.search_rounds,
+                searches.join(", ")
+            );
         }
         let k = &self.kkt;
         let _ = writeln!(

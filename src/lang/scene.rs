@@ -530,7 +530,9 @@ pub struct Contact {
     pub name: String,
     pub primary: Primary,
     pub secondary: Selection,
-    /// Largest initial gap that gets a contact row; `None`: decided when lowering.
+    /// Largest initial gap that gets a contact row; `None`: a tenth of the
+    /// secondary body's diagonal. The state solve widens either where the
+    /// displacements carry a node without a row into the primary side.
     pub search: Option<f64>,
 }
 

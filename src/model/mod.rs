@@ -11,10 +11,12 @@ pub mod grid;
 mod loads;
 mod mesh;
 mod rows;
+mod search;
 
 pub use geometry::{FaceEdge, FaceQuad};
 pub use mesh::{BodyMesh, SubdomainMesh};
 pub use rows::{ContactPrimary, Named, Row, RowKind};
+pub use search::{unheld, SearchFindings, Unheld};
 
 use crate::lang::scene::{Dimension, Scene};
 use std::fmt;
@@ -36,6 +38,10 @@ pub struct Problem {
     /// Contacts that got no row: no secondary node within the search distance
     /// of the primary side (index into the scene's contacts, search distance).
     pub idle_contacts: Vec<(usize, f64)>,
+    /// The search distance of each contact (index into the scene's contacts):
+    /// its `search`, or the default. Nodes whose |initial gap| exceeds it get
+    /// no row.
+    pub searches: Vec<f64>,
 }
 
 /// The deepest initial overlap of one contact: its secondary node lies `depth`
@@ -136,6 +142,7 @@ pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
         probes: Vec::new(),
         penetrations: Vec::new(),
         idle_contacts: Vec::new(),
+        searches: Vec::new(),
     };
     loads::apply(scene, &mut problem, design)?;
     rows::build(scene, &mut problem, design)?;

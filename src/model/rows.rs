@@ -140,9 +140,10 @@ fn by_pieces<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let pos = coords::<D>(problem);
     ties::<P, D, N>(scene, problem, design, &pos, rows)?;
     problem.n_equality = rows.len();
-    let (penetrations, idle) = contacts::<P, D, N>(scene, problem, design, &pos, rows)?;
+    let (penetrations, idle, searches) = contacts::<P, D, N>(scene, problem, design, &pos, rows)?;
     problem.penetrations = penetrations;
     problem.idle_contacts = idle;
+    problem.searches = searches;
     Ok(())
 }
 
@@ -250,7 +251,7 @@ fn pieces_or_error<P: Piece<D, N>, const D: usize, const N: usize>(
 /// nodes in 2D (segments meet at nodes), edges in 3D (quadrilaterals meet along
 /// them). A side shared by two pieces is inside the selection; by one, on its
 /// boundary.
-fn side_counts<P: Piece<D, N>, const D: usize, const N: usize>(
+pub(super) fn side_counts<P: Piece<D, N>, const D: usize, const N: usize>(
     pieces: &[P],
 ) -> HashMap<(usize, usize), usize> {
     let mut counts = HashMap::new();
@@ -303,7 +304,7 @@ fn on_inner_side<P: Piece<D, N>, const D: usize, const N: usize>(
 /// the box of its nodes), so a node looks at a few pieces, not all, with the
 /// same result (ties still go to the first in face order). Only a node that
 /// falls on no piece looks at them all.
-fn nearest_piece<P: Piece<D, N>, const D: usize, const N: usize>(
+pub(super) fn nearest_piece<P: Piece<D, N>, const D: usize, const N: usize>(
     pos: &[Vec<[f64; D]>],
     pieces: &[P],
     counts: &HashMap<(usize, usize), usize>,
@@ -409,7 +410,7 @@ impl<const D: usize> Aabb<D> {
     }
 }
 
-fn boxes_of<P: Piece<D, N>, const D: usize, const N: usize>(
+pub(super) fn boxes_of<P: Piece<D, N>, const D: usize, const N: usize>(
     pieces: &[P],
     pos: &[Vec<[f64; D]>],
 ) -> Vec<Aabb<D>> {
@@ -450,7 +451,10 @@ fn ties<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     Ok(())
 }
 
-/// The default search distance: a tenth of the secondary body's diagonal.
+/// The default search distance: a tenth of the secondary body's diagonal, a
+/// first guess from the scene's size. The state solve widens it where the
+/// computed displacements carry a node without a row into the primary side
+/// (`crate::state`'s search loop, [`super::search`]).
 fn default_search(problem: &Problem, body: usize) -> f64 {
     let (lo, hi) = problem.bodies[body].bounding_box();
     0.1 * (0..problem.dim)
@@ -462,8 +466,9 @@ fn default_search(problem: &Problem, body: usize) -> f64 {
 /// Node-to-facet contact rows `n^T (sum_k N_k u_k - u_p) <= g`, and node-to-
 /// obstacle rows `-n^T u_p <= g`, only for secondary nodes whose projection falls
 /// on the primary side within the search distance. Returns the deepest initial
-/// overlap of each contact whose bodies start inside each other, and the
-/// contacts that got no row (with their search distance).
+/// overlap of each contact whose bodies start inside each other, the
+/// contacts that got no row (with their search distance), and every contact's
+/// search distance.
 fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     scene: &Scene,
     problem: &Problem,
@@ -473,6 +478,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
 ) -> Result<ContactFindings, LowerError> {
     let mut overlaps = Vec::new();
     let mut idle = Vec::new();
+    let mut searches = Vec::new();
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
@@ -481,6 +487,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
         let search = contact
             .search
             .unwrap_or_else(|| default_search(problem, sec.body));
+        searches.push(search);
         let primary = match &contact.primary {
             Primary::Face(p) => {
                 let pieces = pieces_or_error::<P, D, N>(problem, p, design)?;
@@ -552,12 +559,12 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             idle.push((ci, search));
         }
     }
-    Ok((overlaps, idle))
+    Ok((overlaps, idle, searches))
 }
 
-/// The deepest overlap of each contact that has one, and the contacts that got
-/// no row (with their search distance).
-type ContactFindings = (Vec<Penetration>, Vec<(usize, f64)>);
+/// The deepest overlap of each contact that has one, the contacts that got
+/// no row (with their search distance), and each contact's search distance.
+type ContactFindings = (Vec<Penetration>, Vec<(usize, f64)>, Vec<f64>);
 
 /// The primary side of a contact, as lowering searches it.
 enum Side<P, const D: usize> {

@@ -45,6 +45,23 @@ pub enum SolveError {
         depth: f64,
         at: Vec<f64>,
     },
+    /// A secondary node of a contact that got no row (beyond the search
+    /// distance, or projecting beyond the primary face at the start) ends
+    /// `depth` behind the primary side, and the state solve's wider searches
+    /// did not give it one.
+    SearchUnsettled {
+        contact: String,
+        /// The node's initial position.
+        at: Vec<f64>,
+        depth: f64,
+        /// The contact's search distance in the last solve.
+        search: f64,
+        /// Solves repeated with a wider search.
+        rounds: usize,
+        /// Its projection falls beyond the primary face at the start, so no
+        /// search distance gives it a row.
+        off_face: bool,
+    },
     /// A body's load points where nothing can hold it (contacts only push).
     Unbalanced {
         body: String,
@@ -104,6 +121,36 @@ impl fmt::Display for SolveError {
                     .join(", "),
                 crate::lang::diag::num(*depth)
             ),
+            SolveError::SearchUnsettled {
+                contact,
+                at,
+                depth,
+                search,
+                rounds,
+                off_face,
+            } => {
+                write!(
+                    f,
+                    "contact `{contact}`: its secondary node at ({}) ends {} m inside the primary side, with no contact row to stop it",
+                    at.iter()
+                        .map(|x| crate::lang::diag::num(*x))
+                        .collect::<Vec<_>>()
+                        .join(", "),
+                    crate::lang::diag::num(*depth)
+                )?;
+                if *off_face {
+                    write!(
+                        f,
+                        ": it starts beyond the edge of the primary face, so no search distance gives it a row; extend the primary face under where the secondary body slides"
+                    )
+                } else {
+                    write!(
+                        f,
+                        ": {rounds} solves with a wider search (last {} m) did not settle; set the contact's `search` above the largest displacement",
+                        crate::lang::diag::num(*search)
+                    )
+                }
+            }
             SolveError::Rank(r) => write!(f, "MPI rank {}: {}", r.rank, r.message),
             SolveError::RanksDiverged => write!(
                 f,
