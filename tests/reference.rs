@@ -828,13 +828,13 @@ fn the_comparison_detects_a_wrong_solution() {
 /// The full-size 2D examples (hertz2d on a 16 x 16 mesh: dense LU of its
 /// 80 x 80 mesh is too large). About 2,300 dofs each; run with `--ignored`.
 #[test]
-#[ignore]
+#[ignore = "slow: dense LU of four examples"]
 fn reference_agrees_with_tfeti_and_feti_on_the_full_examples() {
     for name in ["two_blocks", "semicoercive2d", "scont2d", "hertz2d"] {
-        let src =
-            std::fs::read_to_string(crate::root().join("examples").join(format!("{name}.cso")))
-                .expect("example")
-                .edit("mesh = 80 x 80", "mesh = 16 x 16");
+        let mut src = crate::fixture::example_src(name);
+        if name == "hertz2d" {
+            src = src.edit("mesh = 80 x 80", "mesh = 16 x 16");
+        }
         check(name, &src, 1e-6, 1e-5);
     }
 }

@@ -5,6 +5,7 @@ pub mod atomic;
 pub mod export;
 pub mod optimization;
 pub mod plot;
+pub mod png;
 pub mod provenance;
 pub mod report;
 pub mod summary;
