@@ -48,6 +48,29 @@ pub const GRADIENT_COST_SIZES: [usize; 5] = [2, 6, 16, 36, 96];
 /// 2 x 2, 4 x 4 and 6 x 6 heights.
 pub const GRADIENT_COST_SIZES_3D: [usize; 3] = [4, 16, 36];
 
+/// The memory limit a generated scene is checked with.
+#[derive(Clone, Copy)]
+enum Limit {
+    /// The checker's default (a share of the machine's memory).
+    Machine,
+    /// None: the big 3D and optimization scenes are sized on purpose.
+    None,
+}
+
+/// A benchmark's generated scene, checked; one that does not check is a bug
+/// of the generator, reported with the checker's messages.
+fn checked(src: &str, limit: Limit) -> Result<crate::lang::Scene, SolveError> {
+    let options = match limit {
+        Limit::Machine => CheckOptions::default(),
+        Limit::None => CheckOptions {
+            memory_limit: None,
+            ..CheckOptions::default()
+        },
+    };
+    compile(src, &options)
+        .map_err(|d| SolveError::Generated(d.iter().map(|x| x.message.clone()).collect()))
+}
+
 /// Parses the largest cut of the base, `SXxSY` (e.g. `32x16`): the value parser
 /// of `cso bench --max-cuts`.
 pub fn parse_cuts(s: &str) -> Result<(usize, usize), String> {
@@ -114,9 +137,7 @@ pub fn scaled_scene(
     tolerance: f64,
 ) -> Result<crate::lang::Scene, SolveError> {
     let src = scaled_two_blocks(sx, sy, hh, tolerance);
-    compile(&src, &CheckOptions::default()).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })
+    checked(&src, Limit::Machine)
 }
 
 /// The 3D scaling scene: a unit-cube base cut `k x k x k`, a punch with a
@@ -152,13 +173,7 @@ pub fn scaling_row_3d(
     ordering: crate::tfeti::settings::FactorOrdering,
 ) -> Result<ScalingRow, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
-    let options = CheckOptions {
-        memory_limit: None,
-        ..CheckOptions::default()
-    };
-    let mut scene = compile(&src, &options).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
+    let mut scene = checked(&src, Limit::None)?;
     scene.solver.preconditioner = preconditioner;
     scene.solver.local_f = local_f;
     scene.solver.smalbe = smalbe;
@@ -374,9 +389,7 @@ fn gradient_costs_of(
     tolerance: f64,
     local_f: LocalF,
 ) -> Result<Vec<GradientCost>, GradientError> {
-    let mut scene = compile(src, &CheckOptions::default()).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
+    let mut scene = checked(src, Limit::Machine)?;
     scene.solver.tolerance = tolerance;
     scene.solver.local_f = local_f;
     type Method = fn(&crate::lang::scene::Scene) -> Result<Gradient, GradientError>;
@@ -598,13 +611,7 @@ pub fn reuse_table(
     local_f: LocalF,
 ) -> Result<ReuseTable, crate::sens::GradientError> {
     use crate::opt::optimize_with;
-    let options = CheckOptions {
-        memory_limit: None,
-        ..CheckOptions::default()
-    };
-    let mut scene = compile(src, &options).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
+    let mut scene = checked(src, Limit::None)?;
     scene.solver.local_f = local_f;
     let cold = solve(&scene, &scene.design_init(), &mut |_| {})?;
     let mut runs = Vec::new();
@@ -766,12 +773,6 @@ pub fn coarse_rows_2d(
 /// [`coarse_rows`] on the 3D scaling scene with the base cut `k x k x k`.
 pub fn coarse_rows_3d(k: usize, hh: usize, tolerance: f64) -> Result<Vec<CoarseRow>, SolveError> {
     let src = scaled_punch_3d(k, hh, tolerance);
-    let options = CheckOptions {
-        memory_limit: None,
-        ..CheckOptions::default()
-    };
-    let scene = compile(&src, &options).map_err(|d| {
-        SolveError::Reconstruction(format!("bench scene does not check: {:?}", d.first()))
-    })?;
+    let scene = checked(&src, Limit::None)?;
     coarse_rows(&scene)
 }

@@ -73,6 +73,9 @@ pub enum SolveError {
     Rank(super::comm::RankFailure),
     /// Distributed runs: the ranks' replicated dual solutions differ.
     RanksDiverged,
+    /// A scene a study generated does not check (a bug of the generator):
+    /// the checker's messages.
+    Generated(Vec<String>),
 }
 
 impl fmt::Display for SolveError {
@@ -152,6 +155,11 @@ impl fmt::Display for SolveError {
                 }
             }
             SolveError::Rank(r) => write!(f, "MPI rank {}: {}", r.rank, r.message),
+            SolveError::Generated(errors) => write!(
+                f,
+                "a scene generated for a study does not check: {}",
+                errors.join("; ")
+            ),
             SolveError::RanksDiverged => write!(
                 f,
                 "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"
