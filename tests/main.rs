@@ -13,6 +13,7 @@ mod mpi;
 mod optimize;
 mod ranks;
 mod reference;
+mod resultant;
 mod schema;
 mod sensitivity;
 mod sensitivity3d;

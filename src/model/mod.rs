@@ -63,6 +63,42 @@ impl Problem {
         }
         c
     }
+
+    /// The resultant of contact `contact`'s nodal forces on its secondary body
+    /// (N, `z = 0` in 2D): each row's normal force `lambda_i / scale_i` along
+    /// its unit normal `n_i` (from the primary to the secondary), summed as
+    /// vectors. Its magnitude is what the contact carries; the sum of the
+    /// normal forces ([`Self::contact_normal_sum`]) equals it only where the
+    /// normals are parallel (a flat primary) and exceeds it on a curved one.
+    pub fn contact_resultant(&self, lambda: &[f64], contact: usize) -> [f64; 3] {
+        let mut f = [0.0; 3];
+        for (row, l) in self.rows.iter().zip(lambda) {
+            if let RowKind::Contact {
+                contact: c, normal, ..
+            } = &row.kind
+            {
+                if *c == contact {
+                    for (fa, na) in f.iter_mut().zip(normal) {
+                        *fa += l / row.scale * na;
+                    }
+                }
+            }
+        }
+        f
+    }
+
+    /// The sum of contact `contact`'s nodal normal forces `lambda_i / scale_i`
+    /// (N): not a force on anything where the normals differ.
+    pub fn contact_normal_sum(&self, lambda: &[f64], contact: usize) -> f64 {
+        self.rows
+            .iter()
+            .zip(lambda)
+            .filter(
+                |(row, _)| matches!(row.kind, RowKind::Contact { contact: c, .. } if c == contact),
+            )
+            .map(|(row, l)| l / row.scale)
+            .sum()
+    }
 }
 
 /// Number of multipliers of each kind.
