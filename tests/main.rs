@@ -5,6 +5,7 @@ mod diagnostics;
 mod examples;
 mod export;
 mod feti;
+mod finite;
 mod front_end;
 mod fuzz;
 mod hard;

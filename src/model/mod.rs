@@ -6,6 +6,7 @@
 //! later hand each rank its subdomains and the rows that touch them.
 
 pub mod balance;
+pub mod finite;
 pub mod geometry;
 pub mod grid;
 mod loads;
@@ -138,6 +139,9 @@ pub enum LowerError {
     EmptySelection(String),
     /// Non-finite node coordinates (a face undefined at this design).
     Geometry(String),
+    /// A load, prescribed displacement or gap that is not finite, or too
+    /// large to solve with.
+    NotFinite(finite::NotFinite),
 }
 
 impl fmt::Display for LowerError {
@@ -151,6 +155,7 @@ impl fmt::Display for LowerError {
             ),
             LowerError::EmptySelection(s) => write!(f, "the selection `{s}` is empty"),
             LowerError::Geometry(s) => write!(f, "{s}"),
+            LowerError::NotFinite(e) => write!(f, "{e}"),
         }
     }
 }
@@ -180,5 +185,6 @@ pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
         .iter()
         .map(|p| (p.body, problem.bodies[p.body].nearest(&p.at)))
         .collect();
+    finite::check(scene, &problem, design).map_err(LowerError::NotFinite)?;
     Ok(problem)
 }
