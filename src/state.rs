@@ -25,6 +25,7 @@ use std::sync::Arc;
 use std::time::Instant;
 
 mod active_set;
+mod finite;
 mod search;
 
 /// Wall time of each phase, seconds.
@@ -339,6 +340,19 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
         SolveError::Subdomain { body, .. } => {
             Some(Diagnostic::new("cso::subdomain", message).label(body_at(body)?, "in this body"))
         }
+        SolveError::NotFinite(crate::model::finite::NotFinite {
+            condition: Some(k),
+            value,
+            unit,
+            ..
+        }) => Some(
+            Diagnostic::new("cso::not-finite", message)
+                .label(
+                    *places.conditions.get(*k)?,
+                    format!("{} {unit}", crate::lang::diag::num(*value)),
+                )
+                .help("a unit written twice (`1e6 MPa` for 1 MPa) or a wrong exponent is the usual cause"),
+        ),
         SolveError::Lower(crate::model::LowerError::Inverted { body, .. }) => Some(
             Diagnostic::new("cso::inverted", message)
                 .label(body_at(body)?, "this body's mesh folds over at this design")
@@ -353,7 +367,7 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
 /// warnings of the lowered problem on success.
 pub fn precheck_scene(scene: &Scene) -> Result<Vec<String>, SolveError> {
     let design = scene.design_init();
-    let problem = lower(scene, &design).map_err(SolveError::Lower)?;
+    let problem = lower(scene, &design).map_err(SolveError::from)?;
     precheck(scene, &design, &problem, None)?;
     Ok(warnings(scene, &problem))
 }
@@ -450,7 +464,7 @@ fn setup_on(
     defer_precheck: bool,
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
-    let problem = lower(scene, design).map_err(SolveError::Lower)?;
+    let problem = lower(scene, design).map_err(SolveError::from)?;
     let lower_time = t0.elapsed().as_secs_f64();
     let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
     let elimination = feti.then(|| Arc::new(Elimination::new(&problem)));
@@ -944,7 +958,7 @@ fn solve_on(
     };
     times.reconstruct = t.elapsed().as_secs_f64();
     times.total = t0.elapsed().as_secs_f64();
-    Ok(State {
+    let state = State {
         problem,
         dual,
         elimination,
@@ -963,7 +977,9 @@ fn solve_on(
         kept_dual,
         end,
         search: Search::default(),
-    })
+    };
+    finite::check(scene, &state)?;
+    Ok(state)
 }
 
 impl State {

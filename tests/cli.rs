@@ -873,3 +873,38 @@ fn a_3d_solve_writes_hexahedra_that_meshio_reads_and_a_pressure_map() {
     assert_eq!(counts, [(1521, 1152), (225, 128)]);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_load_too_large_to_solve_with_exits_non_zero_and_writes_nothing() {
+    let scene = std::env::temp_dir().join(format!("cso-huge-load-{}.cso", std::process::id()));
+    std::fs::write(
+        &scene,
+        "scene blk { dim = 2, thickness = 1 m }
+material steel { E = 210 GPa, nu = 0.3 }
+body blk { material = steel, x = 0 .. 1, y = 0 .. 1, mesh = 4 x 4 }
+fix blk.top
+traction blk.bottom = (0, 1e300 MPa)
+",
+    )
+    .expect("temp scene");
+    let dir = std::env::temp_dir().join(format!("cso-huge-load-out-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let (code, out, err) = cso(&[
+        "solve",
+        &scene.to_string_lossy(),
+        "-o",
+        &dir.to_string_lossy(),
+    ]);
+    assert_eq!(code, 1, "{out}{err}");
+    assert!(!out.contains("converged") && !out.contains("NaN"), "{out}");
+    assert!(
+        err.contains("the load of `traction blk.bottom` is 1e306 N, too large to solve with"),
+        "{err}"
+    );
+    let written: Vec<_> = std::fs::read_dir(&dir)
+        .map(|d| d.filter_map(Result::ok).map(|e| e.path()).collect())
+        .unwrap_or_default();
+    assert!(written.is_empty(), "{written:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&scene);
+}

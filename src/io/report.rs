@@ -16,9 +16,12 @@
 //! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
 //!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
 //! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
-//! - `contacts`: per contact total normal force, active count and per node
-//!   `x`, `y`, `gap` (after deformation), `multiplier` (normal force, N) and
-//!   `pressure` (force over the node's tributary area);
+//! - `contacts`: per contact the `resultant` of its nodal forces on the
+//!   secondary body (components, N), its magnitude `total_force`, the sum of
+//!   the nodal normal forces `normal_force_sum` (the same on a flat primary),
+//!   active count and per node `x`, `y`, `gap` (after deformation),
+//!   `multiplier` (normal force, N) and `pressure` (force over the node's
+//!   tributary area);
 //! - `probes`: `ux`, `uy` (and `uz`, `z` in 3D) at the node nearest to each probe point;
 //!   contact nodes carry `z` in 3D too.
 
@@ -32,6 +35,7 @@ use crate::lang::diag::{num, round6};
 use crate::lang::scene::Scene;
 use crate::model::SubdomainMesh;
 use crate::model::{RowCounts, RowKind};
+use crate::num::norm;
 use crate::qp::Status;
 use crate::state::{Kkt, State, Times};
 use serde::Serialize;
@@ -92,7 +96,17 @@ pub struct ContactReport {
     pub name: String,
     /// The search distance of the solve reported (m), widened where needed.
     pub search: f64,
+    /// The magnitude of `resultant` (N): the force the contact carries, what
+    /// the summary prints and `contact_force(CONTACT)` is.
     pub total_force: f64,
+    /// The vector sum of the nodal contact forces on the secondary body (N;
+    /// 2 components in 2D, 3 in 3D): each node's normal force along the
+    /// primary's normal there, which points from the primary to the secondary.
+    pub resultant: Vec<f64>,
+    /// The sum of the nodal normal forces (N), the `multiplier`s: equal to
+    /// `total_force` on a flat primary, more on a curved one, where the
+    /// normals tilt and part of each node's force cancels in the resultant.
+    pub normal_force_sum: f64,
     pub active: usize,
     pub nodes: Vec<ContactNode>,
 }
@@ -198,50 +212,7 @@ impl Report {
                     .fold(0.0, f64::max),
             })
             .collect();
-        let bu = state.row_values();
-        let mut contacts: Vec<ContactReport> = scene
-            .contacts
-            .iter()
-            .enumerate()
-            .map(|(ci, c)| ContactReport {
-                name: c.name.clone(),
-                search: p.searches.get(ci).copied().unwrap_or(0.0),
-                total_force: 0.0,
-                active: 0,
-                nodes: Vec::new(),
-            })
-            .collect();
-        let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-        for (i, row) in p.rows.iter().enumerate() {
-            if let RowKind::Contact {
-                contact,
-                body,
-                node,
-                area,
-                ..
-            } = row.kind
-            {
-                let force = state.lambda[i] / row.scale;
-                let gap = (row.c - bu[i]) * row.scale;
-                let c = &mut contacts[contact];
-                c.total_force += force;
-                if state.lambda[i] > 1e-8 * lmax {
-                    c.active += 1;
-                }
-                let x = p.bodies[body].coords[node];
-                c.nodes.push(ContactNode {
-                    x: x[0],
-                    y: x[1],
-                    z: (p.dim == 3).then_some(x[2]),
-                    gap,
-                    multiplier: force,
-                    pressure: if area > 0.0 { force / area } else { 0.0 },
-                });
-            }
-        }
-        for c in &mut contacts {
-            c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
-        }
+        let contacts = contact_reports(scene, state);
         let probes = scene
             .probes
             .iter()
@@ -399,16 +370,7 @@ impl Report {
             let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
         }
         for c in &self.contacts {
-            let peak = c.nodes.iter().map(|n| n.pressure).fold(0.0, f64::max);
-            let _ = writeln!(
-                o,
-                "  contact {:<8} force {} N, {} of {} nodes active, peak pressure {} Pa",
-                c.name,
-                num(c.total_force),
-                c.active,
-                c.nodes.len(),
-                num(peak)
-            );
+            let _ = writeln!(o, "{}", contact_line(c, &num));
         }
         for p in &self.probes {
             let uz =
@@ -427,6 +389,96 @@ impl Report {
     pub fn summary_text(&self) -> String {
         self.summary(true)
     }
+}
+
+/// Per contact: the resultant of its nodal forces, their sum, and per node
+/// its position, gap, force and pressure (sorted by `x`).
+fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
+    let p = &state.problem;
+    let bu = state.row_values();
+    let mut contacts: Vec<ContactReport> = scene
+        .contacts
+        .iter()
+        .enumerate()
+        .map(|(k, c)| {
+            let resultant = p.contact_resultant(&state.lambda, k);
+            ContactReport {
+                name: c.name.clone(),
+                search: p.searches.get(k).copied().unwrap_or(0.0),
+                total_force: norm(&resultant),
+                resultant: resultant[..p.dim].to_vec(),
+                normal_force_sum: p.contact_normal_sum(&state.lambda, k),
+                active: 0,
+                nodes: Vec::new(),
+            }
+        })
+        .collect();
+    let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact {
+            contact,
+            body,
+            node,
+            area,
+            ..
+        } = row.kind
+        {
+            let force = state.lambda[i] / row.scale;
+            let gap = (row.c - bu[i]) * row.scale;
+            let c = &mut contacts[contact];
+            if state.lambda[i] > 1e-8 * lmax {
+                c.active += 1;
+            }
+            let x = p.bodies[body].coords[node];
+            c.nodes.push(ContactNode {
+                x: x[0],
+                y: x[1],
+                z: (p.dim == 3).then_some(x[2]),
+                gap,
+                multiplier: force,
+                pressure: if area > 0.0 { force / area } else { 0.0 },
+            });
+        }
+    }
+    for c in &mut contacts {
+        c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
+    }
+    contacts
+}
+
+/// A contact's summary line: its force (the resultant's size) and, where
+/// they differ (a curved primary tilts the nodes' forces), the resultant's
+/// components and the sum of the nodal normal forces; numbers written by
+/// `num` (the summary's rounding).
+fn contact_line(c: &ContactReport, num: &dyn Fn(f64) -> String) -> String {
+    let peak = c.nodes.iter().map(|n| n.pressure).fold(0.0, f64::max);
+    let (force, sum) = (num(c.total_force), num(c.normal_force_sum));
+    let resultant = if force == sum {
+        String::new()
+    } else {
+        // Components to the magnitude's six digits: the rest is the
+        // solver's round-off (a component that should be 0).
+        let q = match c.total_force {
+            f if f > 0.0 => 10f64.powi(f.log10().floor() as i32 - 5),
+            _ => 1.0,
+        };
+        let v: Vec<String> = c
+            .resultant
+            .iter()
+            .map(|x| num((x / q).round() * q + 0.0))
+            .collect();
+        format!(
+            ", resultant ({}) N, nodal normal forces sum to {sum} N",
+            v.join(", ")
+        )
+    };
+    format!(
+        "  contact {:<8} force {force} N{resultant}, {} of {} nodes active, peak pressure {} Pa",
+        c.name,
+        c.active,
+        c.nodes.len(),
+        num(peak)
+    )
 }
 
 /// A residual as an order of magnitude bound, stable across machines: "< 1e-9".

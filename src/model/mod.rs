@@ -6,6 +6,7 @@
 //! later hand each rank its subdomains and the rows that touch them.
 
 pub mod balance;
+pub mod finite;
 pub mod geometry;
 pub mod grid;
 mod loads;
@@ -69,6 +70,42 @@ impl Problem {
         }
         c
     }
+
+    /// The resultant of contact `contact`'s nodal forces on its secondary body
+    /// (N, `z = 0` in 2D): each row's normal force `lambda_i / scale_i` along
+    /// its unit normal `n_i` (from the primary to the secondary), summed as
+    /// vectors. Its magnitude is what the contact carries; the sum of the
+    /// normal forces ([`Self::contact_normal_sum`]) equals it only where the
+    /// normals are parallel (a flat primary) and exceeds it on a curved one.
+    pub fn contact_resultant(&self, lambda: &[f64], contact: usize) -> [f64; 3] {
+        let mut f = [0.0; 3];
+        for (row, l) in self.rows.iter().zip(lambda) {
+            if let RowKind::Contact {
+                contact: c, normal, ..
+            } = &row.kind
+            {
+                if *c == contact {
+                    for (fa, na) in f.iter_mut().zip(normal) {
+                        *fa += l / row.scale * na;
+                    }
+                }
+            }
+        }
+        f
+    }
+
+    /// The sum of contact `contact`'s nodal normal forces `lambda_i / scale_i`
+    /// (N): not a force on anything where the normals differ.
+    pub fn contact_normal_sum(&self, lambda: &[f64], contact: usize) -> f64 {
+        self.rows
+            .iter()
+            .zip(lambda)
+            .filter(
+                |(row, _)| matches!(row.kind, RowKind::Contact { contact: c, .. } if c == contact),
+            )
+            .map(|(row, l)| l / row.scale)
+            .sum()
+    }
 }
 
 /// Number of multipliers of each kind.
@@ -108,6 +145,9 @@ pub enum LowerError {
     EmptySelection(String),
     /// Non-finite node coordinates (a face undefined at this design).
     Geometry(String),
+    /// A load, prescribed displacement or gap that is not finite, or too
+    /// large to solve with.
+    NotFinite(finite::NotFinite),
 }
 
 impl fmt::Display for LowerError {
@@ -121,6 +161,7 @@ impl fmt::Display for LowerError {
             ),
             LowerError::EmptySelection(s) => write!(f, "the selection `{s}` is empty"),
             LowerError::Geometry(s) => write!(f, "{s}"),
+            LowerError::NotFinite(e) => write!(f, "{e}"),
         }
     }
 }
@@ -151,5 +192,6 @@ pub fn lower(scene: &Scene, design: &[f64]) -> Result<Problem, LowerError> {
         .iter()
         .map(|p| (p.body, problem.bodies[p.body].nearest(&p.at)))
         .collect();
+    finite::check(scene, &problem, design).map_err(LowerError::NotFinite)?;
     Ok(problem)
 }

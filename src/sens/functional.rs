@@ -102,7 +102,11 @@ impl Eval<'_> {
             Functional::Geometry(g) => g.eval_f64([0.0; 3], self.design),
             Functional::Compliance => self.state.compliance(),
             Functional::Energy => self.state.energy(),
-            Functional::ContactForce(c) => self.contact(*c).iter().map(|(force, _)| force).sum(),
+            // The magnitude of the resultant, not the sum of the nodal forces'
+            // sizes: on a curved primary only the resultant balances the load.
+            Functional::ContactForce(c) => {
+                crate::num::norm(&self.state.problem.contact_resultant(&self.state.lambda, *c))
+            }
             Functional::PressureNorm(c, q) => {
                 let sum: f64 = self
                     .contact(*c)

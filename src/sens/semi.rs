@@ -47,6 +47,9 @@ pub struct Direction {
     pub ukpu: f64,
     /// Scale derivative of each row (0 where the row does not move).
     pub scale: Vec<f64>,
+    /// Derivative of each contact row's entries at its secondary node
+    /// ([`Rhs::secondary`]).
+    pub secondary: Vec<[f64; 3]>,
     pub hessian_applications: usize,
     /// Contact or tie rows whose node sits at a segment end while sliding along
     /// it: the derivative is one-sided there.
@@ -66,6 +69,8 @@ trait Tangent {
     fn lambda(&self, r: usize) -> f64;
     /// The scale derivative of state row `r`.
     fn scale(&self, r: usize) -> f64;
+    /// The derivative of contact row `r`'s entries at its secondary node.
+    fn secondary(&self, r: usize) -> [f64; 3];
     /// Body `b`'s measure and its derivative, where known.
     fn measure(&self, b: usize) -> Option<D>;
     /// `u'` at dof `k` of subdomain `s`.
@@ -92,6 +97,9 @@ impl Tangent for Direction {
     fn scale(&self, r: usize) -> f64 {
         self.scale[r]
     }
+    fn secondary(&self, r: usize) -> [f64; 3] {
+        self.secondary[r]
+    }
     fn measure(&self, b: usize) -> Option<D> {
         self.measures.get(b).copied()
     }
@@ -109,6 +117,8 @@ struct Explicit {
     ukpu: f64,
     /// Scale derivative per state row.
     scale: Vec<f64>,
+    /// Secondary entries' derivative per state row.
+    secondary: Vec<[f64; 3]>,
     measures: Vec<D>,
 }
 
@@ -124,6 +134,9 @@ impl Tangent for Explicit {
     }
     fn scale(&self, r: usize) -> f64 {
         self.scale[r]
+    }
+    fn secondary(&self, r: usize) -> [f64; 3] {
+        self.secondary[r]
     }
     fn measure(&self, b: usize) -> Option<D> {
         self.measures.get(b).copied()
@@ -711,6 +724,7 @@ impl<'a> Sensitivity<'a> {
             f: rhs.fprime,
             ukpu: rhs.ukpu,
             scale: rhs.scale,
+            secondary: rhs.secondary,
             hessian_applications,
             kinks: rhs.kinks,
             measures: rhs.measures,
@@ -923,8 +937,10 @@ impl<'a> Sensitivity<'a> {
                     + fprime.as_ref().map_or(0.0, |f| Cluster::dot(w, f));
             }
             let mut scale = vec![0.0; p.rows.len()];
+            let mut secondary = vec![[0.0; 3]; p.rows.len()];
             let kinks = self.visit_rows(i, |r, row| {
                 scale[r] = row.scale;
+                secondary[r] = row.secondary;
                 // Obstacle rows (the others are in the pullback).
                 for (k, (w, _, _)) in adjoints.iter().enumerate() {
                     let (l, n) = (state.lambda[r], nus[k][r]);
@@ -948,6 +964,7 @@ impl<'a> Sensitivity<'a> {
                 },
                 ukpu: Cluster::dot(&gu, v),
                 scale,
+                secondary,
                 measures: tape.measures(v),
             };
             let dd = seeded(&design, i);
@@ -1087,9 +1104,20 @@ impl<'a> Sensitivity<'a> {
                     ju[s][p.dim * l + comp] += w;
                 }
                 Functional::ContactForce(c) => {
-                    for (r, row) in p.rows.iter().enumerate() {
-                        if matches!(row.kind, RowKind::Contact { contact, .. } if contact == *c) {
-                            jl[r] += w / row.scale;
+                    // d|F|/dl_r = e . n_r / s_r, e = F / |F| (0 where F = 0).
+                    let f = p.contact_resultant(&state.lambda, *c);
+                    let size = crate::num::norm(&f);
+                    if size > 0.0 {
+                        for (r, row) in p.rows.iter().enumerate() {
+                            if let RowKind::Contact {
+                                contact, normal, ..
+                            } = &row.kind
+                            {
+                                if contact == c {
+                                    let along = crate::num::dot(&f, normal) / size;
+                                    jl[r] += w * along / row.scale;
+                                }
+                            }
                         }
                     }
                 }
@@ -1141,19 +1169,7 @@ impl<'a> Sensitivity<'a> {
             Functional::Compliance => D::new(state.compliance(), dir.compliance(state)),
             // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
             Functional::Energy => D::new(state.energy(), dir.energy(&self.ku)),
-            Functional::ContactForce(c) => {
-                let mut v = D::from(0.0);
-                for (r, row) in p.rows.iter().enumerate() {
-                    if let RowKind::Contact { contact, .. } = row.kind {
-                        if contact == *c {
-                            let l = D::new(state.lambda[r], dir.lambda(r));
-                            let s = D::new(row.scale, dir.scale(r));
-                            v += l / s;
-                        }
-                    }
-                }
-                v
-            }
+            Functional::ContactForce(c) => self.resultant_size(*c, dir),
             Functional::PressureNorm(c, q) => {
                 let nodes = self.pressure_terms(*c, dd, Some(dir));
                 let sum: D = nodes
@@ -1173,6 +1189,37 @@ impl<'a> Sensitivity<'a> {
                 D::new(state.u[s][k], dir.u(s, k))
             }
             _ => D::from(f64::NAN),
+        }
+    }
+
+    /// The size of contact `c`'s resultant force and its derivative: each
+    /// row's force `-l b` (`b` its entries at the secondary node, `-n / s`)
+    /// with `l'` and `b'` from `dir`. Where the resultant vanishes, the
+    /// one-sided derivative `|F'|`.
+    fn resultant_size(&self, c: usize, dir: &dyn Tangent) -> D {
+        let p = &self.state.problem;
+        let mut f = [D::from(0.0); 3];
+        for (r, row) in p.rows.iter().enumerate() {
+            let RowKind::Contact {
+                contact, normal, ..
+            } = &row.kind
+            else {
+                continue;
+            };
+            if *contact != c {
+                continue;
+            }
+            let l = D::new(self.state.lambda[r], dir.lambda(r));
+            let db = dir.secondary(r);
+            for a in 0..3 {
+                f[a] -= l * D::new(-normal[a] / row.scale, db[a]);
+            }
+        }
+        let size = crate::num::norm(&f);
+        if size.re > 0.0 {
+            size
+        } else {
+            D::new(0.0, crate::num::norm(&f.map(|x| x.eps)))
         }
     }
 

@@ -45,6 +45,11 @@ pub struct Rhs {
     pub fprime: Vec<Vec<f64>>,
     pub ukpu: f64,
     pub scale: Vec<f64>,
+    /// Per state row, the derivative of a contact row's entries at its
+    /// secondary node (`-n / scale`, `z = 0` in 2D; zero for other rows and
+    /// rows that do not move): with `l'`, what the resultant force's
+    /// derivative needs.
+    pub secondary: Vec<[f64; 3]>,
     pub kinks: usize,
     /// Each body's measure (area or volume) and its derivative.
     pub measures: Vec<D>,
@@ -72,10 +77,22 @@ impl Local {
 
     /// [`Self::apply`] of the outputs from `first` on only.
     fn apply_from(&self, v: &[Vec<f64>], dim: usize, first: usize, out: &mut Vec<f64>) {
+        let outputs = self.jac.len() / (dim * self.nodes.len()).max(1);
+        self.apply_range(v, dim, first, outputs.saturating_sub(first), out);
+    }
+
+    /// [`Self::apply`] of the `count` outputs from `first` on.
+    fn apply_range(
+        &self,
+        v: &[Vec<f64>],
+        dim: usize,
+        first: usize,
+        count: usize,
+        out: &mut Vec<f64>,
+    ) {
         let n = dim * self.nodes.len();
-        let outputs = self.jac.len() / n.max(1);
         out.clear();
-        out.resize(outputs.saturating_sub(first), 0.0);
+        out.resize(count, 0.0);
         for (k, &(b, node)) in self.nodes.iter().enumerate() {
             let Some(x) = v[b].get(dim * node..dim * node + dim) else {
                 continue;
@@ -158,6 +175,10 @@ pub struct RowDerivative {
     pub entries: Vec<(usize, usize, f64)>,
     pub c: f64,
     pub scale: f64,
+    /// A contact row's entries at its secondary node (its first `dim`), also
+    /// where `entries` is left out: the resultant force moves with them.
+    /// Zero for ties.
+    pub secondary: [f64; 3],
 }
 
 /// A linearized contact or tie row.
@@ -171,6 +192,8 @@ struct RowTape {
     boundary: Vec<bool>,
     /// The facet's size (length, or square root of area).
     size: f64,
+    /// A contact row (not a tie): its secondary entries are a force direction.
+    contact: bool,
 }
 
 /// How a state row moves with the design.
@@ -268,8 +291,7 @@ impl Tape {
                 } => P::of(primary).map_or(RowMotion::Still, |piece| {
                     row_tape(
                         &mut seeded,
-                        *body,
-                        *node,
+                        (*body, *node, true),
                         &piece,
                         moves[*body] || moves[piece.body()],
                         |pos| {
@@ -287,8 +309,7 @@ impl Tape {
                 } => P::of(facet).map_or(RowMotion::Still, |piece| {
                     row_tape(
                         &mut seeded,
-                        *body,
-                        *node,
+                        (*body, *node, false),
                         &piece,
                         moves[*body] || moves[piece.body()],
                         |pos| {
@@ -354,9 +375,11 @@ impl Tape {
         });
         let mut fbar = fprime.clone();
         let mut scale = vec![0.0; p.rows.len()];
+        let mut secondary = vec![[0.0; 3]; p.rows.len()];
         let mut cbar_all = vec![0.0; p.rows.len()];
         let kinks = self.visit_rows::<DIM>(scene, state, i, true, |r, row| {
             scale[r] = row.scale;
+            secondary[r] = row.secondary;
             let mut bu = 0.0;
             for &(sub, d, x) in &row.entries {
                 fbar[sub][d] -= x * state.lambda[r];
@@ -370,6 +393,7 @@ impl Tape {
             fprime,
             ukpu: 0.0,
             scale,
+            secondary,
             kinks,
             measures: self.measures(v),
         }
@@ -401,7 +425,7 @@ impl Tape {
         let p = &state.problem;
         let dim = self.dim;
         let v = &self.velocities[i];
-        let mut t = Vec::new();
+        let (mut t, mut ts) = (Vec::new(), Vec::new());
         let mut kinks = 0;
         let mut obstacles: Option<Vec<ObstacleShape<D, DIM>>> = None;
         for &(r, ref motion) in &self.rows {
@@ -421,6 +445,15 @@ impl Tape {
                             .zip(&t[e + 2 - first..])
                             .any(|(b, dt)| *b && dt.abs() > noise),
                     );
+                    let mut secondary = [0.0; 3];
+                    if row.contact {
+                        if full {
+                            secondary[..dim].copy_from_slice(&t[..dim]);
+                        } else {
+                            row.local.apply_range(v, dim, 0, dim, &mut ts);
+                            secondary[..dim].copy_from_slice(&ts);
+                        }
+                    }
                     if full {
                         RowDerivative {
                             entries: row
@@ -431,12 +464,14 @@ impl Tape {
                                 .collect(),
                             c: t[e],
                             scale: t[e + 1],
+                            secondary,
                         }
                     } else {
                         RowDerivative {
                             entries: Vec::new(),
                             c: 0.0,
                             scale: t[0],
+                            secondary,
                         }
                     }
                 }
@@ -456,10 +491,16 @@ impl Tape {
                     let Some(row) = obstacle_motion(p, &shapes[*obstacle], *body, *node, v) else {
                         continue;
                     };
+                    // An obstacle row's entries are its secondary node's.
+                    let mut secondary = [0.0; 3];
+                    for (s, e) in secondary.iter_mut().zip(&row.entries) {
+                        *s = e.2.eps;
+                    }
                     RowDerivative {
                         entries: row.entries.iter().map(|&(s, d, x)| (s, d, x.eps)).collect(),
                         c: row.c.eps,
                         scale: row.scale.eps,
+                        secondary,
                     }
                 }
             };
@@ -615,12 +656,12 @@ fn obstacle_motion<const DIM: usize>(
     normalize(obstacle_row(p, body, node, &n), gap)
 }
 
-/// Linearizes one contact or tie row of secondary node `(body, node)` over
-/// `piece`: `eval` gives its normalized row and projection at the seeded positions.
+/// Linearizes one contact or tie row (`contact`) of secondary node
+/// `(body, node)` over `piece`: `eval` gives its normalized row and projection
+/// at the seeded positions.
 fn row_tape<P, F, const DIM: usize, const N: usize, const K: usize>(
     seeded: &mut Seeded<DIM, K>,
-    body: usize,
-    node: usize,
+    (body, node, contact): (usize, usize, bool),
     piece: &P,
     moves: bool,
     eval: F,
@@ -665,6 +706,7 @@ where
         local: Local { nodes, jac },
         boundary: facet.boundary_axes(local, 1e-9),
         size,
+        contact,
     })
 }
 

@@ -2,6 +2,7 @@
 //! terms a user can act on (the driver names bodies and modes).
 
 use super::subdomain::SubdomainError;
+use crate::model::finite::NotFinite;
 use crate::model::LowerError;
 use std::fmt;
 
@@ -76,6 +77,21 @@ pub enum SolveError {
     /// A scene a study generated does not check (a bug of the generator):
     /// the checker's messages.
     Generated(Vec<String>),
+    /// A load, prescribed displacement or gap that is not finite or too large
+    /// to solve with (found when lowering), or a state that came out not
+    /// finite (displacements, forces, energy): nothing of it may be reported.
+    NotFinite(NotFinite),
+}
+
+/// Lowering's errors, with [`LowerError::NotFinite`] lifted to
+/// [`SolveError::NotFinite`]: one variant, wherever the number was found.
+impl From<LowerError> for SolveError {
+    fn from(e: LowerError) -> Self {
+        match e {
+            LowerError::NotFinite(n) => SolveError::NotFinite(n),
+            e => SolveError::Lower(e),
+        }
+    }
 }
 
 impl fmt::Display for SolveError {
@@ -160,6 +176,7 @@ impl fmt::Display for SolveError {
                 "a scene generated for a study does not check: {}",
                 errors.join("; ")
             ),
+            SolveError::NotFinite(n) => write!(f, "{n}"),
             SolveError::RanksDiverged => write!(
                 f,
                 "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"

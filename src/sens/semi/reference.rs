@@ -120,10 +120,16 @@ impl Sensitivity<'_> {
             .map(|(f, k)| f.iter().zip(k).map(|(a, b)| a - b).collect())
             .collect();
         let mut scale = vec![0.0; p.rows.len()];
+        let mut secondary = vec![[0.0; 3]; p.rows.len()];
         let mut cbar_all = vec![0.0; p.rows.len()];
         for (r, row) in rows.iter().enumerate() {
             let Some(row) = row else { continue };
             scale[r] = row.scale.eps;
+            if matches!(p.rows[r].kind, RowKind::Contact { .. }) {
+                for (b, e) in secondary[r].iter_mut().zip(&row.entries[..DIM]) {
+                    *b = e.2.eps;
+                }
+            }
             let mut bu = 0.0;
             for &(sub, d, v) in &row.entries {
                 fbar[sub][d] -= v.eps * state.lambda[r];
@@ -139,6 +145,7 @@ impl Sensitivity<'_> {
             fprime,
             ukpu,
             scale,
+            secondary,
             kinks,
             measures: scene.bodies.iter().map(|b| body_measure(b, &dd)).collect(),
         }
@@ -182,6 +189,12 @@ mod tests {
             .chain(a.fprime.iter().flatten().zip(b.fprime.iter().flatten()))
             .chain(a.cbar.iter().zip(&b.cbar))
             .chain(a.scale.iter().zip(&b.scale))
+            .chain(
+                a.secondary
+                    .iter()
+                    .flatten()
+                    .zip(b.secondary.iter().flatten()),
+            )
             .map(|(x, y)| (*x, *y))
             .chain([(a.ukpu, b.ukpu)])
             .chain(
@@ -255,9 +268,11 @@ mod tests {
             assert!((got - expected).abs() < 1e-11 * expected.abs().max(1e-300));
             // The explicit pass: scales and kinks as the full one.
             let mut scale = vec![0.0; p.rows.len()];
+            let mut secondary = vec![[0.0; 3]; p.rows.len()];
             let kinks = tape.visit_rows::<DIM>(&scene, &state, i, false, |r, row| {
                 assert!(row.entries.is_empty() && row.c == 0.0, "no obstacle here");
                 scale[r] = row.scale;
+                secondary[r] = row.secondary;
             });
             assert_eq!(kinks, reference.kinks);
             let worst = scale
@@ -265,6 +280,15 @@ mod tests {
                 .zip(&reference.scale)
                 .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
             assert!(worst < 1e-12, "direction {i}: scales differ by {worst:e}");
+            let worst = secondary
+                .iter()
+                .flatten()
+                .zip(reference.secondary.iter().flatten())
+                .fold(0.0f64, |m, (a, b)| m.max((a - b).abs()));
+            assert!(
+                worst < 1e-12,
+                "direction {i}: secondary entries differ by {worst:e}"
+            );
         }
         assert!(moved > 0, "no direction moved a row");
     }
