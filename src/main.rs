@@ -1,7 +1,7 @@
 //! The `cso` command: a thin shell over the library. `main` parses the
 //! arguments, starts MPI under `mpirun`, and hands each command to its `run`
 //! in [`cli`], which prints what the library returns; the exit code is the
-//! outcome's (0 success, 1 errors in a scene, 2 I/O or usage errors).
+//! outcome's (0 success, 1 errors in a scene, 2 I/O or usage errors, 130 interrupted).
 
 mod cli;
 

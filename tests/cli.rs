@@ -908,3 +908,51 @@ traction blk.bottom = (0, 1e300 MPa)
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&scene);
 }
+
+#[test]
+fn ctrl_c_in_optimize_writes_the_best_design_and_exits_130() {
+    use std::io::{BufRead, BufReader};
+    // Enough iterations that the run is still going when the signal comes.
+    let path = scene_replacing(
+        "scont2d.cso",
+        "optimize { max_iterations = 30, tolerance = 1e-6 }",
+        "optimize { max_iterations = 100000, tolerance = 1e-15 }",
+        "interrupt",
+    );
+    let dir = std::env::temp_dir().join(format!("cso-interrupt-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_cso"))
+        .args([
+            "optimize",
+            &path.to_string_lossy(),
+            "-o",
+            &dir.to_string_lossy(),
+        ])
+        .current_dir(root())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("cso starts");
+    // The handler is set before the progress line `cso: optimize [0.0 s] started`.
+    let mut stderr = BufReader::new(child.stderr.take().expect("stderr"));
+    let mut line = String::new();
+    while stderr.read_line(&mut line).expect("stderr readable") > 0 && !line.contains("started") {
+        line.clear();
+    }
+    assert!(line.contains("started"), "{line}");
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(killed.success());
+    let mut rest = String::new();
+    std::io::Read::read_to_string(&mut stderr, &mut rest).expect("stderr");
+    let out = child.wait_with_output().expect("cso ends");
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(130), "{stdout}{rest}");
+    assert!(rest.contains("interrupted (Ctrl-C)"), "{rest}");
+    assert!(dir.join("history.json").exists(), "{stdout}{rest}");
+    assert!(dir.join("best.cso").exists(), "{stdout}{rest}");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&path);
+}

@@ -3,7 +3,7 @@
 
 use super::args::{Optimize, Sensitivity};
 use super::job::{write_into, Job};
-use super::print::{fail, fail_solve, Outcome, Progress, EXIT_IO, EXIT_SCENE};
+use super::print::{fail, fail_solve, Outcome, Progress, EXIT_INTERRUPTED, EXIT_IO, EXIT_SCENE};
 use cso::io::atomic::write_files;
 use cso::io::tables;
 use cso::lang::CheckOptions;
@@ -73,12 +73,14 @@ impl Optimize {
     pub fn run(&self, opts: &CheckOptions) -> Outcome {
         let job = Job::load(&self.file, opts, self.out.as_deref(), self.threads)?;
         let scene = &job.scene;
-        let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
-        // Ctrl-C: finish the current design, then stop with the best one written.
-        // Without a handler (one is already set) Ctrl-C simply ends the process.
+        // Ctrl-C: finish the current design, then stop with the best one written
+        // and exit with EXIT_INTERRUPTED. Without a handler (one is already set)
+        // Ctrl-C simply ends the process. Set before anything is printed, so
+        // that a Ctrl-C that follows the first line is always handled.
         let stop = Arc::new(AtomicBool::new(false));
         let handler_stop = stop.clone();
         let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
+        let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
         let out = self.out.as_deref();
         let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
         let result = job.run(bar, |bar| {
@@ -109,6 +111,10 @@ impl Optimize {
             cso::io::optimization::write(dir, scene, &run)
                 .map_err(|e| fail(EXIT_IO, format!("cannot write {}: {e}", dir.display())))?;
             outln!("results written to {}", dir.display());
+        }
+        if stop.load(Ordering::SeqCst) {
+            let msg = "interrupted (Ctrl-C): the best design so far is reported above";
+            return Err(fail(EXIT_INTERRUPTED, msg));
         }
         Ok(())
     }

@@ -41,9 +41,13 @@ pub fn mute() {
     MUTE.store(true, Ordering::Relaxed);
 }
 
-/// Exit codes: 0 success, 1 errors in a scene, 2 I/O or usage errors.
+/// Exit codes: 0 success, 1 errors in a scene, 2 I/O or usage errors, 130
+/// interrupted.
 pub const EXIT_SCENE: u8 = 1;
 pub const EXIT_IO: u8 = 2;
+/// Stopped by Ctrl-C (`optimize` writes the best design first): 128 + SIGINT,
+/// what shells report for a command that Ctrl-C ended.
+pub const EXIT_INTERRUPTED: u8 = 130;
 
 /// A command's outcome: `Err` carries the exit code, its message already printed.
 pub type Outcome = Result<(), u8>;
