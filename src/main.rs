@@ -34,8 +34,9 @@ fn main() -> ExitCode {
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
     };
+    let listed = cli::job::close_outputs();
     // `_universe` (MPI's) lives to the end of `main`: dropping it finalizes MPI.
-    match outcome {
+    match outcome.and(listed) {
         Ok(()) => ExitCode::SUCCESS,
         Err(code) => ExitCode::from(code),
     }

@@ -217,7 +217,7 @@ fn bench_scene_prints_the_scaled_scene_and_it_checks() {
 }
 
 #[test]
-fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
+fn export_writes_a_manifest_and_refuses_a_folder_holding_other_files() {
     let dir = std::env::temp_dir().join(format!("cso-export-cli-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let scene = root().join("examples/semicoercive2d.cso");
@@ -237,6 +237,10 @@ fn export_writes_a_manifest_and_refuses_a_folder_that_is_not_empty() {
         .filter_map(|b| b.as_u64())
         .sum();
     assert_eq!(primal, blocks);
+    // Its own earlier export is replaced; a file cso did not write stops it.
+    let (code, _, err) = cso(&["export", &scene, "-o", &dir_s]);
+    assert_eq!(code, 0, "{err}");
+    std::fs::write(dir.join("notes.txt"), "mine").expect("a user's file");
     let (code, _, err) = cso(&["export", &scene, "-o", &dir_s]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("--force"), "{err}");
@@ -955,4 +959,45 @@ fn ctrl_c_in_optimize_writes_the_best_design_and_exits_130() {
     assert!(dir.join("best.cso").exists(), "{stdout}{rest}");
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn a_folder_reused_by_another_scene_keeps_no_stale_files_but_the_users() {
+    let dir = std::env::temp_dir().join(format!("cso-stale-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let d = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&["solve", "examples/two_blocks.cso", "-o", &d]);
+    assert_eq!(code, 0, "{err}");
+    assert!(dir.join("punch.vtu").exists());
+    std::fs::write(dir.join("notes.txt"), "mine").expect("a user's file");
+    let (code, _, err) = cso(&["solve", "examples/hertz2d.cso", "-o", &d]);
+    assert_eq!(code, 0, "{err}");
+    assert!(err.contains("removed"), "{err}");
+    let mut names: Vec<String> = std::fs::read_dir(&dir)
+        .expect("folder")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().to_string())
+        .collect();
+    names.sort();
+    // hertz2d's files, the user's file, and the list of what cso wrote.
+    assert_eq!(
+        names,
+        [
+            ".cso-files",
+            "contact_seat.svg",
+            "deformed.svg",
+            "notes.txt",
+            "report.json",
+            "roller.vtu"
+        ],
+        "{err}"
+    );
+    // export refuses the folder (it holds a file cso did not write) without --force.
+    let (code, _, err) = cso(&["export", "examples/two_blocks.cso", "-o", &d]);
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("holds files cso did not write"), "{err}");
+    std::fs::remove_file(dir.join("notes.txt")).expect("removes");
+    let (code, _, err) = cso(&["export", "examples/two_blocks.cso", "-o", &d]);
+    assert_eq!(code, 0, "{err}");
+    assert!(!dir.join("roller.vtu").exists(), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
 }

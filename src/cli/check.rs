@@ -2,7 +2,7 @@
 //! `compile` and `export`.
 
 use super::args::{Check, Compile, Export};
-use super::job::{load, load_as};
+use super::job::{load, load_as, prepare};
 use super::print::{fail, fail_solve, Outcome, EXIT_IO};
 use cso::lang::{diag, CheckOptions};
 
@@ -68,6 +68,7 @@ impl Export {
             fail(EXIT_IO, msg)
         };
         cso::io::export::check_dir(&self.out, self.force).map_err(cannot)?;
+        prepare(Some(&self.out))?;
         let files = cso::io::export::export(&scene, &scene.design_init(), self.format)
             .map_err(|e| fail_solve(&file, &scene, &e))?;
         cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;

@@ -2,10 +2,12 @@
 //! diagnostics printed), the output folder probed before any computation, a
 //! thread pool, and work run on it with its progress shown ([`Job`]).
 
-use super::print::{fail, Outcome, Progress, EXIT_IO, EXIT_SCENE};
+use super::print::{fail, quiet, Outcome, Progress, EXIT_IO, EXIT_SCENE};
 use cso::io::atomic::{write_files, Files};
+use cso::io::outputs::OutputDir;
 use cso::lang::{compile, diag, CheckOptions, Scene};
 use std::path::Path;
+use std::sync::Mutex;
 
 /// A command's scene with the thread pool it runs on; its output folder
 /// (if any) already probed.
@@ -113,11 +115,41 @@ pub fn threads_per_rank() -> usize {
 }
 
 /// With `-o DIR`: creates and probes the folder before any computation, so that
-/// a bad path costs a second, not a solve whose results are then lost.
+/// a bad path costs a second, not a solve whose results are then lost, and
+/// removes what an earlier cso command wrote there ([`cso::io::outputs`]);
+/// [`close_outputs`] lists what this one wrote.
 pub fn prepare(dir: Option<&Path>) -> Outcome {
     let Some(dir) = dir else { return Ok(()) };
-    cso::io::atomic::prepare_dir(dir)
-        .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))
+    let (open, removed) = OutputDir::open(dir)
+        .map_err(|e| fail(EXIT_IO, format!("cannot write into {}: {e}", dir.display())))?;
+    if removed > 0 && !quiet() {
+        errln!(
+            "cso: removed {removed} files an earlier cso command wrote into {}",
+            dir.display()
+        );
+    }
+    if let Ok(mut folders) = OPEN.lock() {
+        folders.push(open);
+    }
+    Ok(())
+}
+
+/// The output folders this command opened ([`prepare`]).
+static OPEN: Mutex<Vec<OutputDir>> = Mutex::new(Vec::new());
+
+/// Lists in each output folder what this command wrote there (also after
+/// a failure: the next command removes what was written).
+pub fn close_outputs() -> Outcome {
+    let folders = match OPEN.lock() {
+        Ok(mut f) => std::mem::take(&mut *f),
+        Err(_) => return Ok(()),
+    };
+    for folder in folders {
+        folder
+            .close()
+            .map_err(|e| fail(EXIT_IO, format!("cannot list the files written: {e}")))?;
+    }
+    Ok(())
 }
 
 /// With `-o DIR`: builds a command's files (an error is the message) and writes

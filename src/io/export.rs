@@ -338,22 +338,20 @@ pub fn export(
 }
 
 /// Checks, before anything is computed, that `dir` can take an export: a
-/// directory that exists and holds anything is refused unless `force`, so an
-/// export never mixes with older files; otherwise it is created and probed
+/// directory that holds files cso did not write there is refused unless
+/// `force`, so an export never mixes with other files (what an earlier cso
+/// command wrote there is removed when the command opens the folder,
+/// [`super::outputs`]); otherwise it is created and probed
 /// ([`super::atomic::prepare_dir`]).
 pub fn check_dir(dir: &std::path::Path, force: bool) -> std::io::Result<()> {
-    if !force {
-        if let Ok(mut entries) = std::fs::read_dir(dir) {
-            if entries.next().is_some() {
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::AlreadyExists,
-                    format!(
-                        "{} exists and is not empty; choose another directory or pass --force",
-                        dir.display()
-                    ),
-                ));
-            }
-        }
+    if !force && dir.is_dir() && super::outputs::holds_other_files(dir)? {
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::AlreadyExists,
+            format!(
+                "{} holds files cso did not write; choose another directory or pass --force",
+                dir.display()
+            ),
+        ));
     }
     super::atomic::prepare_dir(dir)
 }

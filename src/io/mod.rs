@@ -4,6 +4,7 @@
 pub mod atomic;
 pub mod export;
 pub mod optimization;
+pub mod outputs;
 pub mod plot;
 pub mod png;
 pub mod provenance;
