@@ -686,87 +686,94 @@ pub fn preconditioner(scene: &Scene) -> Option<crate::tfeti::precond::Kind> {
     }
 }
 
-/// Solves the state of a scene at a design. `observer` sees SMALBE's progress.
-/// Every entry (this, [`solve_reusing`], [`solve_distributed`]) runs the
-/// contact search loop: a secondary node without a contact row that the
-/// displacements carry into its primary side widens that contact's search
-/// and the state is solved again ([`Search`]; refused with
-/// [`SolveError::SearchUnsettled`] where that cannot settle).
+/// Which subdomains a solve from a previous state factorizes again.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Refactor {
+    /// Every subdomain (nothing of a previous state's factorizations reused).
+    #[default]
+    All,
+    /// Only those whose mesh changed (node positions, material, thickness):
+    /// the others are the previous state's, reused whole, and the changed
+    /// ones refactor numerically on their previous symbolic factorization.
+    Changed,
+}
+
+/// How a state solve runs, beyond the scene's own `solver { .. }` settings:
+/// what it takes from a previous state, where its subdomains live, and how
+/// often the contact search may widen. The default is a cold solve in this
+/// process.
+#[derive(Clone)]
+pub struct SolveOptions<'a> {
+    /// A state of the same scene at a nearby design (the previous iterate of
+    /// an optimization) to start from; its widened contact searches are kept,
+    /// so that the rows, and so the warm start, match.
+    pub previous: Option<&'a State>,
+    /// With `previous`: which subdomains are factorized again.
+    pub refactor: Refactor,
+    /// With `previous`: what the dual solve starts from.
+    pub warm: WarmStart,
+    /// The ranks the subdomains spread over (`cso solve` under `mpirun`):
+    /// each rank builds and factorizes its own subdomains, the dual
+    /// iterations run replicated, and every rank returns the same state,
+    /// bitwise the serial one. Collective: every rank calls it. None: this
+    /// process alone.
+    pub comm: Option<Arc<dyn Comm>>,
+    /// Solves repeated with a wider contact search, at most ([`Search`]);
+    /// with 0, a first solve that leaves a node without a row inside its
+    /// primary side is refused.
+    pub search_rounds: usize,
+}
+
+impl Default for SolveOptions<'_> {
+    fn default() -> Self {
+        SolveOptions {
+            previous: None,
+            refactor: Refactor::All,
+            warm: WarmStart::OFF,
+            comm: None,
+            search_rounds: MAX_SEARCH_ROUNDS,
+        }
+    }
+}
+
+impl<'a> SolveOptions<'a> {
+    /// A solve starting from `previous` with `warm`, refactorizing only the
+    /// subdomains whose mesh changed.
+    pub fn from(previous: &'a State, warm: WarmStart) -> Self {
+        SolveOptions {
+            previous: Some(previous),
+            refactor: Refactor::Changed,
+            warm,
+            ..SolveOptions::default()
+        }
+    }
+}
+
+/// Solves the state of a scene at a design, cold and in this process:
+/// [`solve_with`] with the default [`SolveOptions`]. `observer` sees SMALBE's
+/// progress.
 pub fn solve(
     scene: &Scene,
     design: &[f64],
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_reusing(scene, design, None, false, WarmStart::OFF, observer)
+    solve_with(scene, design, &SolveOptions::default(), observer)
 }
 
-/// [`solve`] with at most `rounds` solves repeated with a wider contact
-/// search (every other entry allows [`MAX_SEARCH_ROUNDS`]): with 0, a first
-/// solve that leaves a node without a contact row inside its primary side is
-/// refused. For tests of the refusal.
-pub fn solve_with_search_rounds(
+/// The state solve: scene and design lowered, subdomains factorized (or
+/// reused from `options.previous`), the dual solved, the state reconstructed
+/// and checked. Every solve runs the contact search loop: a secondary node
+/// without a contact row that the displacements carry into its primary side
+/// widens that contact's search and the state is solved again ([`Search`];
+/// refused with [`SolveError::SearchUnsettled`] where that cannot settle).
+pub fn solve_with(
     scene: &Scene,
     design: &[f64],
-    rounds: usize,
+    options: &SolveOptions,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
-    solve_searching(
-        scene,
-        design,
-        None,
-        false,
-        WarmStart::OFF,
-        serial(),
-        observer,
-        rounds,
-    )
-}
-
-/// [`solve`] at a new design, reusing what `previous` (a state of the same scene
-/// at a nearby design) allows: the factorizations of subdomains whose nodes did
-/// not move, and its multipliers as the starting point when the rows match
-/// (its widened contact searches are kept, so that they do).
-pub fn solve_reusing(
-    scene: &Scene,
-    design: &[f64],
-    previous: Option<&State>,
-    factorizations: bool,
-    warm: WarmStart,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> Result<State, SolveError> {
-    solve_searching(
-        scene,
-        design,
-        previous,
-        factorizations,
-        warm,
-        serial(),
-        observer,
-        MAX_SEARCH_ROUNDS,
-    )
-}
-
-/// [`solve`] with the subdomains spread over the ranks of `comm` (`cso solve`
-/// under `mpirun`): each rank builds and factorizes its own subdomains, the
-/// dual iterations run replicated on every rank, and every rank returns the
-/// same state (the primal solution gathered), bitwise the state [`solve`]
-/// gives. Collective: every rank calls it.
-pub fn solve_distributed(
-    scene: &Scene,
-    design: &[f64],
-    comm: Arc<dyn Comm>,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> Result<State, SolveError> {
-    solve_searching(
-        scene,
-        design,
-        None,
-        false,
-        WarmStart::OFF,
-        comm,
-        observer,
-        MAX_SEARCH_ROUNDS,
-    )
+    let comm = options.comm.clone().unwrap_or_else(serial);
+    solve_searching(scene, design, options, comm, observer)
 }
 
 /// One state solve on the rows lowering gives (no search loop).
@@ -774,7 +781,7 @@ fn solve_on(
     scene: &Scene,
     design: &[f64],
     previous: Option<&State>,
-    factorizations: bool,
+    refactor: Refactor,
     warm: WarmStart,
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
@@ -797,7 +804,7 @@ fn solve_on(
     let setup = setup_on(
         scene,
         design,
-        previous.filter(|_| factorizations),
+        previous.filter(|_| refactor == Refactor::Changed),
         comm,
         first_on_active_set,
     )?;

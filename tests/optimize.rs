@@ -118,7 +118,7 @@ fn partial_refactorization_gives_the_same_iterates_as_full_refactorization() {
     let s = compile(&src, &options()).expect("checks");
     let cold = Reuse::COLD;
     let partial = Reuse {
-        factorizations: true,
+        refactor: cso::state::Refactor::Changed,
         ..Reuse::COLD
     };
     let a = optimize_with(&s, cold, &mut |_, _| true).expect("runs");
@@ -199,7 +199,7 @@ fn a_warm_start_reaches_the_cold_optimum_for_fewer_hessian_applications() {
     let warm = optimize_with(
         &s,
         Reuse {
-            factorizations: false,
+            refactor: cso::state::Refactor::All,
             ..Reuse::default()
         },
         &mut |_, _| true,
@@ -237,7 +237,7 @@ fn a_warm_start_reaches_the_cold_optimum_for_fewer_hessian_applications() {
 
 #[test]
 fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
-    use cso::state::{solve, solve_reusing, WarmStart};
+    use cso::state::{solve, solve_with, SolveOptions, WarmStart};
     let s = compile(&cso::studies::bench::scont_large(), &options()).expect("checks");
     let x0 = s.design_init();
     let x1: Vec<f64> = x0.iter().map(|v| v + 0.004).collect();
@@ -259,12 +259,10 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
     // applications.
     let first = solve(&s, &x0, &mut |_| {}).expect("solves");
     let cold = solve(&s, &x1, &mut |_| {}).expect("solves");
-    let warm = solve_reusing(
+    let warm = solve_with(
         &s,
         &x1,
-        Some(&first),
-        true,
-        WarmStart::default(),
+        &SolveOptions::from(&first, WarmStart::default()),
         &mut |_| {},
     )
     .expect("solves");
@@ -343,7 +341,7 @@ fn a_warm_solve_refuses_a_design_as_the_cold_solve_does() {
     // do not hold the punch sideways) are refused with the cold messages, in
     // TFETI and in classical FETI (which solves no active set first).
     use cso::lang::scene::SolverMethod;
-    use cso::state::{solve, solve_reusing, SolveError, WarmStart};
+    use cso::state::{solve, solve_with, SolveError, SolveOptions, WarmStart};
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
     for method in [SolverMethod::Tfeti, SolverMethod::Feti] {
         let mut s = compile(&src, &options()).expect("checks");
@@ -358,9 +356,14 @@ fn a_warm_solve_refuses_a_design_as_the_cold_solve_does() {
             if what == "lifted" {
                 assert!(matches!(cold, SolveError::Unbalanced { .. }), "{cold:?}");
             }
-            let warm = solve_reusing(&s, &far, Some(&first), true, WarmStart::BEST, &mut |_| {})
-                .err()
-                .expect("refused warm");
+            let warm = solve_with(
+                &s,
+                &far,
+                &SolveOptions::from(&first, WarmStart::BEST),
+                &mut |_| {},
+            )
+            .err()
+            .expect("refused warm");
             assert_eq!(warm.to_string(), cold.to_string(), "{method:?} {what}");
         }
     }
@@ -368,7 +371,7 @@ fn a_warm_solve_refuses_a_design_as_the_cold_solve_does() {
 
 #[test]
 fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
-    use cso::state::{solve, solve_reusing, State, WarmStart};
+    use cso::state::{solve, solve_with, SolveOptions, State, WarmStart};
     let src = std::fs::read_to_string(root().join("examples/scont2d.cso")).expect("example");
     let s = compile(&src, &options()).expect("checks");
     let tol = s.solver.tolerance;
@@ -400,10 +403,20 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
     let flat = vec![0.02; x0.len()];
     for (x, what) in [(&near, "a small step"), (&flat, "a flat face")] {
         let cold = solve(&s, x, &mut |_| {}).expect("solves");
-        let smalbe = solve_reusing(&s, x, Some(&first), true, WarmStart::SMALBE, &mut |_| {})
-            .expect("solves");
-        let warm = solve_reusing(&s, x, Some(&first), true, WarmStart::default(), &mut |_| {})
-            .expect("solves");
+        let smalbe = solve_with(
+            &s,
+            x,
+            &SolveOptions::from(&first, WarmStart::SMALBE),
+            &mut |_| {},
+        )
+        .expect("solves");
+        let warm = solve_with(
+            &s,
+            x,
+            &SolveOptions::from(&first, WarmStart::default()),
+            &mut |_| {},
+        )
+        .expect("solves");
         assert!(!smalbe.on_active_set && warm.warm_started, "{what}");
         agree(&smalbe, &cold, what);
         agree(&warm, &cold, what);
@@ -456,12 +469,10 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
     let n = open.problem.n_equality;
     open.lambda[n..].iter_mut().for_each(|l| *l = 0.0);
     let cold = solve(&s, &near, &mut |_| {}).expect("solves");
-    let warm = solve_reusing(
+    let warm = solve_with(
         &s,
         &near,
-        Some(&open),
-        true,
-        WarmStart::default(),
+        &SolveOptions::from(&open, WarmStart::default()),
         &mut |_| {},
     )
     .expect("solves");

@@ -13,7 +13,15 @@ use std::sync::Arc;
 fn outcome(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Result<serde_json::Value, String> {
     let design = scene.design_init();
     let state = match comm {
-        Some(c) => cso::state::solve_distributed(scene, &design, c, &mut |_| {}),
+        Some(c) => cso::state::solve_with(
+            scene,
+            &design,
+            &cso::state::SolveOptions {
+                comm: Some(c),
+                ..Default::default()
+            },
+            &mut |_| {},
+        ),
         None => cso::state::solve(scene, &design, &mut |_| {}),
     }
     .map_err(|e| e.to_string())?;

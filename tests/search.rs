@@ -7,7 +7,7 @@
 use crate::options;
 use cso::io::report::Report;
 use cso::lang::{compile, Scene};
-use cso::state::{solve, solve_reusing, solve_with_search_rounds, SolveError, State, WarmStart};
+use cso::state::{solve, solve_with, SolveError, SolveOptions, State, WarmStart};
 use cso::tfeti::comm::thread_ranks;
 use std::sync::Arc;
 
@@ -110,7 +110,15 @@ fn a_cantilever_beyond_the_default_search_rests_on_the_floor() {
 #[test]
 fn a_search_that_cannot_widen_is_refused_with_the_node_that_passes_through() {
     let s = cantilever(None, 1);
-    let err = match solve_with_search_rounds(&s, &[], 0, &mut |_| {}) {
+    let err = match solve_with(
+        &s,
+        &[],
+        &SolveOptions {
+            search_rounds: 0,
+            ..Default::default()
+        },
+        &mut |_| {},
+    ) {
         Err(e) => e,
         Ok(st) => panic!("solved: tip {}", tip_uy(&st)),
     };
@@ -236,8 +244,13 @@ fn a_solve_from_a_widened_state_keeps_its_search_and_starts_warm() {
     let s = cantilever(None, 1);
     let first = solve(&s, &[], &mut |_| {}).expect("solves");
     assert_eq!(first.search.rounds, 1);
-    let again =
-        solve_reusing(&s, &[], Some(&first), true, WarmStart::BEST, &mut |_| {}).expect("solves");
+    let again = solve_with(
+        &s,
+        &[],
+        &SolveOptions::from(&first, WarmStart::BEST),
+        &mut |_| {},
+    )
+    .expect("solves");
     assert_eq!(again.search.rounds, 0);
     assert_eq!(again.search.widened, first.search.widened);
     assert!(again.warm_started);
@@ -260,8 +273,16 @@ fn ranks_widen_the_search_as_the_serial_solve_does() {
             .into_iter()
             .map(|r| {
                 sc.spawn(move || {
-                    let st = cso::state::solve_distributed(s, &[], Arc::new(r), &mut |_| {})
-                        .expect("solves");
+                    let st = cso::state::solve_with(
+                        s,
+                        &[],
+                        &SolveOptions {
+                            comm: Some(Arc::new(r)),
+                            ..Default::default()
+                        },
+                        &mut |_| {},
+                    )
+                    .expect("solves");
                     let bits = st.u.concat().iter().map(|x| x.to_bits()).collect();
                     (st.search.rounds, bits)
                 })
@@ -304,7 +325,15 @@ probe tip {{ body = beam, at = (1, 0, 0) }}
     };
     let wide = solve(&scene(&src(Some(0.5))), &[], &mut |_| {}).expect("solves");
     let state = solve(&scene(&src(None)), &[], &mut |_| {}).expect("solves");
-    let first = solve_with_search_rounds(&scene(&src(None)), &[], 0, &mut |_| {});
+    let first = solve_with(
+        &scene(&src(None)),
+        &[],
+        &SolveOptions {
+            search_rounds: 0,
+            ..Default::default()
+        },
+        &mut |_| {},
+    );
     assert!(
         matches!(first, Err(SolveError::SearchUnsettled { .. })),
         "the default search alone lets the tip through"

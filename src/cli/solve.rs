@@ -38,15 +38,11 @@ impl Solve {
         let t0 = Instant::now();
         let result = pool.install(|| {
             let mut observer = |info: &cso::qp::QpInfo| bar.update(|| tables::solve_progress(info));
-            match ranks {
-                Some(comm) => cso::state::solve_distributed(
-                    &scene,
-                    &scene.design_init(),
-                    comm.clone(),
-                    &mut observer,
-                ),
-                None => cso::state::solve(&scene, &scene.design_init(), &mut observer),
-            }
+            let options = cso::state::SolveOptions {
+                comm: ranks.clone(),
+                ..Default::default()
+            };
+            cso::state::solve_with(&scene, &scene.design_init(), &options, &mut observer)
         });
         if let Some(comm) = ranks {
             print_comm_stats(&**comm, t0.elapsed().as_secs_f64());

@@ -111,8 +111,9 @@ fn with_design(scene: &Scene, x: &[f64]) -> Scene {
 /// How the loop reuses work between designs.
 #[derive(Debug, Clone, Copy)]
 pub struct Reuse {
-    /// Keep the factorizations of subdomains whose nodes did not move.
-    pub factorizations: bool,
+    /// Which subdomains each design factorizes again (`Changed`: the
+    /// factorizations of subdomains whose nodes did not move are kept).
+    pub refactor: crate::state::Refactor,
     /// What each state solve takes from the previous design's.
     pub warm: WarmStart,
     /// Start the gradient's solves from the previous design's: each adjoint
@@ -124,7 +125,7 @@ pub struct Reuse {
 impl Reuse {
     /// Nothing reused: every design factorized and solved from scratch.
     pub const COLD: Reuse = Reuse {
-        factorizations: false,
+        refactor: crate::state::Refactor::All,
         warm: WarmStart::OFF,
         warm_adjoint: false,
     };
@@ -133,7 +134,7 @@ impl Reuse {
 impl Default for Reuse {
     fn default() -> Self {
         Reuse {
-            factorizations: true,
+            refactor: crate::state::Refactor::Changed,
             warm: WarmStart::default(),
             warm_adjoint: true,
         }
@@ -153,14 +154,13 @@ fn state_and_gradient(
     let t0 = Instant::now();
     let design = scene.design_init();
     let state = match previous {
-        Some(prev) => crate::state::solve_reusing(
-            scene,
-            &design,
-            Some(prev),
-            reuse.factorizations,
-            reuse.warm,
-            &mut |_| {},
-        )?,
+        Some(prev) => {
+            let options = crate::state::SolveOptions {
+                refactor: reuse.refactor,
+                ..crate::state::SolveOptions::from(prev, reuse.warm)
+            };
+            crate::state::solve_with(scene, &design, &options, &mut |_| {})?
+        }
         _ => crate::state::solve(scene, &design, &mut |_| {})?,
     };
     let (g, adjoints) = match scene.sensitivity.method {

@@ -5,7 +5,7 @@
 
 use super::functional::Eval;
 use crate::lang::scene::{Scene, Scheme};
-use crate::state::{solve, solve_reusing, SolveError, State, WarmStart};
+use crate::state::{solve, solve_with, SolveError, SolveOptions, State, WarmStart};
 use serde::Serialize;
 use std::fmt;
 use std::time::Instant;
@@ -144,17 +144,17 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
             d[i] += shift;
             // Subdomains the step does not move keep the base's factorization;
             // the others refactor on its symbolic one.
-            let st = solve_reusing(scene, &d, Some(&base), true, WarmStart::OFF, &mut |_| {})
-                .map_err(|error| {
-                    let var = &scene.design[i];
-                    GradientError::Perturbed {
-                        variable: var.name.clone(),
-                        step: shift,
-                        value: design[i],
-                        bounds: (var.lower, var.upper),
-                        error: Box::new(error),
-                    }
-                })?;
+            let from_base = SolveOptions::from(&base, WarmStart::OFF);
+            let st = solve_with(scene, &d, &from_base, &mut |_| {}).map_err(|error| {
+                let var = &scene.design[i];
+                GradientError::Perturbed {
+                    variable: var.name.clone(),
+                    step: shift,
+                    value: design[i],
+                    bounds: (var.lower, var.upper),
+                    error: Box::new(error),
+                }
+            })?;
             let v: Vec<f64> = Eval {
                 scene,
                 design: &d,

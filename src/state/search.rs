@@ -10,7 +10,7 @@
 //! The check reads the gathered displacements, which every rank holds, so a
 //! distributed solve takes the same decision on every rank.
 
-use super::{solve_on, SolveError, State, WarmStart};
+use super::{solve_on, Refactor, SolveError, SolveOptions, State, WarmStart};
 use crate::lang::scene::Scene;
 use crate::model::{unheld, SearchFindings, Unheld};
 use crate::qp::QpInfo;
@@ -32,29 +32,26 @@ pub struct Search {
     pub rounds: usize,
     /// Per contact, the search distance the loop set (None: the scene's own,
     /// its `search` or the default). A solve from this state
-    /// ([`super::solve_reusing`]) starts from them, so that its rows, and so
+    /// ([`super::SolveOptions::previous`]) starts from them, so that its rows, and so
     /// its warm start, match this state's.
     pub widened: Vec<Option<f64>>,
 }
 
 /// The state solve with the search loop: [`solve_on`], then at most
-/// `max_rounds` solves with wider searches until no secondary node without a
+/// `options.search_rounds` solves with wider searches until no secondary node without a
 /// row ends inside its primary side. Later rounds reuse the previous round's
 /// factorizations (same design, same meshes); their rows differ, so their
 /// dual solves start cold. The state's counts and times are the whole
 /// loop's; its factorization counts are the first round's (the others
 /// reuse them).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn solve_searching(
     scene: &Scene,
     design: &[f64],
-    previous: Option<&State>,
-    factorizations: bool,
-    warm: WarmStart,
+    options: &SolveOptions,
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
-    max_rounds: usize,
 ) -> Result<State, SolveError> {
+    let (previous, max_rounds) = (options.previous, options.search_rounds);
     let t0 = Instant::now();
     let n = scene.contacts.len();
     let mut widened = previous
@@ -65,8 +62,8 @@ pub(super) fn solve_searching(
         &widened_scene(scene, &widened),
         design,
         previous,
-        factorizations,
-        warm,
+        options.refactor,
+        options.warm,
         comm.clone(),
         observer,
     )?;
@@ -94,7 +91,7 @@ pub(super) fn solve_searching(
             &widened_scene(scene, &widened),
             design,
             Some(&earlier),
-            true,
+            Refactor::Changed,
             WarmStart::OFF,
             comm.clone(),
             observer,

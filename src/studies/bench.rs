@@ -496,7 +496,7 @@ pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
     use crate::opt::Reuse;
     use crate::state::WarmStart;
     let warm = |w: WarmStart| Reuse {
-        factorizations: false,
+        refactor: crate::state::Refactor::All,
         warm: w,
         warm_adjoint: false,
     };
@@ -506,7 +506,7 @@ pub fn reuse_configurations() -> Vec<(&'static str, crate::opt::Reuse)> {
         (
             "partial refactorization",
             Reuse {
-                factorizations: true,
+                refactor: crate::state::Refactor::Changed,
                 ..Reuse::COLD
             },
         ),
@@ -564,14 +564,14 @@ pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
         (
             "partial refactorization",
             Reuse {
-                factorizations: true,
+                refactor: crate::state::Refactor::Changed,
                 ..Reuse::COLD
             },
         ),
         (
             "warm state solve",
             Reuse {
-                factorizations: false,
+                refactor: crate::state::Refactor::All,
                 warm_adjoint: false,
                 ..Reuse::default()
             },
@@ -579,7 +579,7 @@ pub fn reuse_configurations_large() -> Vec<(&'static str, crate::opt::Reuse)> {
         (
             "warm state and adjoint solves",
             Reuse {
-                factorizations: false,
+                refactor: crate::state::Refactor::All,
                 ..Reuse::default()
             },
         ),
