@@ -4,7 +4,7 @@
 use crate::fixture::Edit;
 use crate::options;
 use cso::lang::expr::{Formula, Point};
-use cso::lang::scene::{Condition, Dimension, Functional, Primary};
+use cso::lang::scene::{Condition, Dimension, Functional, Leaf, Primary};
 use cso::lang::{compile, CheckOptions, Scene};
 use num_dual::Dual64;
 
@@ -180,11 +180,14 @@ fn scont2d_face_derivatives_are_bernstein_polynomials() {
     }
     // The objective and the constraint are what the file says.
     let obj = s.objective.as_ref().expect("objective");
-    assert_eq!(obj.functional, Functional::Compliance);
+    assert_eq!(obj.functional, Functional::Leaf(Leaf::Compliance));
     let c = &s.constraints[0];
     assert!(c.upper);
-    assert_eq!(c.lhs, Functional::Area(1));
-    assert_eq!(c.rhs, Functional::Initial(Box::new(Functional::Area(1))));
+    assert_eq!(c.lhs, Functional::Leaf(Leaf::Area(1)));
+    assert_eq!(
+        c.rhs,
+        Functional::Leaf(Leaf::Initial(Box::new(Leaf::Area(1).into())))
+    );
     match &s.contacts[0].primary {
         Primary::Face(sel) => assert_eq!(sel.text, "base.top"),
         Primary::Obstacle(_) => panic!("base.top is a face"),
@@ -269,7 +272,7 @@ minimize corner.uz
     }
     assert_eq!(
         s.objective.expect("objective").functional,
-        Functional::Probe(0, 2)
+        Functional::Leaf(Leaf::Probe(0, 2))
     );
     // The bottom face moves with (x, y): 0.02 at the far corner.
     let node = s.bodies[0].node([2, 2, 0], &[]);

@@ -69,7 +69,7 @@ fn balances(src: &str, load: &[f64]) -> Report {
         state: &state,
         initial: None,
     }
-    .value(&cso::lang::scene::Functional::ContactForce(0));
+    .leaf(&cso::lang::scene::Leaf::ContactForce(0));
     assert_eq!(f, c.total_force);
     let q = cso::studies::measure::quantities(&scene, &state);
     let force = q.iter().find(|q| q.name == "c force").expect("c force");

@@ -621,7 +621,7 @@ fn a_warm_start_of_a_direction_that_moves_nothing_gives_zero() {
 fn compliance_adjoint_started_and_cold(
     s: &cso::lang::Scene,
 ) -> [(Vec<f64>, cso::sens::semi::Cost, bool); 2] {
-    use cso::lang::scene::Functional;
+    use cso::lang::scene::{Functional, Leaf};
     let design = s.design_init();
     let state = cso::state::solve(s, &design, &mut |_| {}).expect("solves");
     // The state's own tolerance: a start cannot be more accurate than that.
@@ -631,7 +631,7 @@ fn compliance_adjoint_started_and_cold(
     [&[][..], &zero[..]].map(|starts| {
         let sens = cso::sens::Sensitivity::new(s, &state).expect("sets up");
         let ((mut g, cost, _), _) = sens
-            .adjoint_all_from(&[Functional::Compliance], tol, starts)
+            .adjoint_all_from(&[Functional::Leaf(Leaf::Compliance)], tol, starts)
             .expect("solves");
         (g.remove(0), cost, sens.preconditioner_built())
     })
@@ -676,7 +676,7 @@ fn a_start_that_is_round_off_in_im_p_is_not_blown_up() {
     // nothing but the projector's round-off; scaled up to fit the right-hand
     // side, its part outside Im P would break the rigid-body balance. Such a
     // start must give the cold gradient, alone and in a block.
-    use cso::lang::scene::Functional;
+    use cso::lang::scene::{Functional, Leaf};
     let s = scont2d();
     let design = s.design_init();
     let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
@@ -684,8 +684,11 @@ fn a_start_that_is_round_off_in_im_p_is_not_blown_up() {
     let rows = state.problem.rows.len();
     let tiny: Vec<f64> = (0..rows).map(|r| 1e-13 * (1.0 + (r % 7) as f64)).collect();
     for fs in [
-        vec![Functional::Compliance],
-        vec![Functional::Compliance, Functional::Energy],
+        vec![Functional::Leaf(Leaf::Compliance)],
+        vec![
+            Functional::Leaf(Leaf::Compliance),
+            Functional::Leaf(Leaf::Energy),
+        ],
     ] {
         let zero = vec![vec![0.0; rows]; fs.len()];
         let ((cold, _, _), _) = sens.adjoint_all_from(&fs, 1e-10, &zero).expect("solves");

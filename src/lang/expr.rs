@@ -59,6 +59,40 @@ pub enum Arith {
     Max,
 }
 
+impl Arith {
+    /// `a op b` in any number type: formulas and functionals, at `f64` and at
+    /// dual numbers, all go through this one match.
+    ///
+    /// `min` and `max` choose a branch by the values (`re`) alone and return it
+    /// whole, so a dual number's derivative is that of the operand whose value
+    /// `f64` returns. `b` is chosen only when its value is strictly smaller
+    /// (larger): at a tie, and where `b` is NaN, the result is `a`, value and
+    /// derivative (the left operand's one-sided derivative); a NaN `a` is
+    /// returned as it is.
+    pub fn apply<T: Scalar>(self, a: T, b: T) -> T {
+        match self {
+            Arith::Add => a + b,
+            Arith::Sub => a - b,
+            Arith::Mul => a * b,
+            Arith::Div => a / b,
+            Arith::Min => {
+                if b.re() < a.re() {
+                    b
+                } else {
+                    a
+                }
+            }
+            Arith::Max => {
+                if b.re() > a.re() {
+                    b
+                } else {
+                    a
+                }
+            }
+        }
+    }
+}
+
 /// A checked scalar expression of the coordinates and the design variables.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Formula {
@@ -98,29 +132,7 @@ impl Formula {
                 .copied()
                 .unwrap_or_else(|| T::from(f64::NAN)),
             Formula::Neg(a) => -a.eval(at),
-            Formula::Arith(op, a, b) => {
-                let (a, b) = (a.eval(at), b.eval(at));
-                match op {
-                    Arith::Add => a + b,
-                    Arith::Sub => a - b,
-                    Arith::Mul => a * b,
-                    Arith::Div => a / b,
-                    Arith::Min => {
-                        if b.re() < a.re() {
-                            b
-                        } else {
-                            a
-                        }
-                    }
-                    Arith::Max => {
-                        if b.re() > a.re() {
-                            b
-                        } else {
-                            a
-                        }
-                    }
-                }
-            }
+            Formula::Arith(op, a, b) => op.apply(a.eval(at), b.eval(at)),
             Formula::Pow(a, b) => {
                 let base = a.eval(at);
                 match b.as_ref() {

@@ -543,9 +543,26 @@ pub struct Probe {
     pub at: Vec<f64>,
 }
 
-/// A functional of the solution and the design (objective and constraints).
+/// A functional of the solution and the design (objective and constraints):
+/// [`Leaf`]s combined by arithmetic. [`Functional::eval`] (`lang/functional.rs`)
+/// is the one walk of the arithmetic, generic over the number type; what a leaf
+/// is worth depends on where it is evaluated, so each caller supplies its leaves.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Functional {
+    Leaf(Leaf),
+    Neg(Box<Functional>),
+    Arith(Arith, Box<Functional>, Box<Functional>),
+    Pow(Box<Functional>, f64),
+    Func(Func, Box<Functional>),
+}
+
+/// What a functional is built from. Every evaluation of leaves (the checker's
+/// constant folding, the `f64` values, the dual-number derivatives, the
+/// adjoint's linearization) matches on these without a catch-all, so a new
+/// kind of functional is a variant here and a compile error wherever it needs
+/// handling.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Leaf {
     /// A number, or a formula of the design variables (no coordinates).
     Geometry(Formula),
     /// f^T u
@@ -564,10 +581,12 @@ pub enum Functional {
     Probe(usize, usize),
     /// The value at the initial design (a constant).
     Initial(Box<Functional>),
-    Neg(Box<Functional>),
-    Arith(Arith, Box<Functional>, Box<Functional>),
-    Pow(Box<Functional>, f64),
-    Func(Func, Box<Functional>),
+}
+
+impl From<Leaf> for Functional {
+    fn from(leaf: Leaf) -> Functional {
+        Functional::Leaf(leaf)
+    }
 }
 
 #[derive(Debug, Clone)]

@@ -18,7 +18,7 @@
 pub mod mma;
 
 use crate::lang::expr::Formula;
-use crate::lang::scene::{Functional, Scene, SensitivityMethod};
+use crate::lang::scene::{Functional, Leaf, Scene, SensitivityMethod};
 use crate::sens::{Eval, Gradient, GradientError};
 use crate::state::{SolveError, State, WarmStart};
 use mma::{kkt_residual, Mma, MmaSettings};
@@ -89,14 +89,16 @@ pub struct Optimization {
 /// Replaces `initial(e)` by the value of `e` at the starting design.
 fn freeze(f: &Functional, eval: &Eval) -> Functional {
     match f {
-        Functional::Initial(inner) => Functional::Geometry(Formula::Const(eval.value(inner))),
+        Functional::Leaf(Leaf::Initial(inner)) => {
+            Leaf::Geometry(Formula::Const(eval.value(inner))).into()
+        }
+        Functional::Leaf(leaf) => Functional::Leaf(leaf.clone()),
         Functional::Neg(a) => Functional::Neg(Box::new(freeze(a, eval))),
         Functional::Arith(op, a, b) => {
             Functional::Arith(*op, Box::new(freeze(a, eval)), Box::new(freeze(b, eval)))
         }
         Functional::Pow(a, p) => Functional::Pow(Box::new(freeze(a, eval)), *p),
         Functional::Func(func, a) => Functional::Func(*func, Box::new(freeze(a, eval))),
-        other => other.clone(),
     }
 }
 

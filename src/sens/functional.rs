@@ -1,8 +1,7 @@
 //! Values of the functionals of `minimize` / `subject to` on a solved state.
 
 use crate::fem::hex::hex_gauss;
-use crate::lang::expr::Arith;
-use crate::lang::scene::{Body, Functional, Scene};
+use crate::lang::scene::{Body, Functional, Leaf, Scene};
 use crate::model::RowKind;
 use crate::num::Scalar;
 use crate::state::State;
@@ -98,16 +97,21 @@ pub fn body_measure<T: Scalar>(body: &Body, design: &[T]) -> T {
 impl Eval<'_> {
     /// The value of a functional.
     pub fn value(&self, f: &Functional) -> f64 {
-        match f {
-            Functional::Geometry(g) => g.eval_f64([0.0; 3], self.design),
-            Functional::Compliance => self.state.compliance(),
-            Functional::Energy => self.state.energy(),
+        f.eval(&mut |l| self.leaf(l))
+    }
+
+    /// The value of a leaf.
+    pub fn leaf(&self, l: &Leaf) -> f64 {
+        match l {
+            Leaf::Geometry(g) => g.eval_f64([0.0; 3], self.design),
+            Leaf::Compliance => self.state.compliance(),
+            Leaf::Energy => self.state.energy(),
             // The magnitude of the resultant, not the sum of the nodal forces'
             // sizes: on a curved primary only the resultant balances the load.
-            Functional::ContactForce(c) => {
+            Leaf::ContactForce(c) => {
                 crate::num::norm(&self.state.problem.contact_resultant(&self.state.lambda, *c))
             }
-            Functional::PressureNorm(c, q) => {
+            Leaf::PressureNorm(c, q) => {
                 let sum: f64 = self
                     .contact(*c)
                     .iter()
@@ -116,14 +120,12 @@ impl Eval<'_> {
                     .sum();
                 sum.powf(1.0 / q)
             }
-            Functional::Area(b) | Functional::Volume(b) => {
-                body_measure(&self.scene.bodies[*b], self.design)
-            }
-            Functional::Probe(p, comp) => {
+            Leaf::Area(b) | Leaf::Volume(b) => body_measure(&self.scene.bodies[*b], self.design),
+            Leaf::Probe(p, comp) => {
                 let (body, node) = self.state.problem.probes[*p];
                 self.state.node_displacement(body, node)[*comp]
             }
-            Functional::Initial(inner) => match self.initial {
+            Leaf::Initial(inner) => match self.initial {
                 Some((state, design)) => Eval {
                     scene: self.scene,
                     design,
@@ -133,20 +135,6 @@ impl Eval<'_> {
                 .value(inner),
                 None => self.value(inner),
             },
-            Functional::Neg(a) => -self.value(a),
-            Functional::Arith(op, a, b) => {
-                let (a, b) = (self.value(a), self.value(b));
-                match op {
-                    Arith::Add => a + b,
-                    Arith::Sub => a - b,
-                    Arith::Mul => a * b,
-                    Arith::Div => a / b,
-                    Arith::Min => a.min(b),
-                    Arith::Max => a.max(b),
-                }
-            }
-            Functional::Pow(a, p) => self.value(a).powf(*p),
-            Functional::Func(func, a) => func.apply(self.value(a)),
         }
     }
 

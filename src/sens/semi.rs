@@ -15,7 +15,7 @@
 use super::functional::body_measure;
 use super::tape::{seeded, Rhs, RowDerivative, Tape};
 use crate::lang::expr::{Arith, Point};
-use crate::lang::scene::{Functional, Scene};
+use crate::lang::scene::{Functional, Leaf, Scene};
 use crate::model::geometry::{
     face_loads, nodal_loads, node_positions, selected_pieces, tributary_areas, FaceEdge, FaceQuad,
     Piece,
@@ -163,21 +163,6 @@ fn solve_settings(tolerance: f64) -> SmalbeSettings {
         max_outer: 1000,
         max_hessian: 100_000,
         ..SmalbeSettings::default()
-    }
-}
-
-/// The leaf functionals of an expression (not `initial(...)`, a constant).
-fn collect_leaves<'f>(f: &'f Functional, out: &mut Vec<&'f Functional>) {
-    match f {
-        Functional::Initial(_) => {}
-        Functional::Neg(a) | Functional::Pow(a, _) | Functional::Func(_, a) => {
-            collect_leaves(a, out)
-        }
-        Functional::Arith(_, a, b) => {
-            collect_leaves(a, out);
-            collect_leaves(b, out);
-        }
-        leaf => out.push(leaf),
     }
 }
 
@@ -969,10 +954,7 @@ impl<'a> Sensitivity<'a> {
             };
             let dd = seeded(&design, i);
             for (k, f) in fs.iter().enumerate() {
-                let ja = self
-                    .dual_value(f, &dd, &explicit)
-                    .map_err(SolveError::Unsupported)?
-                    .eps;
+                let ja = self.dual_value(f, &dd, &explicit).eps;
                 grad[k][i] = ja + implicit[k];
             }
         }
@@ -1067,43 +1049,34 @@ impl<'a> Sensitivity<'a> {
         // Linearization in (u, l): J_u and J_l, by the chain rule over the leaves.
         let mut ju: Vec<Vec<f64>> = p.subdomains.iter().map(|s| vec![0.0; s.f.len()]).collect();
         let mut jl = vec![0.0; p.rows.len()];
-        let mut leaves = Vec::new();
-        collect_leaves(f, &mut leaves);
-        for leaf in &leaves {
-            let w = self
-                .eval_tree(f, &|l| {
-                    let v = self.leaf_value(l);
-                    if std::ptr::eq(l, *leaf) {
-                        D::new(v, 1.0)
-                    } else {
-                        D::from(v)
-                    }
-                })
-                .eps;
+        for leaf in f.leaves() {
+            // The chain rule's weight of this leaf: J's derivative with this
+            // leaf seeded and the others constant.
+            let w = f.eval(&mut |l| self.leaf_seeded(l, Some(leaf))).eps;
             if w == 0.0 {
                 continue;
             }
             match leaf {
-                Functional::Compliance => {
+                Leaf::Compliance => {
                     for (s, m) in p.subdomains.iter().enumerate() {
                         for (k, v) in m.f.iter().enumerate() {
                             ju[s][k] += w * v;
                         }
                     }
                 }
-                Functional::Energy => {
+                Leaf::Energy => {
                     for (s, ku) in self.ku.iter().enumerate() {
                         for (k, v) in ku.iter().enumerate() {
                             ju[s][k] += w * v;
                         }
                     }
                 }
-                Functional::Probe(pr, comp) => {
+                Leaf::Probe(pr, comp) => {
                     let (body, node) = p.probes[*pr];
                     let (s, l) = p.bodies[body].copies(node)[0];
                     ju[s][p.dim * l + comp] += w;
                 }
-                Functional::ContactForce(c) => {
+                Leaf::ContactForce(c) => {
                     // d|F|/dl_r = e . n_r / s_r, e = F / |F| (0 where F = 0).
                     let f = p.contact_resultant(&state.lambda, *c);
                     let size = crate::num::norm(&f);
@@ -1121,7 +1094,7 @@ impl<'a> Sensitivity<'a> {
                         }
                     }
                 }
-                Functional::PressureNorm(c, q) => {
+                Leaf::PressureNorm(c, q) => {
                     // d/dF_i (sum |F|^q A^(1-q))^(1/q) = S^(1/q-1) |F_i|^(q-1) sgn A_i^(1-q)
                     let design = self.scene.design_init();
                     let nodes = self.pressure_terms(*c, &seeded(&design, usize::MAX), None);
@@ -1139,7 +1112,9 @@ impl<'a> Sensitivity<'a> {
                         }
                     }
                 }
-                _ => {}
+                // Functions of the design alone, and constants: nothing in
+                // (u, l).
+                Leaf::Geometry(_) | Leaf::Area(_) | Leaf::Volume(_) | Leaf::Initial(_) => {}
             }
         }
         let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
@@ -1147,30 +1122,32 @@ impl<'a> Sensitivity<'a> {
     }
 
     /// `dJ/da_i` of a functional from the state and one direction's derivatives.
-    pub fn derivative(&self, f: &Functional, i: usize, dir: &Direction) -> Result<f64, String> {
+    pub fn derivative(&self, f: &Functional, i: usize, dir: &Direction) -> f64 {
         let design = self.scene.design_init();
         let dd = seeded(&design, i);
-        Ok(self.dual_value(f, &dd, dir)?.eps)
+        self.dual_value(f, &dd, dir).eps
     }
 
-    fn dual_value(&self, f: &Functional, dd: &[D], dir: &dyn Tangent) -> Result<D, String> {
-        Ok(self.eval_tree(f, &|l| self.leaf_dual(l, dd, dir)))
+    /// A functional's value and derivative in one direction (`dd`: the design
+    /// seeded along it).
+    fn dual_value(&self, f: &Functional, dd: &[D], dir: &dyn Tangent) -> D {
+        f.eval(&mut |l| self.leaf_dual(l, dd, dir))
     }
 
-    /// A leaf functional's value and derivative in one direction.
-    fn leaf_dual(&self, f: &Functional, dd: &[D], dir: &dyn Tangent) -> D {
+    /// A leaf's value and derivative in one direction.
+    fn leaf_dual(&self, l: &Leaf, dd: &[D], dir: &dyn Tangent) -> D {
         let state = self.state;
         let p = &state.problem;
-        match f {
-            Functional::Geometry(g) => g.eval(&Point {
+        match l {
+            Leaf::Geometry(g) => g.eval(&Point {
                 coords: [D::from(0.0); 3],
                 design: dd,
             }),
-            Functional::Compliance => D::new(state.compliance(), dir.compliance(state)),
+            Leaf::Compliance => D::new(state.compliance(), dir.compliance(state)),
             // d/da 1/2 u^T K u = 1/2 u^T K' u + u^T K u'
-            Functional::Energy => D::new(state.energy(), dir.energy(&self.ku)),
-            Functional::ContactForce(c) => self.resultant_size(*c, dir),
-            Functional::PressureNorm(c, q) => {
+            Leaf::Energy => D::new(state.energy(), dir.energy(&self.ku)),
+            Leaf::ContactForce(c) => self.resultant_size(*c, dir),
+            Leaf::PressureNorm(c, q) => {
                 let nodes = self.pressure_terms(*c, dd, Some(dir));
                 let sum: D = nodes
                     .iter()
@@ -1179,16 +1156,18 @@ impl<'a> Sensitivity<'a> {
                     .sum();
                 sum.powf(1.0 / q)
             }
-            Functional::Area(b) | Functional::Volume(b) => dir
+            Leaf::Area(b) | Leaf::Volume(b) => dir
                 .measure(*b)
                 .unwrap_or_else(|| body_measure(&self.scene.bodies[*b], dd)),
-            Functional::Probe(pr, comp) => {
+            Leaf::Probe(pr, comp) => {
                 let (body, node) = p.probes[*pr];
                 let (s, l) = p.bodies[body].copies(node)[0];
                 let k = p.dim * l + comp;
                 D::new(state.u[s][k], dir.u(s, k))
             }
-            _ => D::from(f64::NAN),
+            // A constant: its value here (these derivatives are taken at the
+            // initial design), in the arithmetic of this evaluation.
+            Leaf::Initial(inner) => D::from(self.dual_value(inner, dd, dir).re),
         }
     }
 
@@ -1255,7 +1234,7 @@ impl<'a> Sensitivity<'a> {
     }
 
     /// The value of a leaf at the state (no derivative).
-    fn leaf_value(&self, l: &Functional) -> f64 {
+    fn leaf_value(&self, l: &Leaf) -> f64 {
         let design = self.scene.design_init();
         super::Eval {
             scene: self.scene,
@@ -1263,40 +1242,21 @@ impl<'a> Sensitivity<'a> {
             state: self.state,
             initial: None,
         }
-        .value(l)
+        .leaf(l)
     }
 
-    /// Evaluates the arithmetic around the leaves in dual numbers.
-    fn eval_tree(&self, f: &Functional, leaf: &dyn Fn(&Functional) -> D) -> D {
-        match f {
-            Functional::Initial(inner) => D::from(self.eval_tree(inner, leaf).re),
-            Functional::Neg(a) => -self.eval_tree(a, leaf),
-            Functional::Arith(op, a, b) => {
-                let (a, b) = (self.eval_tree(a, leaf), self.eval_tree(b, leaf));
-                match op {
-                    Arith::Add => a + b,
-                    Arith::Sub => a - b,
-                    Arith::Mul => a * b,
-                    Arith::Div => a / b,
-                    Arith::Min => {
-                        if b.re < a.re {
-                            b
-                        } else {
-                            a
-                        }
-                    }
-                    Arith::Max => {
-                        if b.re > a.re {
-                            b
-                        } else {
-                            a
-                        }
-                    }
-                }
-            }
-            Functional::Pow(a, q) => self.eval_tree(a, leaf).powf(*q),
-            Functional::Func(func, a) => func.apply(self.eval_tree(a, leaf)),
-            l => leaf(l),
+    /// A leaf's value at the state as a dual number whose derivative is 1 at
+    /// `seed` (this very leaf of the tree, by address) and 0 elsewhere.
+    fn leaf_seeded(&self, l: &Leaf, seed: Option<&Leaf>) -> D {
+        if let Leaf::Initial(inner) = l {
+            // A constant: what it holds at this state, nothing seeded.
+            return D::from(inner.eval(&mut |l| self.leaf_seeded(l, None)).re);
+        }
+        let v = self.leaf_value(l);
+        if seed.is_some_and(|s| std::ptr::eq(l, s)) {
+            D::new(v, 1.0)
+        } else {
+            D::from(v)
         }
     }
 }
@@ -1389,9 +1349,7 @@ pub fn semi_analytic_at_from(
             kinked.push(scene.design[i].name.clone());
         }
         for (k, f) in rows.iter().enumerate() {
-            gradient[k][i] = sens
-                .derivative(f, i, dir)
-                .map_err(SolveError::Unsupported)?;
+            gradient[k][i] = sens.derivative(f, i, dir);
         }
     }
     let weak = sens.weak();

@@ -24,8 +24,9 @@
 use super::Checker;
 use crate::lang::ast::{BinOp, Expr, ExprKind, ItemKind, Span, UnOp};
 use crate::lang::diag::{num, Diagnostic};
-use crate::lang::expr::{Arith, Formula};
-use crate::lang::scene::{Condition, Functional, Obstacle, Scene};
+use crate::lang::expr::{Arith, Formula, Func};
+use crate::lang::functional::Operand;
+use crate::lang::scene::{Condition, Functional, Leaf, Obstacle, Scene};
 
 /// What a functional does as the design changes.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,7 +40,7 @@ const ZERO: Dep = Dep::Const(Some(0.0));
 
 /// Why a part of a functional is constant, and where it is written.
 #[derive(Debug, Clone, Copy)]
-struct Leaf {
+struct Part {
     span: Span,
     why: Why,
 }
@@ -138,15 +139,15 @@ impl Facts {
     }
 
     /// A functional of the solution other than compliance.
-    fn state(&self, span: Span, leaves: &mut Vec<Leaf>) -> Dep {
+    fn state(&self, span: Span, parts: &mut Vec<Part>) -> Dep {
         if !self.force && !self.displacement {
-            leaves.push(Leaf {
+            parts.push(Part {
                 span,
                 why: Why::Unloaded,
             });
             ZERO
         } else if !self.moves {
-            leaves.push(Leaf {
+            parts.push(Part {
                 span,
                 why: Why::NothingMoves,
             });
@@ -156,27 +157,32 @@ impl Facts {
         }
     }
 
-    /// How `f` (written as `e`) depends on the design; constant parts go to `leaves`.
-    fn dep(&self, f: &Functional, e: &Expr, leaves: &mut Vec<Leaf>) -> Dep {
-        match f {
-            Functional::Geometry(g) if g.uses_design() => Dep::Varies,
-            Functional::Geometry(g) => Dep::Const(Some(g.eval_f64([0.0; 3], &self.design))),
-            Functional::Compliance if !self.force => {
-                leaves.push(Leaf {
-                    span: e.span,
+    /// How `f` (written as `e`) depends on the design; constant parts go to `parts`.
+    fn dep(&self, f: &Functional, e: &Expr, parts: &mut Vec<Part>) -> Dep {
+        f.eval_at(e, &child, &mut |l, e| self.leaf(l, e.span, parts))
+    }
+
+    /// How a leaf (written at `span`) depends on the design.
+    fn leaf(&self, l: &Leaf, span: Span, parts: &mut Vec<Part>) -> Dep {
+        match l {
+            Leaf::Geometry(g) if g.uses_design() => Dep::Varies,
+            Leaf::Geometry(g) => Dep::Const(Some(g.eval_f64([0.0; 3], &self.design))),
+            Leaf::Compliance if !self.force => {
+                parts.push(Part {
+                    span,
                     why: Why::NoForce,
                 });
                 ZERO
             }
-            Functional::Compliance
-            | Functional::Energy
-            | Functional::ContactForce(_)
-            | Functional::PressureNorm(..)
-            | Functional::Probe(..) => self.state(e.span, leaves),
-            Functional::Area(b) | Functional::Volume(b) => {
+            Leaf::Compliance
+            | Leaf::Energy
+            | Leaf::ContactForce(_)
+            | Leaf::PressureNorm(..)
+            | Leaf::Probe(..) => self.state(span, parts),
+            Leaf::Area(b) | Leaf::Volume(b) => {
                 if self.fixed_body.get(*b).copied().unwrap_or(false) {
-                    leaves.push(Leaf {
-                        span: e.span,
+                    parts.push(Part {
+                        span,
                         why: Why::FixedBody(*b),
                     });
                     Dep::Const(None)
@@ -184,48 +190,47 @@ impl Facts {
                     Dep::Varies
                 }
             }
-            Functional::Initial(_) => {
-                leaves.push(Leaf {
-                    span: e.span,
+            Leaf::Initial(_) => {
+                parts.push(Part {
+                    span,
                     why: Why::Initial,
                 });
                 Dep::Const(None)
-            }
-            Functional::Neg(a) => match self.dep(a, child(e, 0), leaves) {
-                Dep::Const(v) => Dep::Const(v.map(|v| -v)),
-                Dep::Varies => Dep::Varies,
-            },
-            Functional::Func(func, a) => match self.dep(a, child(e, 0), leaves) {
-                Dep::Const(v) => Dep::Const(v.map(|v| func.apply(v))),
-                Dep::Varies => Dep::Varies,
-            },
-            Functional::Pow(a, p) => match self.dep(a, child(e, 0), leaves) {
-                Dep::Const(v) => Dep::Const(v.map(|v| v.powf(*p))),
-                Dep::Varies => Dep::Varies,
-            },
-            Functional::Arith(op, a, b) => {
-                let da = self.dep(a, child(e, 0), leaves);
-                let db = self.dep(b, child(e, 1), leaves);
-                match (op, da, db) {
-                    (Arith::Mul, ZERO, _) | (Arith::Mul, _, ZERO) | (Arith::Div, ZERO, _) => ZERO,
-                    (_, Dep::Varies, _) | (_, _, Dep::Varies) => Dep::Varies,
-                    (op, Dep::Const(a), Dep::Const(b)) => {
-                        Dep::Const(a.zip(b).map(|(a, b)| arith(*op, a, b)))
-                    }
-                }
             }
         }
     }
 }
 
-fn arith(op: Arith, a: f64, b: f64) -> f64 {
-    match op {
-        Arith::Add => a + b,
-        Arith::Sub => a - b,
-        Arith::Mul => a * b,
-        Arith::Div => a / b,
-        Arith::Min => a.min(b),
-        Arith::Max => a.max(b),
+impl Dep {
+    fn map(self, f: impl FnOnce(f64) -> f64) -> Dep {
+        match self {
+            Dep::Const(v) => Dep::Const(v.map(f)),
+            Dep::Varies => Dep::Varies,
+        }
+    }
+}
+
+/// Constant folding is the functional's own arithmetic on known constants. A
+/// product with a factor that is 0, and a quotient of 0, are 0 whatever the
+/// other operand does; otherwise anything that varies makes the result vary.
+impl Operand for Dep {
+    fn negate(self) -> Dep {
+        self.map(|v| v.negate())
+    }
+    fn arith(op: Arith, a: Dep, b: Dep) -> Dep {
+        match (op, a, b) {
+            (Arith::Mul, ZERO, _) | (Arith::Mul, _, ZERO) | (Arith::Div, ZERO, _) => ZERO,
+            (_, Dep::Varies, _) | (_, _, Dep::Varies) => Dep::Varies,
+            (op, Dep::Const(a), Dep::Const(b)) => {
+                Dep::Const(a.zip(b).map(|(a, b)| f64::arith(op, a, b)))
+            }
+        }
+    }
+    fn power(self, p: f64) -> Dep {
+        self.map(|v| v.power(p))
+    }
+    fn function(self, f: Func) -> Dep {
+        self.map(|v| v.function(f))
     }
 }
 
@@ -255,36 +260,36 @@ impl Checker<'_> {
         let has_design = !scene.design.is_empty();
         if let (Some(obj), Some(at)) = (&scene.objective, self.objective_at) {
             let e = self.find_expr(at, true);
-            let mut leaves = Vec::new();
-            let dep = e.map_or(Dep::Varies, |e| facts.dep(&obj.functional, e, &mut leaves));
+            let mut parts = Vec::new();
+            let dep = e.map_or(Dep::Varies, |e| facts.dep(&obj.functional, e, &mut parts));
             match dep {
-                ZERO => self.objective_zero(scene, at, &leaves, &facts),
-                Dep::Const(_) if has_design => self.objective_fixed(scene, at, &leaves),
-                _ => self.zero_terms(scene, "objective", &leaves, &facts),
+                ZERO => self.objective_zero(scene, at, &parts, &facts),
+                Dep::Const(_) if has_design => self.objective_fixed(scene, at, &parts),
+                _ => self.zero_terms(scene, "objective", &parts, &facts),
             }
         }
         for (c, &at) in scene.constraints.iter().zip(&self.constraint_at.clone()) {
             let Some(e) = self.find_expr(at, false) else {
                 continue;
             };
-            let mut leaves = Vec::new();
-            let l = facts.dep(&c.lhs, child(e, 0), &mut leaves);
-            let r = facts.dep(&c.rhs, child(e, 1), &mut leaves);
-            let zero = leaves.iter().any(|l| l.why.zero());
+            let mut parts = Vec::new();
+            let l = facts.dep(&c.lhs, child(e, 0), &mut parts);
+            let r = facts.dep(&c.rhs, child(e, 1), &mut parts);
+            let zero = parts.iter().any(|l| l.why.zero());
             match (l, r) {
                 (Dep::Const(Some(a)), Dep::Const(Some(b))) if has_design || zero => {
                     let holds = if c.upper { a <= b } else { a >= b };
-                    self.constraint_decided(scene, c, at, (a, b), holds, &leaves, &facts);
+                    self.constraint_decided(scene, c, at, (a, b), holds, &parts, &facts);
                 }
                 (Dep::Const(_), Dep::Const(_)) if has_design => {
                     let mut d = Diagnostic::warning(
                         "cso::constant-constraint",
                         "this constraint does not change with the design",
                     );
-                    if leaves.is_empty() {
+                    if parts.is_empty() {
                         d = d.label(at, "the same at every design");
                     }
-                    for l in &leaves {
+                    for l in &parts {
                         d = d.label(l.span, self.why_text(scene, l.why));
                     }
                     self.error(d.help(format!(
@@ -293,7 +298,7 @@ impl Checker<'_> {
                         self.design_help()
                     )));
                 }
-                _ => self.zero_terms(scene, "constraint", &leaves, &facts),
+                _ => self.zero_terms(scene, "constraint", &parts, &facts),
             }
         }
     }
@@ -358,8 +363,8 @@ impl Checker<'_> {
     }
 
     /// The help for a part that is 0 because of the loads.
-    fn zero_help(&self, leaves: &[Leaf], facts: &Facts) -> String {
-        if leaves.iter().any(|l| l.why == Why::NoForce) && facts.displacement {
+    fn zero_help(&self, parts: &[Part], facts: &Facts) -> String {
+        if parts.iter().any(|l| l.why == Why::NoForce) && facts.displacement {
             "`compliance` is the work of the applied forces (f·u), and prescribed \
              displacements apply none; under prescribed displacements use the strain \
              energy: `minimize -energy` makes the structure stiffer, `minimize energy` \
@@ -374,8 +379,8 @@ impl Checker<'_> {
         }
     }
 
-    fn with_zero_labels(&self, mut d: Diagnostic, leaves: &[Leaf], facts: &Facts) -> Diagnostic {
-        if leaves.iter().any(|l| l.why == Why::NoForce) && facts.displacement {
+    fn with_zero_labels(&self, mut d: Diagnostic, parts: &[Part], facts: &Facts) -> Diagnostic {
+        if parts.iter().any(|l| l.why == Why::NoForce) && facts.displacement {
             if let Some(s) = self.displace_spans().first() {
                 d = d.label(
                     *s,
@@ -386,32 +391,32 @@ impl Checker<'_> {
         d
     }
 
-    fn objective_zero(&mut self, scene: &Scene, at: Span, leaves: &[Leaf], facts: &Facts) {
+    fn objective_zero(&mut self, scene: &Scene, at: Span, parts: &[Part], facts: &Facts) {
         let mut d = Diagnostic::new(
             "cso::constant-objective",
             "the objective is identically 0 on this scene",
         );
-        let zeros: Vec<&Leaf> = leaves.iter().filter(|l| l.why.zero()).collect();
+        let zeros: Vec<&Part> = parts.iter().filter(|l| l.why.zero()).collect();
         if zeros.is_empty() {
             d = d.label(at, "this is 0 at every design");
         }
         for l in zeros {
             d = d.label(l.span, self.why_text(scene, l.why));
         }
-        d = self.with_zero_labels(d, leaves, facts);
-        let help = self.zero_help(leaves, facts);
+        d = self.with_zero_labels(d, parts, facts);
+        let help = self.zero_help(parts, facts);
         self.error(d.help(help));
     }
 
-    fn objective_fixed(&mut self, scene: &Scene, at: Span, leaves: &[Leaf]) {
+    fn objective_fixed(&mut self, scene: &Scene, at: Span, parts: &[Part]) {
         let mut d = Diagnostic::new(
             "cso::constant-objective",
             "the objective does not change with the design",
         );
-        if leaves.is_empty() {
+        if parts.is_empty() {
             d = d.label(at, "a number: the same at every design");
         }
-        for l in leaves {
+        for l in parts {
             d = d.label(l.span, self.why_text(scene, l.why));
         }
         let example = self
@@ -437,7 +442,7 @@ impl Checker<'_> {
         at: Span,
         (a, b): (f64, f64),
         holds: bool,
-        leaves: &[Leaf],
+        parts: &[Part],
         facts: &Facts,
     ) {
         let reads = format!(
@@ -457,15 +462,15 @@ impl Checker<'_> {
                 format!("this constraint can never hold: it reads {reads}"),
             )
         };
-        if leaves.is_empty() {
+        if parts.is_empty() {
             d = d.label(at, "the same at every design");
         }
-        for l in leaves {
+        for l in parts {
             d = d.label(l.span, self.why_text(scene, l.why));
         }
-        d = self.with_zero_labels(d, leaves, facts);
-        let help = if leaves.iter().any(|l| l.why.zero()) {
-            self.zero_help(leaves, facts)
+        d = self.with_zero_labels(d, parts, facts);
+        let help = if parts.iter().any(|l| l.why.zero()) {
+            self.zero_help(parts, facts)
         } else if holds {
             "it constrains nothing: delete it".into()
         } else {
@@ -475,8 +480,8 @@ impl Checker<'_> {
     }
 
     /// A warning for the parts of a changing objective or constraint that are 0.
-    fn zero_terms(&mut self, scene: &Scene, what: &str, leaves: &[Leaf], facts: &Facts) {
-        let zeros: Vec<&Leaf> = leaves.iter().filter(|l| l.why.zero()).collect();
+    fn zero_terms(&mut self, scene: &Scene, what: &str, parts: &[Part], facts: &Facts) {
+        let zeros: Vec<&Part> = parts.iter().filter(|l| l.why.zero()).collect();
         if zeros.is_empty() {
             return;
         }
@@ -487,8 +492,8 @@ impl Checker<'_> {
         for l in zeros {
             d = d.label(l.span, self.why_text(scene, l.why));
         }
-        d = self.with_zero_labels(d, leaves, facts);
-        let help = self.zero_help(leaves, facts);
+        d = self.with_zero_labels(d, parts, facts);
+        let help = self.zero_help(parts, facts);
         self.error(d.help(help));
     }
 }

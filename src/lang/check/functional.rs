@@ -5,7 +5,7 @@ use super::Checker;
 use crate::lang::ast::{BinOp, Expr, ExprKind, ItemKind, UnOp};
 use crate::lang::diag::Diagnostic;
 use crate::lang::expr::{Arith, Func};
-use crate::lang::scene::{Constraint, Dimension, Functional, Objective, Scene};
+use crate::lang::scene::{Constraint, Dimension, Functional, Leaf, Objective, Scene};
 use crate::lang::units::{Dim, Quantity};
 
 impl<'a> Checker<'a> {
@@ -107,9 +107,9 @@ impl<'a> Checker<'a> {
         match &e.kind {
             ExprKind::Name(n) if n == "compliance" || n == "energy" => {
                 let f = if n == "compliance" {
-                    Functional::Compliance
+                    Functional::Leaf(Leaf::Compliance)
                 } else {
-                    Functional::Energy
+                    Functional::Leaf(Leaf::Energy)
                 };
                 Some((f, Quantity::Known(Dim::ENERGY)))
             }
@@ -157,7 +157,7 @@ impl<'a> Checker<'a> {
                 let n = self.dim.n();
                 let comps = ["ux", "uy", "uz"];
                 match comps[..n].iter().position(|c| *c == name.name) {
-                    Some(c) => Some((Functional::Probe(probe, c), Quantity::Known(Dim::LENGTH))),
+                    Some(c) => Some((Leaf::Probe(probe, c).into(), Quantity::Known(Dim::LENGTH))),
                     None => {
                         let mut d = Diagnostic::new(
                             "cso::component",
@@ -234,7 +234,7 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        Some((Functional::Geometry(f), q))
+        Some((Leaf::Geometry(f).into(), q))
     }
 
     fn functional_call(
@@ -275,7 +275,7 @@ impl<'a> Checker<'a> {
             "contact_force" | "pressure_norm" => {
                 let c = self.named(Kind::Contact, &args[0])?;
                 if name == "contact_force" {
-                    return Some((Functional::ContactForce(c), Quantity::Known(Dim::FORCE)));
+                    return Some((Leaf::ContactForce(c).into(), Quantity::Known(Dim::FORCE)));
                 }
                 let q = self.number(&args[1], Some(Dim::NONE), "the norm's exponent `q`")?;
                 if q < 1.0 {
@@ -286,7 +286,7 @@ impl<'a> Checker<'a> {
                     );
                     return None;
                 }
-                Some((Functional::PressureNorm(c, q), Quantity::Unchecked))
+                Some((Leaf::PressureNorm(c, q).into(), Quantity::Unchecked))
             }
             "area" | "volume" => {
                 let want = if self.dim == Dimension::Two {
@@ -316,15 +316,15 @@ impl<'a> Checker<'a> {
                 }
                 let b = self.named(Kind::Body, &args[0])?;
                 let (f, q) = if name == "area" {
-                    (Functional::Area(b), Dim::AREA)
+                    (Leaf::Area(b).into(), Dim::AREA)
                 } else {
-                    (Functional::Volume(b), Dim::VOLUME)
+                    (Leaf::Volume(b).into(), Dim::VOLUME)
                 };
                 Some((f, Quantity::Known(q)))
             }
             _ => {
                 let (f, q) = self.functional(&args[0])?;
-                Some((Functional::Initial(Box::new(f)), q))
+                Some((Leaf::Initial(Box::new(f)).into(), q))
             }
         }
     }

@@ -630,14 +630,8 @@ fn reserved(name: &str) -> Option<&'static str> {
             | "max"
             | "bezier"
             | "bezier2"
-            | "compliance"
-            | "energy"
-            | "contact_force"
-            | "pressure_norm"
-            | "area"
-            | "volume"
-            | "initial"
-    ) {
+    ) || values::FUNCTIONALS.contains(&name)
+    {
         return Some("this is a built-in name");
     }
     None
