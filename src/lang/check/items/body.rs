@@ -1,8 +1,8 @@
 //! `body NAME { .. }`: material, extent, curved faces, mesh and subdomains; faces
 //! that cross.
 
-use crate::lang::ast::{Block, ExprKind, Ident, Value};
-use crate::lang::check::fields::{opt, req, Spec};
+use crate::lang::ast::{Block, ExprKind, Field, Ident, Span, Value};
+use crate::lang::check::fields::{opt, req, Fields, Spec};
 use crate::lang::check::names::Kind;
 use crate::lang::check::{BodySpans, Checker};
 use crate::lang::diag::{num, Diagnostic};
@@ -19,6 +19,64 @@ impl<'a> Checker<'a> {
         let errors_before = self.diags.len();
         let label = name.map_or("body".to_string(), |n| format!("body `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
+        let d = self.dim.n();
+        let f = self.body_fields(block, &label, at);
+        let mut body = Body {
+            name: name.map_or(String::new(), |n| n.name.clone()),
+            material: usize::MAX,
+            extent: Vec::new(),
+            bottom: None,
+            top: None,
+            face_text: [None, None],
+            mesh: vec![1; d],
+            subdomains: vec![1; d],
+        };
+        if let Some(i) = f.get("material").and_then(|fl| self.body_material(fl)) {
+            body.material = i;
+        }
+        for key in ["x", "y", "z"].iter().take(d) {
+            let ext = f.get(key).and_then(|fl| self.extent(fl, key));
+            body.extent
+                .push(ext.unwrap_or((Formula::Const(0.0), Formula::Const(1.0))));
+        }
+        for (key, slot) in [("bottom", 0), ("top", 1)] {
+            let Some(fl) = f.get(key) else { continue };
+            let Some(e) = self.expr_of(fl, "a height") else {
+                continue;
+            };
+            let what = format!("the `{key}` face");
+            if let Some(g) = self.geometry(e, Dim::LENGTH, d - 1, &what) {
+                body.face_text[slot] = Some(self.text(e.span).to_string());
+                if slot == 0 {
+                    body.bottom = Some(g);
+                } else {
+                    body.top = Some(g);
+                }
+            }
+        }
+        let mesh = f.get("mesh").and_then(|fl| self.grid(fl, "mesh", 1));
+        if let Some(m) = &mesh {
+            body.mesh = m.clone();
+        }
+        if let Some(s) = f
+            .get("subdomains")
+            .and_then(|fl| self.subdomains(fl, mesh.as_deref()))
+        {
+            body.subdomains = s;
+        }
+        let value_span = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
+        self.body_spans.push(BodySpans {
+            name: at,
+            mesh: value_span("mesh"),
+            faces: [value_span("bottom"), value_span("top")],
+            ok: self.diags.len() == errors_before,
+        });
+        self.bodies.push(body);
+    }
+
+    /// The field names of a body in this scene's dimension, with hints for
+    /// misnamed ones.
+    fn body_fields(&mut self, block: &'a Block, label: &str, at: Span) -> Fields<'a> {
         let d = self.dim.n();
         let mut spec: Vec<Spec> = vec![
             req("material", "material = NAME"),
@@ -55,134 +113,104 @@ impl<'a> Checker<'a> {
             }
             _ => None,
         };
-        let f = self.fields(block, &spec, &label, at, &hint);
-        let mut body = Body {
-            name: name.map_or(String::new(), |n| n.name.clone()),
-            material: usize::MAX,
-            extent: Vec::new(),
-            bottom: None,
-            top: None,
-            face_text: [None, None],
-            mesh: vec![1; d],
-            subdomains: vec![1; d],
-        };
-        if let Some(fl) = f.get("material") {
-            if let Some(e) = self.expr_of(fl, "a material name") {
-                match &e.kind {
-                    ExprKind::Name(n) => {
-                        if let Some(i) = self.lookup(Kind::Material, n, e.span) {
-                            body.material = i;
-                        }
-                    }
-                    _ => self.error(
-                        Diagnostic::new(
-                            "cso::wrong-value",
-                            "`material` expects the name of a material",
-                        )
-                        .label(e.span, "not a name"),
-                    ),
-                }
+        self.fields(block, &spec, label, at, &hint)
+    }
+
+    /// `material = NAME`: the index of a material.
+    fn body_material(&mut self, fl: &'a Field) -> Option<usize> {
+        let e = self.expr_of(fl, "a material name")?;
+        match &e.kind {
+            ExprKind::Name(n) => self.lookup(Kind::Material, n, e.span),
+            _ => {
+                self.error(
+                    Diagnostic::new(
+                        "cso::wrong-value",
+                        "`material` expects the name of a material",
+                    )
+                    .label(e.span, "not a name"),
+                );
+                None
             }
         }
-        for key in ["x", "y", "z"].iter().take(d) {
-            let mut ext = (Formula::Const(0.0), Formula::Const(1.0));
-            if let Some((a, b)) = f.get(key).and_then(|fl| self.range_of(fl)) {
-                let what = format!("the extent `{key}`");
-                let lo = self.geometry(a, Dim::LENGTH, 0, &what);
-                let hi = self.geometry(b, Dim::LENGTH, 0, &what);
-                if let (Some(lo), Some(hi)) = (lo, hi) {
-                    let design = self.design_init();
-                    let (l, h) = (
-                        lo.eval_f64([0.0; 3], &design),
-                        hi.eval_f64([0.0; 3], &design),
-                    );
-                    if l.is_nan() || h.is_nan() || l >= h {
-                        self.error(
-                            Diagnostic::new(
-                                "cso::range",
-                                format!("the extent `{key} = {} .. {}` is empty", num(l), num(h)),
-                            )
-                            .label(a.span.to(b.span), "the start must be below the end")
-                            .help(if l > h {
-                                format!("write `{key} = {} .. {}`", self.text(b.span), self.text(a.span))
-                            } else {
-                                // Swapping equal ends would suggest the same empty extent.
-                                format!("give the body a width along {key}: the end must be larger than the start")
-                            }),
-                        );
-                    }
-                    ext = (lo, hi);
-                }
-            }
-            body.extent.push(ext);
-        }
-        for (key, slot) in [("bottom", 0), ("top", 1)] {
-            let Some(fl) = f.get(key) else { continue };
-            let Some(e) = self.expr_of(fl, "a height") else {
-                continue;
-            };
-            let what = format!("the `{key}` face");
-            if let Some(g) = self.geometry(e, Dim::LENGTH, d - 1, &what) {
-                body.face_text[slot] = Some(self.text(e.span).to_string());
-                if slot == 0 {
-                    body.bottom = Some(g);
+    }
+
+    /// An extent `key = A .. B`: lengths, the start below the end at the initial
+    /// design.
+    fn extent(&mut self, fl: &'a Field, key: &str) -> Option<(Formula, Formula)> {
+        let (a, b) = self.range_of(fl)?;
+        let what = format!("the extent `{key}`");
+        let lo = self.geometry(a, Dim::LENGTH, 0, &what);
+        let hi = self.geometry(b, Dim::LENGTH, 0, &what);
+        let (lo, hi) = (lo?, hi?);
+        let design = self.design_init();
+        let (l, h) = (
+            lo.eval_f64([0.0; 3], &design),
+            hi.eval_f64([0.0; 3], &design),
+        );
+        if l.is_nan() || h.is_nan() || l >= h {
+            self.error(
+                Diagnostic::new(
+                    "cso::range",
+                    format!("the extent `{key} = {} .. {}` is empty", num(l), num(h)),
+                )
+                .label(a.span.to(b.span), "the start must be below the end")
+                .help(if l > h {
+                    format!(
+                        "write `{key} = {} .. {}`",
+                        self.text(b.span),
+                        self.text(a.span)
+                    )
                 } else {
-                    body.top = Some(g);
-                }
+                    // Swapping equal ends would suggest the same empty extent.
+                    format!(
+                        "give the body a width along {key}: the end must be larger than the start"
+                    )
+                }),
+            );
+        }
+        Some((lo, hi))
+    }
+
+    /// `subdomains = A x B`: one count per axis, each dividing the mesh's count.
+    fn subdomains(&mut self, fl: &'a Field, mesh: Option<&[usize]>) -> Option<Vec<usize>> {
+        let d = self.dim.n();
+        let s = self.grid(fl, "subdomains", 1)?;
+        if let Some(m) = mesh {
+            let bad: Vec<usize> = (0..d).filter(|i| m[*i] % s[*i] != 0).collect();
+            if !bad.is_empty() {
+                let axes = ["x", "y", "z"];
+                let fixed: Vec<String> = (0..d)
+                    .map(|i| m[i].div_ceil(s[i]) * s[i])
+                    .map(|v| v.to_string())
+                    .collect();
+                let which: Vec<&str> = bad.iter().map(|i| axes[*i]).collect();
+                self.error(
+                    Diagnostic::new(
+                        "cso::mesh",
+                        format!(
+                            "the mesh {} does not divide into {} subdomains along {}",
+                            join_x(m),
+                            join_x(&s),
+                            which.join(" and ")
+                        ),
+                    )
+                    .label(fl.value.as_ref().map_or(fl.span, Value::span), {
+                        // One clause per distinct pair: `80 x 80` into
+                        // `3 x 3` says it once (the message names the axes).
+                        let mut clauses: Vec<String> = Vec::new();
+                        for &i in &bad {
+                            let c = format!("{} is not a multiple of {}", m[i], s[i]);
+                            if !clauses.contains(&c) {
+                                clauses.push(c);
+                            }
+                        }
+                        clauses.join(", ")
+                    })
+                    .help(format!("e.g. `mesh = {}`", fixed.join(" x "))),
+                );
             }
         }
-        let mesh = f.get("mesh").and_then(|fl| self.grid(fl, "mesh", 1));
-        if let Some(m) = &mesh {
-            body.mesh = m.clone();
-        }
-        if let Some(fl) = f.get("subdomains") {
-            if let Some(s) = self.grid(fl, "subdomains", 1) {
-                if let Some(m) = &mesh {
-                    let bad: Vec<usize> = (0..d).filter(|i| m[*i] % s[*i] != 0).collect();
-                    if !bad.is_empty() {
-                        let axes = ["x", "y", "z"];
-                        let fixed: Vec<String> = (0..d)
-                            .map(|i| m[i].div_ceil(s[i]) * s[i])
-                            .map(|v| v.to_string())
-                            .collect();
-                        let which: Vec<&str> = bad.iter().map(|i| axes[*i]).collect();
-                        self.error(
-                            Diagnostic::new(
-                                "cso::mesh",
-                                format!(
-                                    "the mesh {} does not divide into {} subdomains along {}",
-                                    join_x(m),
-                                    join_x(&s),
-                                    which.join(" and ")
-                                ),
-                            )
-                            .label(fl.value.as_ref().map_or(fl.span, Value::span), {
-                                // One clause per distinct pair: `80 x 80` into
-                                // `3 x 3` says it once (the message names the axes).
-                                let mut clauses: Vec<String> = Vec::new();
-                                for &i in &bad {
-                                    let c = format!("{} is not a multiple of {}", m[i], s[i]);
-                                    if !clauses.contains(&c) {
-                                        clauses.push(c);
-                                    }
-                                }
-                                clauses.join(", ")
-                            })
-                            .help(format!("e.g. `mesh = {}`", fixed.join(" x "))),
-                        );
-                    }
-                }
-                body.subdomains = s;
-            }
-        }
-        let value_span = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
-        self.body_spans.push(BodySpans {
-            name: at,
-            mesh: value_span("mesh"),
-            faces: [value_span("bottom"), value_span("top")],
-            ok: self.diags.len() == errors_before,
-        });
-        self.bodies.push(body);
+        Some(s)
     }
 
     /// A grid field with one whole number `>= min` per axis.
