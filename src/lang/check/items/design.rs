@@ -1,7 +1,7 @@
 //! `design NAME { init, lower, upper }` and design arrays `design NAME[N] { .. }`.
 
-use crate::lang::ast::{Block, Expr, ExprKind, Ident, Value};
-use crate::lang::check::fields::req;
+use crate::lang::ast::{Block, Expr, ExprKind, Ident, Span, Value};
+use crate::lang::check::fields::{req, Fields};
 use crate::lang::check::{functional, Checker, DesignGroup};
 use crate::lang::diag::{num, Diagnostic};
 use crate::lang::scene::*;
@@ -17,6 +17,34 @@ impl<'a> Checker<'a> {
         body: &'a Block,
     ) {
         let Some(name) = name else { return };
+        let f = self.design_fields(keyword, name, body);
+        let n = size.and_then(|e| self.design_size(e));
+        if size.is_some() && n.is_none() {
+            // Register nothing: uses of the name would only repeat the error.
+            return;
+        }
+        let (values, quantity, init_at) = self.design_bounds(&f, name, n);
+        let first = self.design_vars.len();
+        self.design_entries(&f, name, n, &values, quantity);
+        if let Some(at) = init_at {
+            self.edits.push(Edit::Init {
+                start: at.start,
+                end: at.end,
+                first,
+                size: n,
+                unit: functional::unit_of(quantity),
+            });
+        }
+        self.designs.push(DesignGroup {
+            name: name.name.clone(),
+            size: n,
+            first,
+            quantity,
+        });
+    }
+
+    /// The field names of a design item, with hints for misnamed ones.
+    fn design_fields(&mut self, keyword: &Ident, name: &Ident, body: &'a Block) -> Fields<'a> {
         let label = format!("design variable `{}`", name.name);
         let spec = [
             req("init", "init = 0.1"),
@@ -31,25 +59,32 @@ impl<'a> Checker<'a> {
             }
             _ => None,
         };
-        let f = self.fields(body, &spec, &label, keyword.span.to(name.span), &hint);
-        let n = match size {
-            Some(e) => match self.integer(e, 1, "the size of a design array") {
-                Some(n) if n <= 100_000 => Some(n),
-                Some(n) => {
-                    self.error(
-                        Diagnostic::new("cso::range", format!("{n} design variables are too many"))
-                            .label(e.span, "at most 100000"),
-                    );
-                    None
-                }
-                None => None,
-            },
+        self.fields(body, &spec, &label, keyword.span.to(name.span), &hint)
+    }
+
+    /// The size `N` of a design array: a whole number from 1 to 100000.
+    fn design_size(&mut self, e: &'a Expr) -> Option<usize> {
+        match self.integer(e, 1, "the size of a design array") {
+            Some(n) if n <= 100_000 => Some(n),
+            Some(n) => {
+                self.error(
+                    Diagnostic::new("cso::range", format!("{n} design variables are too many"))
+                        .label(e.span, "at most 100000"),
+                );
+                None
+            }
             None => None,
-        };
-        if size.is_some() && n.is_none() {
-            // Register nothing: uses of the name would only repeat the error.
-            return;
         }
+    }
+
+    /// `init`, `lower` and `upper`, one value per entry (NaN where missing or wrong),
+    /// all of one quantity; and where `init` is written.
+    fn design_bounds(
+        &mut self,
+        f: &Fields<'a>,
+        name: &Ident,
+        n: Option<usize>,
+    ) -> (Vec<Vec<f64>>, Quantity, Option<Span>) {
         let count = n.unwrap_or(1);
         let mut quantity = Quantity::Bare;
         let mut init_at = None;
@@ -85,7 +120,19 @@ impl<'a> Checker<'a> {
             }
             values.push(vals.unwrap_or_else(|| vec![f64::NAN; count]));
         }
-        let first = self.design_vars.len();
+        (values, quantity, init_at)
+    }
+
+    /// Registers each entry's design variable and checks `lower <= init <= upper`
+    /// for each: one error per kind of violation, not one per entry.
+    fn design_entries(
+        &mut self,
+        f: &Fields<'a>,
+        name: &Ident,
+        n: Option<usize>,
+        values: &[Vec<f64>],
+        quantity: Quantity,
+    ) {
         // Entries that break `lower <= init <= upper`, grouped by what is wrong, so
         // that `lower = 1, upper = 0` on `a[6]` is one error, not six.
         let mut crossed: Vec<String> = Vec::new();
@@ -156,21 +203,6 @@ impl<'a> Checker<'a> {
                 .help(format!("{what}; move `init` into [lower, upper]")),
             );
         }
-        if let Some(at) = init_at {
-            self.edits.push(Edit::Init {
-                start: at.start,
-                end: at.end,
-                first,
-                size: n,
-                unit: functional::unit_of(quantity),
-            });
-        }
-        self.designs.push(DesignGroup {
-            name: name.name.clone(),
-            size: n,
-            first,
-            quantity,
-        });
     }
 
     /// One bound of a design item: a number, or for arrays a number or a list of N.
