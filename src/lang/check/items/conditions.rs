@@ -1,10 +1,11 @@
-//! Boundary conditions on a face: `fix`, `displace`, `symmetry`, `traction`, `pressure`.
+//! Boundary conditions on a face, `fix`, `displace`, `symmetry`, `traction` and
+//! `pressure`: the form of the item; the supports (supports.rs) and loads
+//! (loads.rs) check their own values.
 
-use crate::lang::ast::{Block, Expr, Ident, Span};
-use crate::lang::check::{quote_or, Checker};
+use crate::lang::ast::{Block, Expr, Ident};
+use crate::lang::check::Checker;
 use crate::lang::diag::Diagnostic;
 use crate::lang::scene::*;
-use crate::lang::units::Dim;
 
 impl<'a> Checker<'a> {
     /// `fix`, `displace`, `symmetry`, `traction`, `pressure`.
@@ -17,7 +18,25 @@ impl<'a> Checker<'a> {
     ) -> Option<Condition> {
         let kw = keyword.name.as_str();
         let selection = self.selection(sel_expr);
-        let sel = sel_expr;
+        self.condition_form(kw, sel_expr, block, value)?;
+        match kw {
+            "fix" => self.fix(sel_expr, selection, block),
+            "displace" => self.displace(sel_expr, selection, block),
+            "symmetry" => self.symmetry(sel_expr, selection),
+            "traction" => self.traction(selection, value),
+            _ => self.pressure(selection, value),
+        }
+    }
+
+    /// A `{ .. }` block only after `fix` and `displace`, a value only after
+    /// `traction` and `pressure`, and there required.
+    fn condition_form(
+        &mut self,
+        kw: &str,
+        sel: &Expr,
+        block: Option<&Block>,
+        value: Option<&Expr>,
+    ) -> Option<()> {
         let takes_block = matches!(kw, "fix" | "displace");
         let takes_value = matches!(kw, "traction" | "pressure");
         if let (Some(b), false) = (block, takes_block) {
@@ -55,160 +74,6 @@ impl<'a> Checker<'a> {
             );
             return None;
         }
-        let comps = ["ux", "uy", "uz"];
-        let n = self.dim.n();
-        let cond = match kw {
-            "fix" => {
-                let mut components = Vec::new();
-                for fl in block.map_or(&[][..], |b| &b.fields[..]) {
-                    if fl.value.is_some() {
-                        self.error(
-                            Diagnostic::new("cso::syntax", "`fix` lists components without values")
-                                .label(fl.span, "a value")
-                                .help(format!(
-                                    "to prescribe a displacement use `displace {} {{ {} }}`",
-                                    self.text(sel.span),
-                                    self.text(fl.span)
-                                )),
-                        );
-                        continue;
-                    }
-                    if let Some(c) = self.component(&fl.name, &comps[..n]) {
-                        if components.contains(&c) {
-                            self.error(
-                                Diagnostic::new(
-                                    "cso::duplicate",
-                                    format!("component `{}` is listed twice", fl.name.name),
-                                )
-                                .label(fl.name.span, "again"),
-                            );
-                        }
-                        components.push(c);
-                    }
-                }
-                if block.is_some_and(|b| b.fields.is_empty()) {
-                    self.error(
-                        Diagnostic::new(
-                            "cso::missing-field",
-                            "`fix` with an empty component list fixes nothing",
-                        )
-                        .label(block.map_or(sel.span, |b| b.span), "empty")
-                        .help("list components (`{ ux }`) or drop the braces to fix all of them"),
-                    );
-                }
-                if components.is_empty() {
-                    components = (0..n).collect();
-                }
-                components.sort_unstable();
-                Condition::Fix {
-                    sel: selection?,
-                    components,
-                }
-            }
-            "displace" => {
-                let mut values = Vec::new();
-                let fields = block.map_or(&[][..], |b| &b.fields[..]);
-                for fl in fields {
-                    let Some(c) = self.component(&fl.name, &comps[..n]) else {
-                        continue;
-                    };
-                    if values.iter().any(|(k, _)| *k == c) {
-                        self.error(
-                            Diagnostic::new(
-                                "cso::duplicate",
-                                format!("component `{}` is given twice", fl.name.name),
-                            )
-                            .label(fl.name.span, "again"),
-                        );
-                        continue;
-                    }
-                    let Some(e) = self.expr_of(fl, "a length") else {
-                        continue;
-                    };
-                    if let Some(v) =
-                        self.number(e, Some(Dim::LENGTH), &format!("`{}`", fl.name.name))
-                    {
-                        values.push((c, v));
-                    }
-                }
-                if fields.is_empty() {
-                    self.error(
-                        Diagnostic::new(
-                            "cso::missing-field",
-                            "`displace` needs at least one component",
-                        )
-                        .label(block.map_or(sel.span, |b| b.span), "no components")
-                        .help(format!(
-                            "write `displace {} {{ ux = 0, uy = -1 mm }}`",
-                            self.text(sel.span)
-                        )),
-                    );
-                }
-                values.sort_by_key(|(c, _)| *c);
-                Condition::Displace {
-                    sel: selection?,
-                    values,
-                }
-            }
-            "symmetry" => {
-                let sel = selection?;
-                self.flat_face(&sel, sel_expr.span)?;
-                Condition::Symmetry { sel }
-            }
-            "traction" => {
-                let v = value?;
-                let t = self.vector(v, Some(Dim::PRESSURE), "a traction");
-                Condition::Traction {
-                    sel: selection?,
-                    value: t?,
-                }
-            }
-            _ => {
-                let v = value?;
-                let p = self.number(v, Some(Dim::PRESSURE), "a pressure");
-                Condition::Pressure {
-                    sel: selection?,
-                    value: p?,
-                }
-            }
-        };
-        Some(cond)
-    }
-
-    /// Symmetry needs a plane face: not a curved one.
-    fn flat_face(&mut self, sel: &Selection, at: Span) -> Option<()> {
-        let body = self.bodies.get(sel.body)?;
-        if body.is_curved(sel.face) {
-            self.error(
-                Diagnostic::new(
-                    "cso::symmetry",
-                    format!("`symmetry` needs a flat face; `{}` is curved", sel.text),
-                )
-                .label(at, "a curved face")
-                .help("put the symmetry plane on `left`, `right` (or `front`, `back` in 3D)"),
-            );
-            return None;
-        }
         Some(())
-    }
-
-    fn component(&mut self, name: &Ident, allowed: &[&str]) -> Option<usize> {
-        if let Some(i) = allowed.iter().position(|c| *c == name.name) {
-            return Some(i);
-        }
-        let mut d = Diagnostic::new(
-            "cso::component",
-            format!("unknown displacement component `{}`", name.name),
-        )
-        .label(name.span, format!("expected {}", quote_or(allowed)));
-        if name.name == "uz" {
-            d = d.help("`uz` exists only in 3D scenes");
-        } else if let Some(s) =
-            crate::lang::suggest::did_you_mean(&name.name, allowed.iter().copied())
-        {
-            d = d.help(s);
-        }
-        self.error(d);
-        None
     }
 }

@@ -1,12 +1,41 @@
-//! `gravity = VEC`.
+//! Loads: `traction`, `pressure` and `gravity`.
 
 use crate::lang::ast::{Expr, Span};
 use crate::lang::check::names::Kind;
 use crate::lang::check::{quote_list, Checker};
 use crate::lang::diag::Diagnostic;
+use crate::lang::scene::*;
 use crate::lang::units::Dim;
 
 impl<'a> Checker<'a> {
+    /// `traction SEL = VEC`: a vector of pressures.
+    pub(super) fn traction(
+        &mut self,
+        selection: Option<Selection>,
+        value: Option<&'a Expr>,
+    ) -> Option<Condition> {
+        let v = value?;
+        let t = self.vector(v, Some(Dim::PRESSURE), "a traction");
+        Some(Condition::Traction {
+            sel: selection?,
+            value: t?,
+        })
+    }
+
+    /// `pressure SEL = P`.
+    pub(super) fn pressure(
+        &mut self,
+        selection: Option<Selection>,
+        value: Option<&'a Expr>,
+    ) -> Option<Condition> {
+        let v = value?;
+        let p = self.number(v, Some(Dim::PRESSURE), "a pressure");
+        Some(Condition::Pressure {
+            sel: selection?,
+            value: p?,
+        })
+    }
+
     /// `gravity = VEC`
     pub(crate) fn gravity(&mut self, at: Span, value: &'a Expr) -> Option<Vec<f64>> {
         let g = self.vector(value, Some(Dim::ACCELERATION), "gravity")?;

@@ -11,6 +11,7 @@ mod probe;
 mod scene;
 mod selection;
 mod settings;
+mod supports;
 
 use crate::lang::ast::Expr;
 use crate::lang::check::Checker;
