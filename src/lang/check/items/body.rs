@@ -332,6 +332,7 @@ impl<'a> Checker<'a> {
     }
 }
 
+/// Counts as written in a grid: "8 x 4".
 fn join_x(v: &[usize]) -> String {
     v.iter()
         .map(|x| x.to_string())

@@ -126,6 +126,7 @@ impl<'a> Checker<'a> {
         })
     }
 
+    /// The two sides of a glue or contact lie on different bodies.
     fn different_bodies(
         &mut self,
         p: &Selection,

@@ -18,6 +18,7 @@ use crate::lang::check::Checker;
 use crate::lang::diag::{num, Diagnostic};
 
 impl<'a> Checker<'a> {
+    /// Reports a value that must be positive, with its evaluation when written as a formula.
     fn positive(&mut self, e: &Expr, v: f64, what: &str) {
         let written = self.text(e.span);
         let found = if written.parse::<f64>().is_ok() || v.is_nan() {
@@ -34,6 +35,7 @@ impl<'a> Checker<'a> {
         );
     }
 
+    /// The initial design: every design variable's `init`.
     pub(crate) fn design_init(&self) -> Vec<f64> {
         self.design_vars.iter().map(|v| v.init).collect()
     }

@@ -144,6 +144,7 @@ impl<'a> Checker<'a> {
         Some(())
     }
 
+    /// The index of a displacement component among `allowed`, else an error.
     fn component(&mut self, name: &Ident, allowed: &[&str]) -> Option<usize> {
         if let Some(i) = allowed.iter().position(|c| *c == name.name) {
             return Some(i);
