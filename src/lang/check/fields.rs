@@ -146,6 +146,20 @@ impl<'a> Checker<'a> {
             }
             found.push(field);
         }
+        self.missing_fields(spec, &found, &valueless, what, at);
+        Fields { found }
+    }
+
+    /// Reports the required fields of `spec` neither found nor written without a
+    /// value.
+    fn missing_fields(
+        &mut self,
+        spec: &[Spec],
+        found: &[&Field],
+        valueless: &[&str],
+        what: &str,
+        at: Span,
+    ) {
         let missing: Vec<&Spec> = spec
             .iter()
             .filter(|s| {
@@ -172,7 +186,6 @@ impl<'a> Checker<'a> {
                 .help(format!("add {}", examples.join(", "))),
             );
         }
-        Fields { found }
     }
 
     /// The expression of a field, or an error if it has none or is a range or grid.

@@ -416,8 +416,23 @@ impl<'a> Checker<'a> {
             warnings: Vec::new(),
             source: Source::default(),
         };
-        let file = self.file;
         // Definitions first (in file order within each kind), then what uses them.
+        self.definitions();
+        self.bodies_and_obstacles();
+        self.uses(&mut scene);
+        self.objectives(&mut scene);
+        self.params(&mut scene);
+        scene.materials = std::mem::take(&mut self.materials);
+        scene.design = std::mem::take(&mut self.design_vars);
+        scene.bodies = std::mem::take(&mut self.bodies);
+        scene.obstacles = std::mem::take(&mut self.obstacles);
+        self.whole_scene(&scene);
+        scene
+    }
+
+    /// Pass 2: materials and design variables, which the other items use.
+    fn definitions(&mut self) {
+        let file = self.file;
         for item in &file.items {
             if let ItemKind::Block {
                 keyword,
@@ -433,6 +448,12 @@ impl<'a> Checker<'a> {
                 }
             }
         }
+    }
+
+    /// Pass 3: bodies and obstacles (their geometry may use the design); a size
+    /// `[N]` is reported on any item but `design`.
+    fn bodies_and_obstacles(&mut self) {
+        let file = self.file;
         for item in &file.items {
             if let ItemKind::Block {
                 keyword,
@@ -472,6 +493,12 @@ impl<'a> Checker<'a> {
                 }
             }
         }
+    }
+
+    /// Pass 4: the items that may refer to bodies and obstacles (conditions,
+    /// gravity, glue, contact, probes) and the settings blocks.
+    fn uses(&mut self, scene: &mut Scene) {
+        let file = self.file;
         for item in &file.items {
             match &item.kind {
                 ItemKind::Block {
@@ -532,8 +559,11 @@ impl<'a> Checker<'a> {
                 ItemKind::Minimize { .. } | ItemKind::SubjectTo { .. } => {}
             }
         }
-        self.objectives(&mut scene);
-        // Every `let`, used or not, is checked and reported once.
+    }
+
+    /// Every `let`, used or not, is checked and reported once; the constant ones
+    /// are the scene's parameters.
+    fn params(&mut self, scene: &mut Scene) {
         for i in 0..self.lets.len() {
             let (name, _, _) = self.lets[i];
             if let Some((f, q)) = self.let_value(i) {
@@ -548,12 +578,6 @@ impl<'a> Checker<'a> {
                 }
             }
         }
-        scene.materials = std::mem::take(&mut self.materials);
-        scene.design = std::mem::take(&mut self.design_vars);
-        scene.bodies = std::mem::take(&mut self.bodies);
-        scene.obstacles = std::mem::take(&mut self.obstacles);
-        self.whole_scene(&scene);
-        scene
     }
 
     /// Checks that need the whole scene: gravity needs densities, constraints need

@@ -1,0 +1,167 @@
+//! Supports: `fix`, `displace`, `symmetry`.
+
+use crate::lang::ast::{Block, Expr, Ident, Span};
+use crate::lang::check::{quote_or, Checker};
+use crate::lang::diag::Diagnostic;
+use crate::lang::scene::*;
+use crate::lang::units::Dim;
+
+impl<'a> Checker<'a> {
+    /// `fix SEL` or `fix SEL { ux, .. }`: the components held at zero (all when
+    /// none are listed).
+    pub(super) fn fix(
+        &mut self,
+        sel: &Expr,
+        selection: Option<Selection>,
+        block: Option<&'a Block>,
+    ) -> Option<Condition> {
+        let comps = ["ux", "uy", "uz"];
+        let n = self.dim.n();
+        let mut components = Vec::new();
+        for fl in block.map_or(&[][..], |b| &b.fields[..]) {
+            if fl.value.is_some() {
+                self.error(
+                    Diagnostic::new("cso::syntax", "`fix` lists components without values")
+                        .label(fl.span, "a value")
+                        .help(format!(
+                            "to prescribe a displacement use `displace {} {{ {} }}`",
+                            self.text(sel.span),
+                            self.text(fl.span)
+                        )),
+                );
+                continue;
+            }
+            if let Some(c) = self.component(&fl.name, &comps[..n]) {
+                if components.contains(&c) {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::duplicate",
+                            format!("component `{}` is listed twice", fl.name.name),
+                        )
+                        .label(fl.name.span, "again"),
+                    );
+                }
+                components.push(c);
+            }
+        }
+        if block.is_some_and(|b| b.fields.is_empty()) {
+            self.error(
+                Diagnostic::new(
+                    "cso::missing-field",
+                    "`fix` with an empty component list fixes nothing",
+                )
+                .label(block.map_or(sel.span, |b| b.span), "empty")
+                .help("list components (`{ ux }`) or drop the braces to fix all of them"),
+            );
+        }
+        if components.is_empty() {
+            components = (0..n).collect();
+        }
+        components.sort_unstable();
+        Some(Condition::Fix {
+            sel: selection?,
+            components,
+        })
+    }
+
+    /// `displace SEL { ux = .., .. }`: a length for each component given.
+    pub(super) fn displace(
+        &mut self,
+        sel: &Expr,
+        selection: Option<Selection>,
+        block: Option<&'a Block>,
+    ) -> Option<Condition> {
+        let comps = ["ux", "uy", "uz"];
+        let n = self.dim.n();
+        let mut values = Vec::new();
+        let fields = block.map_or(&[][..], |b| &b.fields[..]);
+        for fl in fields {
+            let Some(c) = self.component(&fl.name, &comps[..n]) else {
+                continue;
+            };
+            if values.iter().any(|(k, _)| *k == c) {
+                self.error(
+                    Diagnostic::new(
+                        "cso::duplicate",
+                        format!("component `{}` is given twice", fl.name.name),
+                    )
+                    .label(fl.name.span, "again"),
+                );
+                continue;
+            }
+            let Some(e) = self.expr_of(fl, "a length") else {
+                continue;
+            };
+            if let Some(v) = self.number(e, Some(Dim::LENGTH), &format!("`{}`", fl.name.name)) {
+                values.push((c, v));
+            }
+        }
+        if fields.is_empty() {
+            self.error(
+                Diagnostic::new(
+                    "cso::missing-field",
+                    "`displace` needs at least one component",
+                )
+                .label(block.map_or(sel.span, |b| b.span), "no components")
+                .help(format!(
+                    "write `displace {} {{ ux = 0, uy = -1 mm }}`",
+                    self.text(sel.span)
+                )),
+            );
+        }
+        values.sort_by_key(|(c, _)| *c);
+        Some(Condition::Displace {
+            sel: selection?,
+            values,
+        })
+    }
+
+    /// `symmetry SEL` on a flat face.
+    pub(super) fn symmetry(
+        &mut self,
+        sel_expr: &Expr,
+        selection: Option<Selection>,
+    ) -> Option<Condition> {
+        let sel = selection?;
+        self.flat_face(&sel, sel_expr.span)?;
+        Some(Condition::Symmetry { sel })
+    }
+
+    /// Symmetry needs a plane face: not a curved one.
+    fn flat_face(&mut self, sel: &Selection, at: Span) -> Option<()> {
+        let body = self.bodies.get(sel.body)?;
+        if body.is_curved(sel.face) {
+            self.error(
+                Diagnostic::new(
+                    "cso::symmetry",
+                    format!("`symmetry` needs a flat face; `{}` is curved", sel.text),
+                )
+                .label(at, "a curved face")
+                .help("put the symmetry plane on `left`, `right` (or `front`, `back` in 3D)"),
+            );
+            return None;
+        }
+        Some(())
+    }
+
+    /// The index of a displacement component among `allowed`, else an error.
+    fn component(&mut self, name: &Ident, allowed: &[&str]) -> Option<usize> {
+        if let Some(i) = allowed.iter().position(|c| *c == name.name) {
+            return Some(i);
+        }
+        let mut d = Diagnostic::new(
+            "cso::component",
+            format!("unknown displacement component `{}`", name.name),
+        )
+        .label(name.span, format!("expected {}", quote_or(allowed)));
+        if name.name == "uz" {
+            d = d.help("`uz` exists only in 3D scenes");
+        } else if let Some(s) =
+            crate::lang::suggest::did_you_mean(&name.name, allowed.iter().copied())
+        {
+            d = d.help(s);
+        }
+        self.error(d);
+        None
+    }
+}
