@@ -122,7 +122,7 @@ impl<'a> Checker<'a> {
         );
     }
 
-    /// `material NAME { E, nu, rho }`
+    /// `material NAME { E, nu, rho, formulation }`
     pub(crate) fn material(&mut self, name: Option<&'a Ident>, body: &'a Block) {
         let label = name.map_or("material".to_string(), |n| format!("material `{}`", n.name));
         let at = name.map_or(body.span, |n| n.span);
@@ -130,6 +130,7 @@ impl<'a> Checker<'a> {
             req("E", "E = 210 GPa"),
             req("nu", "nu = 0.3"),
             opt("rho", "rho = 7850 kg/m^3"),
+            opt("formulation", "formulation = bbar"),
         ];
         let hint = |n: &str| match n {
             "e" | "young" | "youngs_modulus" => Some("Young's modulus is written `E`".to_string()),
@@ -143,6 +144,7 @@ impl<'a> Checker<'a> {
             young: f64::NAN,
             poisson: f64::NAN,
             density: None,
+            formulation: self.choice(f.get("formulation")).unwrap_or_default(),
         };
         if let Some(e) = f.get("E").and_then(|fl| self.expr_of(fl, "a pressure")) {
             if let Some(v) = self.number(e, Some(Dim::PRESSURE), "`E`") {
