@@ -175,7 +175,9 @@ impl<'a> Checker<'a> {
                         )
                         .label(e.span, why)
                         .help(if v >= 0.5 {
-                            "nearly incompressible materials: use e.g. `nu = 0.49`"
+                            "nearly incompressible materials: write e.g. `nu = 0.4999`; from \
+                             nu = 0.45 on the elements are B-bar (mean dilatation), which does \
+                             not lock"
                         } else {
                             "most engineering materials have nu between 0.2 and 0.45"
                         }),
