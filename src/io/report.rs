@@ -15,7 +15,8 @@
 //! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
 //! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
 //!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
-//! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
+//! - `bodies`: per body `max_abs_u` (largest displacement magnitude), and
+//!   `formulation: "bbar"` where its elements are B-bar;
 //! - `contacts`: per contact the `resultant` of its nodal forces on the
 //!   secondary body (components, N), its magnitude `total_force`, the sum of
 //!   the nodal normal forces `normal_force_sum` (the same on a flat primary),
@@ -116,6 +117,10 @@ pub struct ContactReport {
 pub struct BodyReport {
     pub name: String,
     pub max_abs_u: f64,
+    /// `bbar` where the body's elements are B-bar (nearly incompressible);
+    /// absent for the standard element.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub formulation: Option<&'static str>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -201,6 +206,11 @@ impl Report {
             .enumerate()
             .map(|(b, body)| BodyReport {
                 name: body.name.clone(),
+                formulation: p
+                    .subdomains
+                    .get(body.first_subdomain)
+                    .filter(|m| m.section.formulation == Formulation::Bbar)
+                    .map(|_| "bbar"),
                 max_abs_u: (0..body.coords.len())
                     .map(|n| {
                         let u = state.node_displacement(b, n);
@@ -368,7 +378,17 @@ impl Report {
             _ => o.push('\n'),
         }
         for b in &self.bodies {
-            let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
+            let bbar = if b.formulation.is_some() {
+                "  (B-bar)"
+            } else {
+                ""
+            };
+            let _ = writeln!(
+                o,
+                "  body {:<10} max |u| {} m{bbar}",
+                b.name,
+                num(b.max_abs_u)
+            );
         }
         for c in &self.contacts {
             let _ = writeln!(o, "{}", contact_line(c, &num));
