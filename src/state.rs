@@ -489,10 +489,7 @@ fn setup_on(
         let prev = previous?;
         let (a, b) = (prev.problem.subdomains.get(s)?, &problem.subdomains[s]);
         let old = prev.dual.cluster().shared(s)?;
-        let same_mesh = a.coords == b.coords
-            && a.young == b.young
-            && a.poisson == b.poisson
-            && a.thickness == b.thickness;
+        let same_mesh = a.coords == b.coords && a.section == b.section;
         (*old.kind() == kind(s)).then_some((old, same_mesh))
     };
     let bounds = if comm.size() > 1 {

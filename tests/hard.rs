@@ -148,40 +148,58 @@ fn hard_large_h_over_h_converges_and_cg_cost_grows() {
 // 3. Nearly incompressible.
 
 #[test]
-fn hard_nearly_incompressible_q1_converges_and_locks() {
-    // The contact force for a 1 cm indentation, on the coarse and the fine mesh.
-    let mut force = Vec::new();
-    for nu in [0.3, 0.49, 0.499] {
-        let mut pair = Vec::new();
-        for n in [8, 16] {
-            let (s, r) = solve_at(&indentation_scene(nu, n), 1e-8);
-            let f = r
-                .as_ref()
-                .map(|st| Report::new(&s, st).contacts[0].total_force)
-                .unwrap_or(f64::NAN);
-            row(
-                &format!("nu = {nu}, punch {n} x {n}"),
-                &r,
-                &format!("contact force {f:.4e} N"),
-            );
-            expect_converged(&format!("nu = {nu}, n = {n}"), r, 1e-6, 2000);
-            pair.push(f);
+fn hard_nearly_incompressible_q1_locks_and_bbar_does_not() {
+    // The contact force for a 1 cm indentation, on the coarse and the fine
+    // mesh, with the standard element and with the automatic choice (B-bar
+    // from nu = 0.45 on).
+    let nus = [0.3, 0.49, 0.499];
+    let mut ratio = Vec::new();
+    for formulation in ["standard", "auto"] {
+        let mut per_nu = Vec::new();
+        for nu in nus {
+            let mut pair = Vec::new();
+            for n in [8, 16] {
+                let src = indentation_scene(nu, n).edit(
+                    &format!("nu = {nu} }}"),
+                    &format!("nu = {nu}, formulation = {formulation} }}"),
+                );
+                let (s, r) = solve_at(&src, 1e-8);
+                let f = r
+                    .as_ref()
+                    .map(|st| Report::new(&s, st).contacts[0].total_force)
+                    .unwrap_or(f64::NAN);
+                row(
+                    &format!("nu = {nu}, punch {n} x {n}, {formulation}"),
+                    &r,
+                    &format!("contact force {f:.4e} N"),
+                );
+                expect_converged(&format!("nu = {nu}, n = {n}"), r, 1e-6, 2000);
+                pair.push(f);
+            }
+            per_nu.push(pair[0] / pair[1]);
         }
-        force.push(pair);
+        for (nu, r) in nus.iter().zip(&per_nu) {
+            println!("nu = {nu}, {formulation}: F(8) / F(16) = {r:.3}");
+        }
+        ratio.push(per_nu);
     }
     // Q1 locking: the coarse mesh is stiffer than the fine one, much more so
-    // near incompressibility.
-    let coarse_over_fine: Vec<f64> = force.iter().map(|p| p[0] / p[1]).collect();
-    for (k, nu) in [0.3, 0.49, 0.499].iter().enumerate() {
-        println!("nu = {nu}: F(8) / F(16) = {:.3}", coarse_over_fine[k]);
-    }
+    // near incompressibility. B-bar is not: the coarse mesh stays within 2 %
+    // of the fine one.
+    let (standard, auto) = (&ratio[0], &ratio[1]);
     assert!(
-        coarse_over_fine[2] > coarse_over_fine[0] + 0.1,
-        "F(n = 8) / F(n = 16) per nu {coarse_over_fine:?}"
+        standard[2] > standard[0] + 0.1,
+        "standard: F(n = 8) / F(n = 16) per nu {standard:?}"
+    );
+    assert!(
+        auto[1..].iter().all(|r| (r - 1.0).abs() < 0.02),
+        "B-bar: F(n = 8) / F(n = 16) per nu {auto:?}"
     );
 }
 
-/// At nu = 0.499 on the coarse mesh a single contact node carries the punch, and
+/// At nu = 0.499 on the coarse mesh of standard (locking) elements a single
+/// contact node carries the punch (with B-bar three do, and the state is
+/// unique), and
 /// the `ux` rows on its top do not hold a rotation about a point of the top line:
 /// the state is not unique (the punch can rock). It must be refused, naming the
 /// punch, at every tolerance (it used to come back "converged" with an arbitrary,
@@ -189,7 +207,9 @@ fn hard_nearly_incompressible_q1_converges_and_locks() {
 #[test]
 fn hard_rocking_punch_state_is_refused_as_not_unique() {
     for tol in [1e-6, 1e-8, 1e-10] {
-        let (_, r) = solve_at(&rocking_scene(0.499, 8), tol);
+        let standard =
+            rocking_scene(0.499, 8).edit("nu = 0.499 }", "nu = 0.499, formulation = standard }");
+        let (_, r) = solve_at(&standard, tol);
         match r {
             Err(e @ SolveError::Reconstruction(_)) => {
                 let m = e.to_string();

@@ -135,7 +135,7 @@ pub(crate) fn assemble(problem: &Problem) -> Global {
                 .collect();
             let ke = sub
                 .element
-                .stiffness(&x, sub.young, sub.poisson, sub.thickness)
+                .stiffness(&x, &sub.section)
                 .expect("element not inverted");
             let dofs: Vec<usize> = (0..dim * nodes.len())
                 .map(|a| offsets[sub.body] + dim * nodes[a / dim] + a % dim)

@@ -197,6 +197,13 @@ fn report_json_matches_its_documented_schema() {
         cso::lang::check::sha256_hex(&src).as_str()
     );
 
+    // A B-bar body's `formulation` is documented; no other word is.
+    let mut bbar = report.clone();
+    bbar["bodies"][0]["formulation"] = Value::from("bbar");
+    assert!(errors_of(&bbar, &schema).is_empty());
+    bbar["bodies"][0]["formulation"] = Value::from("standard");
+    assert_eq!(errors_of(&bbar, &schema).len(), 1);
+
     // The check can fail: a missing field, a wrong type, an unknown field.
     let mut bad = report.clone();
     bad.as_object_mut().expect("object").remove("energy");

@@ -29,6 +29,26 @@ pub fn isotropic(young: f64, poisson: f64) -> [[f64; 6]; 6] {
     d
 }
 
+/// The deviatoric part of [`isotropic`]: `2 mu (I - m m^T / 3)` on the normal
+/// strains and `mu` on the engineering shears, so that `isotropic = this +
+/// kappa m m^T` (`m = (1, 1, 1, 0, 0, 0)`, `kappa` the bulk modulus). Built from
+/// `mu` alone, not as a difference, which near `nu = 0.5` would cancel digits.
+pub fn isotropic_deviatoric(young: f64, poisson: f64) -> [[f64; 6]; 6] {
+    let mu = young / (2.0 * (1.0 + poisson));
+    let mut d = [[0.0; 6]; 6];
+    for i in 0..3 {
+        for j in 0..3 {
+            d[i][j] = if i == j {
+                4.0 / 3.0 * mu
+            } else {
+                -2.0 / 3.0 * mu
+            };
+        }
+        d[3 + i][3 + i] = mu;
+    }
+    d
+}
+
 const G: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
 /// Reference coordinates of the nodes.
 const NODE_XI: [[f64; 3]; 8] = [
@@ -164,6 +184,29 @@ pub fn hex_stiffness<T: Scalar>(x: &Hex<T>, d: &[[f64; 6]; 6]) -> Option<Vec<T>>
         }
     }
     Some(k)
+}
+
+/// The element's dilatation row and volume: `c = int div N dV` (interleaved
+/// like the dofs, so `c . u_e` is the change of volume) and `V = int dV`, by
+/// the 2x2x2 rule (exact: `det J grad N` is of degree 2 in each coordinate).
+/// B-bar's mean dilatation is `c . u_e / V`. None for an inverted or
+/// degenerate element.
+pub fn hex_dilatation<T: Scalar>(x: &Hex<T>) -> Option<(Vec<T>, T)> {
+    let zero = T::from(0.0);
+    let (mut c, mut volume) = (vec![zero; 24], zero);
+    for xi in gauss() {
+        let (g, det) = gradients(x, xi);
+        if det.re() <= 0.0 || det.re().is_nan() {
+            return None;
+        }
+        for n in 0..8 {
+            for a in 0..3 {
+                c[3 * n + a] += g[n][a] * det;
+            }
+        }
+        volume += det;
+    }
+    Some((c, volume))
 }
 
 /// Strain (xx, yy, zz, engineering yz, xz, xy) at reference point `xi` for

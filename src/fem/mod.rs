@@ -11,6 +11,9 @@ pub mod quad;
 pub mod quadface;
 pub mod shape_gradient;
 
-pub use element::Element;
+pub use element::{Element, Formulation, Section, NEARLY_INCOMPRESSIBLE};
 pub use facet::{Facet, Orientation, Segment};
 pub use quad::{plane_strain, quad_stiffness, quad_strain_at, Quad};
+
+#[cfg(test)]
+mod tests;

@@ -18,6 +18,20 @@ pub fn plane_strain(young: f64, poisson: f64) -> [[f64; 3]; 3] {
     ]
 }
 
+/// The deviatoric part of [`plane_strain`]: `2 mu (I - m m^T / 3)` with
+/// `m = (1, 1, 0)` and the out-of-plane strain (zero in plane strain) in the
+/// deviator, so that `plane_strain = this + kappa m m^T` (`kappa` the bulk
+/// modulus). Built from `mu` alone, not as a difference, which near `nu = 0.5`
+/// would cancel the digits B-bar keeps.
+pub fn plane_strain_deviatoric(young: f64, poisson: f64) -> [[f64; 3]; 3] {
+    let mu = young / (2.0 * (1.0 + poisson));
+    [
+        [4.0 / 3.0 * mu, -2.0 / 3.0 * mu, 0.0],
+        [-2.0 / 3.0 * mu, 4.0 / 3.0 * mu, 0.0],
+        [0.0, 0.0, mu],
+    ]
+}
+
 const G: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
 const GAUSS: [(f64, f64); 4] = [(-G, -G), (G, -G), (G, G), (-G, G)];
 const NODE_XI: [(f64, f64); 4] = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)];
@@ -103,6 +117,27 @@ pub fn quad_stiffness<T: Scalar>(
         }
     }
     Some(k)
+}
+
+/// The element's dilatation row and area: `c = int div N dA` (interleaved like
+/// the dofs, so `c . u_e` is the change of area) and `A = int dA`, both by the
+/// 2x2 rule (exact: `det J grad N` is bilinear). B-bar's mean dilatation is
+/// `c . u_e / A`. None for an inverted or degenerate element.
+pub fn quad_dilatation<T: Scalar>(x: &Quad<T>) -> Option<([T; 8], T)> {
+    let zero = T::from(0.0);
+    let (mut c, mut area) = ([zero; 8], zero);
+    for (xi, eta) in GAUSS {
+        let (g, det) = gradients(x, xi, eta);
+        if det.re() <= 0.0 || det.re().is_nan() {
+            return None;
+        }
+        for n in 0..4 {
+            c[2 * n] += g[n][0] * det;
+            c[2 * n + 1] += g[n][1] * det;
+        }
+        area += det;
+    }
+    Some((c, area))
 }
 
 /// Strain (xx, yy, engineering xy) at reference point (xi, eta) for element

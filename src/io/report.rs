@@ -15,7 +15,8 @@
 //! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
 //! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
 //!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
-//! - `bodies`: per body `max_abs_u` (largest displacement magnitude);
+//! - `bodies`: per body `max_abs_u` (largest displacement magnitude), and
+//!   `formulation: "bbar"` where its elements are B-bar;
 //! - `contacts`: per contact the `resultant` of its nodal forces on the
 //!   secondary body (components, N), its magnitude `total_force`, the sum of
 //!   the nodal normal forces `normal_force_sum` (the same on a flat primary),
@@ -25,8 +26,9 @@
 //! - `probes`: `ux`, `uy` (and `uz`, `z` in 3D) at the node nearest to each probe point;
 //!   contact nodes carry `z` in 3D too.
 
-use crate::fem::hex::{hex_strain_at, isotropic};
-use crate::fem::quad::{plane_strain, quad_strain_at};
+use crate::fem::hex::{hex_strain_at, isotropic, isotropic_deviatoric};
+use crate::fem::quad::{plane_strain, plane_strain_deviatoric, quad_strain_at};
+use crate::fem::Formulation;
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
 use crate::io::provenance::{self, Header, SOLVE_UNITS};
@@ -115,6 +117,10 @@ pub struct ContactReport {
 pub struct BodyReport {
     pub name: String,
     pub max_abs_u: f64,
+    /// `bbar` where the body's elements are B-bar (nearly incompressible);
+    /// absent for the standard element.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub formulation: Option<&'static str>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -200,6 +206,11 @@ impl Report {
             .enumerate()
             .map(|(b, body)| BodyReport {
                 name: body.name.clone(),
+                formulation: p
+                    .subdomains
+                    .get(body.first_subdomain)
+                    .filter(|m| m.section.formulation == Formulation::Bbar)
+                    .map(|_| "bbar"),
                 max_abs_u: (0..body.coords.len())
                     .map(|n| {
                         let u = state.node_displacement(b, n);
@@ -367,7 +378,17 @@ impl Report {
             _ => o.push('\n'),
         }
         for b in &self.bodies {
-            let _ = writeln!(o, "  body {:<10} max |u| {} m", b.name, num(b.max_abs_u));
+            let bbar = if b.formulation.is_some() {
+                "  (B-bar)"
+            } else {
+                ""
+            };
+            let _ = writeln!(
+                o,
+                "  body {:<10} max |u| {} m{bbar}",
+                b.name,
+                num(b.max_abs_u)
+            );
         }
         for c in &self.contacts {
             let _ = writeln!(o, "{}", contact_line(c, &num));
@@ -499,39 +520,65 @@ pub struct BodyFields {
 }
 
 /// Stress at an element's centre (Voigt: 3 components in 2D plane strain, 6 in
-/// 3D) and its von Mises value (in 2D with the plane-strain `zz` stress).
+/// 3D) and its von Mises value (in 2D with the plane-strain `zz` stress). With
+/// B-bar, as in its stiffness, the deviatoric stress of the centre's strain
+/// plus the bulk modulus times the element's mean dilatation.
 fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) {
     let d = m.dim();
+    let s = &m.section;
     let ue: Vec<f64> = e
         .iter()
         .flat_map(|&k| (0..d).map(move |a| d * k + a))
         .map(|i| u[i])
         .collect();
+    // B-bar's pressure part, kappa times the mean dilatation.
+    let mean = (s.formulation == Formulation::Bbar).then(|| {
+        let x: Vec<f64> = e.iter().flat_map(|&k| m.point(k)[..d].to_vec()).collect();
+        let mean = m.element.mean_dilatation(&x, &ue).unwrap_or(0.0);
+        s.bulk_modulus() * mean
+    });
     if d == 2 {
-        let dm = plane_strain(m.young, m.poisson);
+        let dm = match mean {
+            Some(_) => plane_strain_deviatoric(s.young, s.poisson),
+            None => plane_strain(s.young, s.poisson),
+        };
         let x: [[f64; 2]; 4] = std::array::from_fn(|k| {
             let p = m.point(e[k]);
             [p[0], p[1]]
         });
         let ue: [f64; 8] = std::array::from_fn(|i| ue[i]);
         let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
-        let sig: Vec<f64> = (0..3)
+        let mut sig: Vec<f64> = (0..3)
             .map(|r| (0..3).map(|c| dm[r][c] * eps[c]).sum())
             .collect();
-        let szz = m.poisson * (sig[0] + sig[1]);
+        let szz = match mean {
+            Some(p) => {
+                sig[0] += p;
+                sig[1] += p;
+                // The deviatoric zz stress of a zero zz strain, 2 mu (0 - tr / 3).
+                dm[0][1] * (eps[0] + eps[1]) + p
+            }
+            None => s.poisson * (sig[0] + sig[1]),
+        };
         let vm = (0.5
             * ((sig[0] - sig[1]).powi(2) + (sig[1] - szz).powi(2) + (szz - sig[0]).powi(2))
             + 3.0 * sig[2] * sig[2])
             .sqrt();
         return (sig, vm);
     }
-    let dm = isotropic(m.young, m.poisson);
+    let dm = match mean {
+        Some(_) => isotropic_deviatoric(s.young, s.poisson),
+        None => isotropic(s.young, s.poisson),
+    };
     let x: [[f64; 3]; 8] = std::array::from_fn(|k| m.point(e[k]));
     let ue: [f64; 24] = std::array::from_fn(|i| ue[i]);
     let eps = hex_strain_at(&x, &ue, [0.0; 3]);
-    let sig: Vec<f64> = (0..6)
+    let mut sig: Vec<f64> = (0..6)
         .map(|r| (0..6).map(|c| dm[r][c] * eps[c]).sum())
         .collect();
+    if let Some(p) = mean {
+        sig.iter_mut().take(3).for_each(|v| *v += p);
+    }
     let vm = (0.5
         * ((sig[0] - sig[1]).powi(2) + (sig[1] - sig[2]).powi(2) + (sig[2] - sig[0]).powi(2))
         + 3.0 * (sig[3] * sig[3] + sig[4] * sig[4] + sig[5] * sig[5]))

@@ -263,7 +263,12 @@ pub fn summarize(scene: &Scene) -> Summary {
     let mut params = scene.params.clone();
     params.iter_mut().for_each(|p| p.value = round6(p.value));
     let mut materials = scene.materials.clone();
+    let element = crate::fem::Element::for_dim(scene.dim.n());
     for m in &mut materials {
+        // Where `auto` chose B-bar, say so; the standard element stays unsaid.
+        if m.section(element, scene.thickness).formulation == crate::fem::Formulation::Bbar {
+            m.formulation = Formulation::Bbar;
+        }
         m.young = round6(m.young);
         m.poisson = round6(m.poisson);
         m.density = m.density.map(round6);
@@ -352,9 +357,14 @@ impl fmt::Display for Summary {
             let rho = m
                 .density
                 .map_or(String::new(), |r| format!("  rho = {} kg/m^3", num(r)));
+            let formulation = match m.formulation {
+                Formulation::Auto => "",
+                Formulation::Standard => "  standard element",
+                Formulation::Bbar => "  B-bar",
+            };
             let _ = writeln!(
                 o,
-                "  {:<10} E = {} Pa  nu = {}{rho}",
+                "  {:<10} E = {} Pa  nu = {}{rho}{formulation}",
                 m.name,
                 num(m.young),
                 num(m.poisson)

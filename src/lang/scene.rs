@@ -194,6 +194,51 @@ pub struct Material {
     pub poisson: f64,
     /// Density (kg/m^3), needed only with gravity.
     pub density: Option<f64>,
+    /// `formulation = ..` as written (`auto` when not); the summary shows the
+    /// one used where that is B-bar.
+    #[serde(skip_serializing_if = "Formulation::is_auto")]
+    pub formulation: Formulation,
+}
+
+impl Material {
+    /// What the elements of a body of this material get: the material, the
+    /// thickness (2D) and the formulation `element` uses for it
+    /// ([`crate::fem::Element::formulation`]: `auto` is B-bar from
+    /// [`crate::fem::NEARLY_INCOMPRESSIBLE`] on).
+    pub fn section(&self, element: crate::fem::Element, thickness: f64) -> crate::fem::Section {
+        let asked = match self.formulation {
+            Formulation::Auto => None,
+            Formulation::Standard => Some(crate::fem::Formulation::Standard),
+            Formulation::Bbar => Some(crate::fem::Formulation::Bbar),
+        };
+        crate::fem::Section {
+            young: self.young,
+            poisson: self.poisson,
+            thickness,
+            formulation: element.formulation(self.poisson, asked),
+        }
+    }
+}
+
+/// `material { formulation }`: how the elements treat the volumetric strain.
+/// `auto` (the default) is `bbar` at `nu >= 0.45` and `standard` below;
+/// `bbar` is mean dilatation (Hughes' B-bar), which does not lock as `nu`
+/// nears 0.5; `standard` integrates every strain at every Gauss point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, ValueEnum)]
+#[serde(rename_all = "snake_case")]
+#[value(rename_all = "snake_case")]
+pub enum Formulation {
+    #[default]
+    Auto,
+    Standard,
+    Bbar,
+}
+
+impl Formulation {
+    /// Not written (serialization skips it).
+    pub fn is_auto(&self) -> bool {
+        *self == Formulation::Auto
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -2,7 +2,7 @@
 
 use super::grid::Grid;
 use super::LowerError;
-use crate::fem::Element;
+use crate::fem::{Element, Section};
 use crate::lang::scene::Scene;
 
 /// One body's structured grid, nodes placed by the column-morphing rule and
@@ -98,9 +98,8 @@ pub struct SubdomainMesh {
     /// Elements as local node indices, `element.nodes()` each, flat
     /// (quadrilaterals counter-clockwise; hexahedra bottom then top face).
     pub elements: Vec<usize>,
-    pub young: f64,
-    pub poisson: f64,
-    pub thickness: f64,
+    /// Material, thickness and formulation of every element.
+    pub section: Section,
     /// Nodal loads, interleaved (`dim * nodes`).
     pub f: Vec<f64>,
 }
@@ -159,11 +158,8 @@ pub fn build(
             coords,
         };
         let material = &scene.materials[body.material];
-        let element = if dim == 2 {
-            Element::Quad4
-        } else {
-            Element::Hex8
-        };
+        let element = Element::for_dim(dim);
+        let section = material.section(element, scene.thickness);
         let elements = grid.block_elements();
         for bz in 0..grid.s[2] {
             for by in 0..grid.s[1] {
@@ -182,9 +178,7 @@ pub fn build(
                         coords,
                         grid: nodes,
                         elements: elements.clone(),
-                        young: material.young,
-                        poisson: material.poisson,
-                        thickness: scene.thickness,
+                        section,
                         f: vec![0.0; dim * n],
                     });
                 }

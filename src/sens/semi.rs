@@ -237,7 +237,7 @@ fn stiffness_derivative_times_u_dual<const DIM: usize>(
                 if x.iter().all(|c| c.eps == 0.0) {
                     continue;
                 }
-                let Some(ke) = m.element.stiffness(&x, m.young, m.poisson, m.thickness) else {
+                let Some(ke) = m.element.stiffness(&x, &m.section) else {
                     continue;
                 };
                 for a in 0..n {
@@ -326,10 +326,7 @@ impl ElementJacobians {
                 let mut out = Vec::new();
                 for_moving_elements(state, s, moving, |e, x, ue| {
                     // An inverted element has no stiffness to differentiate.
-                    if let Some(rows) =
-                        m.element
-                            .shape_gradient(x, m.young, m.poisson, m.thickness, &units, ue)
-                    {
+                    if let Some(rows) = m.element.shape_gradient(x, &m.section, &units, ue) {
                         out.push((e.to_vec(), rows.concat()));
                     }
                 });
@@ -410,10 +407,7 @@ fn node_shape_gradients(
                 wk.extend(e.iter().flat_map(|&k| &w[s][dim * k..dim * k + dim]));
             }
             let we_ref: Vec<&[f64]> = we.iter().map(Vec::as_slice).collect();
-            let Some(g) = m
-                .element
-                .shape_gradient(x, m.young, m.poisson, m.thickness, &we_ref, ue)
-            else {
+            let Some(g) = m.element.shape_gradient(x, &m.section, &we_ref, ue) else {
                 return;
             };
             for (a, &k) in e.iter().enumerate() {

@@ -31,7 +31,7 @@ use super::sparse::{
     ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
     lower_gram, mirror_lower, solve_scratch, symbolic_best, FactorShape, UpperCsc,
 };
-use crate::fem::Element;
+use crate::fem::{Element, Section};
 use crate::model::SubdomainMesh;
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::SymbolicCholesky;
@@ -185,10 +185,8 @@ pub struct Geometry<'a> {
     pub coords: &'a [f64],
     pub elements: &'a [usize],
     pub corners: &'a [usize],
-    pub young: f64,
-    pub poisson: f64,
-    /// 2D only (plane strain per unit thickness).
-    pub thickness: f64,
+    /// Material, thickness (2D) and formulation of every element.
+    pub section: Section,
 }
 
 impl<'a> Geometry<'a> {
@@ -199,9 +197,7 @@ impl<'a> Geometry<'a> {
             coords: &mesh.coords,
             elements: &mesh.elements,
             corners: &mesh.corners,
-            young: mesh.young,
-            poisson: mesh.poisson,
-            thickness: mesh.thickness,
+            section: mesh.section,
         }
     }
 }
@@ -219,7 +215,7 @@ fn assemble(mesh: &Geometry) -> Result<UpperCsc, SubdomainError> {
             x[dim * a..dim * (a + 1)].copy_from_slice(&coords[dim * node..dim * (node + 1)]);
         }
         let ke = el
-            .stiffness(&x, mesh.young, mesh.poisson, mesh.thickness)
+            .stiffness(&x, &mesh.section)
             .ok_or(SubdomainError::Inverted { element: ei })?;
         for a in 0..nd {
             let ra = dim * e[a / dim] + a % dim;
@@ -704,10 +700,18 @@ pub(crate) mod tests {
             grid: (0..n).collect(),
             coords,
             elements,
+            section: test_section(),
+            f: vec![0.0; 2 * n],
+        }
+    }
+
+    /// 1000 Pa, nu = 0.3, unit thickness, the standard element.
+    pub(crate) fn test_section() -> crate::fem::Section {
+        crate::fem::Section {
             young: 1000.0,
             poisson: 0.3,
             thickness: 1.0,
-            f: vec![0.0; 2 * n],
+            formulation: crate::fem::Formulation::Standard,
         }
     }
 
@@ -998,9 +1002,7 @@ pub(crate) mod tests {
             coords,
             elements,
             corners,
-            young: 1000.0,
-            poisson: 0.3,
-            thickness: 1.0,
+            section: test_section(),
         }
     }
 

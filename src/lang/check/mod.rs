@@ -9,6 +9,7 @@ mod constant;
 mod fields;
 mod functional;
 mod items;
+mod locking;
 mod names;
 mod values;
 
@@ -44,6 +45,7 @@ pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>>
     diags.extend(checker.diags);
     if !diags.iter().any(Diagnostic::is_error) {
         diags.extend(aspect_warnings(&scene, &checker.body_spans));
+        diags.extend(locking::warnings(&scene, &checker.body_spans));
     }
     scene.source = Source {
         path: None,

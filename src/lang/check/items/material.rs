@@ -8,7 +8,7 @@ use crate::lang::scene::*;
 use crate::lang::units::Dim;
 
 impl<'a> Checker<'a> {
-    /// `material NAME { E, nu, rho }`
+    /// `material NAME { E, nu, rho, formulation }`
     pub(crate) fn material(&mut self, name: Option<&'a Ident>, body: &'a Block) {
         let label = name.map_or("material".to_string(), |n| format!("material `{}`", n.name));
         let at = name.map_or(body.span, |n| n.span);
@@ -16,6 +16,7 @@ impl<'a> Checker<'a> {
             req("E", "E = 210 GPa"),
             req("nu", "nu = 0.3"),
             opt("rho", "rho = 7850 kg/m^3"),
+            opt("formulation", "formulation = bbar"),
         ];
         let hint = |n: &str| match n {
             "e" | "young" | "youngs_modulus" => Some("Young's modulus is written `E`".to_string()),
@@ -29,6 +30,7 @@ impl<'a> Checker<'a> {
             young: f64::NAN,
             poisson: f64::NAN,
             density: None,
+            formulation: self.choice(f.get("formulation")).unwrap_or_default(),
         };
         if let Some(e) = f.get("E").and_then(|fl| self.expr_of(fl, "a pressure")) {
             if let Some(v) = self.number(e, Some(Dim::PRESSURE), "`E`") {
@@ -59,7 +61,9 @@ impl<'a> Checker<'a> {
                         )
                         .label(e.span, why)
                         .help(if v >= 0.5 {
-                            "nearly incompressible materials: use e.g. `nu = 0.49`"
+                            "nearly incompressible materials: write e.g. `nu = 0.4999`; from \
+                             nu = 0.45 on the elements are B-bar (mean dilatation), which does \
+                             not lock"
                         } else {
                             "most engineering materials have nu between 0.2 and 0.45"
                         }),

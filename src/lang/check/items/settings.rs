@@ -92,7 +92,7 @@ impl<'a> Checker<'a> {
 
     /// A field whose value is one of a few words: the names of `T`'s variants,
     /// the same words `cso` accepts on the command line.
-    fn choice<T: ValueEnum + Copy>(
+    pub(crate) fn choice<T: ValueEnum + Copy>(
         &mut self,
         field: Option<&'a crate::lang::ast::Field>,
     ) -> Option<T> {
