@@ -6,13 +6,10 @@
 //! MPRGP (ch. 5), SMALBE/SMALE (ch. 6).
 
 mod mprgp;
-mod smalbe;
+pub mod smalbe;
 
 pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
-pub use smalbe::{
-    smalbe, smalbe_from, smalbe_preconditioned, FeasibilityTest, SmalbeOverrides, SmalbeSettings,
-    SmalbeWarm,
-};
+pub use smalbe::{FeasibilityTest, SmalbeOverrides, SmalbeSettings, SmalbeWarm};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.
 pub trait Operator {

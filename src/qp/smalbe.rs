@@ -45,7 +45,7 @@ use super::mprgp::{
 };
 use super::{Equality, Operator, QpInfo, Status};
 
-/// Parameters of [`smalbe`]. Scale-dependent ones are relative to `||A||`
+/// Parameters of [`solve`]. Scale-dependent ones are relative to `||A||`
 /// (estimated by power iterations) or `||b||`, so that one set of defaults
 /// serves scenes of any size and units.
 #[derive(Debug, Clone, PartialEq)]
@@ -301,45 +301,11 @@ impl Operator for Augmented<'_> {
     }
 }
 
-/// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` and `G x = 0`
-/// by SMALBE with MPRGP inside.
-///
-/// `x` is the initial guess (projected onto the bounds) and the result.
-/// `G` must have orthonormal rows; `A` must be positive definite on `ker G`
-/// (it may be singular elsewhere). The stopping test is relative to `||b||`:
-/// `||g^P(x, mu, rho)|| <= eps ||b||` and `||G x|| <= eps ||b||`, where `g^P`
-/// is the projected gradient of the augmented Lagrangian at the current
-/// multipliers, which at a solution is the KKT residual. If `b = 0` and
-/// `lower <= 0`, the solution `x = 0` is returned at once; with `b = 0` and a
-/// positive bound the scale `||A|| ||P(0)||` replaces `||b||`.
-///
-/// `observer` sees the [`QpInfo`] after every outer iteration (its status
-/// reads `MaxIterations` until the run ends). Applications of the augmented
-/// Hessian count as applications of `a`, as do the power iterations that
-/// estimate `||A||` and `||A + rho G^T G||`. The solve stops with
-/// `MaxIterations` when `max_outer` or `max_hessian` runs out, and with
-/// `Breakdown` on non-positive curvature or NaN. Only the setup allocates.
-///
-/// # Reference
-/// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
-/// ch. 6 (SMALBE) with ch. 5 (MPRGP) inside.
-pub fn smalbe(
-    a: &dyn Operator,
-    b: &[f64],
-    lower: &[f64],
-    g: &dyn Equality,
-    x: &mut [f64],
-    settings: &SmalbeSettings,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> QpInfo {
-    smalbe_preconditioned(a, None, b, lower, g, x, settings, observer)
-}
-
 /// SMALBE's own state at the end of a solve, which a nearby problem (the next
 /// design of an optimization) can start from instead of from scratch: the
 /// multipliers `mu` of `G x = 0`, the precision control `M`, the norm
 /// estimates behind `rho` and `a_bar`, and the final projected gradient. As a
-/// start, each part is used only when present ([`smalbe_from`]).
+/// start, each part is used only when present ([`solve`]).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct SmalbeWarm {
     /// `mu` (one per row of `G`); the start's linear term is `b - G^T mu`.
@@ -362,81 +328,77 @@ pub struct SmalbeWarm {
 /// of the forces (see `tfeti::solve`).
 pub type FeasibilityTest<'a> = &'a (dyn Fn(&[f64]) -> bool + Sync);
 
-/// [`smalbe_preconditioned`] started from the state of an earlier solve of a
-/// nearby problem (`None`: from scratch, exactly [`smalbe_preconditioned`]);
-/// returns, besides the usual info, the state at the end (every part set),
-/// to start the next nearby problem from. Starting from an earlier state
-/// changes the path, not the stopping test: the result meets the same
-/// tolerance. `also_feasible`, when given, must hold too before it stops.
-#[allow(clippy::too_many_arguments)]
-pub fn smalbe_from(
-    a: &dyn Operator,
-    precond: Option<&dyn Operator>,
-    b: &[f64],
-    lower: &[f64],
-    also_feasible: Option<FeasibilityTest<'_>>,
-    g: &dyn Equality,
+/// A problem for SMALBE: `min 1/2 x^T A x - b^T x` subject to `x >= lower`
+/// and `G x = 0` (orthonormal rows), with what the caller knows besides.
+pub struct Problem<'a> {
+    pub a: &'a dyn Operator,
+    pub b: &'a [f64],
+    pub lower: &'a [f64],
+    pub g: &'a dyn Equality,
+    /// An approximate inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the
+    /// scaled TFETI dual) that preconditions MPRGP in face; the augmented
+    /// Hessian is preconditioned by `precond + (1/rho) G^T G`. The inner
+    /// stopping test stays on the plain projected gradient
+    /// `||g^P|| <= min(M ||G x||, eta)`, as do the final test and the update
+    /// of `M`: the preconditioner changes the directions, not what the
+    /// tolerances mean, so that solutions with and without it agree to `eps`.
+    /// None: plain MPRGP.
+    pub precond: Option<&'a dyn Operator>,
+    /// A feasibility test in the caller's terms that must hold too before
+    /// SMALBE stops.
+    pub also_feasible: Option<FeasibilityTest<'a>>,
+}
+
+impl<'a> Problem<'a> {
+    /// The problem without a preconditioner or a test of the caller's.
+    pub fn new(a: &'a dyn Operator, b: &'a [f64], lower: &'a [f64], g: &'a dyn Equality) -> Self {
+        Problem {
+            a,
+            b,
+            lower,
+            g,
+            precond: None,
+            also_feasible: None,
+        }
+    }
+}
+
+/// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` and `G x = 0`
+/// by SMALBE with MPRGP inside.
+///
+/// `x` is the initial guess (projected onto the bounds) and the result.
+/// `G` must have orthonormal rows; `A` must be positive definite on `ker G`
+/// (it may be singular elsewhere). The stopping test is relative to `||b||`:
+/// `||g^P(x, mu, rho)|| <= eps ||b||` and `||G x|| <= eps ||b||`, where `g^P`
+/// is the projected gradient of the augmented Lagrangian at the current
+/// multipliers, which at a solution is the KKT residual. If `b = 0` and
+/// `lower <= 0`, the solution `x = 0` is returned at once; with `b = 0` and a
+/// positive bound the scale `||A|| ||P(0)||` replaces `||b||`.
+///
+/// `observer` sees the [`QpInfo`] after every outer iteration (its status
+/// reads `MaxIterations` until the run ends). Applications of the augmented
+/// Hessian count as applications of `a`, as do the power iterations that
+/// estimate `||A||` and `||A + rho G^T G||`. The solve stops with
+/// `MaxIterations` when `max_outer` or `max_hessian` runs out, and with
+/// `Breakdown` on non-positive curvature or NaN. Only the setup allocates.
+///
+/// # Reference
+/// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
+/// ch. 6 (SMALBE) with ch. 5 (MPRGP) inside.
+///
+/// `x` holds the start on entry (projected onto the bounds) and the solution
+/// on return. `start`: the state of an earlier solve of a nearby problem
+/// (None: from scratch); starting from it changes the path, not the stopping
+/// test. Returns, besides the usual info, the state at the end (every part
+/// set), to start the next nearby problem from.
+pub fn solve(
+    problem: &Problem,
     x: &mut [f64],
     settings: &SmalbeSettings,
     start: Option<&SmalbeWarm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> (QpInfo, SmalbeWarm) {
     let mut end = SmalbeWarm::default();
-    let info = run_smalbe(
-        a,
-        precond,
-        b,
-        lower,
-        also_feasible,
-        g,
-        x,
-        settings,
-        start,
-        &mut end,
-        observer,
-    );
-    (info, end)
-}
-
-/// [`smalbe`] with MPRGP preconditioned in face by `precond`, an approximate
-/// inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the scaled TFETI dual);
-/// `None` is [`smalbe`] exactly. The augmented Hessian is preconditioned by
-/// `precond + (1/rho) G^T G`. The inner stopping test stays on the plain
-/// projected gradient `||g^P|| <= min(M ||G x||, eta)`, as do the final test and
-/// the update of `M`: the preconditioner changes the directions, not what the
-/// tolerances mean, so that solutions with and without it agree to `eps`.
-#[allow(clippy::too_many_arguments)]
-pub fn smalbe_preconditioned(
-    a: &dyn Operator,
-    precond: Option<&dyn Operator>,
-    b: &[f64],
-    lower: &[f64],
-    g: &dyn Equality,
-    x: &mut [f64],
-    settings: &SmalbeSettings,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> QpInfo {
-    let mut end = SmalbeWarm::default();
-    run_smalbe(
-        a, precond, b, lower, None, g, x, settings, None, &mut end, observer,
-    )
-}
-
-#[allow(clippy::too_many_arguments)]
-fn run_smalbe(
-    a: &dyn Operator,
-    precond: Option<&dyn Operator>,
-    b: &[f64],
-    lower: &[f64],
-    also_feasible: Option<FeasibilityTest<'_>>,
-    g: &dyn Equality,
-    x: &mut [f64],
-    settings: &SmalbeSettings,
-    start: Option<&SmalbeWarm>,
-    end: &mut SmalbeWarm,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> QpInfo {
-    let n = a.dim();
     let mut info = QpInfo {
         status: Status::MaxIterations,
         outer_iterations: 0,
@@ -447,74 +409,216 @@ fn run_smalbe(
         history: Vec::with_capacity(settings.max_outer.min(1 << 16)),
         norm_estimate: f64::NAN,
     };
-    if let Some(why) = check_dimensions(n, b, lower, x) {
+    let n = problem.a.dim();
+    if let Some(why) = check_dimensions(n, problem.b, problem.lower, x) {
         info.status = Status::Breakdown(why);
-        return info;
+        return (info, end);
     }
-    let b_norm = norm2(b);
-    if b_norm == 0.0 && lower.iter().all(|&l| l <= 0.0) {
+    let b_norm = norm2(problem.b);
+    if b_norm == 0.0 && problem.lower.iter().all(|&l| l <= 0.0) {
         x.fill(0.0);
         info.status = Status::Converged;
         info.projected_gradient = 0.0;
         info.feasibility = 0.0;
-        return info;
+        return (info, end);
     }
-    let m = g.rows();
-    let mut ws = match precond {
+    let mut ws = match problem.precond {
         None => Workspace::new(n),
         Some(_) => Workspace::preconditioned(n),
     };
-    let power = settings.mprgp.power_iterations;
-
-    // ||A||, then rho, then ||A + rho G^T G|| (warm-started) for a_bar; or
-    // both from the start.
-    let known = start.and_then(|s| s.norms);
-    let norm_a = match known {
-        Some((norm_a, _)) => norm_a,
-        None => {
-            start_vector(&mut ws.p);
-            let (norm_a, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, power);
-            info.hessian_applications += used;
-            norm_a
-        }
+    let Some(setup) = Setup::new(problem, settings, start, &mut ws, &mut info, &mut end) else {
+        return (info, end);
     };
-    info.norm_estimate = norm_a;
-    if !(norm_a > 0.0 && norm_a.is_finite()) {
-        info.status = Status::Breakdown(format!(
-            "power iteration gives ||A|| = {norm_a:e}: A is zero or not finite"
-        ));
-        return info;
+    outer_loop(
+        problem, &setup, x, settings, start, &mut ws, &mut info, &mut end, observer,
+    );
+    (info, end)
+}
+
+/// What SMALBE fixes before its outer iterations: `||A||`, the penalty
+/// `rho`, the augmented Hessian and its preconditioner, MPRGP's step length,
+/// and the scale of the tolerances.
+struct Setup<'a> {
+    norm_a: f64,
+    rho: f64,
+    hessian: Augmented<'a>,
+    augmented_precond: Option<Augmented<'a>>,
+    a_bar: f64,
+    /// `||b||`, or with `b = 0` `||A|| ||P(0)||`.
+    scale: f64,
+}
+
+impl<'a> Setup<'a> {
+    /// `||A||`, then `rho`, then `||A + rho G^T G||` (power iterations, warm-
+    /// started; or both from `start`) for `a_bar`. None: a breakdown, in `info`.
+    fn new(
+        problem: &Problem<'a>,
+        settings: &SmalbeSettings,
+        start: Option<&SmalbeWarm>,
+        ws: &mut Workspace,
+        info: &mut QpInfo,
+        end: &mut SmalbeWarm,
+    ) -> Option<Setup<'a>> {
+        let power = settings.mprgp.power_iterations;
+        let known = start.and_then(|s| s.norms);
+        let norm_a = match known {
+            Some((norm_a, _)) => norm_a,
+            None => {
+                start_vector(&mut ws.p);
+                let (norm_a, used) = estimate_norm(problem.a, &mut ws.p, &mut ws.ap, power);
+                info.hessian_applications += used;
+                norm_a
+            }
+        };
+        info.norm_estimate = norm_a;
+        if !(norm_a > 0.0 && norm_a.is_finite()) {
+            info.status = Status::Breakdown(format!(
+                "power iteration gives ||A|| = {norm_a:e}: A is zero or not finite"
+            ));
+            return None;
+        }
+        let rho = settings.rho_factor * norm_a;
+        let hessian = Augmented::new(problem.a, problem.g, rho);
+        let augmented_precond = problem
+            .precond
+            .map(|p| Augmented::new(p, problem.g, 1.0 / rho));
+        let norm_h = match known {
+            Some((_, norm_h)) => norm_h,
+            None => {
+                let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
+                info.hessian_applications += used;
+                norm_h
+            }
+        };
+        end.norms = Some((norm_a, norm_h));
+        let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
+            Ok(v) => v,
+            Err(why) => {
+                info.status = Status::Breakdown(why);
+                return None;
+            }
+        };
+        let b_norm = norm2(problem.b);
+        let scale = if b_norm > 0.0 {
+            b_norm
+        } else {
+            let p0: f64 = problem.lower.iter().map(|&l| l.max(0.0).powi(2)).sum();
+            norm_a * p0.sqrt()
+        };
+        Some(Setup {
+            norm_a,
+            rho,
+            hessian,
+            augmented_precond,
+            a_bar,
+            scale,
+        })
     }
-    let rho = settings.rho_factor * norm_a;
-    let hessian = Augmented::new(a, g, rho);
-    let augmented_precond = precond.map(|p| Augmented::new(p, g, 1.0 / rho));
-    let norm_h = match known {
-        Some((_, norm_h)) => norm_h,
-        None => {
-            let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
-            info.hessian_applications += used;
-            norm_h
-        }
-    };
-    end.norms = Some((norm_a, norm_h));
-    let a_bar = match step_length(settings.mprgp.abar_factor, norm_h) {
-        Ok(v) => v,
-        Err(why) => {
-            info.status = Status::Breakdown(why);
-            return info;
-        }
-    };
+}
 
-    let scale = if b_norm > 0.0 {
-        b_norm
-    } else {
-        let p0: f64 = lower.iter().map(|&l| l.max(0.0).powi(2)).sum();
-        norm_a * p0.sqrt()
-    };
+/// The multipliers' side of the outer iterations: `mu`, the linear term
+/// `b~ = b - G^T mu` of the augmented Lagrangian, the precision control `M`,
+/// the previous Lagrangian, and work space for `G x` and `G^T G x`.
+struct Multipliers {
+    mu: Vec<f64>,
+    b_tilde: Vec<f64>,
+    big_m: f64,
+    lagrangian_prev: f64,
+    gx: Vec<f64>,
+    gtgx: Vec<f64>,
+}
+
+impl Multipliers {
+    /// `mu` from `start` (where it has one of the right size) or zero, and
+    /// `M` from `start` or the settings.
+    fn new(
+        problem: &Problem,
+        setup: &Setup,
+        settings: &SmalbeSettings,
+        start: Option<&SmalbeWarm>,
+    ) -> Multipliers {
+        let (n, m) = (problem.a.dim(), problem.g.rows());
+        let m_factor = start.and_then(|s| s.m_factor).unwrap_or(settings.m0_factor);
+        let mut own = Multipliers {
+            mu: vec![0.0; m],
+            b_tilde: problem.b.to_vec(),
+            big_m: m_factor * setup.norm_a,
+            lagrangian_prev: f64::NAN,
+            gx: vec![0.0; m],
+            gtgx: vec![0.0; n],
+        };
+        if let Some(mu0) = start.and_then(|s| s.mu.as_ref()).filter(|v| v.len() == m) {
+            own.mu.copy_from_slice(mu0);
+            problem.g.apply_t(&own.mu, &mut own.gtgx);
+            axpy(-1.0, &own.gtgx, &mut own.b_tilde);
+        }
+        own
+    }
+
+    /// SMALBE's state at the end, for a warm start.
+    fn finish(&self, end: &mut SmalbeWarm, setup: &Setup, gp: f64) {
+        end.mu = Some(self.mu.clone());
+        end.m_factor = Some(self.big_m / setup.norm_a);
+        end.gradient = Some(gp / setup.scale);
+    }
+
+    /// The update after outer iteration `k` at `x` (feasibility `||G x||`
+    /// in `self.gx`): `mu += rho G x`, which moves `b~` by `-rho G^T G x` and
+    /// the gradient `g` of `L` by `+rho G^T G x` (kept exact without applying
+    /// `A` again), then `M /= beta` where the Lagrangian did not increase
+    /// enough (the test of the module docs).
+    #[allow(clippy::too_many_arguments)]
+    fn update(
+        &mut self,
+        problem: &Problem,
+        setup: &Setup,
+        settings: &SmalbeSettings,
+        k: usize,
+        x: &[f64],
+        g: &mut [f64],
+        feasibility: f64,
+    ) {
+        let rho = setup.rho;
+        // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~,
+        // at mu = mu_k here and at mu_{k+1} after the update.
+        let lagrangian_before = 0.5 * (dot(x, g) - dot(x, &self.b_tilde));
+        problem.g.apply_t(&self.gx, &mut self.gtgx);
+        axpy(rho, &self.gx, &mut self.mu);
+        axpy(-rho, &self.gtgx, &mut self.b_tilde);
+        axpy(rho, &self.gtgx, g);
+        let lagrangian = if settings.lagrangian_before_update {
+            lagrangian_before
+        } else {
+            0.5 * (dot(x, g) - dot(x, &self.b_tilde))
+        };
+        if k > 0 && lagrangian < self.lagrangian_prev + 0.5 * rho * feasibility * feasibility {
+            self.big_m /= settings.beta;
+        }
+        self.lagrangian_prev = lagrangian;
+    }
+}
+
+/// The outer iterations: each minimizes the augmented Lagrangian over the
+/// bounds by MPRGP as precisely as the current infeasibility deserves, stops
+/// where the projected gradient and `G x` meet the tolerance, else updates
+/// the multipliers ([`Multipliers::update`]).
+#[allow(clippy::too_many_arguments)]
+fn outer_loop(
+    problem: &Problem,
+    setup: &Setup,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    ws: &mut Workspace,
+    info: &mut QpInfo,
+    end: &mut SmalbeWarm,
+    observer: &mut dyn FnMut(&QpInfo),
+) {
+    let scale = setup.scale;
     let eps_g = settings.tolerance * scale;
     let eps_f = settings.tolerance * scale;
     let feasible = |x: &[f64], feasibility: f64| -> bool {
-        feasibility <= eps_f && also_feasible.is_none_or(|test| test(x))
+        feasibility <= eps_f && problem.also_feasible.is_none_or(|test| test(x))
     };
     let eta = match start.and_then(|s| s.gradient) {
         Some(gp) => (10.0 * gp * scale)
@@ -522,57 +626,40 @@ fn run_smalbe(
             .min(settings.eta_factor * scale),
         None => settings.eta_factor * scale,
     };
-    let m_factor = start.and_then(|s| s.m_factor).unwrap_or(settings.m0_factor);
-    let mut big_m = m_factor * norm_a;
-
-    // b~ = b - G^T mu is the linear term of L.
-    let mut b_tilde = b.to_vec();
-    let mut gx = vec![0.0; m];
-    let mut gtgx = vec![0.0; n];
-    let mut mu = vec![0.0; m];
-    if let Some(mu0) = start.and_then(|s| s.mu.as_ref()).filter(|v| v.len() == m) {
-        mu.copy_from_slice(mu0);
-        g.apply_t(&mu, &mut gtgx);
-        axpy(-1.0, &gtgx, &mut b_tilde);
-    }
-    let finish = |end: &mut SmalbeWarm, mu: &[f64], big_m: f64, gp: f64| {
-        end.mu = Some(mu.to_vec());
-        end.m_factor = Some(big_m / norm_a);
-        end.gradient = Some(gp / scale);
-    };
-    let mut lagrangian_prev = f64::NAN;
+    let mut own = Multipliers::new(problem, setup, settings, start);
     let mut g_ready = false;
-    project(x, lower);
+    project(x, problem.lower);
 
     for k in 0..settings.max_outer {
         let params = Params {
             gamma: settings.mprgp.gamma,
-            a_bar,
+            a_bar: setup.a_bar,
             max_iterations: settings.mprgp.max_iterations,
             max_applications: settings
                 .max_hessian
                 .saturating_sub(info.hessian_applications),
         };
         let run = {
+            let (gx, big_m) = (&mut own.gx, own.big_m);
             let mut stop = |x: &[f64], gp: f64| -> bool {
                 if gp > eta && gp > eps_g {
                     return false;
                 }
-                g.apply(x, &mut gx);
-                let feasibility = norm2(&gx);
+                problem.g.apply(x, gx);
+                let feasibility = norm2(gx);
                 gp <= (big_m * feasibility).min(eta) || (gp <= eps_g && feasible(x, feasibility))
             };
             mprgp::run(
-                &hessian,
-                &b_tilde,
-                lower,
+                &setup.hessian,
+                &own.b_tilde,
+                problem.lower,
                 x,
                 &params,
-                &mut ws,
+                ws,
                 g_ready,
                 &mut stop,
                 &mut |_, _| {},
-                augmented_precond.as_ref().map(|p| p as &dyn Operator),
+                setup.augmented_precond.as_ref().map(|p| p as &dyn Operator),
             )
         };
         info.outer_iterations = k + 1;
@@ -581,22 +668,23 @@ fn run_smalbe(
         info.projected_gradient = run.gp_norm;
         if let Status::Breakdown(why) = run.status {
             info.status = Status::Breakdown(format!(
-                "{why} (SMALBE outer iteration {}, rho = {rho:e})",
-                k + 1
+                "{why} (SMALBE outer iteration {}, rho = {:e})",
+                k + 1,
+                setup.rho
             ));
-            observer(&info);
-            return info;
+            observer(info);
+            return;
         }
         g_ready = true;
-        g.apply(x, &mut gx);
-        let feasibility = norm2(&gx);
+        problem.g.apply(x, &mut own.gx);
+        let feasibility = norm2(&own.gx);
         info.feasibility = feasibility;
         info.history.push(run.gp_norm / scale);
         if run.gp_norm <= eps_g && feasible(x, feasibility) {
             info.status = Status::Converged;
-            finish(end, &mu, big_m, run.gp_norm);
-            observer(&info);
-            return info;
+            own.finish(end, setup, run.gp_norm);
+            observer(info);
+            return;
         }
         if run.status == Status::MaxIterations
             && settings
@@ -605,39 +693,33 @@ fn run_smalbe(
                 < 2
         {
             info.status = Status::MaxIterations;
-            finish(end, &mu, big_m, run.gp_norm);
-            observer(&info);
-            return info;
+            own.finish(end, setup, run.gp_norm);
+            observer(info);
+            return;
         }
-
-        // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~,
-        // at mu = mu_k here and at mu_{k+1} after the update.
-        let lagrangian_before = 0.5 * (dot(x, &ws.g) - dot(x, &b_tilde));
-        // mu += rho G x: b~ -= rho G^T G x, and the gradient of L moves by
-        // +rho G^T G x, which keeps ws.g exact without applying A again.
-        g.apply_t(&gx, &mut gtgx);
-        axpy(rho, &gx, &mut mu);
-        axpy(-rho, &gtgx, &mut b_tilde);
-        axpy(rho, &gtgx, &mut ws.g);
-        let lagrangian = if settings.lagrangian_before_update {
-            lagrangian_before
-        } else {
-            0.5 * (dot(x, &ws.g) - dot(x, &b_tilde))
-        };
-        if k > 0 && lagrangian < lagrangian_prev + 0.5 * rho * feasibility * feasibility {
-            big_m /= settings.beta;
-        }
-        lagrangian_prev = lagrangian;
-        observer(&info);
+        own.update(problem, setup, settings, k, x, &mut ws.g, feasibility);
+        observer(info);
     }
     info.status = Status::MaxIterations;
-    finish(end, &mu, big_m, info.projected_gradient);
-    info
+    own.finish(end, setup, info.projected_gradient);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// [`solve`] from scratch without preconditioner: the info alone.
+    fn smalbe(
+        a: &dyn Operator,
+        b: &[f64],
+        lower: &[f64],
+        g: &dyn Equality,
+        x: &mut [f64],
+        settings: &SmalbeSettings,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> QpInfo {
+        solve(&Problem::new(a, b, lower, g), x, settings, None, observer).0
+    }
     use crate::qp::mprgp::tests::{random_spd, solve_dense, Dense, Lcg};
 
     /// Dense `G` (m x n, row-major) with orthonormal rows.
@@ -851,7 +933,14 @@ mod tests {
             let lower = vec![f64::NEG_INFINITY; n];
             let exact = enumerate(&a, &b, &lower, &geq);
             let mut x = vec![0.0; n];
-            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            let info = solve(
+                &Problem::new(&a, &b, &lower, &geq),
+                &mut x,
+                &tight(),
+                None,
+                &mut |_| {},
+            )
+            .0;
             assert_eq!(info.status, Status::Converged, "n = {n}: {info:?}");
             let scale = exact.iter().fold(0.0f64, |s, v| s.max(v.abs()));
             assert!(
@@ -875,7 +964,14 @@ mod tests {
             let exact = enumerate(&a, &b, &lower, &geq);
             active_seen += (0..n).filter(|&i| exact[i] == lower[i]).count();
             let mut x = vec![0.0; n];
-            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            let info = solve(
+                &Problem::new(&a, &b, &lower, &geq),
+                &mut x,
+                &tight(),
+                None,
+                &mut |_| {},
+            )
+            .0;
             assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
             let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
             assert!(
@@ -913,7 +1009,14 @@ mod tests {
             let lower = bounds(n, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             let mut x = vec![0.0; n];
-            let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+            let info = solve(
+                &Problem::new(&a, &b, &lower, &geq),
+                &mut x,
+                &tight(),
+                None,
+                &mut |_| {},
+            )
+            .0;
             assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
             let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
             assert!(
@@ -943,16 +1046,17 @@ mod tests {
             let lower = bounds(n, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             let mut x = vec![0.0; n];
-            let info = smalbe_preconditioned(
-                &a,
-                Some(&precond),
-                &b,
-                &lower,
-                &geq,
+            let info = solve(
+                &Problem {
+                    precond: Some(&precond),
+                    ..Problem::new(&a, &b, &lower, &geq)
+                },
                 &mut x,
                 &tight(),
+                None,
                 &mut |_| {},
-            );
+            )
+            .0;
             assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
             assert!(precond.count.get() > 0, "the preconditioner was used");
             let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
@@ -988,7 +1092,14 @@ mod tests {
                     ..tight()
                 };
                 let mut x = vec![0.0; n];
-                let info = smalbe(&a, &b, &lower, &geq, &mut x, &settings, &mut |_| {});
+                let info = solve(
+                    &Problem::new(&a, &b, &lower, &geq),
+                    &mut x,
+                    &settings,
+                    None,
+                    &mut |_| {},
+                )
+                .0;
                 assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
                 let (res, feas) = kkt(&a, &b, &lower, &geq, &x);
                 assert!(
@@ -1074,13 +1185,8 @@ mod tests {
             ..SmalbeSettings::default()
         };
         let mut x_warm = vec![0.0; n];
-        let (first, mut end) = smalbe_from(
-            &a,
-            None,
-            &b,
-            &lower,
-            None,
-            &geq,
+        let (first, mut end) = solve(
+            &Problem::new(&a, &b, &lower, &geq),
             &mut x_warm,
             &settings,
             None,
@@ -1092,19 +1198,21 @@ mod tests {
             let drift = in_range_p((0..n).map(|_| 0.02 * rng.symmetric()).collect());
             b.iter_mut().zip(&drift).for_each(|(bi, di)| *bi += di);
             let mut x_cold = vec![0.0; n];
-            let cold = smalbe(&a, &b, &lower, &geq, &mut x_cold, &settings, &mut |_| {});
+            let cold = solve(
+                &Problem::new(&a, &b, &lower, &geq),
+                &mut x_cold,
+                &settings,
+                None,
+                &mut |_| {},
+            )
+            .0;
             let start = SmalbeWarm {
                 m_factor: None,
                 gradient: None,
                 ..end.clone()
             };
-            let (warm, next) = smalbe_from(
-                &a,
-                None,
-                &b,
-                &lower,
-                None,
-                &geq,
+            let (warm, next) = solve(
+                &Problem::new(&a, &b, &lower, &geq),
                 &mut x_warm,
                 &settings,
                 Some(&start),
@@ -1136,7 +1244,7 @@ mod tests {
     }
 
     #[test]
-    fn without_a_start_smalbe_from_is_smalbe() {
+    fn without_a_start_solve_is_a_cold_solve() {
         let mut rng = Lcg::new(43);
         let n = 30;
         let geq = DenseEq::random(3, n, &mut rng);
@@ -1144,14 +1252,16 @@ mod tests {
         let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
         let lower = bounds(n, &mut rng);
         let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
-        let plain = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
-        let (from, end) = smalbe_from(
-            &a,
+        let plain = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &tight(),
             None,
-            &b,
-            &lower,
-            None,
-            &geq,
+            &mut |_| {},
+        )
+        .0;
+        let (from, end) = solve(
+            &Problem::new(&a, &b, &lower, &geq),
             &mut y,
             &tight(),
             None,
@@ -1162,13 +1272,8 @@ mod tests {
         // The end state has every part, and restarting from it at the solution
         // on the same problem converges at once.
         assert!(end.mu.is_some() && end.m_factor.is_some() && end.norms.is_some());
-        let (again, _) = smalbe_from(
-            &a,
-            None,
-            &b,
-            &lower,
-            None,
-            &geq,
+        let (again, _) = solve(
+            &Problem::new(&a, &b, &lower, &geq),
             &mut y,
             &tight(),
             Some(&end),
@@ -1199,20 +1304,25 @@ mod tests {
         };
         let strict = 1e-3 * settings.tolerance * norm2(&b);
         let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
-        let plain = smalbe(&a, &b, &lower, &geq, &mut x, &settings, &mut |_| {});
+        let plain = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &settings,
+            None,
+            &mut |_| {},
+        )
+        .0;
         assert_eq!(plain.status, Status::Converged);
         assert!(
             feasibility(&x) > strict,
             "the plain test must stop earlier: {plain:?}"
         );
         let test = |x: &[f64]| feasibility(x) <= strict;
-        let (checked, _) = smalbe_from(
-            &a,
-            None,
-            &b,
-            &lower,
-            Some(&test),
-            &geq,
+        let (checked, _) = solve(
+            &Problem {
+                also_feasible: Some(&test),
+                ..Problem::new(&a, &b, &lower, &geq)
+            },
             &mut y,
             &settings,
             None,
@@ -1293,7 +1403,14 @@ mod tests {
             ..SmalbeSettings::default()
         };
         let mut x = vec![0.0; n];
-        let info = smalbe(&a, &b, &lower, &geq, &mut x, &budget, &mut |_| {});
+        let info = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &budget,
+            None,
+            &mut |_| {},
+        )
+        .0;
         assert_eq!(info.status, Status::MaxIterations, "{info:?}");
         assert!(info.hessian_applications <= 35, "{info:?}");
         assert_eq!(info.hessian_applications, a.count.get());
@@ -1303,7 +1420,14 @@ mod tests {
             ..SmalbeSettings::default()
         };
         let mut x = vec![0.0; n];
-        let info = smalbe(&a, &b, &lower, &geq, &mut x, &outer, &mut |_| {});
+        let info = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &outer,
+            None,
+            &mut |_| {},
+        )
+        .0;
         assert_eq!(info.status, Status::MaxIterations, "{info:?}");
         assert_eq!(info.outer_iterations, 2);
     }
@@ -1357,7 +1481,14 @@ mod tests {
         let exact = enumerate(&a, &b, &lower, &geq);
         assert!(exact[0] == 0.5, "the bound should be active: {exact:?}");
         let mut x = vec![0.0; n];
-        let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |_| {});
+        let info = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &tight(),
+            None,
+            &mut |_| {},
+        )
+        .0;
         assert_eq!(info.status, Status::Converged, "{info:?}");
         assert!(max_diff(&x, &exact) <= 1e-8, "{x:?} vs {exact:?}");
     }

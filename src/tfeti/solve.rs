@@ -12,7 +12,7 @@ use super::dual::ProjectedM;
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
-use crate::qp::{estimate_norm, smalbe_from, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
+use crate::qp::{estimate_norm, smalbe, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
 pub(super) fn norm(v: &[f64]) -> f64 {
     dot(v, v).sqrt()
@@ -189,18 +189,14 @@ pub fn dual_solve_from(
         let residual = cluster.equilibrium_residual(grams, &c);
         residual <= tolerance * f_norm.max(bt_norm)
     };
-    let (mut info, end) = smalbe_from(
-        &ProjectedF::new(dual, scale),
-        precond.as_ref().map(|m| m as &dyn Operator),
-        &b,
-        &lower_bounds,
-        Some(&balanced),
-        &g,
-        &mut lhat,
-        settings,
-        Some(&smalbe_start),
-        observer,
-    );
+    let a = ProjectedF::new(dual, scale);
+    let problem = smalbe::Problem {
+        precond: precond.as_ref().map(|m| m as &dyn Operator),
+        also_feasible: Some(&balanced),
+        ..smalbe::Problem::new(&a, &b, &lower_bounds, &g)
+    };
+    let (mut info, end) =
+        smalbe::solve(&problem, &mut lhat, settings, Some(&smalbe_start), observer);
     // The power iterations for ||P F P|| are applications of the same F.
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
