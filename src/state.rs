@@ -912,7 +912,7 @@ fn solve_on(
                 &f,
                 &c,
                 problem.n_equality,
-                true,
+                crate::tfeti::classical::Held::Prescribed,
                 &settings,
                 start.as_ref(),
                 observer,

@@ -673,7 +673,7 @@ impl<'a> Sensitivity<'a> {
             &f,
             c,
             self.n_equality,
-            false,
+            crate::tfeti::classical::Held::Zero,
             &solve_settings(tolerance),
             start.as_ref(),
             &mut |_| {},

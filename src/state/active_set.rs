@@ -119,7 +119,7 @@ pub(super) fn solve(
             f,
             &c_kept,
             kept.len(),
-            true,
+            crate::tfeti::classical::Held::Prescribed,
             &settings,
             Some(&from),
             &mut |_| {},

@@ -159,6 +159,16 @@ pub enum DualSystem {
     },
 }
 
+/// What the dofs held by Dirichlet conditions take in a classical FETI solve.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Held {
+    /// Their prescribed values: a state.
+    Prescribed,
+    /// Zero: a derivative or an adjoint problem (the prescribed values do not
+    /// depend on the design).
+    Zero,
+}
+
 impl DualSystem {
     /// The dual of `rows` (equalities first, `n_equality` of them) on the
     /// subdomains of `cluster` (whose own rows are ignored); classical FETI when
@@ -279,8 +289,8 @@ impl DualSystem {
     }
 
     /// Solves `min 1/2 u^T K u - f^T u` s.t. the rows (`B u = c` for the
-    /// equalities, `B u <= c` for the rest); `prescribed`: whether held dofs take
-    /// their Dirichlet values (a state) or zero (a derivative or adjoint problem).
+    /// equalities, `B u <= c` for the rest); `held`: what the dofs held by
+    /// Dirichlet conditions take (classical FETI only).
     /// `lambda` of the solution has one entry per row given to [`DualSystem::new`].
     #[allow(clippy::too_many_arguments)]
     pub fn solve(
@@ -288,7 +298,7 @@ impl DualSystem {
         f: &[&[f64]],
         c: &[f64],
         n_equality: usize,
-        prescribed: bool,
+        held: Held,
         settings: &SmalbeSettings,
         start: Option<&DualStart>,
         observer: &mut dyn FnMut(&QpInfo),
@@ -303,7 +313,10 @@ impl DualSystem {
             return dual_solve_from(self.dual(), f, c, n_equality, settings, start, observer);
         };
         let g = |s: usize, d: usize| -> Option<f64> {
-            elim.held(s, d).map(|v| if prescribed { v } else { 0.0 })
+            elim.held(s, d).map(|v| match held {
+                Held::Prescribed => v,
+                Held::Zero => 0.0,
+            })
         };
         // Right-hand sides with the held values moved over.
         let shifted = |i: usize| -> f64 {
