@@ -25,6 +25,14 @@ use std::time::Instant;
 /// applications of their solves, and the one-sided directions.
 type AdjointGradients = (Vec<Vec<f64>>, Cost, Vec<usize>);
 
+/// A solved adjoint: `w` per subdomain, `nu` per kept row, and the node
+/// shape gradient of `w^T K u` (empty where `w = 0`).
+type Adjoint = (Vec<Vec<f64>>, Vec<f64>, Vec<Vec<f64>>);
+
+/// The reverse pass's node gradients: per adjoint that of `w^T f_bar +
+/// nu^T c_bar`, and that of `f'^T u` (None with gravity).
+type Pullbacks = (Vec<Vec<Vec<f64>>>, Option<Vec<Vec<f64>>>);
+
 /// A direction's explicit derivatives (`u' = 0`, `l' = 0`): what the adjoint
 /// needs besides its solves, from dot products with the velocities.
 struct Explicit {
@@ -166,40 +174,58 @@ impl<'a> Sensitivity<'a> {
                 self.weak()
             )));
         }
+        let starts = self.adjoint_starts(fs.len(), starts);
+        let (solved, cost) = self.adjoint_solves(fs, tolerance, starts.as_deref())?;
+        let ends = self.per_state_row(&solved);
+        let (gu, adjoints) = self.with_shape_gradients(solved);
+        let (pulled, fu) = self.pullbacks(&adjoints, &ends);
+        let (grad, kinked) = self.direction_gradients(fs, &adjoints, &ends, &gu, &pulled, &fu);
+        Ok(((grad, cost, kinked), ends))
+    }
+
+    /// The adjoint solves' starts on the kept rows: `starts` where they fit
+    /// (one per functional, each per state row), else the state's multipliers.
+    fn adjoint_starts(&self, n: usize, starts: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
         let rows = self.state.problem.rows.len();
         // One start per functional, each per state row; without them, the
         // state's multipliers, scaled by the solves (`galerkin_start`): the
         // adjoint of the compliance is the state itself where the rows it
         // holds have no gap, and close to it where they have, and any other
         // functional's solve drops a start no better than zero.
-        let fits = |st: &[Vec<f64>]| st.len() == fs.len() && st.iter().all(|l| l.len() == rows);
+        let fits = |st: &[Vec<f64>]| st.len() == n && st.iter().all(|l| l.len() == rows);
         let state_starts: Vec<Vec<f64>>;
         let starts = if fits(starts) {
             starts
         } else {
-            state_starts = vec![self.state.lambda.clone(); fs.len()];
+            state_starts = vec![self.state.lambda.clone(); n];
             &state_starts
         };
-        let starts: Option<Vec<Vec<f64>>> = fits(starts).then(|| {
+        fits(starts).then(|| {
             starts
                 .iter()
                 .map(|l| self.kept.iter().map(|&r| l[r]).collect())
                 .collect()
-        });
-        let starts = starts.as_deref();
-        let (solved, cost) = self.adjoint_solves(fs, tolerance, starts)?;
-        let mut ends = Vec::with_capacity(fs.len());
-        let solved: Vec<(Vec<Vec<f64>>, Vec<f64>)> = solved
-            .into_iter()
-            .map(|(w, nu)| {
+        })
+    }
+
+    /// The adjoints' multipliers per state row (zero where not kept).
+    fn per_state_row(&self, solved: &[Solved]) -> Vec<Vec<f64>> {
+        let rows = self.state.problem.rows.len();
+        solved
+            .iter()
+            .map(|(_, nu)| {
                 let mut end = vec![0.0; rows];
-                for (&r, v) in self.kept.iter().zip(&nu) {
+                for (&r, v) in self.kept.iter().zip(nu) {
                     end[r] = *v;
                 }
-                ends.push(end);
-                (w, nu)
+                end
             })
-            .collect();
+            .collect()
+    }
+
+    /// The node shape gradient of `u^T K u`, and each adjoint `(w, nu)` with
+    /// that of its `w^T K u`, all in one pass.
+    fn with_shape_gradients(&self, solved: Vec<Solved>) -> (Vec<Vec<f64>>, Vec<Adjoint>) {
         // The node shape gradients of u^T K u and of every w^T K u in one
         // pass; a functional of the geometry alone (J_u = 0, J_l = 0) has
         // w = 0 and needs none.
@@ -220,22 +246,44 @@ impl<'a> Sensitivity<'a> {
             .zip(gws)
             .map(|((w, nu), gw)| (w, nu, gw))
             .collect();
+        (gu, adjoints)
+    }
+
+    /// The reverse pass: per adjoint the node gradient of `w^T f_bar + nu^T
+    /// c_bar` (`nus`: its multipliers per state row), and that of `f'^T u`
+    /// (None with gravity).
+    fn pullbacks(&self, adjoints: &[Adjoint], nus: &[Vec<f64>]) -> Pullbacks {
         // The reverse pass: per functional the node gradient of
         // w^T f_bar + nu^T c_bar (face loads and tape rows), and that of
         // f'^T u for the compliance's explicit part; each direction is then a
         // few dot products with its velocities, whatever m. Gravity's element
         // loads are not on the tape: with gravity, f' per direction.
         let (state, tape) = (self.state, self.tape());
-        let p = &state.problem;
         let gravity = self.scene.gravity.is_some();
-        // The adjoints' multipliers per state row (zero where not kept).
-        let nus = &ends;
         let pulled: Vec<Vec<Vec<f64>>> = adjoints
             .iter()
             .zip(nus)
             .map(|((w, _, _), nu)| tape.pullback(state, w, nu, !gravity))
             .collect();
         let fu = (!gravity).then(|| tape.pullback_loads(state, &state.u));
+        (pulled, fu)
+    }
+
+    /// Each functional's derivative along each design direction (the
+    /// implicit part from the adjoints, the explicit part with `u' = 0`,
+    /// `l' = 0`), and the directions along which contact nodes slide.
+    fn direction_gradients(
+        &self,
+        fs: &[Functional],
+        adjoints: &[Adjoint],
+        nus: &[Vec<f64>],
+        gu: &[Vec<f64>],
+        pulled: &[Vec<Vec<f64>>],
+        fu: &Option<Vec<Vec<f64>>>,
+    ) -> (Vec<Vec<f64>>, Vec<usize>) {
+        let (state, tape) = (self.state, self.tape());
+        let p = &state.problem;
+        let gravity = self.scene.gravity.is_some();
         let m = self.scene.design.len();
         let design = self.scene.design_init();
         let mut grad = vec![vec![0.0; m]; fs.len()];
@@ -269,12 +317,12 @@ impl<'a> Sensitivity<'a> {
             }
             // The explicit part: the derivative with u' = 0 and l' = 0.
             let explicit = Explicit {
-                fu: match (&fu, &fprime) {
+                fu: match (fu, &fprime) {
                     (Some(g), _) => Cluster::dot(g, v),
                     (None, Some(f)) => Cluster::dot(f, &state.u),
                     (None, None) => 0.0,
                 },
-                ukpu: Cluster::dot(&gu, v),
+                ukpu: Cluster::dot(gu, v),
                 scale,
                 secondary,
                 measures: tape.measures(v),
@@ -285,7 +333,7 @@ impl<'a> Sensitivity<'a> {
                 grad[k][i] = ja + implicit[k];
             }
         }
-        Ok(((grad, cost, kinked), ends))
+        (grad, kinked)
     }
 
     /// The adjoint solves of functionals, `(w, nu)` of each, and their cost:
