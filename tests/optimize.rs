@@ -425,7 +425,8 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
             // Its sensitivities solve on the state's own dual and give the
             // gradients of the SMALBE state's (its own dual built), adjoint
             // and semi-analytic alike.
-            use cso::sens::semi::{adjoint_at, semi_analytic_at, Sensitivity};
+            use cso::sens::adjoint::adjoint_at;
+            use cso::sens::semi::{semi_analytic_at, Sensitivity};
             let mut at = s.clone();
             for (d, v) in at.design.iter_mut().zip(x.iter()) {
                 d.init = *v;
