@@ -170,8 +170,7 @@ pub(super) fn solve(
         // Let go of the rows that pull, hold the rows penetrated, as the KKT
         // check measures them.
         let bu = dual.cluster().apply_b(&sol.u);
-        let u_norm = sol.u.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
-        let scale = gap_scale(problem, u_norm);
+        let scale = gap_scale(problem, dual.cluster(), &sol.u);
         let lmax = lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
         let mut changed = false;
         for i in n_eq..m {

@@ -2,7 +2,19 @@
 //! `(u, l)`: equilibrium, equalities, penetration, sign, complementarity, each
 //! relative to a natural scale. A converged dual solve that fails them is a bug
 //! or a scene the dual cannot represent, and the report shows it.
+//!
+//! The scales, so that a solve converged to the tolerance `t` shows each
+//! residual at most about `t`:
+//! - equilibrium: `max(||f||, ||B^T l||)`, the forces that balance;
+//! - the rows (equalities, penetration): `max(||c||, || |B| |u| ||)`, the
+//!   right-hand sides or the displacements the rows compare, whichever is
+//!   larger (`|B| |u|` is row by row `sum_j |b_ij u_j|`, the size of the terms
+//!   whose difference `B u` is). At a zero gap `c = 0` and the residual is
+//!   measured against the displacements, not against `||c|| = 0`;
+//! - sign: `max |l|`;
+//! - complementarity: `max |l|` times the rows' scale.
 
+use super::cluster::Cluster;
 use super::dual::Dual;
 use crate::model::{Problem, RowKind};
 
@@ -15,13 +27,14 @@ fn norm(v: &[f64]) -> f64 {
 pub struct Kkt {
     /// `||K u - f + B^T l|| / max(||f||, ||B^T l||)`.
     pub equilibrium: f64,
-    /// `||B_E u - c_E|| / max(||c||, h ||u||)`: gluing, supports, ties.
+    /// `||B_E u - c_E|| / max(||c||, || |B| |u| ||)`: gluing, supports, ties.
     pub equality: f64,
     /// Largest penetration `max(B_I u - c_I, 0)`, relative like `equality`.
     pub penetration: f64,
     /// Largest negative contact multiplier, relative to `max |l|`.
     pub sign: f64,
-    /// `max |l_i (B_i u - c_i)|` over contact rows, relative to `max |l| * scale`.
+    /// `max |l_i (B_i u - c_i)|` over contact rows, relative to `max |l|` times
+    /// the rows' scale `max(||c||, || |B| |u| ||)`.
     pub complementarity: f64,
 }
 
@@ -40,12 +53,19 @@ impl Kkt {
 }
 
 /// What the rows' residuals `B u - c` are measured against: `max(||c||,
-/// 1e-3 rms(u))` (`u_norm = ||u||`).
-pub fn gap_scale(problem: &Problem, u_norm: f64) -> f64 {
+/// || |B| |u| ||)`, with `(|B| |u|)_i = sum_j |b_ij u_j|`. The rows are of
+/// unit norm, so this is the larger of the right-hand sides and the
+/// displacements the rows compare; round-off in `B u` is relative to it.
+pub fn gap_scale(problem: &Problem, cluster: &Cluster, u: &[Vec<f64>]) -> f64 {
     let c_norm = norm(&problem.rows.iter().map(|r| r.c).collect::<Vec<_>>());
-    c_norm
-        .max(1e-3 * u_norm / (problem.primal_dofs() as f64).sqrt())
-        .max(f64::MIN_POSITIVE)
+    let mut terms = vec![0.0; cluster.multipliers()];
+    for (s, us) in u.iter().enumerate().take(cluster.len()) {
+        let lr = cluster.local_rows(s);
+        for &(k, dof, coef) in &lr.entries {
+            terms[lr.rows[k]] += (coef * us[dof]).abs();
+        }
+    }
+    c_norm.max(norm(&terms)).max(f64::MIN_POSITIVE)
 }
 
 /// KKT residuals of the primal problem at `(u, l)`.
@@ -54,7 +74,7 @@ pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kk
     let ku = cluster.apply_k(u);
     let btl = cluster.apply_bt(lambda);
     let mut eq_res = 0.0;
-    let (mut f2, mut bt2, mut u2) = (0.0, 0.0, 0.0);
+    let (mut f2, mut bt2) = (0.0, 0.0);
     for s in 0..cluster.len() {
         let (ku, btl) = (&ku[s], &btl[s]);
         let f = &problem.subdomains[s].f;
@@ -62,11 +82,10 @@ pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kk
             eq_res += (ku[i] - f[i] + btl[i]).powi(2);
             f2 += f[i] * f[i];
             bt2 += btl[i] * btl[i];
-            u2 += u[s][i] * u[s][i];
         }
     }
     let bu = cluster.apply_b(u);
-    let scale_u = gap_scale(problem, u2.sqrt());
+    let scale_u = gap_scale(problem, cluster, u);
     let lmax = lambda
         .iter()
         .fold(0.0f64, |a, b| a.max(b.abs()))
