@@ -1001,3 +1001,30 @@ fn a_folder_reused_by_another_scene_keeps_no_stale_files_but_the_users() {
     assert!(!dir.join("roller.vtu").exists(), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn optimize_takes_the_preconditioner_and_local_f_like_solve() {
+    let path = scene_replacing(
+        "scont2d.cso",
+        "max_iterations = 30",
+        "max_iterations = 1",
+        "optimize-precond",
+    );
+    let p = path.to_string_lossy().to_string();
+    // The cold state's Hessian applications (iteration 0, `H state`).
+    let h_state = |extra: &[&str]| -> String {
+        let mut args = vec!["-q", "optimize", &p];
+        args.extend_from_slice(extra);
+        let (code, out, err) = cso(&args);
+        assert_eq!(code, 0, "{err}");
+        let row = out.lines().nth(1).expect("iteration 0");
+        row.split_whitespace().nth(5).expect("H state").to_string()
+    };
+    let plain = h_state(&["--preconditioner", "none", "--local-f", "implicit"]);
+    let dirichlet = h_state(&["--preconditioner", "dirichlet", "--local-f", "explicit"]);
+    assert_ne!(
+        plain, dirichlet,
+        "the preconditioner changes the state's iterations"
+    );
+    let _ = std::fs::remove_file(&path);
+}

@@ -146,6 +146,12 @@ pub struct Optimize {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
+    /// Dual preconditioner (default: the scene's `solver { preconditioner }`).
+    #[arg(long, value_enum)]
+    pub preconditioner: Option<Preconditioner>,
+    /// Dense or implicit local F (default: the scene's `solver { local_f }`).
+    #[arg(long, value_enum)]
+    pub local_f: Option<LocalF>,
 }
 
 #[derive(Args, Debug)]

@@ -2,7 +2,7 @@
 //! their speed against accuracy) and `optimize` (MMA, Ctrl-C keeps the best).
 
 use super::args::{Optimize, Sensitivity};
-use super::job::{write_into, Job};
+use super::job::{load, write_into, Job};
 use super::print::{fail, fail_solve, Outcome, Progress, EXIT_INTERRUPTED, EXIT_IO, EXIT_SCENE};
 use cso::io::atomic::write_files;
 use cso::io::tables;
@@ -71,7 +71,14 @@ impl Sensitivity {
 impl Optimize {
     /// MMA iterations with a progress line, then the best design.
     pub fn run(&self, opts: &CheckOptions) -> Outcome {
-        let job = Job::load(&self.file, opts, self.out.as_deref(), self.threads)?;
+        let mut scene = load(&self.file, opts)?;
+        if let Some(p) = self.preconditioner {
+            scene.solver.preconditioner = p;
+        }
+        if let Some(l) = self.local_f {
+            scene.solver.local_f = l;
+        }
+        let job = Job::new(scene, self.out.as_deref(), self.threads)?;
         let scene = &job.scene;
         // Ctrl-C: finish the current design, then stop with the best one written
         // and exit with EXIT_INTERRUPTED. Without a handler (one is already set)
