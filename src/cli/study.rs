@@ -134,8 +134,9 @@ impl Tolerance {
                 }
                 bar.update(|| {
                     format!(
-                        "{:?} {:?} at {:.0e}",
-                        r.method, r.preconditioner, r.tolerance
+                        "{} at {:.0e}",
+                        tolerance::config(r.method, r.preconditioner),
+                        r.tolerance
                     )
                 });
                 outln!("{}", run_row(r));

@@ -231,8 +231,9 @@ pub fn study(
     })
 }
 
-/// `tfeti` / `feti` and the preconditioner, as the CLI spells them.
-fn config(method: SolverMethod, p: Preconditioner) -> String {
+/// `TFETI, dirichlet`: a run's method and preconditioner as the tables and
+/// the progress lines name them.
+pub fn config(method: SolverMethod, p: Preconditioner) -> String {
     let m = match method {
         SolverMethod::Tfeti => "TFETI",
         SolverMethod::Feti => "FETI",
