@@ -1028,3 +1028,44 @@ fn optimize_takes_the_preconditioner_and_local_f_like_solve() {
     );
     let _ = std::fs::remove_file(&path);
 }
+
+#[test]
+fn chart_titles_carry_no_markdown() {
+    // SVG text is shown as written: a Markdown backtick would show as one.
+    let dir = std::env::temp_dir().join(format!("cso-titles-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let path = scene_replacing(
+        "scont2d.cso",
+        "max_iterations = 30",
+        "max_iterations = 1",
+        "titles",
+    );
+    let d = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&["-q", "optimize", &path.to_string_lossy(), "-o", &d]);
+    assert_eq!(code, 0, "{err}");
+    let (code, _, err) = cso(&[
+        "-q",
+        "solve",
+        "examples/hertz2d.cso",
+        "-o",
+        &format!("{d}/solve"),
+    ]);
+    assert_eq!(code, 0, "{err}");
+    let mut svgs = 0;
+    let mut pending = vec![dir.clone()];
+    while let Some(folder) = pending.pop() {
+        for entry in std::fs::read_dir(&folder).expect("folder") {
+            let p = entry.expect("entry").path();
+            if p.is_dir() {
+                pending.push(p);
+            } else if p.extension().is_some_and(|e| e == "svg") {
+                let svg = std::fs::read_to_string(&p).expect("svg");
+                assert!(!svg.contains('`'), "{} has a backtick", p.display());
+                svgs += 1;
+            }
+        }
+    }
+    assert!(svgs >= 4, "{svgs} charts");
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&path);
+}

@@ -282,7 +282,7 @@ fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()>
                 .map(|(n, (x, y))| Series { name: n, x, y })
                 .collect();
             let svg = line_chart(
-                &format!("{}: {face} face of `{}`{section}", scene.name, body.name),
+                &format!("{}: {face} face of {}{section}", scene.name, body.name),
                 "x (m)",
                 "height (m)",
                 &series,

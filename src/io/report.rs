@@ -750,7 +750,7 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
         xy.sort_by(|a, b| a.0.total_cmp(&b.0));
         let (x, y): (Vec<f64>, Vec<f64>) = xy.into_iter().unzip();
         let svg = line_chart(
-            &format!("{}: contact pressure along `{}`", scene.name, c.name),
+            &format!("{}: contact pressure along {}", scene.name, c.name),
             xlabel,
             "pressure (Pa)",
             &[Series {
