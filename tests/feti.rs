@@ -68,8 +68,8 @@ fn feti_sensitivities_equal_tfeti_sensitivities() {
             let mut s = scene.clone();
             s.solver.method = method;
             s.solver.tolerance = 1e-10;
-            let semi = cso::sens::semi_analytic(&s, 1e-10).expect("semi-analytic");
-            let adj = cso::sens::adjoint(&s, 1e-10).expect("adjoint");
+            let semi = crate::fixture::semi_analytic(&s, 1e-10).expect("semi-analytic");
+            let adj = crate::fixture::adjoint(&s, 1e-10).expect("adjoint");
             grads.push((semi.gradient, adj.gradient));
         }
         let (t, f) = (&grads[0], &grads[1]);

@@ -4,7 +4,9 @@
 //! scene.
 
 use crate::{options, root};
+use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
+use cso::sens::{Gradient, GradientError, GradientOptions};
 
 /// The text of `examples/NAME.cso`.
 pub fn example_src(name: &str) -> String {
@@ -48,4 +50,50 @@ fn an_edit_that_matches_nothing_fails() {
     assert_eq!("mesh = 4 x 2".edit("4 x 2", "8 x 4"), "mesh = 8 x 4");
     let missed = std::panic::catch_unwind(|| "mesh = 4 x 2".edit("5 x 2", "8 x 4"));
     assert!(missed.is_err());
+}
+
+/// A gradient by `method` after a cold serial state solve, with the scene's
+/// step and scheme and the exact methods' solves to `tolerance`.
+fn gradient_by(
+    s: &Scene,
+    method: cso::lang::scene::SensitivityMethod,
+    options: GradientOptions,
+) -> Result<Gradient, GradientError> {
+    cso::sens::solve_gradient(s, method, &options)
+}
+
+/// The semi-analytic gradient, its solves to `tolerance`.
+pub fn semi_analytic(s: &Scene, tolerance: f64) -> Result<Gradient, GradientError> {
+    let options = GradientOptions {
+        tolerance,
+        ..GradientOptions::of(s)
+    };
+    gradient_by(
+        s,
+        cso::lang::scene::SensitivityMethod::SemiAnalytic,
+        options,
+    )
+}
+
+/// The adjoint gradient, its solves to `tolerance`.
+pub fn adjoint(s: &Scene, tolerance: f64) -> Result<Gradient, GradientError> {
+    let options = GradientOptions {
+        tolerance,
+        ..GradientOptions::of(s)
+    };
+    gradient_by(s, cso::lang::scene::SensitivityMethod::Adjoint, options)
+}
+
+/// The finite-difference gradient with step `h` and `scheme`.
+pub fn finite_difference(s: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, GradientError> {
+    let options = GradientOptions {
+        step: h,
+        scheme,
+        ..GradientOptions::of(s)
+    };
+    gradient_by(
+        s,
+        cso::lang::scene::SensitivityMethod::FiniteDifference,
+        options,
+    )
 }

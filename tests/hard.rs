@@ -396,7 +396,7 @@ fn hard_design_perturbation_opens_contacts_and_sensitivities_say_so() {
     println!("opens: seat nodes carrying force {seat0} at c, {seat1} at c + 1e-3");
 
     // Semi-analytic: one-sided, naming the weak contacts.
-    let semi = cso::sens::semi_analytic(&s, 1e-10).expect("semi-analytic runs");
+    let semi = crate::fixture::semi_analytic(&s, 1e-10).expect("semi-analytic runs");
     assert!(
         semi.method.contains("one-sided") && semi.method.contains("weak"),
         "{}",
@@ -409,7 +409,7 @@ fn hard_design_perturbation_opens_contacts_and_sensitivities_say_so() {
         semi.method, semi.strong, semi.weak
     );
     // The adjoint refuses: the gradient does not exist.
-    match cso::sens::adjoint(&s, 1e-10) {
+    match crate::fixture::adjoint(&s, 1e-10) {
         Err(e) => {
             assert!(e.to_string().contains("weak contacts"), "{e}");
             println!("opens: adjoint refused: {e}");
@@ -419,15 +419,15 @@ fn hard_design_perturbation_opens_contacts_and_sensitivities_say_so() {
 
     // Finite differences flag the active-set changes: with a tiny step only g's
     // backward run (pb pressed into post); with h = 1e-3 also c's forward run.
-    let tiny = cso::sens::finite_difference(&s, 1e-6, Scheme::Central).expect("FD runs");
+    let tiny = crate::fixture::finite_difference(&s, 1e-6, Scheme::Central).expect("FD runs");
     assert_eq!(tiny.active_set_changed, vec!["g".to_string()]);
-    let forward = cso::sens::finite_difference(&s, 1e-6, Scheme::Forward).expect("FD runs");
+    let forward = crate::fixture::finite_difference(&s, 1e-6, Scheme::Forward).expect("FD runs");
     assert!(
         forward.active_set_changed.is_empty(),
         "lifting pb opens weak contacts only: {:?}",
         forward.active_set_changed
     );
-    let big = cso::sens::finite_difference(&s, 1e-3, Scheme::Central).expect("FD runs");
+    let big = crate::fixture::finite_difference(&s, 1e-3, Scheme::Central).expect("FD runs");
     assert_eq!(
         big.active_set_changed,
         vec!["c".to_string(), "g".to_string()]

@@ -137,8 +137,8 @@ fn bbar_shape_sensitivities_agree_with_central_differences_in_2d() {
     let mut s = scene(&TWO_BLOCKS_DESIGN.edit("nu = 0.3", "nu = 0.4999"));
     assert!(formulations(&s).iter().all(|&f| f == Formulation::Bbar));
     s.solver.tolerance = 1e-11;
-    let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
-    let adjoint = cso::sens::adjoint(&s, 1e-11).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
+    let adjoint = crate::fixture::adjoint(&s, 1e-11).expect("solves");
     assert_agree(&semi, &adjoint, 1e-8);
     let fd = central_differences(&mut s);
     assert_agree(&semi, &fd, 1e-5);
@@ -148,7 +148,7 @@ fn bbar_shape_sensitivities_agree_with_central_differences_in_2d() {
 fn bbar_shape_sensitivities_agree_with_central_differences_in_3d() {
     let mut s = scene(&example_src("punch3d").edit("nu = 0.3", "nu = 0.4999"));
     s.solver.tolerance = 1e-10;
-    let semi = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     let fd = central_differences(&mut s);
     assert_agree(&semi, &fd, 1e-5);
 }

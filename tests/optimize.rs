@@ -287,7 +287,8 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
     );
     // The adjoint solves at x1 started from the adjoints at x0: the same
     // gradient to the tolerance, for fewer Hessian applications.
-    use cso::sens::adjoint_at_from;
+    use cso::lang::scene::SensitivityMethod::{Adjoint, SemiAnalytic};
+    use cso::sens::{gradient, GradientOptions};
     let at = |x: &[f64]| {
         let mut scene = s.clone();
         for (d, v) in scene.design.iter_mut().zip(x) {
@@ -295,12 +296,14 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
         }
         scene
     };
-    let now = std::time::Instant::now();
-    let tol = s.solver.tolerance;
-    let (_, adjoints) = adjoint_at_from(&at(&x0), &first, tol, now, &[]).expect("adjoint");
+    let cold_start = GradientOptions::of(&s);
+    let from = |warm| GradientOptions { warm, ..cold_start };
+    let adjoints = gradient(&at(&x0), &first, Adjoint, &cold_start)
+        .expect("adjoint")
+        .warm;
     let s1 = at(&x1);
-    let (g_cold, _) = adjoint_at_from(&s1, &warm, tol, now, &[]).expect("adjoint");
-    let (g_warm, _) = adjoint_at_from(&s1, &warm, tol, now, &adjoints).expect("adjoint");
+    let g_cold = gradient(&s1, &warm, Adjoint, &cold_start).expect("adjoint");
+    let g_warm = gradient(&s1, &warm, Adjoint, &from(&adjoints)).expect("adjoint");
     for (a, b) in g_cold.gradient.iter().zip(&g_warm.gradient) {
         let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (p, q) in a.iter().zip(b) {
@@ -314,10 +317,11 @@ fn the_large_scene_moves_few_of_its_subdomains_and_refactors_only_those() {
         g_cold.hessian_applications
     );
     // The same for the semi-analytic directions' block solve.
-    use cso::sens::semi_analytic_at_from;
-    let (_, dirs) = semi_analytic_at_from(&at(&x0), &first, tol, now, &[]).expect("semi");
-    let (d_cold, _) = semi_analytic_at_from(&s1, &warm, tol, now, &[]).expect("semi");
-    let (d_warm, _) = semi_analytic_at_from(&s1, &warm, tol, now, &dirs).expect("semi");
+    let dirs = gradient(&at(&x0), &first, SemiAnalytic, &cold_start)
+        .expect("semi")
+        .warm;
+    let d_cold = gradient(&s1, &warm, SemiAnalytic, &cold_start).expect("semi");
+    let d_warm = gradient(&s1, &warm, SemiAnalytic, &from(&dirs)).expect("semi");
     for (a, b) in d_cold.gradient.iter().zip(&d_warm.gradient) {
         let scale = a.iter().fold(0.0f64, |m, v| m.max(v.abs()));
         for (p, q) in a.iter().zip(b) {
@@ -425,8 +429,8 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
             // Its sensitivities solve on the state's own dual and give the
             // gradients of the SMALBE state's (its own dual built), adjoint
             // and semi-analytic alike.
-            use cso::sens::adjoint::adjoint_at;
-            use cso::sens::semi::{semi_analytic_at, Sensitivity};
+            use cso::lang::scene::SensitivityMethod::{Adjoint, SemiAnalytic};
+            use cso::sens::{gradient, GradientOptions, Sensitivity};
             let mut at = s.clone();
             for (d, v) in at.design.iter_mut().zip(x.iter()) {
                 d.init = *v;
@@ -437,15 +441,18 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
             assert!(!Sensitivity::new(&at, &smalbe)
                 .expect("sets up")
                 .shares_state_dual());
-            let now = std::time::Instant::now();
+            let options = GradientOptions {
+                tolerance: tol,
+                ..GradientOptions::of(&at)
+            };
             let pairs = [
                 (
-                    adjoint_at(&at, &warm, tol, now).expect("adjoint"),
-                    adjoint_at(&at, &smalbe, tol, now).expect("adjoint"),
+                    gradient(&at, &warm, Adjoint, &options).expect("adjoint"),
+                    gradient(&at, &smalbe, Adjoint, &options).expect("adjoint"),
                 ),
                 (
-                    semi_analytic_at(&at, &warm, tol, now).expect("semi"),
-                    semi_analytic_at(&at, &smalbe, tol, now).expect("semi"),
+                    gradient(&at, &warm, SemiAnalytic, &options).expect("semi"),
+                    gradient(&at, &smalbe, SemiAnalytic, &options).expect("semi"),
                 ),
             ];
             for (a, b) in pairs {

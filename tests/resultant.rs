@@ -148,8 +148,8 @@ fn contact_force_gradients_on_curved_primaries_agree_across_methods() {
             c.normal_force_sum,
             c.total_force
         );
-        let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
-        let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+        let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
+        let adj = crate::fixture::adjoint(&s, 1e-11).expect("solves");
         assert_eq!(
             semi.method, "semi_analytic",
             "{}: no weak contacts, no kinks",

@@ -1,11 +1,12 @@
 //! Sensitivity building blocks: exact geometric derivatives by dual numbers and
 //! the finite-difference baseline.
 
+use crate::fixture::finite_difference;
 use crate::fixture::Edit;
 use crate::{options, root};
 use cso::lang::compile;
 use cso::lang::scene::Scheme;
-use cso::sens::{body_area, finite_difference, Gradient, GradientError};
+use cso::sens::{body_area, Gradient, GradientError};
 use num_dual::Dual64;
 
 fn scont2d() -> cso::lang::Scene {
@@ -98,7 +99,7 @@ fn finite_differences_of_compliance_are_consistent_and_symmetric() {
 fn semi_analytic_gradient_agrees_with_central_differences() {
     let mut s = scont2d();
     s.solver.tolerance = 1e-10;
-    let exact = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let exact = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("solves");
     assert!(fd.active_set_changed.is_empty());
     assert_eq!(exact.method, "semi_analytic", "no weak contacts on scont2d");
@@ -144,7 +145,7 @@ subject to pressure_norm(seat, 4) <= 100
 fn semi_analytic_agrees_with_differences_on_two_blocks_for_every_functional_kind() {
     let mut s = compile(TWO_BLOCKS_DESIGN, &options()).expect("checks");
     s.solver.tolerance = 1e-10;
-    let exact = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let exact = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     // Central differences at h = 1e-6 carry the solves' error over h: at 1e-10
     // up to 1.2e-5 of d(centre.uy)/dc, once SMALBE stopped over-solving its
     // inner problems (issue 15 item 5; 2.6e-6 before); at 1e-12, 8e-8. The
@@ -214,7 +215,7 @@ contact seat { primary = base.top, secondary = punch.bottom }
 minimize area(punch)
 ";
     let s = compile(src, &options()).expect("checks");
-    let g = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let g = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     assert!(g.method.contains("one-sided"), "{}", g.method);
 }
 
@@ -228,11 +229,11 @@ fn matching_meshes_make_sliding_derivatives_one_sided() {
         "x = 0 .. 3, y = 0 .. 1, mesh = 24 x 8",
     );
     let s = compile(&src, &options()).expect("checks");
-    let g = cso::sens::semi_analytic(&s, 1e-8).expect("solves");
+    let g = crate::fixture::semi_analytic(&s, 1e-8).expect("solves");
     assert!(g.method.contains("one-sided along w"), "{}", g.method);
     assert!(!g.method.contains("c,"), "{}", g.method);
     // The adjoint says the same, never presenting it as a gradient.
-    let g = cso::sens::adjoint(&s, 1e-8).expect("solves");
+    let g = crate::fixture::adjoint(&s, 1e-8).expect("solves");
     assert!(
         g.method.starts_with("adjoint (one-sided along w"),
         "{}",
@@ -248,8 +249,8 @@ fn adjoint_and_semi_analytic_agree_to_1e_8() {
     ] {
         let mut s = compile(&src, &options()).expect("checks");
         s.solver.tolerance = 1e-11;
-        let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
-        let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+        let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
+        let adj = crate::fixture::adjoint(&s, 1e-11).expect("solves");
         for k in 0..semi.functionals.len() {
             let scale = semi.gradient[k]
                 .iter()
@@ -338,8 +339,8 @@ pub(crate) fn central_differences(s: &mut cso::lang::Scene) -> Gradient {
 fn adjoint_agrees_with_semi_analytic_and_differences_with_gravity_and_a_moving_obstacle() {
     let mut s = compile(BLOCK_ON_A_MOVING_FLOOR, &options()).expect("checks");
     s.solver.tolerance = 1e-11;
-    let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
-    let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
+    let adj = crate::fixture::adjoint(&s, 1e-11).expect("solves");
     let fd = central_differences(&mut s);
     assert_eq!(adj.weak, 0);
     assert!(adj.strong > 0, "the block rests on the floor");
@@ -366,7 +367,7 @@ contact seat { primary = base.top, secondary = punch.bottom }
 minimize area(punch)
 ";
     let s = compile(src, &options()).expect("checks");
-    match cso::sens::adjoint(&s, 1e-10) {
+    match crate::fixture::adjoint(&s, 1e-10) {
         Err(e) => assert!(e.to_string().contains("weak contacts"), "{e}"),
         Ok(g) => panic!("a gradient was reported: {:?}", g.gradient),
     }
@@ -707,4 +708,36 @@ fn a_start_that_is_round_off_in_im_p_is_not_blown_up() {
             );
         }
     }
+}
+
+#[test]
+fn finite_differences_about_a_warm_state_difference_cold_solves() {
+    // The perturbed solves start cold; a base that started warm would add the
+    // two paths' difference to every quotient, so it is solved again cold.
+    use cso::lang::scene::SensitivityMethod::FiniteDifference;
+    use cso::sens::{gradient, GradientOptions};
+    use cso::state::{solve, solve_with, SolveOptions, WarmStart};
+    let s = scont2d();
+    let x0 = s.design_init();
+    let cold = solve(&s, &x0, &mut |_| {}).expect("solves");
+    let near: Vec<f64> = s
+        .design
+        .iter()
+        .zip(&x0)
+        .map(|(d, x)| x + 0.01 * (d.upper - d.lower))
+        .collect();
+    let previous = solve(&s, &near, &mut |_| {}).expect("solves");
+    let options = SolveOptions::from(&previous, WarmStart::default());
+    let warm = solve_with(&s, &x0, &options, &mut |_| {}).expect("solves");
+    assert!(warm.warm_started, "the state at x0 started from x0 + dx");
+    assert_ne!(cold.lambda, warm.lambda, "the two solves' paths differ");
+    let forward = GradientOptions {
+        step: 1e-6,
+        scheme: Scheme::Forward,
+        ..GradientOptions::of(&s)
+    };
+    let about_cold = gradient(&s, &cold, FiniteDifference, &forward).expect("differences");
+    let about_warm = gradient(&s, &warm, FiniteDifference, &forward).expect("differences");
+    assert_eq!(about_cold.values, about_warm.values);
+    assert_eq!(about_cold.gradient, about_warm.gradient);
 }

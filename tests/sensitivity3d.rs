@@ -3,6 +3,7 @@
 //! against central differences of an exact sparse solve of the same discrete
 //! problem (no TFETI, no tolerance); the exact volume derivative; weak contacts.
 
+use crate::fixture::finite_difference;
 use crate::fixture::Edit;
 use crate::reference::{assemble, sparse_reference_solve};
 use crate::sensitivity::{
@@ -12,7 +13,7 @@ use crate::{options, root};
 use cso::lang::compile;
 use cso::lang::scene::{Leaf, Scheme};
 use cso::model::lower;
-use cso::sens::{body_volume, finite_difference};
+use cso::sens::body_volume;
 use num_dual::Dual64;
 
 /// examples/punch3d.cso: a punch with a curved bottom (curvature `c`, width
@@ -30,8 +31,8 @@ fn scene(tolerance: f64) -> cso::lang::Scene {
 #[test]
 fn adjoint_and_semi_analytic_agree_to_1e_8_in_3d() {
     let s = scene(1e-11);
-    let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
-    let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
+    let adj = crate::fixture::adjoint(&s, 1e-11).expect("solves");
     assert_eq!(semi.method, "semi_analytic", "no weak contacts, no kinks");
     assert_eq!(semi.weak, 0);
     assert!(semi.strong > 0);
@@ -41,7 +42,7 @@ fn adjoint_and_semi_analytic_agree_to_1e_8_in_3d() {
 #[test]
 fn semi_analytic_3d_agrees_with_central_differences_for_every_functional_kind() {
     let s = scene(1e-10);
-    let semi = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     let fd = finite_difference(&s, 1e-6, Scheme::Central).expect("solves");
     assert!(
         fd.active_set_changed.is_empty(),
@@ -125,10 +126,10 @@ contact seat { primary = base.top, secondary = punch.bottom }
 minimize volume(punch)
 ";
     let s = compile(src, &options()).expect("checks");
-    let g = cso::sens::semi_analytic(&s, 1e-10).expect("solves");
+    let g = crate::fixture::semi_analytic(&s, 1e-10).expect("solves");
     assert!(g.method.contains("one-sided"), "{}", g.method);
     assert!(g.weak > 0);
-    let Err(e) = cso::sens::adjoint(&s, 1e-10) else {
+    let Err(e) = crate::fixture::adjoint(&s, 1e-10) else {
         panic!("the adjoint must refuse weak contacts");
     };
     assert!(e.to_string().contains("weak contacts"), "{e}");
@@ -191,12 +192,12 @@ subject to contact_force(seat) <= 1000
 ";
     let mut s = compile(src, &options()).expect("checks");
     s.solver.tolerance = 1e-11;
-    let semi = cso::sens::semi_analytic(&s, 1e-11).expect("solves");
+    let semi = crate::fixture::semi_analytic(&s, 1e-11).expect("solves");
     assert_eq!(
         semi.method, "semi_analytic",
         "no kink: the nodes stay over the edges"
     );
-    let adj = cso::sens::adjoint(&s, 1e-11).expect("solves");
+    let adj = crate::fixture::adjoint(&s, 1e-11).expect("solves");
     // Central differences at h = 1e-6 carry the solves' error over h: at 1e-10
     // 3.7e-5 of d(contact force)/dk, once SMALBE stopped over-solving its inner
     // problems (issue 15 item 5; 7e-6 before); at 1e-12, 8e-8. The

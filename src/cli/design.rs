@@ -7,6 +7,7 @@ use super::print::{fail, fail_solve, Outcome, Progress, EXIT_INTERRUPTED, EXIT_I
 use cso::io::atomic::write_files;
 use cso::io::tables;
 use cso::lang::CheckOptions;
+use cso::sens::{solve_gradient, GradientOptions};
 use cso::studies::output;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
@@ -24,10 +25,14 @@ impl Sensitivity {
             return Err(fail(EXIT_SCENE, msg));
         }
         let method = self.method.unwrap_or(scene.sensitivity.method);
-        let h = self.step.unwrap_or(scene.sensitivity.step);
-        let scheme = self.scheme.unwrap_or(scene.sensitivity.scheme);
+        let defaults = GradientOptions::of(scene);
+        let options = GradientOptions {
+            step: self.step.unwrap_or(defaults.step),
+            scheme: self.scheme.unwrap_or(defaults.scheme),
+            ..defaults
+        };
         let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
-        let g = job.run(bar, |_| cso::sens::gradient(scene, method, h, scheme));
+        let g = job.run(bar, |_| solve_gradient(scene, method, &options));
         let g = g.map_err(|e| match e {
             // A bad `--step` is a usage error, not the scene's.
             cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),

@@ -18,7 +18,7 @@
 pub mod mma;
 
 use crate::lang::expr::Formula;
-use crate::lang::scene::{Functional, Leaf, Scene, SensitivityMethod};
+use crate::lang::scene::{Functional, Leaf, Scene};
 use crate::sens::{Eval, Gradient, GradientError};
 use crate::state::{SolveError, State, WarmStart};
 use mma::{kkt_residual, Mma, MmaSettings};
@@ -144,16 +144,14 @@ impl Default for Reuse {
 }
 
 /// The state at the scene's design (reusing `previous` as allowed) and its
-/// gradient; with adjoint gradients also the adjoints' multipliers (per
-/// functional and row), from which the next design's adjoint solves start
-/// when `adjoints` are given and `reuse` says so.
+/// gradient, whose exact solves start from `warm` (the previous design's
+/// [`Gradient::warm`]) when `reuse` says so.
 fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
-    adjoints: &[Vec<f64>],
+    warm: &[Vec<f64>],
     reuse: Reuse,
-) -> Result<(State, Gradient, Vec<Vec<f64>>), GradientError> {
-    let t0 = Instant::now();
+) -> Result<(State, Gradient), GradientError> {
     let design = scene.design_init();
     let state = match previous {
         Some(prev) => {
@@ -165,25 +163,12 @@ fn state_and_gradient(
         }
         _ => crate::state::solve(scene, &design, &mut |_| {})?,
     };
-    let (g, adjoints) = match scene.sensitivity.method {
-        SensitivityMethod::FiniteDifference => (
-            crate::sens::finite_difference(
-                scene,
-                scene.sensitivity.step,
-                scene.sensitivity.scheme,
-            )?,
-            Vec::new(),
-        ),
-        SensitivityMethod::Adjoint => {
-            let starts = if reuse.warm_adjoint { adjoints } else { &[] };
-            crate::sens::adjoint_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
-        }
-        SensitivityMethod::SemiAnalytic => {
-            let starts = if reuse.warm_adjoint { adjoints } else { &[] };
-            crate::sens::semi_analytic_at_from(scene, &state, scene.solver.tolerance, t0, starts)?
-        }
+    let options = crate::sens::GradientOptions {
+        warm: if reuse.warm_adjoint { warm } else { &[] },
+        ..crate::sens::GradientOptions::of(scene)
     };
-    Ok((state, g, adjoints))
+    let g = crate::sens::gradient(scene, &state, scene.sensitivity.method, &options)?;
+    Ok((state, g))
 }
 
 /// Runs MMA on the scene's design problem. `observer` sees every iterate with its
@@ -237,12 +222,13 @@ pub fn optimize_with(
     let mut last_multipliers: Vec<f64> = Vec::new();
     let mut termination = Termination::MaxIterations;
     let mut previous: Option<State> = None;
-    let mut last_adjoints: Vec<Vec<f64>> = Vec::new();
+    let mut history_warm: Option<Vec<Vec<f64>>> = None;
     for k in 0..scene.optimize.max_iterations.max(1) {
         let t = Instant::now();
         let current = with_design(&frozen, &x);
-        let (state, g, adjoints) =
-            match state_and_gradient(&current, previous.as_ref(), &last_adjoints, reuse) {
+        let last_warm = history_warm.take().unwrap_or_default();
+        let (state, mut g) =
+            match state_and_gradient(&current, previous.as_ref(), &last_warm, reuse) {
                 Ok(r) => r,
                 Err(e) if k > 0 => {
                     // Step back halfway towards the last good design, a few times.
@@ -327,7 +313,7 @@ pub fn optimize_with(
         };
         let keep_going = observer(&it, &state);
         previous = Some(state);
-        last_adjoints = adjoints;
+        history_warm = Some(std::mem::take(&mut g.warm));
         history.push(it);
         if feasible && best.is_none_or(|b| f0 < history[b].objective) {
             best = Some(history.len() - 1);

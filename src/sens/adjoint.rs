@@ -487,36 +487,19 @@ fn adjoint_preconditioner(scene: &Scene) -> Option<Kind> {
     crate::state::preconditioner(scene).or(Some(Kind::Lumped))
 }
 
-/// The adjoint gradient of the objective and constraints (as `g <= 0`): one dual
-/// solve per functional, whatever the number of design variables.
-pub fn adjoint(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
-    let t0 = Instant::now();
-    let design = scene.design_init();
-    let state = crate::state::solve(scene, &design, &mut |_| {})?;
-    adjoint_at(scene, &state, tolerance, t0)
-}
-
-/// [`adjoint`] on an already solved state (at the scene's `design_init`).
-pub fn adjoint_at(
+/// The adjoint gradient of the objective and constraints (as `g <= 0`) on
+/// `state`, solved at the scene's `design_init`: one dual solve per functional,
+/// whatever the number of design variables, to relative `tolerance`, each
+/// started from `warm`'s column where given (the adjoint multipliers of a
+/// nearby design, per functional and state row, as [`super::Gradient::warm`]
+/// returns them).
+pub(super) fn gradient(
     scene: &Scene,
     state: &State,
     tolerance: f64,
-    t0: Instant,
+    warm: &[Vec<f64>],
 ) -> Result<super::Gradient, SolveError> {
-    Ok(adjoint_at_from(scene, state, tolerance, t0, &[])?.0)
-}
-
-/// [`adjoint_at`] with the adjoint solves started from `starts` (the adjoint
-/// multipliers of a nearby design, per functional and state row, as returned
-/// here with the gradient): a warm start between optimization steps.
-pub fn adjoint_at_from(
-    scene: &Scene,
-    state: &State,
-    tolerance: f64,
-    t0: Instant,
-    starts: &[Vec<f64>],
-) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
-    let state_seconds = t0.elapsed().as_secs_f64();
+    let t0 = Instant::now();
     let design = scene.design_init();
     // A few columns: Dirichlet (where the scene asks for it) by the
     // per-application rule.
@@ -534,7 +517,7 @@ pub fn adjoint_at_from(
         initial: None,
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
-    let ((gradient, cost, kinked), ends) = sens.adjoint_all_from(&rows, tolerance, starts)?;
+    let ((gradient, cost, kinked), ends) = sens.adjoint_all_from(&rows, tolerance, warm)?;
     let method = if kinked.is_empty() {
         "adjoint".to_string()
     } else {
@@ -553,12 +536,13 @@ pub fn adjoint_at_from(
         solves: 1,
         hessian_applications: state.info.hessian_applications + cost.products,
         f_passes: state.info.hessian_applications + cost.passes,
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds: state.times.total + t0.elapsed().as_secs_f64(),
         state_hessian_applications: state.info.hessian_applications,
-        state_seconds,
+        state_seconds: state.times.total,
         active_set_changed: Vec::new(),
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
+        warm: ends,
     };
-    Ok((gradient, ends))
+    Ok(gradient)
 }

@@ -106,6 +106,12 @@ pub struct Gradient {
     /// Strong (force > 0) and weak (closed, no force) contact nodes at the design.
     pub strong: usize,
     pub weak: usize,
+    /// What the same method at a nearby design can start from (see
+    /// [`super::GradientOptions::warm`]): the multiplier derivatives per design
+    /// direction (semi-analytic) or the adjoint multipliers per functional
+    /// (adjoint); empty for finite differences.
+    #[serde(skip)]
+    pub warm: Vec<Vec<f64>>,
 }
 
 fn active_set(state: &State) -> Vec<bool> {
@@ -115,25 +121,41 @@ fn active_set(state: &State) -> Vec<bool> {
         .collect()
 }
 
-/// Gradient by finite differences with step `h` (absolute) and the scheme.
+/// Gradient by finite differences with step `h` (absolute) and the scheme,
+/// about `state` (solved at the scene's `design_init`). The perturbed solves
+/// start cold, so a base that started warm (from a nearby design) is solved
+/// again cold: a difference quotient of two solves started differently would
+/// carry their paths' difference, `O(tol / h)`, for nothing.
+///
 /// A step that is not positive and finite is refused before any solve; a
 /// perturbed solve that fails is reported as the step's fault
 /// ([`GradientError::Perturbed`]), since the design itself solved.
-pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, GradientError> {
+pub(super) fn gradient(
+    scene: &Scene,
+    state: &State,
+    h: f64,
+    scheme: Scheme,
+) -> Result<Gradient, GradientError> {
     check_step(h)?;
     let t0 = Instant::now();
     let design = scene.design_init();
-    let base = solve(scene, &design, &mut |_| {})?;
-    let state_seconds = t0.elapsed().as_secs_f64();
+    let resolved;
+    let base = if state.warm_started || state.on_active_set {
+        resolved = solve(scene, &design, &mut |_| {})?;
+        &resolved
+    } else {
+        state
+    };
+    let state_seconds = base.times.total;
     let base_eval = Eval {
         scene,
         design: &design,
-        state: &base,
+        state: base,
         initial: None,
     };
     let named = base_eval.all();
     let values: Vec<f64> = named.iter().map(|(_, v)| *v).collect();
-    let base_active = active_set(&base);
+    let base_active = active_set(base);
     let mut gradient = vec![vec![0.0; design.len()]; named.len()];
     let mut solves = 1;
     let mut hessian = base.info.hessian_applications;
@@ -144,7 +166,7 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
             d[i] += shift;
             // Subdomains the step does not move keep the base's factorization;
             // the others refactor on its symbolic one.
-            let from_base = SolveOptions::from(&base, WarmStart::OFF);
+            let from_base = SolveOptions::from(base, WarmStart::OFF);
             let st = solve_with(scene, &d, &from_base, &mut |_| {}).map_err(|error| {
                 let var = &scene.design[i];
                 GradientError::Perturbed {
@@ -159,7 +181,7 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
                 scene,
                 design: &d,
                 state: &st,
-                initial: Some((&base, &design)),
+                initial: Some((base, &design)),
             }
             .all()
             .into_iter()
@@ -218,14 +240,15 @@ pub fn finite_difference(scene: &Scene, h: f64, scheme: Scheme) -> Result<Gradie
         solves,
         hessian_applications: hessian,
         f_passes: hessian,
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds: state.times.total + t0.elapsed().as_secs_f64(),
         state_hessian_applications: base.info.hessian_applications,
         state_seconds,
         active_set_changed: changed,
         strong: base_active.iter().filter(|a| **a).count(),
-        weak: super::semi::classify(&base)
+        weak: super::semi::classify(base)
             .iter()
             .filter(|c| **c == super::semi::Class::Weak)
             .count(),
+        warm: Vec::new(),
     })
 }

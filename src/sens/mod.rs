@@ -18,25 +18,80 @@ pub mod functional;
 pub mod semi;
 mod tape;
 
-pub use adjoint::{adjoint, adjoint_at, adjoint_at_from};
-pub use fd::{check_step, finite_difference, Gradient, GradientError};
+pub use fd::{check_step, Gradient, GradientError};
 pub use functional::{body_area, body_measure, body_volume, Eval};
-pub use semi::{semi_analytic, semi_analytic_at, semi_analytic_at_from, Sensitivity};
+pub use semi::Sensitivity;
 
 use crate::lang::scene::{Scene, Scheme, SensitivityMethod};
+use crate::state::State;
 
-/// The gradient of the scene's functionals at its initial design by `method`;
-/// `h` and `scheme` matter to finite differences only, the exact methods solve
-/// to the scene's `solver { tolerance }`.
+/// How [`gradient`] computes: the exact methods' tolerance and warm start, the
+/// finite differences' step and scheme (each method reads its own).
+#[derive(Debug, Clone, Copy)]
+pub struct GradientOptions<'a> {
+    /// Relative tolerance of the exact methods' solves (SMALE, SMALBE, adjoint).
+    pub tolerance: f64,
+    /// Finite differences: the absolute step and the scheme.
+    pub step: f64,
+    pub scheme: Scheme,
+    /// The exact methods' solves start from these columns (a nearby design's
+    /// [`Gradient::warm`] by the same method); empty: cold.
+    pub warm: &'a [Vec<f64>],
+}
+
+impl GradientOptions<'static> {
+    /// The scene's own: `solver { tolerance }`, `sensitivity { step, scheme }`,
+    /// a cold start.
+    pub fn of(scene: &Scene) -> Self {
+        GradientOptions {
+            tolerance: scene.solver.tolerance,
+            step: scene.sensitivity.step,
+            scheme: scene.sensitivity.scheme,
+            warm: &[],
+        }
+    }
+}
+
+/// The gradient of the scene's objective and constraints (as `g <= 0`) by
+/// `method`, about `state`, the scene solved at its `design_init`. The exact
+/// methods reuse the state's factorizations; finite differences solve the
+/// perturbed designs. `Gradient::seconds` counts the state's solve too.
 pub fn gradient(
     scene: &Scene,
+    state: &State,
     method: SensitivityMethod,
-    h: f64,
-    scheme: Scheme,
+    options: &GradientOptions,
 ) -> Result<Gradient, GradientError> {
     match method {
-        SensitivityMethod::FiniteDifference => finite_difference(scene, h, scheme),
-        SensitivityMethod::Adjoint => Ok(adjoint(scene, scene.solver.tolerance)?),
-        SensitivityMethod::SemiAnalytic => Ok(semi_analytic(scene, scene.solver.tolerance)?),
+        SensitivityMethod::FiniteDifference => {
+            fd::gradient(scene, state, options.step, options.scheme)
+        }
+        SensitivityMethod::Adjoint => Ok(adjoint::gradient(
+            scene,
+            state,
+            options.tolerance,
+            options.warm,
+        )?),
+        SensitivityMethod::SemiAnalytic => Ok(semi::gradient(
+            scene,
+            state,
+            options.tolerance,
+            options.warm,
+        )?),
     }
+}
+
+/// [`gradient`] after a cold serial solve of the state at the scene's
+/// `design_init`: the shortcut for one gradient.
+pub fn solve_gradient(
+    scene: &Scene,
+    method: SensitivityMethod,
+    options: &GradientOptions,
+) -> Result<Gradient, GradientError> {
+    if method == SensitivityMethod::FiniteDifference {
+        // Refuse a bad step before the state's solve.
+        check_step(options.step)?;
+    }
+    let state = crate::state::solve(scene, &scene.design_init(), &mut |_| {})?;
+    gradient(scene, &state, method, options)
 }

@@ -898,38 +898,18 @@ pub(super) fn gradient_rows(scene: &Scene) -> (Vec<String>, Vec<Functional>) {
     (names, rows)
 }
 
-/// The semi-analytical gradient of the objective and constraints (as `g <= 0`).
-/// `tolerance` is the relative tolerance of the sensitivity (SMALE) solves.
-pub fn semi_analytic(scene: &Scene, tolerance: f64) -> Result<super::Gradient, SolveError> {
-    let t0 = Instant::now();
-    let design = scene.design_init();
-    let state = crate::state::solve(scene, &design, &mut |_| {})?;
-    semi_analytic_at(scene, &state, tolerance, t0)
-}
-
-/// [`semi_analytic`] on an already solved state (at the scene's `design_init`);
-/// `t0` is when that state solve started (for the time ratios).
-pub fn semi_analytic_at(
+/// The semi-analytical gradient of the objective and constraints (as `g <= 0`)
+/// on `state`, solved at the scene's `design_init`: one SMALE (or SMALBE) solve
+/// per design direction, to relative `tolerance`, each started from `warm`'s
+/// column where given (the multiplier derivatives of a nearby design, per
+/// direction and state row, as [`super::Gradient::warm`] returns them).
+pub(super) fn gradient(
     scene: &Scene,
     state: &State,
     tolerance: f64,
-    t0: Instant,
+    warm: &[Vec<f64>],
 ) -> Result<super::Gradient, SolveError> {
-    Ok(semi_analytic_at_from(scene, state, tolerance, t0, &[])?.0)
-}
-
-/// [`semi_analytic_at`] with the directions' block solve started from
-/// `starts` (the multiplier derivatives of a nearby design, per direction and
-/// state row, as returned here with the gradient): a warm start between
-/// optimization steps.
-pub fn semi_analytic_at_from(
-    scene: &Scene,
-    state: &State,
-    tolerance: f64,
-    t0: Instant,
-    starts: &[Vec<f64>],
-) -> Result<(super::Gradient, Vec<Vec<f64>>), SolveError> {
-    let state_seconds = t0.elapsed().as_secs_f64();
+    let t0 = Instant::now();
     let design = scene.design_init();
     let sens = Sensitivity::new(scene, state)?;
     let (names, rows) = gradient_rows(scene);
@@ -941,7 +921,7 @@ pub fn semi_analytic_at_from(
     };
     let values: Vec<f64> = eval.all().into_iter().map(|(_, v)| v).collect();
     let mut gradient = vec![vec![0.0; design.len()]; rows.len()];
-    let (dirs, cost) = sens.directions_from(tolerance, starts)?;
+    let (dirs, cost) = sens.directions_from(tolerance, warm)?;
     let mut kinked = Vec::new();
     for (i, dir) in dirs.iter().enumerate() {
         if dir.kinks > 0 {
@@ -965,14 +945,15 @@ pub fn semi_analytic_at_from(
         solves: 1,
         hessian_applications: state.info.hessian_applications + cost.products,
         f_passes: state.info.hessian_applications + cost.passes,
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds: state.times.total + t0.elapsed().as_secs_f64(),
         state_hessian_applications: state.info.hessian_applications,
-        state_seconds,
+        state_seconds: state.times.total,
         active_set_changed: Vec::new(),
         strong: sens.classes.iter().filter(|c| **c == Class::Strong).count(),
         weak: sens.weak(),
+        warm: dirs.into_iter().map(|d| d.lambda).collect(),
     };
-    Ok((gradient, dirs.into_iter().map(|d| d.lambda).collect()))
+    Ok(gradient)
 }
 
 #[cfg(test)]

@@ -3,10 +3,11 @@
 //! TFETI promises numerical scalability: at fixed H/h the number of Hessian
 //! applications should stay nearly constant as the decomposition grows.
 
+use crate::lang::scene::SensitivityMethod;
 use crate::lang::scene::{LocalF, Preconditioner};
 use crate::lang::{compile, CheckOptions};
 use crate::qp::SmalbeOverrides;
-use crate::sens::{Gradient, GradientError};
+use crate::sens::{solve_gradient, Gradient, GradientError, GradientOptions};
 use crate::state::{solve, SolveError};
 use crate::studies::compare::{compare, Column};
 use clap::ValueEnum;
@@ -394,9 +395,16 @@ fn gradient_costs_of(
     scene.solver.local_f = local_f;
     type Method = fn(&crate::lang::scene::Scene) -> Result<Gradient, GradientError>;
     let methods: [Method; 3] = [
-        |s| Ok(crate::sens::semi_analytic(s, s.solver.tolerance)?),
-        |s| Ok(crate::sens::adjoint(s, s.solver.tolerance)?),
-        |s| crate::sens::finite_difference(s, 1e-5, crate::lang::scene::Scheme::Forward),
+        |s| solve_gradient(s, SensitivityMethod::SemiAnalytic, &GradientOptions::of(s)),
+        |s| solve_gradient(s, SensitivityMethod::Adjoint, &GradientOptions::of(s)),
+        |s| {
+            let options = GradientOptions {
+                step: 1e-5,
+                scheme: crate::lang::scene::Scheme::Forward,
+                ..GradientOptions::of(s)
+            };
+            solve_gradient(s, SensitivityMethod::FiniteDifference, &options)
+        },
     ];
     // Each method runs GRADIENT_COST_REPEATS times (its own state solve each
     // time); the least seconds of each, the gradient's and the state's, are

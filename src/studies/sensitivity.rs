@@ -7,8 +7,9 @@
 //! tolerance (their agreement is reported). The error of a run is
 //! `max_i |g_i - g_ref_i| / max_i |g_ref_i|` over the objective's gradient.
 
+use crate::lang::scene::SensitivityMethod;
 use crate::lang::scene::{Scene, Scheme};
-use crate::sens::{adjoint, finite_difference, semi_analytic, Gradient, GradientError};
+use crate::sens::{gradient, Gradient, GradientError, GradientOptions};
 use serde::Serialize;
 
 /// One run of one method.
@@ -52,14 +53,27 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
     let mut tight = scene.clone();
     tight.solver.tolerance = 1e-12;
     tight.solver.max_iterations = tight.solver.max_iterations.max(100_000);
-    let reference = adjoint(&tight, 1e-12)?
-        .gradient
-        .first()
-        .cloned()
-        .unwrap_or_default();
+    let tight_state = crate::state::solve(&tight, &tight.design_init(), &mut |_| {})?;
+    let central = |step| GradientOptions {
+        tolerance: 1e-12,
+        step,
+        scheme: Scheme::Central,
+        warm: &[],
+    };
+    let reference = gradient(
+        &tight,
+        &tight_state,
+        SensitivityMethod::Adjoint,
+        &central(1e-4),
+    )?
+    .gradient
+    .first()
+    .cloned()
+    .unwrap_or_default();
     let h = 1e-4;
-    let d1 = finite_difference(&tight, h, Scheme::Central)?;
-    let d2 = finite_difference(&tight, h / 2.0, Scheme::Central)?;
+    let fd = SensitivityMethod::FiniteDifference;
+    let d1 = gradient(&tight, &tight_state, fd, &central(h))?;
+    let d2 = gradient(&tight, &tight_state, fd, &central(h / 2.0))?;
     let rich: Vec<f64> = d1.gradient[0]
         .iter()
         .zip(&d2.gradient[0])
@@ -80,9 +94,19 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
         let mut s = scene.clone();
         s.solver.tolerance = tol;
         s.solver.max_iterations = s.solver.max_iterations.max(100_000);
+        // One state per tolerance serves every method (each gradient's
+        // seconds and Hessian applications count it).
+        let state = crate::state::solve(&s, &s.design_init(), &mut |_| {})?;
+        let options = GradientOptions::of(&s);
         let exact = [
-            ("semi_analytic", semi_analytic(&s, tol)?),
-            ("adjoint", adjoint(&s, tol)?),
+            (
+                "semi_analytic",
+                gradient(&s, &state, SensitivityMethod::SemiAnalytic, &options)?,
+            ),
+            (
+                "adjoint",
+                gradient(&s, &state, SensitivityMethod::Adjoint, &options)?,
+            ),
         ];
         for (name, g) in exact {
             let run = StudyRun {
@@ -100,7 +124,12 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
         for k in 1..=10 {
             let step = 10f64.powi(-k);
             for (name, scheme) in [("forward", Scheme::Forward), ("central", Scheme::Central)] {
-                let g = finite_difference(&s, step, scheme)?;
+                let at = GradientOptions {
+                    step,
+                    scheme,
+                    ..options
+                };
+                let g = gradient(&s, &state, fd, &at)?;
                 let run = StudyRun {
                     method: format!("finite_difference {name}"),
                     tolerance: tol,
