@@ -186,6 +186,93 @@ pub fn optimize_with(
     reuse: Reuse,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, GradientError> {
+    let frozen = frozen_at_start(scene)?;
+    let x0 = scene.design_init();
+    let bounds = Bounds {
+        lower: scene.design.iter().map(|d| d.lower).collect(),
+        upper: scene.design.iter().map(|d| d.upper).collect(),
+    };
+    let tol = scene.optimize.tolerance;
+    let mut mma = Mma::new(
+        bounds.lower.clone(),
+        bounds.upper.clone(),
+        MmaSettings::default(),
+    );
+    let mut x = x0.clone();
+    let mut history: Vec<Iterate> = Vec::new();
+    let mut best: Option<usize> = None;
+    let mut names = Vec::new();
+    let mut f_scale = 1.0;
+    let mut last_multipliers: Vec<f64> = Vec::new();
+    let mut termination = Termination::MaxIterations;
+    let mut previous: Option<State> = None;
+    let mut warm: Vec<Vec<f64>> = Vec::new();
+    for k in 0..scene.optimize.max_iterations.max(1) {
+        let t = Instant::now();
+        let current = with_design(&frozen, &x);
+        let (state, mut g) = match state_and_gradient(&current, previous.as_ref(), &warm, reuse) {
+            Ok(r) => r,
+            Err(e) if k > 0 => {
+                let last_good = history.last().map_or(&x0, |h| &h.design);
+                match step_back(&frozen, &x, last_good, reuse) {
+                    Some((trial, state, g)) => {
+                        x = trial;
+                        (state, g)
+                    }
+                    None => {
+                        termination =
+                            Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
+                        break;
+                    }
+                }
+            }
+            Err(e) => return Err(e),
+        };
+        if k == 0 {
+            names = g.functionals.clone();
+            f_scale = 1.0 / g.values[0].abs().max(1e-300);
+        }
+        let moved = move_design(&mut mma, &x, &g, f_scale, &last_multipliers, &bounds);
+        let feasible = moved.constraints.iter().all(|c| *c <= tol.max(1e-9));
+        let it = iterate(k, &x, &state, &g, &moved, t.elapsed().as_secs_f64());
+        let keep_going = observer(&it, &state);
+        previous = Some(state);
+        warm = std::mem::take(&mut g.warm);
+        history.push(it);
+        let f0 = moved.objective;
+        if feasible && best.is_none_or(|b| f0 < history[b].objective) {
+            best = Some(history.len() - 1);
+        }
+        let stop = if !f0.is_finite() {
+            Some(Termination::Failure("the objective is not finite".into()))
+        } else if !keep_going {
+            Some(Termination::Interrupted)
+        } else if feasible && moved.kkt <= tol {
+            Some(Termination::Kkt)
+        } else if moved.size <= tol {
+            Some(Termination::SmallStep)
+        } else {
+            None
+        };
+        if let Some(why) = stop {
+            termination = why;
+            break;
+        }
+        last_multipliers = moved.step.multipliers;
+        x = moved.step.x;
+    }
+    Ok(Optimization {
+        scene: scene.name.clone(),
+        names,
+        history,
+        best,
+        termination,
+    })
+}
+
+/// The scene's design problem with every `initial(e)` replaced by its value
+/// at the starting design (one state solve there).
+fn frozen_at_start(scene: &Scene) -> Result<Scene, GradientError> {
     let Some(objective) = &scene.objective else {
         return Err(SolveError::Unsupported("the scene has no `minimize` objective".into()).into());
     };
@@ -210,138 +297,116 @@ pub fn optimize_with(
         c.lhs = freeze(&c.lhs, &eval);
         c.rhs = freeze(&c.rhs, &eval);
     }
-    let lower: Vec<f64> = scene.design.iter().map(|d| d.lower).collect();
-    let upper: Vec<f64> = scene.design.iter().map(|d| d.upper).collect();
-    let tol = scene.optimize.tolerance;
-    let mut mma = Mma::new(lower.clone(), upper.clone(), MmaSettings::default());
-    let mut x = x0.clone();
-    let mut history: Vec<Iterate> = Vec::new();
-    let mut best: Option<usize> = None;
-    let mut names = Vec::new();
-    let mut f_scale = 1.0;
-    let mut last_multipliers: Vec<f64> = Vec::new();
-    let mut termination = Termination::MaxIterations;
-    let mut previous: Option<State> = None;
-    let mut history_warm: Option<Vec<Vec<f64>>> = None;
-    for k in 0..scene.optimize.max_iterations.max(1) {
-        let t = Instant::now();
-        let current = with_design(&frozen, &x);
-        let last_warm = history_warm.take().unwrap_or_default();
-        let (state, mut g) =
-            match state_and_gradient(&current, previous.as_ref(), &last_warm, reuse) {
-                Ok(r) => r,
-                Err(e) if k > 0 => {
-                    // Step back halfway towards the last good design, a few times.
-                    let prev = history
-                        .last()
-                        .map(|h| h.design.clone())
-                        .unwrap_or_else(|| x0.clone());
-                    let mut recovered = None;
-                    let mut trial = x.clone();
-                    for _ in 0..4 {
-                        trial = trial
-                            .iter()
-                            .zip(&prev)
-                            .map(|(a, b)| 0.5 * (a + b))
-                            .collect();
-                        if let Ok(r) =
-                            state_and_gradient(&with_design(&frozen, &trial), None, &[], reuse)
-                        {
-                            recovered = Some(r);
-                            break;
-                        }
-                    }
-                    match recovered {
-                        Some(g) => {
-                            x = trial;
-                            g
-                        }
-                        None => {
-                            termination =
-                                Termination::Failure(format!("design {x:?} cannot be solved: {e}"));
-                            break;
-                        }
-                    }
-                }
-                Err(e) => return Err(e),
-            };
-        if k == 0 {
-            names = g.functionals.clone();
-            f_scale = 1.0 / g.values[0].abs().max(1e-300);
-        }
-        let f0 = g.values[0];
-        let cons: Vec<f64> = g.values[1..].to_vec();
-        let df0: Vec<f64> = g.gradient[0].iter().map(|v| v * f_scale).collect();
-        let dg: Vec<Vec<f64>> = g.gradient[1..].to_vec();
-        let kkt = if last_multipliers.len() == cons.len() {
-            kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &last_multipliers)
-        } else {
-            f64::INFINITY
-        };
-        let feasible = cons.iter().all(|c| *c <= tol.max(1e-9));
-        let step = mma.step(&x, &df0, &cons, &dg);
-        let step_size = step
-            .x
+    Ok(frozen)
+}
+
+/// A design that cannot be solved: step back halfway towards the last good
+/// design, up to four times, each solved cold; the first that solves.
+fn step_back(
+    frozen: &Scene,
+    x: &[f64],
+    last_good: &[f64],
+    reuse: Reuse,
+) -> Option<(Vec<f64>, State, Gradient)> {
+    let mut trial = x.to_vec();
+    for _ in 0..4 {
+        trial = trial
             .iter()
-            .zip(&x)
-            .zip(lower.iter().zip(&upper))
-            .map(|((a, b), (lo, hi))| (a - b).abs() / (hi - lo).max(1e-300))
-            .fold(0.0, f64::max);
-        // The KKT residual with this iterate's multipliers (of the subproblem at x).
-        let kkt_now =
-            kkt_residual(&x, &lower, &upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
-        let (counts, warm) = (state.factorizations, state.warm_started);
-        let it = Iterate {
-            state_hessian_applications: state.info.hessian_applications,
-            outer_iterations: state.info.outer_iterations,
-            state_seconds: state.times.total,
-            factorize_seconds: state.times.factorize,
-            reused_factorizations: counts.reused,
-            symbolic_factorizations: counts.symbolic,
-            numeric_factorizations: counts.numeric,
-            warm_started: warm,
-            on_active_set: state.on_active_set,
-            iteration: k,
-            design: x.clone(),
-            objective: f0,
-            constraints: cons.clone(),
-            gradient_norm: g.gradient[0].iter().map(|v| v * v).sum::<f64>().sqrt(),
-            kkt: kkt_now,
-            step: step_size,
-            hessian_applications: g.hessian_applications,
-            seconds: t.elapsed().as_secs_f64(),
-        };
-        let keep_going = observer(&it, &state);
-        previous = Some(state);
-        history_warm = Some(std::mem::take(&mut g.warm));
-        history.push(it);
-        if feasible && best.is_none_or(|b| f0 < history[b].objective) {
-            best = Some(history.len() - 1);
+            .zip(last_good)
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect();
+        if let Ok((state, g)) = state_and_gradient(&with_design(frozen, &trial), None, &[], reuse) {
+            return Some((trial, state, g));
         }
-        if !f0.is_finite() {
-            termination = Termination::Failure("the objective is not finite".into());
-            break;
-        }
-        if !keep_going {
-            termination = Termination::Interrupted;
-            break;
-        }
-        if feasible && kkt_now <= tol {
-            termination = Termination::Kkt;
-            break;
-        }
-        if step_size <= tol {
-            termination = Termination::SmallStep;
-            break;
-        }
-        last_multipliers = step.multipliers;
-        x = step.x;
     }
-    Ok(Optimization {
-        scene: scene.name.clone(),
-        names,
-        history,
-        best,
-        termination,
-    })
+    None
+}
+
+/// The design variables' bounds.
+struct Bounds {
+    lower: Vec<f64>,
+    upper: Vec<f64>,
+}
+
+/// What MMA made of one design: its values, the KKT residual there and the
+/// step to the next design.
+struct Moved {
+    objective: f64,
+    /// Constraint values as `g <= 0`.
+    constraints: Vec<f64>,
+    kkt: f64,
+    /// The largest move of a variable, relative to its range.
+    size: f64,
+    step: mma::Step,
+}
+
+/// One MMA step from `x` with the gradient `g` (the objective scaled by
+/// `f_scale`); the KKT residual is the least of the one with the previous
+/// step's multipliers and the one with this subproblem's.
+fn move_design(
+    mma: &mut Mma,
+    x: &[f64],
+    g: &Gradient,
+    f_scale: f64,
+    last_multipliers: &[f64],
+    bounds: &Bounds,
+) -> Moved {
+    let (lower, upper) = (&bounds.lower, &bounds.upper);
+    let cons: Vec<f64> = g.values[1..].to_vec();
+    let df0: Vec<f64> = g.gradient[0].iter().map(|v| v * f_scale).collect();
+    let dg: Vec<Vec<f64>> = g.gradient[1..].to_vec();
+    let kkt = if last_multipliers.len() == cons.len() {
+        kkt_residual(x, lower, upper, &df0, &cons, &dg, last_multipliers)
+    } else {
+        f64::INFINITY
+    };
+    let step = mma.step(x, &df0, &cons, &dg);
+    let size = step
+        .x
+        .iter()
+        .zip(x)
+        .zip(lower.iter().zip(upper))
+        .map(|((a, b), (lo, hi))| (a - b).abs() / (hi - lo).max(1e-300))
+        .fold(0.0, f64::max);
+    // The KKT residual with this iterate's multipliers (of the subproblem at x).
+    let kkt = kkt_residual(x, lower, upper, &df0, &cons, &dg, &step.multipliers).min(kkt);
+    Moved {
+        objective: g.values[0],
+        constraints: cons,
+        kkt,
+        size,
+        step,
+    }
+}
+
+/// The record of iterate `k`.
+fn iterate(
+    k: usize,
+    x: &[f64],
+    state: &State,
+    g: &Gradient,
+    moved: &Moved,
+    seconds: f64,
+) -> Iterate {
+    let counts = state.factorizations;
+    Iterate {
+        state_hessian_applications: state.info.hessian_applications,
+        outer_iterations: state.info.outer_iterations,
+        state_seconds: state.times.total,
+        factorize_seconds: state.times.factorize,
+        reused_factorizations: counts.reused,
+        symbolic_factorizations: counts.symbolic,
+        numeric_factorizations: counts.numeric,
+        warm_started: state.warm_started,
+        on_active_set: state.on_active_set,
+        iteration: k,
+        design: x.to_vec(),
+        objective: moved.objective,
+        constraints: moved.constraints.clone(),
+        gradient_norm: g.gradient[0].iter().map(|v| v * v).sum::<f64>().sqrt(),
+        kkt: moved.kkt,
+        step: moved.size,
+        hessian_applications: g.hessian_applications,
+        seconds,
+    }
 }
