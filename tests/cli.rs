@@ -164,10 +164,39 @@ fn an_invalid_method_exits_with_code_2_and_names_the_valid_ones() {
 fn bench_choices_and_cuts_are_checked_before_anything_runs() {
     let (code, out, _) = cso(&["bench", "--help"]);
     assert_eq!(code, 0);
+    for which in [
+        "scaling",
+        "scaling3d",
+        "compare",
+        "coarse",
+        "coarse3d",
+        "sensitivity",
+        "sensitivity3d",
+        "optimize",
+        "hard",
+        "scene",
+    ] {
+        assert!(out.contains(&format!("\n  {which} ")), "{which}: {out}");
+    }
+    // Each benchmark lists the options it reads, and only those.
+    let (code, out, _) = cso(&["bench", "sensitivity", "--help"]);
+    assert_eq!(code, 0);
     assert!(
-        out.contains("[possible values: scaling, scaling3d, compare, hard, sensitivity, sensitivity3d, optimize, coarse, coarse3d]"),
+        out.contains("--local-f") && out.contains("--tolerance"),
         "{out}"
     );
+    for other in [
+        "--hh",
+        "--max-cuts",
+        "--sides",
+        "--smalbe",
+        "--ordering",
+        "--out",
+    ] {
+        assert!(!out.contains(other), "{other}: {out}");
+    }
+    let (code, _, err) = cso(&["bench", "compare", "--smalbe", "default"]);
+    assert_eq!(code, 2, "{err}");
     let (code, _, err) = cso(&["bench", "scaleing"]);
     assert_eq!(code, 2, "{err}");
     assert!(err.contains("scaling"), "{err}");
@@ -1068,4 +1097,50 @@ fn chart_titles_carry_no_markdown() {
     assert!(svgs >= 4, "{svgs} charts");
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_file(&path);
+}
+
+#[test]
+fn every_command_lists_its_options_in_one_order() {
+    // The output folder first, the command's own options, the threads, then
+    // the options every command takes.
+    let commands: [&[&str]; 10] = [
+        &["solve"],
+        &["sensitivity"],
+        &["optimize"],
+        &["compare"],
+        &["export"],
+        &["study", "convergence"],
+        &["study", "tolerance"],
+        &["bench", "scaling"],
+        &["bench", "hard"],
+        &["bench", "optimize"],
+    ];
+    for command in commands {
+        let (code, out, err) = cso(&[command, &["--help"]].concat());
+        assert_eq!(code, 0, "{command:?}: {err}");
+        let at = |flag: &str| {
+            out.find(&format!(" {flag} "))
+                .or(out.find(&format!(" {flag}\n")))
+        };
+        let order: Vec<(&str, usize)> =
+            ["--out", "--threads", "--set", "--memory-limit", "--quiet"]
+                .iter()
+                .filter_map(|f| at(f).map(|p| (*f, p)))
+                .collect();
+        assert!(order.len() >= 3, "{command:?}: {out}");
+        assert!(
+            order.windows(2).all(|w| w[0].1 < w[1].1),
+            "{command:?}: {order:?}"
+        );
+        if let Some(out_at) = at("--out") {
+            let first = out
+                .find("  --")
+                .unwrap_or(0)
+                .min(out.find("  -o").unwrap_or(usize::MAX));
+            assert!(
+                out_at <= first + 12,
+                "{command:?}: --out is not first: {out}"
+            );
+        }
+    }
 }

@@ -5,7 +5,7 @@ use clap::{Args, Parser, Subcommand};
 use cso::lang::scene::{LocalF, Preconditioner, Scheme, SensitivityMethod, SolverMethod};
 use cso::lang::CheckOptions;
 use cso::qp::SmalbeOverrides;
-use cso::studies::bench::{parse_cuts, Benchmark};
+use cso::studies::bench::parse_cuts;
 use std::path::PathBuf;
 
 pub const EXAMPLES: &str = "\
@@ -25,17 +25,17 @@ Examples:
 #[command(name = "cso", version, about, after_help = EXAMPLES)]
 pub struct Cli {
     /// Override a `let` constant of the scene: NAME=VALUE (units allowed, e.g. P=3MN/m).
-    #[arg(long = "set", value_name = "NAME=VALUE", global = true, value_parser = parse_set)]
+    #[arg(long = "set", value_name = "NAME=VALUE", global = true, display_order = 900, value_parser = parse_set)]
     pub set: Vec<(String, String)>,
 
     /// Refuse scenes estimated to need more memory than this (e.g. 8GiB, 512MB;
     /// `none` for no limit). Default: 80% of the machine's memory.
-    #[arg(long, value_name = "SIZE", global = true, value_parser = parse_memory_limit)]
+    #[arg(long, value_name = "SIZE", global = true, display_order = 901, value_parser = parse_memory_limit)]
     pub memory_limit: Option<MemoryLimit>,
 
     /// No progress output (on a terminal: no bar; in a log or pipe: no
     /// progress lines). Results and errors are printed as usual.
-    #[arg(long, short, global = true)]
+    #[arg(long, short, global = true, display_order = 902)]
     pub quiet: bool,
 
     #[command(subcommand)]
@@ -57,8 +57,9 @@ pub enum Command {
     /// FETI vs Total FETI on one scene: unknowns, CG steps of the state and of each
     /// design variable's sensitivity, times, ratios (the seed's table).
     Compare(Compare),
-    /// Benchmarks (not tests): `cso bench scaling` solves two_blocks at fixed H/h
-    /// with more and more subdomains and prints a Markdown table.
+    /// Benchmarks (not tests), each a Markdown table printed row by row:
+    /// scaling, scaling3d, compare, coarse, coarse3d, sensitivity,
+    /// sensitivity3d, optimize, hard; `bench scene` prints a scaling scene.
     Bench(Bench),
     /// Accuracy against cost of state solves: `cso study convergence` refines the
     /// mesh, `cso study tolerance` sweeps the solver's tolerance.
@@ -85,27 +86,27 @@ pub struct Solve {
     /// Write report.json, one .vtu per body and SVG plots into this folder.
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N", value_parser = parse_threads)]
-    pub threads: Option<usize>,
     /// Dual preconditioner (default: the scene's `solver { preconditioner }`).
     #[arg(long, value_enum)]
     pub preconditioner: Option<Preconditioner>,
     /// Dense or implicit local F (default: the scene's `solver { local_f }`).
     #[arg(long, value_enum)]
     pub local_f: Option<LocalF>,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    pub threads: Option<usize>,
 }
 
 #[derive(Args, Debug)]
 pub struct Export {
     /// The `.cso` file.
     pub file: PathBuf,
-    /// File format.
-    #[arg(long, value_enum, default_value = "petsc")]
-    pub format: cso::io::export::Format,
     /// Write the files and manifest.json into this folder (new or empty).
     #[arg(short, long, value_name = "DIR")]
     pub out: PathBuf,
+    /// File format.
+    #[arg(long, value_enum, default_value = "petsc")]
+    pub format: cso::io::export::Format,
     /// Write into a folder that is not empty (files of the same name are replaced).
     #[arg(long)]
     pub force: bool,
@@ -115,6 +116,9 @@ pub struct Export {
 pub struct Sensitivity {
     /// The `.cso` file.
     pub file: PathBuf,
+    /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
+    #[arg(short, long, value_name = "DIR")]
+    pub out: Option<PathBuf>,
     /// Gradient method (default: the scene's `sensitivity { method }`).
     #[arg(long, value_enum)]
     pub method: Option<SensitivityMethod>,
@@ -124,9 +128,6 @@ pub struct Sensitivity {
     /// Finite-difference scheme (default: the scene's `sensitivity { scheme }`).
     #[arg(long, value_enum)]
     pub scheme: Option<Scheme>,
-    /// Write sensitivity.json (with --study: study.json, study.csv, study.svg) into this folder.
-    #[arg(short, long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
     /// Chart speed against accuracy: finite differences over h = 1e-1 .. 1e-10 and
     /// tolerances 1e-4 .. 1e-10, the exact methods over tolerances.
     #[arg(long)]
@@ -143,15 +144,15 @@ pub struct Optimize {
     /// Write history.json, the best design's report, VTU and plots into this folder.
     #[arg(short, long, value_name = "DIR")]
     pub out: Option<PathBuf>,
-    /// Threads over subdomains (default: all cores).
-    #[arg(long, value_name = "N", value_parser = parse_threads)]
-    pub threads: Option<usize>,
     /// Dual preconditioner (default: the scene's `solver { preconditioner }`).
     #[arg(long, value_enum)]
     pub preconditioner: Option<Preconditioner>,
     /// Dense or implicit local F (default: the scene's `solver { local_f }`).
     #[arg(long, value_enum)]
     pub local_f: Option<LocalF>,
+    /// Threads over subdomains (default: all cores).
+    #[arg(long, value_name = "N", value_parser = parse_threads)]
+    pub threads: Option<usize>,
 }
 
 #[derive(Args, Debug)]
@@ -173,46 +174,168 @@ pub struct Compare {
 
 #[derive(Args, Debug)]
 pub struct Bench {
-    /// Which benchmark.
-    #[arg(value_enum)]
-    pub which: Benchmark,
-    /// Elements per subdomain side, H/h (repeatable; default 16 and 32 in 2D, 8 in 3D).
+    #[command(subcommand)]
+    pub which: BenchCommand,
+}
+
+// Each benchmark takes only the options it reads; the shared groups below
+// keep one text (and one order: what it solves, what it compares, the
+// tolerance, the threads) per option.
+#[derive(Subcommand, Debug)]
+pub enum BenchCommand {
+    /// Scaling at fixed H/h in 2D: two_blocks with the base cut into up to
+    /// --max-cuts subdomains; one row per H/h, cut and setting compared.
+    Scaling {
+        #[command(flatten)]
+        cuts: Cuts2d,
+        #[command(flatten)]
+        sweep: Sweep,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// Scaling at fixed H/h in 3D: the punch on a base cut into k x k x k
+    /// subdomains (--sides); one row per H/h, cut and setting compared.
+    Scaling3d {
+        #[command(flatten)]
+        cuts: Cuts3d,
+        #[command(flatten)]
+        sweep: Sweep,
+        /// The subdomain factors' fill-reducing ordering, one row each
+        /// (repeatable, or comma-separated): `dissection` (nested dissection
+        /// where it stores fewer values than AMD, the default) or `amd`.
+        #[arg(long, value_enum, value_delimiter = ',', default_values_t = [FactorOrdering::Dissection])]
+        ordering: Vec<FactorOrdering>,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// Classical FETI against Total FETI on the 2D scaling scenes (each cell
+    /// FETI / TFETI).
+    Compare {
+        #[command(flatten)]
+        cuts: Cuts2d,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// The coarse problem dense against sparse on the 2D scaling scenes.
+    Coarse {
+        #[command(flatten)]
+        cuts: Cuts2d,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// The coarse problem dense against sparse on the 3D scaling scenes.
+    Coarse3d {
+        #[command(flatten)]
+        cuts: Cuts3d,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// Gradient cost against the number of design variables on scont2d (2, 6,
+    /// 16, 36, 96): semi-analytic, adjoint, finite differences.
+    Sensitivity {
+        #[command(flatten)]
+        local_f: LocalFs,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// The same on scont3d (4, 16, 36 control heights of a square net).
+    Sensitivity3d {
+        #[command(flatten)]
+        local_f: LocalFs,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// Reuse between design iterations (factorizations, warm starts) on
+    /// scont2d and on a 248-subdomain scont2d.
+    Optimize {
+        #[command(flatten)]
+        local_f: LocalFs,
+        /// Threads over subdomains (default: all cores).
+        #[arg(long, value_name = "N", value_parser = parse_threads)]
+        threads: Option<usize>,
+    },
+    /// Where methods fail: sweeps of the Young's modulus contrast, H/h and nu,
+    /// with their table and charts.
+    Hard {
+        /// Write hard.md, hard.json and one SVG chart per sweep here.
+        #[arg(short, long, value_name = "DIR")]
+        out: Option<PathBuf>,
+        #[command(flatten)]
+        run: Run,
+    },
+    /// Print the `.cso` text of one 2D scaling scene (one --hh, --max-cuts as
+    /// its cut, --tolerance), so that other tools solve the same problem
+    /// (bench/pdas_reference.py).
+    Scene {
+        /// Elements per subdomain side, H/h (exactly one).
+        #[arg(long = "hh")]
+        hh: Vec<usize>,
+        /// The cut of the base, `SXxSY`.
+        #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
+        max_cuts: (usize, usize),
+        /// Relative tolerance written into the scene's `solver` block.
+        #[arg(long, default_value_t = 1e-6)]
+        tolerance: f64,
+    },
+}
+
+/// The 2D scaling scenes: H/h and the cuts.
+#[derive(Args, Debug)]
+pub struct Cuts2d {
+    /// Elements per subdomain side, H/h (repeatable; default 16 and 32).
     #[arg(long = "hh")]
     pub hh: Vec<usize>,
-    /// `scaling3d`, `coarse3d`: subdomains per side of the base cube (repeatable).
-    #[arg(long = "sides", default_values_t = [2, 3, 4, 6])]
-    pub sides: Vec<usize>,
-    /// Largest cut of the base, `SXxSY`.
+    /// Largest cut of the base, `SXxSY` (the rows halve it down to 2x1).
     #[arg(long, default_value = "32x16", value_parser = parse_cuts)]
     pub max_cuts: (usize, usize),
+}
+
+/// The 3D scaling scenes: H/h and the base cube's cuts.
+#[derive(Args, Debug)]
+pub struct Cuts3d {
+    /// Elements per subdomain side, H/h (repeatable; default 8).
+    #[arg(long = "hh")]
+    pub hh: Vec<usize>,
+    /// Subdomains per side of the base cube (repeatable).
+    #[arg(long = "sides", default_values_t = [2, 3, 4, 6])]
+    pub sides: Vec<usize>,
+}
+
+/// The solver settings a scaling table compares, one row each.
+#[derive(Args, Debug)]
+pub struct Sweep {
+    /// Dual preconditioners (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
+    pub preconditioner: Vec<Preconditioner>,
+    /// How each subdomain's part of F is applied (see `solver { local_f }`;
+    /// repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
+    pub local_f: Vec<LocalF>,
+    /// SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after` (any of
+    /// them; rho, m0 relative to ||PFP||, eta to ||b||) or `default`
+    /// (repeatable).
+    #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]
+    pub smalbe: Vec<SmalbeOverrides>,
+}
+
+/// The local F of the gradient and optimization tables, one table each.
+#[derive(Args, Debug)]
+pub struct LocalFs {
+    /// How each subdomain's part of F is applied (see `solver { local_f }`),
+    /// one table each (repeatable, or comma-separated).
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
+    pub local_f: Vec<LocalF>,
+}
+
+/// The tolerance and threads every solving benchmark takes.
+#[derive(Args, Debug)]
+pub struct Run {
     /// Relative tolerance of the dual solve.
     #[arg(long, default_value_t = 1e-6)]
     pub tolerance: f64,
-    /// `scaling`, `scaling3d`: dual preconditioners, one row each per H/h and cut
-    /// (repeatable, or comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
-    pub preconditioner: Vec<Preconditioner>,
-    /// How each subdomain's part of F is applied (see `solver { local_f }`):
-    /// `scaling`, `scaling3d` one row each, `sensitivity`, `sensitivity3d`,
-    /// `optimize` one table each (repeatable, or comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
-    pub local_f: Vec<LocalF>,
-    /// `scaling`, `scaling3d`: SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after`
-    /// (any of them; rho, m0 relative to ||PFP||, eta to ||b||) or `default`;
-    /// one row each (repeatable).
-    #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]
-    pub smalbe: Vec<SmalbeOverrides>,
-    /// `scaling3d`: the subdomain factors' fill-reducing ordering, one row
-    /// each (repeatable, or comma-separated): `dissection` (nested dissection
-    /// where it stores fewer values than AMD, the default) or `amd`.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [FactorOrdering::Dissection])]
-    pub ordering: Vec<FactorOrdering>,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
-    /// `hard`: write hard.md, hard.json and one SVG chart per sweep here.
-    #[arg(short, long, value_name = "DIR")]
-    pub out: Option<PathBuf>,
 }
 
 /// A fill-reducing ordering of the subdomain factors (`cso bench scaling3d`).

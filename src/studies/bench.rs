@@ -306,7 +306,10 @@ pub fn compare_row(sx: usize, sy: usize, hh: usize, tolerance: f64) -> Result<Co
             tfeti,
             difference: c.difference,
         }),
-        (f, t) => Err(format!("FETI {:?}, TFETI {:?}", f.err(), t.err())),
+        (f, t) => {
+            let status = |r: Result<Column, String>| r.map_or_else(|e| e, |_| "solved".into());
+            Err(format!("FETI: {}; TFETI: {}", status(f), status(t)))
+        }
     }
 }
 

@@ -109,7 +109,10 @@ fn run(src: &str, x: f64, tolerance: f64) -> Point {
                 hessian_applications: None,
                 kkt: None,
                 converged: false,
-                note: format!("does not check: {:?}", d.first().map(|d| d.to_string())),
+                note: format!(
+                    "does not check: {}",
+                    d.first().map_or_else(String::new, |d| d.to_string())
+                ),
             }
         }
     };
