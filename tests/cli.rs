@@ -79,6 +79,12 @@ fn set_changes_the_compiled_scene_and_bad_values_are_diagnosed() {
         "{err}"
     );
     assert!(err.contains("command line"), "{err}");
+    // A value of the wrong kind is one error, not one more at every use of it
+    // (`P / (2 * w)` was also reported as a traction of the wrong unit).
+    let (code, _, err) = cso(&["--set", "P=3kN", "check", "examples/hertz2d.cso"]);
+    assert_eq!(code, 1);
+    assert!(err.contains("`--set P` gives a force (N)"), "{err}");
+    assert!(err.contains("has 1 error"), "{err}");
 }
 
 #[test]

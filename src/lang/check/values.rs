@@ -406,7 +406,8 @@ impl<'a> Checker<'a> {
             }
             // The source's own value, to compare dimensions.
             let original = self.let_value(i);
-            if let (Some((_, new_q)), Some((_, old_q))) = (&value, &original) {
+            let mut kept = value;
+            if let (Some((_, new_q)), Some((_, old_q))) = (&kept, &original) {
                 if let (Some(new), Some(old)) = (new_q.dim(), old_q.dim()) {
                     if new != old {
                         let (ident, expr, _) = self.lets[i];
@@ -432,10 +433,13 @@ impl<'a> Checker<'a> {
                             ))
                             .in_origin("command line", origin.clone()),
                         );
+                        // The scene's own value from here on: one error for
+                        // the one mistake, not another at every use of it.
+                        kept = original;
                     }
                 }
             }
-            self.overridden.insert(i, value);
+            self.overridden.insert(i, kept);
         }
     }
 
