@@ -3,6 +3,7 @@
 //! the nodal normal forces does not; `contact_force(C)` is its magnitude, with
 //! exact gradients.
 
+use crate::fixture::Edit;
 use crate::options;
 use crate::sensitivity::{assert_agree, central_differences};
 use cso::io::report::Report;
@@ -164,5 +165,47 @@ fn contact_force_gradients_on_curved_primaries_agree_across_methods() {
             s.name,
             semi.gradient[0]
         );
+    }
+}
+
+#[test]
+fn the_primary_face_carries_the_contact_pressure_too() {
+    // A flat punch on a base with matching nodes (spacing 1/16 on both): under
+    // the punch each primary node takes exactly its secondary node's force
+    // over the same tributary area, so the two pressures agree node by node;
+    // away from the punch the base's top carries none (issue 34, item 13).
+    let src = crate::fixture::example_src("two_blocks")
+        .edit("bottom = 1 + 0.02 * (2*x - 3)^2\n", "");
+    let s = crate::fixture::scene(&src);
+    let design = s.design_init();
+    let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");
+    let [base, punch] = [0, 1].map(|b| cso::io::pressure::nodal_pressure(&s, &design, &state, b));
+    let coords = |b: usize| &state.problem.bodies[b].coords;
+    let on_top = |c: &[f64; 3]| (c[1] - 1.0).abs() < 1e-12;
+    let peak = punch.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    assert!(peak > 0.0, "the punch is pressed");
+    let mut compared = 0;
+    for (k, c) in coords(1).iter().enumerate() {
+        if !on_top(c) || c[0] < 1.0 + 1e-9 || c[0] > 2.0 - 1e-9 {
+            continue;
+        }
+        let j = coords(0)
+            .iter()
+            .position(|d| on_top(d) && (d[0] - c[0]).abs() < 1e-12)
+            .expect("a base node under every punch node");
+        assert!(
+            (base[j] - punch[k]).abs() <= 1e-9 * peak,
+            "x = {}: base {} vs punch {}",
+            c[0],
+            base[j],
+            punch[k]
+        );
+        compared += 1;
+    }
+    assert_eq!(compared, 15, "the punch's interior bottom nodes");
+    for (j, d) in coords(0).iter().enumerate() {
+        if on_top(d) && (d[0] < 1.0 - 0.07 || d[0] > 2.0 + 0.07) {
+            assert_eq!(base[j], 0.0, "x = {}", d[0]);
+        }
     }
 }

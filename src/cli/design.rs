@@ -98,7 +98,7 @@ impl Optimize {
         let result = job.run(bar, |bar| {
             cso::opt::optimize(scene, &mut |it, state| {
                 if let Some(series) = series.as_mut() {
-                    series.record(scene, it.iteration, state);
+                    series.record(scene, it.iteration, &it.design, state);
                 }
                 bar.update(|| {
                     format!(

@@ -7,6 +7,7 @@ pub mod optimization;
 pub mod outputs;
 pub mod plot;
 pub mod png;
+pub mod pressure;
 pub mod provenance;
 pub mod report;
 pub mod summary;

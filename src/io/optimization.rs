@@ -58,12 +58,13 @@ impl DesignSeries {
         }
     }
 
-    /// Writes the state of design `iteration` as `designs/BODY_NNN.vtu`.
-    pub fn record(&mut self, scene: &Scene, iteration: usize, state: &State) {
+    /// Writes the state of design `iteration` (the variables' values
+    /// `design`) as `designs/BODY_NNN.vtu`.
+    pub fn record(&mut self, scene: &Scene, iteration: usize, design: &[f64], state: &State) {
         let designs = self.dir.join("designs");
         for (b, body) in scene.bodies.iter().enumerate() {
             let name = format!("{}_{:03}.vtu", body.name, iteration);
-            let vtu = body_fields(state, b).vtu;
+            let vtu = body_fields(scene, design, state, b).vtu;
             let written = std::fs::create_dir_all(&designs)
                 .and_then(|_| write_atomic(&designs.join(&name), vtu.as_bytes()));
             match written {

@@ -564,6 +564,8 @@ fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) 
             * ((sig[0] - sig[1]).powi(2) + (sig[1] - szz).powi(2) + (szz - sig[0]).powi(2))
             + 3.0 * sig[2] * sig[2])
             .sqrt();
+        // Plane strain keeps a zz stress: the fourth component in 2D.
+        sig.push(szz);
         return (sig, vm);
     }
     let dm = match mean {
@@ -586,8 +588,9 @@ fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) 
     (sig, vm)
 }
 
-/// Displacement, stress, von Mises, subdomain id and contact pressure of body `b`.
-pub fn body_fields(state: &State, b: usize) -> BodyFields {
+/// Displacement, stress, von Mises, subdomain id and contact pressure (both
+/// sides of each contact) of body `b`, solved at `design`.
+pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> BodyFields {
     let p = &state.problem;
     let body = &p.bodies[b];
     let n = body.coords.len();
@@ -608,20 +611,7 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
             von_mises.push(vm);
         }
     }
-    let mut pressure = vec![0.0; n];
-    for (i, row) in p.rows.iter().enumerate() {
-        if let RowKind::Contact {
-            body: cb,
-            node,
-            area,
-            ..
-        } = row.kind
-        {
-            if cb == b && area > 0.0 {
-                pressure[node] += state.lambda[i] / row.scale / area;
-            }
-        }
-    }
+    let pressure = crate::io::pressure::nodal_pressure(scene, design, state, b);
     let connectivity = cells.concat();
     let mesh = VtuMesh {
         points: &points,
@@ -648,8 +638,14 @@ pub fn body_fields(state: &State, b: usize) -> BodyFields {
         },
         Field::Vector(&normal),
     )];
+    let zz: Vec<f64> = stress
+        .iter()
+        .map(|s| s.get(3).copied().unwrap_or(0.0))
+        .collect();
     if p.dim == 3 {
         cell_fields.push(("stress (yz, xz, xy)", Field::Vector(&shear)));
+    } else {
+        cell_fields.push(("stress zz (plane strain)", Field::Scalar(&zz)));
     }
     cell_fields.push(("von Mises", Field::Scalar(&von_mises)));
     cell_fields.push(("subdomain", Field::Int(&subdomain)));
@@ -710,7 +706,10 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
     let json = provenance::to_json(&header, report).map_err(std::io::Error::other)?;
     write_atomic(&dir.join("report.json"), json.as_bytes())?;
     let p = &state.problem;
-    let fields: Vec<BodyFields> = (0..p.bodies.len()).map(|b| body_fields(state, b)).collect();
+    let design = scene.design_init();
+    let fields: Vec<BodyFields> = (0..p.bodies.len())
+        .map(|b| body_fields(scene, &design, state, b))
+        .collect();
     for (body, f) in p.bodies.iter().zip(&fields) {
         write_atomic(&dir.join(format!("{}.vtu", body.name)), f.vtu.as_bytes())?;
     }

@@ -1,0 +1,87 @@
+//! The contact pressure at the nodes of a body, on both sides of its contacts:
+//! what the VTU files show. A contact row pushes a secondary node against a
+//! point of a primary facet; the secondary node takes the row's force over
+//! its tributary area, and the primary facet's nodes take the same force,
+//! spread by the projection's shape weights (the row's own coefficients),
+//! over theirs. Both sides carry the same resultant.
+
+use crate::lang::scene::{Primary, Scene};
+use crate::model::geometry::{
+    contact_row, coords, selected_pieces, tributary_areas, Pattern, Piece,
+};
+use crate::model::{FaceEdge, FaceQuad, Named, RowKind};
+use crate::state::State;
+
+/// Nodal contact pressure (Pa) of body `b` at `design` (the one `state` was
+/// solved at): as secondary, each row's force per the node's tributary area;
+/// as primary, the rows' forces spread onto the facet nodes per the primary
+/// face's tributary areas. Zero away from contacts.
+pub fn nodal_pressure(scene: &Scene, design: &[f64], state: &State, b: usize) -> Vec<f64> {
+    let p = &state.problem;
+    let mut pressure = vec![0.0; p.bodies[b].coords.len()];
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact {
+            body, node, area, ..
+        } = row.kind
+        {
+            if body == b && area > 0.0 {
+                pressure[node] += state.lambda[i] / row.scale / area;
+            }
+        }
+    }
+    if p.dim == 2 {
+        add_primary::<FaceEdge, 2, 2>(scene, design, state, b, &mut pressure);
+    } else {
+        add_primary::<FaceQuad, 3, 4>(scene, design, state, b, &mut pressure);
+    }
+    pressure
+}
+
+/// Adds the pressure of every contact whose primary face is on body `b`.
+fn add_primary<P: Piece<D, N> + Named, const D: usize, const N: usize>(
+    scene: &Scene,
+    design: &[f64],
+    state: &State,
+    b: usize,
+    pressure: &mut [f64],
+) {
+    let p = &state.problem;
+    let pos = coords::<D>(p);
+    for (c, contact) in scene.contacts.iter().enumerate() {
+        let Primary::Face(sel) = &contact.primary else {
+            continue;
+        };
+        if sel.body != b {
+            continue;
+        }
+        let pieces: Vec<P> = selected_pieces(p, sel, design);
+        let areas = tributary_areas(&pieces, &pos, scene.thickness);
+        let mut force = vec![0.0; pressure.len()];
+        for (i, row) in p.rows.iter().enumerate() {
+            let RowKind::Contact {
+                contact: rc,
+                body,
+                node,
+                primary,
+                ..
+            } = &row.kind
+            else {
+                continue;
+            };
+            let Some(piece) = P::of(primary).filter(|_| *rc == c) else {
+                continue;
+            };
+            let (_, projection) =
+                contact_row::<f64, P, D, N>(p, *body, *node, &piece, &pos, Pattern::Sparse);
+            let f = state.lambda[i] / row.scale;
+            for (k, w) in piece.nodes().into_iter().zip(projection.weights) {
+                force[k] += w * f;
+            }
+        }
+        for (k, f) in force.into_iter().enumerate() {
+            if let Some(&a) = areas.get(&k).filter(|a| **a > 0.0) {
+                pressure[k] += f / a;
+            }
+        }
+    }
+}
