@@ -920,22 +920,13 @@ fn solve_on(
         }
     };
     let sol = solved.map_err(|e| match e {
-            SolveError::Undetermined { modes, stopped } => {
-                let mut names = name_modes(&problem, system.dual().cluster(), &modes).join("; ");
-                if names.is_empty() {
-                    names = "(the modes could not be identified)".to_string();
-                }
-                SolveError::Reconstruction(match stopped {
-                    None => format!(
-                        "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
-                    ),
-                    Some(why) => format!(
-                        "no equilibrium found: the dual solve stopped before converging ({why}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance"
-                    ),
-                })
-            }
-            e => e,
-        })?;
+        SolveError::Undetermined { modes, stopped, .. } => SolveError::Undetermined {
+            names: Some(name_modes(&problem, system.dual().cluster(), &modes)),
+            modes,
+            stopped,
+        },
+        e => e,
+    })?;
     times.solve = t.elapsed().as_secs_f64();
     same_on_every_rank(&**system.dual().cluster().comm(), &sol)?;
     let DualSolution {

@@ -15,7 +15,7 @@
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 5 (MPRGP).
 
-use super::{Operator, QpInfo, Status};
+use super::{Breakdown, MprgpStep, Operator, QpInfo, Status};
 
 /// Parameters of [`mprgp`].
 #[derive(Debug, Clone, PartialEq)]
@@ -305,7 +305,7 @@ fn face_direction(
 /// `A x - b` for the projected `x` (SMALBE keeps it between outer iterations
 /// and saves one application each time). `stop(x, ||g^P||)` decides
 /// convergence; `trace(iteration, ||g^P||)` sees every iterate. No allocation
-/// happens here except the message of a breakdown.
+/// happens here.
 ///
 /// # Reference
 /// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
@@ -347,10 +347,10 @@ pub(super) fn run(
         out.gp_norm = s.gp_norm;
         trace(out.iterations, s.gp_norm);
         if !s.gp_norm.is_finite() {
-            out.status = Status::Breakdown(format!(
-                "projected gradient is {} after {} MPRGP steps",
-                s.gp_norm, out.iterations
-            ));
+            out.status = Status::Breakdown(Breakdown::ProjectedGradient {
+                norm: s.gp_norm,
+                mprgp_steps: out.iterations,
+            });
             return out;
         }
         if stop(x, s.gp_norm) {
@@ -372,12 +372,12 @@ pub(super) fn run(
             out.applications += 1;
             let pap = dot(p, ap);
             if pap.is_nan() || pap <= 0.0 {
-                out.status = Status::Breakdown(format!(
-                    "curvature p^T A p = {pap:e} with ||p|| = {:e} in a CG step \
-                     (MPRGP step {})",
-                    norm2(p),
-                    out.iterations
-                ));
+                out.status = Status::Breakdown(Breakdown::Curvature {
+                    step: MprgpStep::Cg,
+                    curvature: pap,
+                    direction_norm: norm2(p),
+                    mprgp_step: out.iterations,
+                });
                 return out;
             }
             let a_cg = dot(g, p) / pap;
@@ -451,12 +451,12 @@ pub(super) fn run(
             out.applications += 1;
             let pap = dot(p, ap);
             if pap.is_nan() || pap <= 0.0 {
-                out.status = Status::Breakdown(format!(
-                    "curvature d^T A d = {pap:e} with ||d|| = {:e} in a proportioning \
-                     step (MPRGP step {})",
-                    norm2(p),
-                    out.iterations
-                ));
+                out.status = Status::Breakdown(Breakdown::Curvature {
+                    step: MprgpStep::Proportioning,
+                    curvature: pap,
+                    direction_norm: norm2(p),
+                    mprgp_step: out.iterations,
+                });
                 return out;
             }
             let step = s.beta2 / pap;
@@ -549,28 +549,29 @@ pub fn estimate_norm(
 }
 
 /// `a_bar = factor / ||A||`, refusing a norm that is not positive and finite.
-pub(super) fn step_length(factor: f64, norm: f64) -> Result<f64, String> {
+pub(super) fn step_length(factor: f64, norm: f64) -> Result<f64, Breakdown> {
     if norm > 0.0 && norm.is_finite() && factor > 0.0 && factor.is_finite() {
         Ok(factor / norm)
     } else {
-        Err(format!(
-            "cannot set the expansion step a_bar = {factor} / ||A|| with ||A|| = {norm:e}"
-        ))
+        Err(Breakdown::StepLength { factor, norm })
     }
 }
 
 /// Says what is wrong when the vectors do not match the operator's dimension.
-pub(super) fn check_dimensions(n: usize, b: &[f64], lower: &[f64], x: &[f64]) -> Option<String> {
+pub(super) fn check_dimensions(n: usize, b: &[f64], lower: &[f64], x: &[f64]) -> Option<Breakdown> {
     if b.len() != n || lower.len() != n || x.len() != n {
-        return Some(format!(
-            "dimension mismatch: operator {n}, b {}, lower {}, x {}",
-            b.len(),
-            lower.len(),
-            x.len()
-        ));
+        return Some(Breakdown::Dimensions {
+            operator: n,
+            b: b.len(),
+            lower: lower.len(),
+            x: x.len(),
+        });
     }
     if let Some(i) = lower.iter().position(|l| l.is_nan() || *l == f64::INFINITY) {
-        return Some(format!("lower bound {i} is {}", lower[i]));
+        return Some(Breakdown::LowerBound {
+            index: i,
+            value: lower[i],
+        });
     }
     None
 }
@@ -898,10 +899,16 @@ pub(super) mod tests {
         let lower = [f64::NEG_INFINITY; 2];
         let mut x = [0.0; 2];
         let info = mprgp(&a, &b, &lower, &mut x, &MprgpSettings::default(), None);
-        let Status::Breakdown(why) = &info.status else {
-            panic!("expected a breakdown: {info:?}");
-        };
-        assert!(why.contains("curvature"), "{why}");
+        assert!(
+            matches!(
+                info.status,
+                Status::Breakdown(Breakdown::Curvature {
+                    step: MprgpStep::Cg,
+                    ..
+                })
+            ),
+            "{info:?}"
+        );
     }
 
     #[test]
@@ -927,7 +934,13 @@ pub(super) mod tests {
             &MprgpSettings::default(),
             Some(1.0),
         );
-        assert!(matches!(info.status, Status::Breakdown(ref w) if w.contains("dimension")));
+        assert!(
+            matches!(
+                info.status,
+                Status::Breakdown(Breakdown::Dimensions { x: 1, .. })
+            ),
+            "{info:?}"
+        );
     }
 
     #[test]

@@ -24,7 +24,7 @@ use super::dual::{Dual, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
 use super::solve::{dot, galerkin_start, homogenized_rhs, homogenized_start, norm, particular};
-use crate::qp::{SmalbeSettings, Status};
+use crate::qp::{Breakdown, SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
@@ -248,9 +248,7 @@ fn block_projected_cg(
     let mut p = orthonormal(precondition(&active, &r));
     while !active.is_empty() {
         if p.ncols() == 0 {
-            info.status = Status::Breakdown(
-                "the search block lost its rank before the residuals converged".into(),
-            );
+            info.status = Status::Breakdown(Breakdown::BlockRankLost);
             break;
         }
         if info.products + p.ncols() > settings.max_hessian {
@@ -267,7 +265,7 @@ fn block_projected_cg(
             0.5 * (pq[(i, j)] + pq[(j, i)])
         });
         let Some(alpha) = solve_spd(&pq, cross(p.as_ref(), r.as_ref())) else {
-            info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
+            info.status = Status::Breakdown(Breakdown::BlockCgCurvature);
             break;
         };
         add_product(x.as_mut(), p.as_ref(), &alpha, 1.0);
@@ -281,7 +279,7 @@ fn block_projected_cg(
         }
         let mut y = precondition(&active, &r);
         let Some(beta) = solve_spd(&pq, cross(q.as_ref(), y.as_ref())) else {
-            info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
+            info.status = Status::Breakdown(Breakdown::BlockCgCurvature);
             break;
         };
         // y - p (P^T A P)^-1 (A p)^T z: A-conjugate to the search block.

@@ -12,7 +12,9 @@ use super::dual::ProjectedM;
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
-use crate::qp::{estimate_norm, smalbe, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
+use crate::qp::{
+    estimate_norm, smalbe, Breakdown, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status,
+};
 
 pub(super) fn norm(v: &[f64]) -> f64 {
     dot(v, v).sqrt()
@@ -203,10 +205,11 @@ pub fn dual_solve_from(
 
     let (u, alpha) =
         reconstruct(dual, f, n_equality, &lambda, (&lhat, None), &d).map_err(|e| match e {
-            SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
+            SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
                 SolveError::Undetermined {
                     modes,
-                    stopped: Some(format!("{:?}", info.status)),
+                    names,
+                    stopped: Some(info.status.clone()),
                 }
             }
             e => e,
@@ -315,7 +318,7 @@ fn projected_cg(
         info.inner_iterations += 1;
         let pap: f64 = p.iter().zip(&ap).map(|(x, y)| x * y).sum();
         if pap <= 0.0 || !pap.is_finite() {
-            info.status = Status::Breakdown(format!("p^T A p = {pap:e} in projected CG"));
+            info.status = Status::Breakdown(Breakdown::ProjectedCgCurvature { curvature: pap });
             break;
         }
         let alpha = rz / pap;
