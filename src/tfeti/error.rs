@@ -129,49 +129,10 @@ impl fmt::Display for SolveError {
             ),
             SolveError::Infeasible(s) => write!(f, "{s}"),
             SolveError::Undetermined {
-                names: Some(names),
-                stopped,
-                ..
-            } => {
-                let mut names = names.join("; ");
-                if names.is_empty() {
-                    names = "(the modes could not be identified)".to_string();
-                }
-                match stopped {
-                    None => write!(
-                        f,
-                        "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
-                    ),
-                    Some(why) => write!(
-                        f,
-                        "no equilibrium found: the dual solve stopped before converging ({}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance",
-                        StatusCode(why)
-                    ),
-                }
-            }
-            SolveError::Undetermined {
                 modes,
-                names: None,
+                names,
                 stopped,
-            } => {
-                let n = if modes.is_empty() {
-                    "some".to_string()
-                } else {
-                    modes.len().to_string()
-                };
-                write!(
-                    f,
-                    "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
-                )?;
-                if let Some(why) = stopped {
-                    write!(
-                        f,
-                        "; the dual solve stopped before converging ({})",
-                        StatusCode(why)
-                    )?;
-                }
-                Ok(())
-            }
+            } => undetermined(f, modes, names.as_deref(), stopped.as_ref()),
             SolveError::RedundantReactions { rows, svd } => write!(
                 f,
                 "classical FETI: the reactions of {rows} redundant rows on held dofs cannot be recovered ({svd:?}); use `method = tfeti`"
@@ -243,6 +204,50 @@ impl fmt::Display for SolveError {
 }
 
 impl std::error::Error for SolveError {}
+
+/// [`SolveError::Undetermined`] in words: with the modes named (by the
+/// driver), what holds none of them and what to do; else their count.
+fn undetermined(
+    f: &mut fmt::Formatter<'_>,
+    modes: &[(usize, usize)],
+    names: Option<&[String]>,
+    stopped: Option<&Status>,
+) -> fmt::Result {
+    let Some(names) = names else {
+        let n = if modes.is_empty() {
+            "some".to_string()
+        } else {
+            modes.len().to_string()
+        };
+        write!(
+            f,
+            "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
+        )?;
+        if let Some(why) = stopped {
+            write!(
+                f,
+                "; the dual solve stopped before converging ({})",
+                StatusCode(why)
+            )?;
+        }
+        return Ok(());
+    };
+    let mut names = names.join("; ");
+    if names.is_empty() {
+        names = "(the modes could not be identified)".to_string();
+    }
+    match stopped {
+        None => write!(
+            f,
+            "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
+        ),
+        Some(why) => write!(
+            f,
+            "no equilibrium found: the dual solve stopped before converging ({}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance",
+            StatusCode(why)
+        ),
+    }
+}
 
 /// How a dual solve stopped, by the status's code name, a breakdown with its
 /// cause quoted: `MaxIterations`, `Breakdown("p^T A p = ...")` (what the
