@@ -474,7 +474,70 @@ fn setup_on(
     } else {
         precheck(scene, design, &problem, elimination.as_deref())?;
     }
-    let kind = |s: usize| match &elimination {
+    let bounds = rank_bounds(&problem, &*comm, feti)?;
+    let subs = build_subdomains(
+        scene,
+        &problem,
+        previous,
+        elimination.as_deref(),
+        &bounds,
+        &*comm,
+    )?;
+    let factorizations = count_factorizations(&subs, &*comm);
+    let local = LocalRows::split(
+        problem.subdomains.len(),
+        problem.rows.iter().map(|r| r.entries.iter().copied()),
+    );
+    let mut cluster = Cluster::distributed(
+        subs.into_iter().map(|(s, _)| s).collect(),
+        &bounds,
+        local,
+        problem.rows.len(),
+        comm,
+    );
+    // Dense local F where it moves fewer bytes; unchanged subdomains of the
+    // previous design keep theirs.
+    cluster.set_local_f(scene.solver.local_f, previous.map(|p| p.dual.cluster()));
+    cluster.set_coarse_form(scene.solver.coarse);
+    Ok(Setup {
+        problem,
+        cluster,
+        elimination,
+        lower_time,
+        factorizations,
+    })
+}
+
+/// The first subdomain of every rank and, last, their number: a balanced
+/// contiguous partition (one rank: all). Classical FETI runs on one rank only.
+fn rank_bounds(problem: &Problem, comm: &dyn Comm, feti: bool) -> Result<Vec<usize>, SolveError> {
+    if comm.size() > 1 {
+        if feti {
+            return Err(SolveError::Unsupported(
+                "classical FETI (`solver { method = feti }`) does not run distributed yet; use `method = tfeti` or run without mpirun".into(),
+            ));
+        }
+        let weights: Vec<usize> = problem.subdomains.iter().map(|m| m.f.len()).collect();
+        partition(&weights, comm.size()).map_err(|e| SolveError::Unsupported(e.to_string()))
+    } else {
+        Ok(vec![0, problem.subdomains.len()])
+    }
+}
+
+/// This rank's subdomains (those from `bounds[rank]` on), in parallel: the
+/// previous state's where the mesh did not change, else rebuilt on its
+/// symbolic factorization, else built (TFETI or, with `elimination`,
+/// classical FETI); with whether each was reused whole. A failure on any rank
+/// is every rank's.
+fn build_subdomains(
+    scene: &Scene,
+    problem: &Problem,
+    previous: Option<&State>,
+    elimination: Option<&Elimination>,
+    bounds: &[usize],
+    comm: &dyn Comm,
+) -> Result<Vec<(Arc<Subdomain>, bool)>, SolveError> {
+    let kind = |s: usize| match elimination {
         None => Kind::Total {
             ordering: scene.solver.ordering,
         },
@@ -492,17 +555,6 @@ fn setup_on(
         let same_mesh = a.coords == b.coords && a.section == b.section;
         (*old.kind() == kind(s)).then_some((old, same_mesh))
     };
-    let bounds = if comm.size() > 1 {
-        if feti {
-            return Err(SolveError::Unsupported(
-                "classical FETI (`solver { method = feti }`) does not run distributed yet; use `method = tfeti` or run without mpirun".into(),
-            ));
-        }
-        let weights: Vec<usize> = problem.subdomains.iter().map(|m| m.f.len()).collect();
-        partition(&weights, comm.size()).map_err(|e| SolveError::Unsupported(e.to_string()))?
-    } else {
-        vec![0, problem.subdomains.len()]
-    };
     let owned = bounds[comm.rank()]..bounds[comm.rank() + 1];
     let symbolic = SymbolicCache::default();
     let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem.subdomains[owned.clone()]
@@ -510,7 +562,7 @@ fn setup_on(
         .enumerate()
         .map(|(i, m)| {
             let s = owned.start + i;
-            if injected_fault(&*comm, s, owned.start) {
+            if injected_fault(comm, s, owned.start) {
                 return Err(SolveError::Subdomain {
                     body: problem.bodies[m.body].name.clone(),
                     block: m.block.map(|b| b as u32),
@@ -541,56 +593,39 @@ fn setup_on(
         })
         .collect();
     let subs: Result<Vec<(Arc<Subdomain>, bool)>, SolveError> = subs.into_iter().collect();
-    let subs = if comm.size() > 1 {
-        agree(&*comm, subs).map_err(SolveError::Rank)?
+    if comm.size() > 1 {
+        agree(comm, subs).map_err(SolveError::Rank)
     } else {
-        subs?
-    };
-    let mut factorizations = Factorizations::default();
-    for (sub, reused) in &subs {
+        subs
+    }
+}
+
+/// The factorizations of the subdomains built (`true`: reused whole), summed
+/// over the ranks.
+fn count_factorizations(subs: &[(Arc<Subdomain>, bool)], comm: &dyn Comm) -> Factorizations {
+    let mut here = Factorizations::default();
+    for (sub, reused) in subs {
         if *reused {
-            factorizations.reused += 1;
+            here.reused += 1;
         } else {
-            factorizations.numeric += 1;
+            here.numeric += 1;
             if !sub.symbolic_reused() {
-                factorizations.symbolic += 1;
+                here.symbolic += 1;
             }
         }
     }
     let mut counts = [
-        factorizations.symbolic as u64,
-        factorizations.numeric as u64,
-        factorizations.reused as u64,
+        here.symbolic as u64,
+        here.numeric as u64,
+        here.reused as u64,
     ];
     comm.all_reduce_u64(&mut counts, Op::Sum);
     let [symbolic, numeric, reused] = counts.map(|c| c as usize);
-    let factorizations = Factorizations {
+    Factorizations {
         symbolic,
         numeric,
         reused,
-    };
-    let local = LocalRows::split(
-        problem.subdomains.len(),
-        problem.rows.iter().map(|r| r.entries.iter().copied()),
-    );
-    let mut cluster = Cluster::distributed(
-        subs.into_iter().map(|(s, _)| s).collect(),
-        &bounds,
-        local,
-        problem.rows.len(),
-        comm,
-    );
-    // Dense local F where it moves fewer bytes; unchanged subdomains of the
-    // previous design keep theirs.
-    cluster.set_local_f(scene.solver.local_f, previous.map(|p| p.dual.cluster()));
-    cluster.set_coarse_form(scene.solver.coarse);
-    Ok(Setup {
-        problem,
-        cluster,
-        elimination,
-        lower_time,
-        factorizations,
-    })
+    }
 }
 
 /// Distributed runs: the replicated dual solution (multipliers and counts)
@@ -785,19 +820,7 @@ fn solve_on(
 ) -> Result<State, SolveError> {
     let t0 = Instant::now();
     let mut times = Times::default();
-    // A warm solve tries the previous active set first (TFETI, one process,
-    // multipliers to start from). A state kept there satisfies the KKT
-    // conditions to the tolerance, so what `precheck_balance` and the full
-    // system's coarse problem would refuse (loads nothing balances, a free
-    // rigid motion) cannot hold; both wait until SMALBE runs. Only where the
-    // tolerance is at most the balance test's 1e-6: a looser one could keep
-    // a state that test refuses.
-    let first_on_active_set = warm.on_active_set
-        && warm.multipliers
-        && previous.is_some()
-        && scene.solver.method != crate::lang::scene::SolverMethod::Feti
-        && comm.size() == 1
-        && scene.solver.tolerance <= 1e-6;
+    let first_on_active_set = active_set_first(scene, previous, warm, &*comm);
     let setup = setup_on(
         scene,
         design,
@@ -809,34 +832,69 @@ fn solve_on(
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
-    let mut system = if first_on_active_set {
-        setup.dual_system_deferred()?
-    } else {
-        setup.dual_system()?
-    };
-    system.set_preconditioner(preconditioner(scene), setup.problem.n_equality);
-    let Setup {
-        problem,
-        cluster,
-        elimination,
-        factorizations,
-        ..
-    } = setup;
-    // The state keeps all rows (FETI's eliminated ones too, with their
-    // recovered multipliers), so reports and checks are the same for both.
-    let name = |free_modes: &[(usize, usize)]| {
-        SolveError::FreeRigidModes(name_modes(&problem, system.dual().cluster(), free_modes))
-    };
-    let dual = match &system {
-        DualSystem::Total(_) => None,
-        DualSystem::Classical { .. } => {
-            Some(Dual::new(cluster).map_err(|CoarseError { free_modes }| name(&free_modes))?)
-        }
-    };
+    let ops = Operators::of(scene, setup, first_on_active_set)?;
     times.coarse = t.elapsed().as_secs_f64();
     let t = Instant::now();
+    let problem = &ops.problem;
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
     let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+    let settings = smalbe_settings(scene);
+    let start = warm_start(previous, warm, problem);
+    let warm_started = start.is_some();
+    // On the previous active set first, where asked (TFETI, one process).
+    let mut attempt = match (warm.on_active_set, &start, &ops.system) {
+        (true, Some(s), DualSystem::Total(full)) => Attempt::of(
+            active_set::solve(scene, problem, full, &s.lambda, &f, &c, &settings),
+            previous,
+        ),
+        _ => Attempt::default(),
+    };
+    let sol = match attempt.solution.take() {
+        Some(sol) => sol,
+        None => {
+            if first_on_active_set {
+                precheck_balance(problem)?;
+            }
+            let t = Instant::now();
+            ops.system
+                .dual()
+                .check_coarse()
+                .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
+            times.coarse += t.elapsed().as_secs_f64();
+            ops.solve(&f, &c, &settings, start.as_ref(), observer)?
+        }
+    };
+    times.solve = t.elapsed().as_secs_f64();
+    same_on_every_rank(&**ops.system.dual().cluster().comm(), &sol)?;
+    let state = ops.into_state(sol, attempt, warm_started, times, t0);
+    finite::check(scene, &state)?;
+    Ok(state)
+}
+
+/// Whether a warm solve tries the previous active set first (TFETI, one
+/// process, multipliers to start from). A state kept there satisfies the KKT
+/// conditions to the tolerance, so what `precheck_balance` and the full
+/// system's coarse problem would refuse (loads nothing balances, a free
+/// rigid motion) cannot hold; both wait until SMALBE runs. Only where the
+/// tolerance is at most the balance test's 1e-6: a looser one could keep
+/// a state that test refuses.
+fn active_set_first(
+    scene: &Scene,
+    previous: Option<&State>,
+    warm: WarmStart,
+    comm: &dyn Comm,
+) -> bool {
+    warm.on_active_set
+        && warm.multipliers
+        && previous.is_some()
+        && scene.solver.method != crate::lang::scene::SolverMethod::Feti
+        && comm.size() == 1
+        && scene.solver.tolerance <= 1e-6
+}
+
+/// SMALBE's settings for a state solve: the scene's tolerance, budget and
+/// `solver { smalbe }` overrides.
+fn smalbe_settings(scene: &Scene) -> SmalbeSettings {
     let mut settings = SmalbeSettings {
         tolerance: scene.solver.tolerance,
         max_hessian: scene.solver.max_iterations,
@@ -846,144 +904,226 @@ fn solve_on(
         ..SmalbeSettings::default()
     };
     scene.solver.smalbe.apply(&mut settings);
-    // Warm start: the previous multipliers, when the rows are the same ones.
-    let start = previous.filter(|_| warm.multipliers).and_then(|prev| {
-        let same = prev.problem.rows.len() == problem.rows.len()
-            && prev.problem.n_equality == problem.n_equality
-            && prev.problem.rows.iter().zip(&problem.rows).all(|(a, b)| {
-                std::mem::discriminant(&a.kind) == std::mem::discriminant(&b.kind)
-                    && a.entries
-                        .iter()
-                        .map(|e| (e.0, e.1))
-                        .eq(b.entries.iter().map(|e| (e.0, e.1)))
-            });
-        same.then(|| {
-            let end = prev.end.as_ref();
-            let smalbe = end.map(|(w, _)| SmalbeWarm {
-                mu: w.mu.clone().filter(|_| warm.mu),
-                m_factor: w.m_factor.filter(|_| warm.precision),
-                norms: w.norms.filter(|_| warm.norms),
-                gradient: w.gradient.filter(|_| warm.eta),
-            });
-            DualStart {
-                lambda: prev.lambda.clone(),
-                active_set: warm.active_set,
-                smalbe,
-                pfp: end.map(|e| e.1).filter(|_| warm.norms),
-            }
-        })
-    });
-    let warm_started = start.is_some();
-    // On the previous active set first, where asked (TFETI, one process).
-    let mut spent = (0, 0);
-    let mut kept_dual = None;
-    let on_active_set = match (warm.on_active_set, &start, &system) {
-        (true, Some(s), DualSystem::Total(full)) => {
-            match active_set::solve(scene, &problem, full, &s.lambda, &f, &c, &settings) {
-                Outcome::Kept(mut sol, applications, dual, residuals) => {
-                    // SMALBE's state stays the previous solve's, for a later
-                    // design whose active set changes.
-                    sol.end = previous.and_then(|p| p.end.clone());
-                    spent = (0, applications);
-                    kept_dual = Some((Arc::new(dual), residuals));
-                    Some(*sol)
-                }
-                Outcome::Refused(hessian, applications) => {
-                    spent = (hessian, applications);
-                    None
-                }
-            }
+    settings
+}
+
+/// The warm start from `previous`: its multipliers, when its rows are the
+/// same ones as `problem`'s, and of SMALBE's state and `||P F P||` the parts
+/// `warm` asks for.
+fn warm_start(previous: Option<&State>, warm: WarmStart, problem: &Problem) -> Option<DualStart> {
+    let prev = previous.filter(|_| warm.multipliers)?;
+    let same = prev.problem.rows.len() == problem.rows.len()
+        && prev.problem.n_equality == problem.n_equality
+        && prev.problem.rows.iter().zip(&problem.rows).all(|(a, b)| {
+            std::mem::discriminant(&a.kind) == std::mem::discriminant(&b.kind)
+                && a.entries
+                    .iter()
+                    .map(|e| (e.0, e.1))
+                    .eq(b.entries.iter().map(|e| (e.0, e.1)))
+        });
+    same.then(|| {
+        let end = prev.end.as_ref();
+        let smalbe = end.map(|(w, _)| SmalbeWarm {
+            mu: w.mu.clone().filter(|_| warm.mu),
+            m_factor: w.m_factor.filter(|_| warm.precision),
+            norms: w.norms.filter(|_| warm.norms),
+            gradient: w.gradient.filter(|_| warm.eta),
+        });
+        DualStart {
+            lambda: prev.lambda.clone(),
+            active_set: warm.active_set,
+            smalbe,
+            pfp: end.map(|e| e.1).filter(|_| warm.norms),
         }
-        _ => None,
-    };
-    let solved = match on_active_set {
-        Some(sol) => Ok(sol),
-        None => {
-            if first_on_active_set {
-                precheck_balance(&problem)?;
+    })
+}
+
+/// What the solve on the previous active set gave: the solution where it
+/// was kept (taken out for the state), the dual it was solved on with its
+/// KKT residuals, and the Hessian applications and applications of `F` it
+/// spent (they count with the solve).
+#[derive(Default)]
+struct Attempt {
+    solution: Option<DualSolution>,
+    kept_dual: Option<(Arc<KeptDual>, Kkt)>,
+    spent: (usize, usize),
+}
+
+impl Attempt {
+    fn of(outcome: Outcome, previous: Option<&State>) -> Attempt {
+        match outcome {
+            Outcome::Kept(mut sol, applications, dual, residuals) => {
+                // SMALBE's state stays the previous solve's, for a later
+                // design whose active set changes.
+                sol.end = previous.and_then(|p| p.end.clone());
+                Attempt {
+                    solution: Some(*sol),
+                    kept_dual: Some((Arc::new(dual), residuals)),
+                    spent: (0, applications),
+                }
             }
-            let t = Instant::now();
-            system
-                .dual()
-                .check_coarse()
-                .map_err(|CoarseError { free_modes }| name(&free_modes))?;
-            times.coarse += t.elapsed().as_secs_f64();
-            system.solve(
-                &f,
-                &c,
-                problem.n_equality,
+            Outcome::Refused(hessian, applications) => Attempt {
+                solution: None,
+                kept_dual: None,
+                spent: (hessian, applications),
+            },
+        }
+    }
+}
+
+/// What a state solve runs on: the lowered problem, its dual system, and in
+/// classical FETI the dual over all rows, which the state keeps (FETI's
+/// eliminated rows too, with their recovered multipliers), so reports and
+/// checks are the same for both.
+struct Operators {
+    problem: Problem,
+    system: DualSystem,
+    /// Classical FETI: the dual over all rows (TFETI: None, the system's).
+    all_rows: Option<Dual>,
+    elimination: Option<Arc<Elimination>>,
+    factorizations: Factorizations,
+}
+
+impl Operators {
+    /// The dual system of `setup` with the scene's preconditioner, its coarse
+    /// problem left for first use where `deferred`.
+    fn of(scene: &Scene, setup: Setup, deferred: bool) -> Result<Operators, SolveError> {
+        let mut system = if deferred {
+            setup.dual_system_deferred()?
+        } else {
+            setup.dual_system()?
+        };
+        system.set_preconditioner(preconditioner(scene), setup.problem.n_equality);
+        let Setup {
+            problem,
+            cluster,
+            elimination,
+            factorizations,
+            ..
+        } = setup;
+        let all_rows = match &system {
+            DualSystem::Total(_) => None,
+            DualSystem::Classical { .. } => {
+                Some(Dual::new(cluster).map_err(|CoarseError { free_modes }| {
+                    SolveError::FreeRigidModes(name_modes(
+                        &problem,
+                        system.dual().cluster(),
+                        &free_modes,
+                    ))
+                })?)
+            }
+        };
+        Ok(Operators {
+            problem,
+            system,
+            all_rows,
+            elimination,
+            factorizations,
+        })
+    }
+
+    /// The rigid motions (subdomain, mode) that nothing holds, named.
+    fn free_modes(&self, free_modes: &[(usize, usize)]) -> SolveError {
+        SolveError::FreeRigidModes(name_modes(
+            &self.problem,
+            self.system.dual().cluster(),
+            free_modes,
+        ))
+    }
+
+    /// The dual solve by SMALBE on every row; rigid motions it leaves
+    /// undetermined are named.
+    fn solve(
+        &self,
+        f: &[&[f64]],
+        c: &[f64],
+        settings: &SmalbeSettings,
+        start: Option<&DualStart>,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<DualSolution, SolveError> {
+        self.system
+            .solve(
+                f,
+                c,
+                self.problem.n_equality,
                 crate::tfeti::classical::Held::Prescribed,
-                &settings,
-                start.as_ref(),
+                settings,
+                start,
                 observer,
             )
+            .map_err(|e| match e {
+                SolveError::Undetermined { modes, stopped, .. } => SolveError::Undetermined {
+                    names: Some(name_modes(
+                        &self.problem,
+                        self.system.dual().cluster(),
+                        &modes,
+                    )),
+                    modes,
+                    stopped,
+                },
+                e => e,
+            })
+    }
+
+    /// The state of the dual solution `sol`, with the KKT residuals (checked
+    /// already where kept on the active set) and the reconstruction's time;
+    /// what the attempt on the active set spent counts with the solve.
+    fn into_state(
+        self,
+        sol: DualSolution,
+        attempt: Attempt,
+        warm_started: bool,
+        mut times: Times,
+        t0: Instant,
+    ) -> State {
+        let DualSolution {
+            lambda,
+            u,
+            alpha,
+            mut info,
+            b_norm,
+            end,
+        } = sol;
+        let Attempt {
+            kept_dual, spent, ..
+        } = attempt;
+        // A refused attempt on the active set counts with the solve.
+        info.hessian_applications += spent.0;
+        let t = Instant::now();
+        let f_applications = self.system.f_applications() + spent.1;
+        let multipliers = self.system.multipliers();
+        let dual = match (self.all_rows, self.system) {
+            (Some(d), _) | (None, DualSystem::Total(d)) => d,
+            (None, DualSystem::Classical { dual, .. }) => dual,
+        };
+        let problem = self.problem;
+        let (kept_dual, kkt) = match kept_dual {
+            Some((d, k)) => (Some(d), k),
+            None => (None, kkt(&problem, &dual, &u, &lambda)),
+        };
+        times.reconstruct = t.elapsed().as_secs_f64();
+        times.total = t0.elapsed().as_secs_f64();
+        State {
+            problem,
+            dual,
+            elimination: self.elimination,
+            multipliers,
+            u,
+            lambda,
+            alpha,
+            info,
+            times,
+            kkt,
+            f_applications,
+            b_norm,
+            factorizations: self.factorizations,
+            warm_started,
+            on_active_set: kept_dual.is_some(),
+            kept_dual,
+            end,
+            search: Search::default(),
         }
-    };
-    let sol = solved.map_err(|e| match e {
-            SolveError::Undetermined { modes, stopped } => {
-                let mut names = name_modes(&problem, system.dual().cluster(), &modes).join("; ");
-                if names.is_empty() {
-                    names = "(the modes could not be identified)".to_string();
-                }
-                SolveError::Reconstruction(match stopped {
-                    None => format!(
-                        "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
-                    ),
-                    Some(why) => format!(
-                        "no equilibrium found: the dual solve stopped before converging ({why}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance"
-                    ),
-                })
-            }
-            e => e,
-        })?;
-    times.solve = t.elapsed().as_secs_f64();
-    same_on_every_rank(&**system.dual().cluster().comm(), &sol)?;
-    let DualSolution {
-        lambda,
-        u,
-        alpha,
-        mut info,
-        b_norm,
-        end,
-    } = sol;
-    // A refused attempt on the active set counts with the solve.
-    info.hessian_applications += spent.0;
-    let t = Instant::now();
-    let f_applications = system.f_applications() + spent.1;
-    let multipliers = system.multipliers();
-    let dual = match (dual, system) {
-        (Some(d), _) | (None, DualSystem::Total(d)) => d,
-        (None, DualSystem::Classical { dual, .. }) => dual,
-    };
-    // Checked already where kept on the active set.
-    let (kept_dual, kkt) = match kept_dual {
-        Some((d, k)) => (Some(d), k),
-        None => (None, kkt(&problem, &dual, &u, &lambda)),
-    };
-    times.reconstruct = t.elapsed().as_secs_f64();
-    times.total = t0.elapsed().as_secs_f64();
-    let state = State {
-        problem,
-        dual,
-        elimination,
-        multipliers,
-        u,
-        lambda,
-        alpha,
-        info,
-        times,
-        kkt,
-        f_applications,
-        b_norm,
-        factorizations,
-        warm_started,
-        on_active_set: kept_dual.is_some(),
-        kept_dual,
-        end,
-        search: Search::default(),
-    };
-    finite::check(scene, &state)?;
-    Ok(state)
+    }
 }
 
 impl State {

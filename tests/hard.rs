@@ -211,7 +211,13 @@ fn hard_rocking_punch_state_is_refused_as_not_unique() {
             rocking_scene(0.499, 8).edit("nu = 0.499 }", "nu = 0.499, formulation = standard }");
         let (_, r) = solve_at(&standard, tol);
         match r {
-            Err(e @ SolveError::Reconstruction(_)) => {
+            Err(
+                e @ SolveError::Undetermined {
+                    names: Some(_),
+                    stopped: None,
+                    ..
+                },
+            ) => {
                 let m = e.to_string();
                 assert!(
                     m.contains("not unique") && m.contains("body `punch` (rotation)"),

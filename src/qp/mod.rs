@@ -5,9 +5,11 @@
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009:
 //! MPRGP (ch. 5), SMALBE/SMALE (ch. 6).
 
+mod breakdown;
 mod mprgp;
 pub mod smalbe;
 
+pub use breakdown::{Breakdown, MprgpStep};
 pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
 pub use smalbe::{FeasibilityTest, SmalbeOverrides, SmalbeSettings, SmalbeWarm};
 
@@ -34,8 +36,9 @@ pub enum Status {
     Converged,
     /// The iteration or Hessian-application budget ran out.
     MaxIterations,
-    /// A numerical breakdown (non-positive curvature, NaN), with the numbers.
-    Breakdown(String),
+    /// A numerical breakdown (non-positive curvature, NaN), with the numbers;
+    /// serialized as its sentence.
+    Breakdown(Breakdown),
 }
 
 /// What a solve did and what it cost.

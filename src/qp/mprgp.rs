@@ -15,7 +15,7 @@
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 5 (MPRGP).
 
-use super::{Operator, QpInfo, Status};
+use super::{Breakdown, MprgpStep, Operator, QpInfo, Status};
 
 /// Parameters of [`mprgp`].
 #[derive(Debug, Clone, PartialEq)]
@@ -305,7 +305,7 @@ fn face_direction(
 /// `A x - b` for the projected `x` (SMALBE keeps it between outer iterations
 /// and saves one application each time). `stop(x, ||g^P||)` decides
 /// convergence; `trace(iteration, ||g^P||)` sees every iterate. No allocation
-/// happens here except the message of a breakdown.
+/// happens here.
 ///
 /// # Reference
 /// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
@@ -323,8 +323,13 @@ pub(super) fn run(
     trace: &mut dyn FnMut(usize, f64),
     precond: Option<&dyn Operator>,
 ) -> Run {
-    let Workspace { g, p, ap, z, r } = ws;
-    let a_bar = params.a_bar;
+    let q = Fixed {
+        a,
+        b,
+        lower,
+        precond,
+        a_bar: params.a_bar,
+    };
     let gamma2 = params.gamma * params.gamma;
     let mut out = Run {
         status: Status::Converged,
@@ -338,134 +343,196 @@ pub(super) fn run(
             out.status = Status::MaxIterations;
             return out;
         }
-        gradient(a, b, x, g);
+        gradient(a, b, x, &mut ws.g);
         out.applications += 1;
     }
-    face_direction(precond, x, lower, g, r, p);
+    face_direction(precond, x, lower, &ws.g, &mut ws.r, &mut ws.p);
     loop {
-        let s = split(x, lower, g, a_bar);
+        let s = split(x, lower, &ws.g, q.a_bar);
         out.gp_norm = s.gp_norm;
         trace(out.iterations, s.gp_norm);
-        if !s.gp_norm.is_finite() {
-            out.status = Status::Breakdown(format!(
-                "projected gradient is {} after {} MPRGP steps",
-                s.gp_norm, out.iterations
-            ));
-            return out;
-        }
-        if stop(x, s.gp_norm) {
-            out.status = Status::Converged;
-            return out;
-        }
-        // An expansion step needs two applications; never start a step that
-        // could overrun the budget.
-        if out.iterations >= params.max_iterations
-            || params.max_applications.saturating_sub(out.applications) < 2
-        {
-            out.status = Status::MaxIterations;
+        if let Some(status) = verdict(x, &s, params, &out, stop) {
+            out.status = status;
             return out;
         }
         out.iterations += 1;
-        if s.beta2 <= gamma2 * s.phit_phi {
-            // Proportional: conjugate gradients in the face, p = CG direction.
-            a.apply(p, ap);
-            out.applications += 1;
-            let pap = dot(p, ap);
-            if pap.is_nan() || pap <= 0.0 {
-                out.status = Status::Breakdown(format!(
-                    "curvature p^T A p = {pap:e} with ||p|| = {:e} in a CG step \
-                     (MPRGP step {})",
-                    norm2(p),
-                    out.iterations
-                ));
-                return out;
-            }
-            let a_cg = dot(g, p) / pap;
-            // Largest feasible step along -p, and the constraint that blocks it.
-            let mut a_f = f64::INFINITY;
-            let mut blocking = usize::MAX;
-            for (i, ((&xi, &li), &pi)) in x.iter().zip(lower.iter()).zip(p.iter()).enumerate() {
-                if pi > 0.0 {
-                    let t = (xi - li) / pi;
-                    if t < a_f {
-                        a_f = t;
-                        blocking = i;
-                    }
-                }
-            }
-            if a_cg <= a_f {
-                axpy(-a_cg, p, x);
-                axpy(-a_cg, ap, g);
-                project(x, lower);
-                if let Some(m) = precond {
-                    // p = z - (z^T A p / p^T A p) p, z = M_F phi(x) at the new x.
-                    precondition(m, x, lower, g, r, z);
-                    let c = dot(z, ap) / pap;
-                    for (pi, &zi) in p.iter_mut().zip(z.iter()) {
-                        *pi = zi - c * *pi;
-                    }
-                } else {
-                    // p = phi(x) - (phi^T A p / p^T A p) p, phi(x) at the new x.
-                    let mut phi_ap = 0.0;
-                    for (((&xi, &li), &gi), &api) in
-                        x.iter().zip(lower).zip(g.iter()).zip(ap.iter())
-                    {
-                        if xi > li {
-                            phi_ap += gi * api;
-                        }
-                    }
-                    let c = phi_ap / pap;
-                    for (((pi, &xi), &li), &gi) in
-                        p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter())
-                    {
-                        let phi = if xi > li { gi } else { 0.0 };
-                        *pi = phi - c * *pi;
-                    }
-                }
-            } else {
-                // Expansion: the feasible step to the face's boundary, then a
-                // projected gradient step of fixed length a_bar along phi.
-                axpy(-a_f, p, x);
-                axpy(-a_f, ap, g);
-                project(x, lower);
-                if blocking < x.len() {
-                    x[blocking] = lower[blocking];
-                }
-                for ((xi, &li), &gi) in x.iter_mut().zip(lower).zip(g.iter()) {
-                    if *xi > li {
-                        *xi = (*xi - a_bar * gi).max(li);
-                    }
-                }
-                gradient(a, b, x, g);
-                out.applications += 1;
-                face_direction(precond, x, lower, g, r, p);
-            }
+        let step = if s.beta2 <= gamma2 * s.phit_phi {
+            // Proportional: conjugate gradients in the face.
+            cg_step(&q, x, ws, &mut out)
         } else {
-            // Proportioning: release constraints along the chopped gradient
-            // with the exact line-search step (it only moves x up, off the
-            // bounds, so it stays feasible).
-            for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
-                *pi = if xi > li { 0.0 } else { gi.min(0.0) };
-            }
-            a.apply(p, ap);
-            out.applications += 1;
-            let pap = dot(p, ap);
-            if pap.is_nan() || pap <= 0.0 {
-                out.status = Status::Breakdown(format!(
-                    "curvature d^T A d = {pap:e} with ||d|| = {:e} in a proportioning \
-                     step (MPRGP step {})",
-                    norm2(p),
-                    out.iterations
-                ));
-                return out;
-            }
-            let step = s.beta2 / pap;
-            axpy(-step, p, x);
-            axpy(-step, ap, g);
-            project(x, lower);
-            face_direction(precond, x, lower, g, r, p);
+            proportioning_step(&q, x, s.beta2, ws, &mut out)
+        };
+        if let Err(why) = step {
+            out.status = Status::Breakdown(why);
+            return out;
         }
     }
+}
+
+/// What one run iterates on: the problem, the preconditioner and the
+/// expansion's step length.
+struct Fixed<'a> {
+    a: &'a dyn Operator,
+    b: &'a [f64],
+    lower: &'a [f64],
+    precond: Option<&'a dyn Operator>,
+    a_bar: f64,
+}
+
+/// Whether the run ends at the current iterate, and how: a projected
+/// gradient that is not finite, the caller's stopping test, or the budget.
+fn verdict(
+    x: &[f64],
+    s: &Split,
+    params: &Params,
+    out: &Run,
+    stop: &mut dyn FnMut(&[f64], f64) -> bool,
+) -> Option<Status> {
+    if !s.gp_norm.is_finite() {
+        return Some(Status::Breakdown(Breakdown::ProjectedGradient {
+            norm: s.gp_norm,
+            mprgp_steps: out.iterations,
+        }));
+    }
+    if stop(x, s.gp_norm) {
+        return Some(Status::Converged);
+    }
+    // An expansion step needs two applications; never start a step that
+    // could overrun the budget.
+    if out.iterations >= params.max_iterations
+        || params.max_applications.saturating_sub(out.applications) < 2
+    {
+        return Some(Status::MaxIterations);
+    }
+    None
+}
+
+/// A step in a proportional iterate along the CG direction `p`: the CG step
+/// when it stays feasible, else the expansion.
+fn cg_step(q: &Fixed, x: &mut [f64], ws: &mut Workspace, out: &mut Run) -> Result<(), Breakdown> {
+    q.a.apply(&ws.p, &mut ws.ap);
+    out.applications += 1;
+    let pap = dot(&ws.p, &ws.ap);
+    if pap.is_nan() || pap <= 0.0 {
+        return Err(Breakdown::Curvature {
+            step: MprgpStep::Cg,
+            curvature: pap,
+            direction_norm: norm2(&ws.p),
+            mprgp_step: out.iterations,
+        });
+    }
+    let a_cg = dot(&ws.g, &ws.p) / pap;
+    let (a_f, blocking) = feasible_step(x, q.lower, &ws.p);
+    if a_cg <= a_f {
+        axpy(-a_cg, &ws.p, x);
+        axpy(-a_cg, &ws.ap, &mut ws.g);
+        project(x, q.lower);
+        conjugate_direction(q, x, pap, ws);
+    } else {
+        expansion_step(q, x, a_f, blocking, ws);
+        out.applications += 1;
+    }
+    Ok(())
+}
+
+/// The largest feasible step along `-p`, and the constraint that blocks it
+/// (`usize::MAX` if none).
+fn feasible_step(x: &[f64], lower: &[f64], p: &[f64]) -> (f64, usize) {
+    let mut a_f = f64::INFINITY;
+    let mut blocking = usize::MAX;
+    for (i, ((&xi, &li), &pi)) in x.iter().zip(lower.iter()).zip(p.iter()).enumerate() {
+        if pi > 0.0 {
+            let t = (xi - li) / pi;
+            if t < a_f {
+                a_f = t;
+                blocking = i;
+            }
+        }
+    }
+    (a_f, blocking)
+}
+
+/// The next CG direction after a CG step, `A`-conjugate to `p` (`ws.ap`
+/// holds `A p`, `pap` is `p^T A p`): `p = z - (z^T A p / p^T A p) p` with
+/// `z = M_F phi(x)`, or `phi(x)` itself without a preconditioner.
+fn conjugate_direction(q: &Fixed, x: &[f64], pap: f64, ws: &mut Workspace) {
+    let Workspace { g, p, ap, z, r } = ws;
+    let lower = q.lower;
+    if let Some(m) = q.precond {
+        precondition(m, x, lower, g, r, z);
+        let c = dot(z, ap) / pap;
+        for (pi, &zi) in p.iter_mut().zip(z.iter()) {
+            *pi = zi - c * *pi;
+        }
+    } else {
+        let mut phi_ap = 0.0;
+        for (((&xi, &li), &gi), &api) in x.iter().zip(lower).zip(g.iter()).zip(ap.iter()) {
+            if xi > li {
+                phi_ap += gi * api;
+            }
+        }
+        let c = phi_ap / pap;
+        for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
+            let phi = if xi > li { gi } else { 0.0 };
+            *pi = phi - c * *pi;
+        }
+    }
+}
+
+/// Expansion: the feasible step `a_f` along `-p` to the face's boundary
+/// (`blocking` put on its bound), then a projected gradient step of fixed
+/// length `a_bar` along `phi`; the gradient anew (one application) and the
+/// new face's first direction.
+fn expansion_step(q: &Fixed, x: &mut [f64], a_f: f64, blocking: usize, ws: &mut Workspace) {
+    let Workspace { g, p, ap, r, .. } = ws;
+    let lower = q.lower;
+    axpy(-a_f, p, x);
+    axpy(-a_f, ap, g);
+    project(x, lower);
+    if blocking < x.len() {
+        x[blocking] = lower[blocking];
+    }
+    for ((xi, &li), &gi) in x.iter_mut().zip(lower).zip(g.iter()) {
+        if *xi > li {
+            *xi = (*xi - q.a_bar * gi).max(li);
+        }
+    }
+    gradient(q.a, q.b, x, g);
+    face_direction(q.precond, x, lower, g, r, p);
+}
+
+/// Proportioning: release constraints along the chopped gradient `d = beta`
+/// with the exact line-search step `||beta||^2 / d^T A d` (it only moves `x`
+/// up, off the bounds, so it stays feasible).
+fn proportioning_step(
+    q: &Fixed,
+    x: &mut [f64],
+    beta2: f64,
+    ws: &mut Workspace,
+    out: &mut Run,
+) -> Result<(), Breakdown> {
+    let Workspace { g, p, ap, r, .. } = ws;
+    let lower = q.lower;
+    for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
+        *pi = if xi > li { 0.0 } else { gi.min(0.0) };
+    }
+    q.a.apply(p, ap);
+    out.applications += 1;
+    let pap = dot(p, ap);
+    if pap.is_nan() || pap <= 0.0 {
+        return Err(Breakdown::Curvature {
+            step: MprgpStep::Proportioning,
+            curvature: pap,
+            direction_norm: norm2(p),
+            mprgp_step: out.iterations,
+        });
+    }
+    let step = beta2 / pap;
+    axpy(-step, p, x);
+    axpy(-step, ap, g);
+    project(x, lower);
+    face_direction(q.precond, x, lower, g, r, p);
+    Ok(())
 }
 
 /// `g = A x - b`.
@@ -549,28 +616,29 @@ pub fn estimate_norm(
 }
 
 /// `a_bar = factor / ||A||`, refusing a norm that is not positive and finite.
-pub(super) fn step_length(factor: f64, norm: f64) -> Result<f64, String> {
+pub(super) fn step_length(factor: f64, norm: f64) -> Result<f64, Breakdown> {
     if norm > 0.0 && norm.is_finite() && factor > 0.0 && factor.is_finite() {
         Ok(factor / norm)
     } else {
-        Err(format!(
-            "cannot set the expansion step a_bar = {factor} / ||A|| with ||A|| = {norm:e}"
-        ))
+        Err(Breakdown::StepLength { factor, norm })
     }
 }
 
 /// Says what is wrong when the vectors do not match the operator's dimension.
-pub(super) fn check_dimensions(n: usize, b: &[f64], lower: &[f64], x: &[f64]) -> Option<String> {
+pub(super) fn check_dimensions(n: usize, b: &[f64], lower: &[f64], x: &[f64]) -> Option<Breakdown> {
     if b.len() != n || lower.len() != n || x.len() != n {
-        return Some(format!(
-            "dimension mismatch: operator {n}, b {}, lower {}, x {}",
-            b.len(),
-            lower.len(),
-            x.len()
-        ));
+        return Some(Breakdown::Dimensions {
+            operator: n,
+            b: b.len(),
+            lower: lower.len(),
+            x: x.len(),
+        });
     }
     if let Some(i) = lower.iter().position(|l| l.is_nan() || *l == f64::INFINITY) {
-        return Some(format!("lower bound {i} is {}", lower[i]));
+        return Some(Breakdown::LowerBound {
+            index: i,
+            value: lower[i],
+        });
     }
     None
 }
@@ -898,10 +966,16 @@ pub(super) mod tests {
         let lower = [f64::NEG_INFINITY; 2];
         let mut x = [0.0; 2];
         let info = mprgp(&a, &b, &lower, &mut x, &MprgpSettings::default(), None);
-        let Status::Breakdown(why) = &info.status else {
-            panic!("expected a breakdown: {info:?}");
-        };
-        assert!(why.contains("curvature"), "{why}");
+        assert!(
+            matches!(
+                info.status,
+                Status::Breakdown(Breakdown::Curvature {
+                    step: MprgpStep::Cg,
+                    ..
+                })
+            ),
+            "{info:?}"
+        );
     }
 
     #[test]
@@ -927,7 +1001,13 @@ pub(super) mod tests {
             &MprgpSettings::default(),
             Some(1.0),
         );
-        assert!(matches!(info.status, Status::Breakdown(ref w) if w.contains("dimension")));
+        assert!(
+            matches!(
+                info.status,
+                Status::Breakdown(Breakdown::Dimensions { x: 1, .. })
+            ),
+            "{info:?}"
+        );
     }
 
     #[test]

@@ -43,7 +43,7 @@ use super::mprgp::{
     self, axpy, check_dimensions, dot, estimate_norm, norm2, project, start_vector, step_length,
     MprgpSettings, Params, Workspace,
 };
-use super::{Equality, Operator, QpInfo, Status};
+use super::{Breakdown, Equality, Operator, QpInfo, Status};
 
 /// Parameters of [`solve`]. Scale-dependent ones are relative to `||A||`
 /// (estimated by power iterations) or `||b||`, so that one set of defaults
@@ -472,9 +472,7 @@ impl<'a> Setup<'a> {
         };
         info.norm_estimate = norm_a;
         if !(norm_a > 0.0 && norm_a.is_finite()) {
-            info.status = Status::Breakdown(format!(
-                "power iteration gives ||A|| = {norm_a:e}: A is zero or not finite"
-            ));
+            info.status = Status::Breakdown(Breakdown::NormEstimate { norm: norm_a });
             return None;
         }
         let rho = settings.rho_factor * norm_a;
@@ -667,11 +665,11 @@ fn outer_loop(
         info.hessian_applications += run.applications;
         info.projected_gradient = run.gp_norm;
         if let Status::Breakdown(why) = run.status {
-            info.status = Status::Breakdown(format!(
-                "{why} (SMALBE outer iteration {}, rho = {:e})",
-                k + 1,
-                setup.rho
-            ));
+            info.status = Status::Breakdown(Breakdown::Smalbe {
+                inner: Box::new(why),
+                outer_iteration: k + 1,
+                rho: setup.rho,
+            });
             observer(info);
             return;
         }

@@ -421,7 +421,7 @@ impl<'a> Sensitivity<'a> {
                     n_equality,
                     state.elimination.clone(),
                 )
-                    .map_err(|_| SolveError::Reconstruction("the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined".into()))?;
+                .map_err(|_| SolveError::SensitivityUndefined)?;
                 dual.defer_preconditioner(kind, n_equality, form);
                 Arc::new(dual)
             }

@@ -27,6 +27,7 @@ use crate::model::{Problem, Row};
 use crate::qp::{QpInfo, SmalbeSettings, Status};
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::dual::Dual;
+use crate::tfeti::error::SolveError;
 use crate::tfeti::kkt::{gap_scale, kkt, Kkt};
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
@@ -103,27 +104,13 @@ pub(super) fn solve(
             ..settings.clone()
         };
         let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
-        let rows: Vec<&Row> = kept.iter().map(|&i| &problem.rows[i]).collect();
         // Rigid motions that only the contacts left out would hold: not
         // this way.
-        let Ok(mut system) = DualSystem::new(dual.cluster(), &rows, kept.len(), None) else {
+        let Some((system, solved)) =
+            solve_held(problem, dual, &kept, &start, f, c, &settings, kind)
+        else {
             break;
         };
-        system.defer_preconditioner(kind, kept.len(), SchurForm::PreferDense);
-        let from = DualStart {
-            lambda: kept.iter().map(|&i| start[i]).collect(),
-            ..DualStart::default()
-        };
-        let c_kept: Vec<f64> = kept.iter().map(|&i| c[i]).collect();
-        let solved = system.solve(
-            f,
-            &c_kept,
-            kept.len(),
-            crate::tfeti::classical::Held::Prescribed,
-            &settings,
-            Some(&from),
-            &mut |_| {},
-        );
         applications += system.f_applications();
         let sol = match solved {
             Ok(sol) => sol,
@@ -146,19 +133,8 @@ pub(super) fn solve(
         // not impose is tested here.
         let check = kkt(problem, dual, &sol.u, &lambda);
         if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
-            let info = QpInfo {
-                outer_iterations: 0,
-                hessian_applications: hessian,
-                ..sol.info
-            };
-            let sol = DualSolution {
-                lambda,
-                info,
-                end: None,
-                ..sol
-            };
             return Outcome::Kept(
-                Box::new(sol),
+                Box::new(on_every_row(sol, lambda, hessian)),
                 applications,
                 KeptDual {
                     rows: kept,
@@ -167,27 +143,90 @@ pub(super) fn solve(
                 check,
             );
         }
-        // Let go of the rows that pull, hold the rows penetrated, as the KKT
-        // check measures them.
-        let bu = dual.cluster().apply_b(&sol.u);
-        let scale = gap_scale(problem, dual.cluster(), &sol.u);
-        let lmax = lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-        let mut changed = false;
-        for i in n_eq..m {
-            let (pulls, penetrated) = (
-                lambda[i] < -tol * lmax,
-                bu[i] - problem.rows[i].c > tol * scale,
-            );
-            if (held[i] && pulls) || (!held[i] && penetrated) {
-                held[i] = !held[i];
-                changed = true;
-            }
-        }
-        if !changed {
+        if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
             break;
         }
         start = lambda.iter().map(|l| l.max(0.0)).collect();
         start[..n_eq].copy_from_slice(&lambda[..n_eq]);
     }
     Outcome::Refused(hessian, applications)
+}
+
+/// The equality-only dual on the rows `kept` (those held), with its deferred
+/// preconditioner `kind`, and its solve from the multipliers `start` (one per
+/// row of `problem`). None where the rows held leave a rigid motion free.
+#[allow(clippy::too_many_arguments)]
+fn solve_held(
+    problem: &Problem,
+    dual: &Dual,
+    kept: &[usize],
+    start: &[f64],
+    f: &[&[f64]],
+    c: &[f64],
+    settings: &SmalbeSettings,
+    kind: Option<Kind>,
+) -> Option<(DualSystem, Result<DualSolution, SolveError>)> {
+    let rows: Vec<&Row> = kept.iter().map(|&i| &problem.rows[i]).collect();
+    let mut system = DualSystem::new(dual.cluster(), &rows, kept.len(), None).ok()?;
+    system.defer_preconditioner(kind, kept.len(), SchurForm::PreferDense);
+    let from = DualStart {
+        lambda: kept.iter().map(|&i| start[i]).collect(),
+        ..DualStart::default()
+    };
+    let c_kept: Vec<f64> = kept.iter().map(|&i| c[i]).collect();
+    let solved = system.solve(
+        f,
+        &c_kept,
+        kept.len(),
+        crate::tfeti::classical::Held::Prescribed,
+        settings,
+        Some(&from),
+        &mut |_| {},
+    );
+    Some((system, solved))
+}
+
+/// The kept solution as the contact problem's: `lambda` on every row, the
+/// Hessian applications of every attempt, no SMALBE state.
+fn on_every_row(sol: DualSolution, lambda: Vec<f64>, hessian: usize) -> DualSolution {
+    let info = QpInfo {
+        outer_iterations: 0,
+        hessian_applications: hessian,
+        ..sol.info
+    };
+    DualSolution {
+        lambda,
+        info,
+        end: None,
+        ..sol
+    }
+}
+
+/// A primal-dual active set step: lets go of the held contact rows that pull
+/// and holds the rows penetrated, as the KKT check measures them, at the
+/// solution `u`, `lambda` (one per row). False where nothing changes.
+fn correct(
+    problem: &Problem,
+    dual: &Dual,
+    u: &[Vec<f64>],
+    lambda: &[f64],
+    tol: f64,
+    held: &mut [bool],
+) -> bool {
+    let (n_eq, m) = (problem.n_equality, problem.rows.len());
+    let bu = dual.cluster().apply_b(u);
+    let scale = gap_scale(problem, dual.cluster(), u);
+    let lmax = lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let mut changed = false;
+    for i in n_eq..m {
+        let (pulls, penetrated) = (
+            lambda[i] < -tol * lmax,
+            bu[i] - problem.rows[i].c > tol * scale,
+        );
+        if (held[i] && pulls) || (!held[i] && penetrated) {
+            held[i] = !held[i];
+            changed = true;
+        }
+    }
+    changed
 }

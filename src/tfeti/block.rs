@@ -24,7 +24,7 @@ use super::dual::{Dual, ProjectedM};
 use super::error::SolveError;
 use super::reconstruct::reconstruct_block;
 use super::solve::{dot, galerkin_start, homogenized_rhs, homogenized_start, norm, particular};
-use crate::qp::{SmalbeSettings, Status};
+use crate::qp::{Breakdown, SmalbeSettings, Status};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
 
@@ -164,7 +164,6 @@ fn block_projected_cg(
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
 ) -> Solved {
-    let (m, nrhs) = (dual.multipliers(), b.len());
     let mut info = BlockInfo {
         status: Status::Converged,
         iterations: 0,
@@ -173,6 +172,74 @@ fn block_projected_cg(
         history: Vec::new(),
     };
     let bnorm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
+    let (mut x, mut fx, mut r) = block_start(dual, b, x0, &bnorm, &mut info);
+    let tolerance = settings.tolerance;
+    let (mut active, _) = open_columns(&r, &bnorm, tolerance);
+    let precond = if active.is_empty() {
+        None
+    } else {
+        dual.preconditioner()
+            .map(|pm| ProjectedM::on_image(dual, pm, 1.0))
+    };
+    let mut p = orthonormal(precondition_block(precond.as_ref(), &active, &r));
+    while !active.is_empty() {
+        if p.ncols() == 0 {
+            info.status = Status::Breakdown(Breakdown::BlockRankLost);
+            break;
+        }
+        if info.products + p.ncols() > settings.max_hessian {
+            info.status = Status::MaxIterations;
+            break;
+        }
+        // Q = P F P p = P F p (p is in Im P).
+        let (fp, q) = apply_block(dual, p.as_ref());
+        info.iterations += 1;
+        info.passes += 1;
+        info.products += p.ncols();
+        let pq = cross(p.as_ref(), q.as_ref());
+        let pq = Mat::from_fn(pq.nrows(), pq.ncols(), |i, j| {
+            0.5 * (pq[(i, j)] + pq[(j, i)])
+        });
+        let Some(alpha) = solve_spd(&pq, cross(p.as_ref(), r.as_ref())) else {
+            info.status = Status::Breakdown(Breakdown::BlockCgCurvature);
+            break;
+        };
+        add_product(x.as_mut(), p.as_ref(), &alpha, 1.0);
+        add_product(fx.as_mut(), fp.as_ref(), &alpha, 1.0);
+        add_product(r.as_mut(), q.as_ref(), &alpha, -1.0);
+        let (still, worst) = open_columns(&r, &bnorm, tolerance);
+        info.history.push(worst);
+        active = still;
+        if active.is_empty() {
+            break;
+        }
+        let mut y = precondition_block(precond.as_ref(), &active, &r);
+        let Some(beta) = solve_spd(&pq, cross(q.as_ref(), y.as_ref())) else {
+            info.status = Status::Breakdown(Breakdown::BlockCgCurvature);
+            break;
+        };
+        // y - p (P^T A P)^-1 (A p)^T z: A-conjugate to the search block.
+        add_product(y.as_mut(), p.as_ref(), &beta, -1.0);
+        p = orthonormal(y);
+    }
+    Solved {
+        x: to_cols(x.as_ref(), None),
+        fx: to_cols(fx.as_ref(), None),
+        info,
+    }
+}
+
+/// Block CG's start: `X`, `F X` and the residuals `R = B - P F P X`, from
+/// `x0` where it has a nonzero column (one pass over the factors, counted in
+/// `info`), each column scaled by [`galerkin_start`] or dropped; else zero.
+fn block_start(
+    dual: &Dual,
+    b: &[Vec<f64>],
+    x0: Option<Vec<Vec<f64>>>,
+    bnorm: &[f64],
+    info: &mut BlockInfo,
+) -> (Mat<f64>, Mat<f64>, Mat<f64>) {
+    let (m, nrhs) = (dual.multipliers(), b.len());
     let mut r = b.to_vec();
     let (x, fx) = match x0 {
         Some(x0) if x0.len() == nrhs && x0.iter().any(|c| c.iter().any(|v| *v != 0.0)) => {
@@ -200,99 +267,49 @@ fn block_projected_cg(
         }
         _ => (Mat::zeros(m, nrhs), Mat::zeros(m, nrhs)),
     };
-    let (mut x, mut fx, mut r) = (x, fx, to_mat(&r));
-    // The columns not yet converged, and the largest relative residual.
-    let open = |r: &Mat<f64>| -> (Vec<usize>, f64) {
-        let rel: Vec<f64> = (0..nrhs)
-            .map(|j| {
-                if bnorm[j] > 0.0 {
-                    r.col(j).norm_l2() / bnorm[j]
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let worst = rel.iter().copied().fold(0.0f64, f64::max);
-        let open = (0..nrhs).filter(|&j| rel[j] > settings.tolerance).collect();
-        (open, worst)
+    (x, fx, to_mat(&r))
+}
+
+/// The columns not yet converged (relative residual above `tolerance`; a
+/// zero right-hand side counts as converged), and the largest relative
+/// residual.
+fn open_columns(r: &Mat<f64>, bnorm: &[f64], tolerance: f64) -> (Vec<usize>, f64) {
+    let nrhs = bnorm.len();
+    let rel: Vec<f64> = (0..nrhs)
+        .map(|j| {
+            if bnorm[j] > 0.0 {
+                r.col(j).norm_l2() / bnorm[j]
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let worst = rel.iter().copied().fold(0.0f64, f64::max);
+    let open = (0..nrhs).filter(|&j| rel[j] > tolerance).collect();
+    (open, worst)
+}
+
+/// `z = P M P r` of every open column in one pass, or `r` where `M` gives no
+/// descent (round-off, semidefinite `M`) or there is no preconditioner.
+fn precondition_block(precond: Option<&ProjectedM>, open: &[usize], r: &Mat<f64>) -> Mat<f64> {
+    let rs = to_cols(r.as_ref(), Some(open));
+    let Some(pm) = precond else {
+        return to_mat(&rs);
     };
-    // z = P M P r of every open column in one pass, or r where M gives no
-    // descent (round-off, semidefinite M).
-    let (mut active, _) = open(&r);
-    let precond = if active.is_empty() {
-        None
-    } else {
-        dual.preconditioner()
-            .map(|pm| ProjectedM::on_image(dual, pm, 1.0))
-    };
-    let precondition = |open: &[usize], r: &Mat<f64>| -> Mat<f64> {
-        let rs = to_cols(r.as_ref(), Some(open));
-        let Some(pm) = &precond else {
-            return to_mat(&rs);
-        };
-        let zs = pm.apply_columns(&rs);
-        let zs: Vec<Vec<f64>> = zs
-            .into_iter()
-            .zip(rs)
-            .map(|(z, r)| {
-                let rz = dot(&r, &z);
-                if rz > 0.0 && rz.is_finite() {
-                    z
-                } else {
-                    r
-                }
-            })
-            .collect();
-        to_mat(&zs)
-    };
-    let mut p = orthonormal(precondition(&active, &r));
-    while !active.is_empty() {
-        if p.ncols() == 0 {
-            info.status = Status::Breakdown(
-                "the search block lost its rank before the residuals converged".into(),
-            );
-            break;
-        }
-        if info.products + p.ncols() > settings.max_hessian {
-            info.status = Status::MaxIterations;
-            break;
-        }
-        // Q = P F P p = P F p (p is in Im P).
-        let (fp, q) = apply_block(dual, p.as_ref());
-        info.iterations += 1;
-        info.passes += 1;
-        info.products += p.ncols();
-        let pq = cross(p.as_ref(), q.as_ref());
-        let pq = Mat::from_fn(pq.nrows(), pq.ncols(), |i, j| {
-            0.5 * (pq[(i, j)] + pq[(j, i)])
-        });
-        let Some(alpha) = solve_spd(&pq, cross(p.as_ref(), r.as_ref())) else {
-            info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
-            break;
-        };
-        add_product(x.as_mut(), p.as_ref(), &alpha, 1.0);
-        add_product(fx.as_mut(), fp.as_ref(), &alpha, 1.0);
-        add_product(r.as_mut(), q.as_ref(), &alpha, -1.0);
-        let (still, worst) = open(&r);
-        info.history.push(worst);
-        active = still;
-        if active.is_empty() {
-            break;
-        }
-        let mut y = precondition(&active, &r);
-        let Some(beta) = solve_spd(&pq, cross(q.as_ref(), y.as_ref())) else {
-            info.status = Status::Breakdown("P^T A P is not positive definite in block CG".into());
-            break;
-        };
-        // y - p (P^T A P)^-1 (A p)^T z: A-conjugate to the search block.
-        add_product(y.as_mut(), p.as_ref(), &beta, -1.0);
-        p = orthonormal(y);
-    }
-    Solved {
-        x: to_cols(x.as_ref(), None),
-        fx: to_cols(fx.as_ref(), None),
-        info,
-    }
+    let zs = pm.apply_columns(&rs);
+    let zs: Vec<Vec<f64>> = zs
+        .into_iter()
+        .zip(rs)
+        .map(|(z, r)| {
+            let rz = dot(&r, &z);
+            if rz > 0.0 && rz.is_finite() {
+                z
+            } else {
+                r
+            }
+        })
+        .collect();
+    to_mat(&zs)
 }
 
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an equality)

@@ -483,11 +483,9 @@ fn redundant(
         }
     }
     let b = faer::Mat::<f64>::from_fn(dofs.len(), 1, |r, _| res[dofs[r].0][dofs[r].1]);
-    let svd = a.thin_svd().map_err(|e| {
-        SolveError::Reconstruction(format!(
-            "classical FETI: the reactions of {} redundant rows on held dofs cannot be recovered ({e:?}); use `method = tfeti`",
-            left.len()
-        ))
+    let svd = a.thin_svd().map_err(|svd| SolveError::RedundantReactions {
+        rows: left.len(),
+        svd,
     })?;
     // (What this leaves unbalanced shows in the KKT equilibrium residual.)
     let x = svd.pseudoinverse() * &b;

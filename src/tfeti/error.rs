@@ -4,6 +4,8 @@
 use super::subdomain::SubdomainError;
 use crate::model::finite::NotFinite;
 use crate::model::LowerError;
+use crate::qp::Status;
+use faer::linalg::svd::SvdError;
 use std::fmt;
 
 /// Why the coarse problem cannot be set up.
@@ -28,17 +30,27 @@ pub enum SolveError {
     },
     /// Rigid motions that no support, glue or contact holds.
     FreeRigidModes(Vec<String>),
-    /// The multipliers do not determine the rigid motions of some subdomain.
-    Reconstruction(String),
     /// Constraints that contradict each other (no displacement satisfies them).
     Infeasible(String),
     /// Rigid motions (subdomain, kernel mode) that no support or active contact
     /// determines: the state is not unique.
     Undetermined {
         modes: Vec<(usize, usize)>,
+        /// The modes in words (body and motion), once the driver has named
+        /// them (None before; an empty list where none could be identified).
+        names: Option<Vec<String>>,
         /// How the dual solve stopped, when it did not converge.
-        stopped: Option<String>,
+        stopped: Option<Status>,
     },
+    /// Classical FETI: the reactions of `rows` redundant rows on held dofs
+    /// cannot be recovered (the SVD of their least-squares problem failed).
+    RedundantReactions {
+        rows: usize,
+        svd: SvdError,
+    },
+    /// The supports and strong contacts do not fix every rigid motion, so the
+    /// sensitivity problem (their rows as equalities) has no unique solution.
+    SensitivityUndefined,
     /// The bodies of a contact start inside each other: its deepest secondary
     /// node lies `depth` behind the primary side, at `at`.
     Penetration {
@@ -115,22 +127,20 @@ impl fmt::Display for SolveError {
                 "the scene does not hold every rigid motion: {}; add a support, a glue or a contact that acts in that direction",
                 m.join("; ")
             ),
-            SolveError::Reconstruction(s) | SolveError::Infeasible(s) => write!(f, "{s}"),
-            SolveError::Undetermined { modes, stopped } => {
-                let n = if modes.is_empty() {
-                    "some".to_string()
-                } else {
-                    modes.len().to_string()
-                };
-                write!(
-                    f,
-                    "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
-                )?;
-                if let Some(why) = stopped {
-                    write!(f, "; the dual solve stopped before converging ({why})")?;
-                }
-                Ok(())
-            }
+            SolveError::Infeasible(s) => write!(f, "{s}"),
+            SolveError::Undetermined {
+                modes,
+                names,
+                stopped,
+            } => undetermined(f, modes, names.as_deref(), stopped.as_ref()),
+            SolveError::RedundantReactions { rows, svd } => write!(
+                f,
+                "classical FETI: the reactions of {rows} redundant rows on held dofs cannot be recovered ({svd:?}); use `method = tfeti`"
+            ),
+            SolveError::SensitivityUndefined => write!(
+                f,
+                "the supports and strong contacts do not fix every rigid motion; the sensitivity is not defined"
+            ),
             SolveError::Penetration { contact, depth, at } => write!(
                 f,
                 "the bodies of contact `{contact}` start inside each other: its secondary node at ({}) lies {} m behind the primary side; move them apart, or check the primary face and the obstacle's normal (it must point towards the secondary body)",
@@ -194,3 +204,111 @@ impl fmt::Display for SolveError {
 }
 
 impl std::error::Error for SolveError {}
+
+/// [`SolveError::Undetermined`] in words: with the modes named (by the
+/// driver), what holds none of them and what to do; else their count.
+fn undetermined(
+    f: &mut fmt::Formatter<'_>,
+    modes: &[(usize, usize)],
+    names: Option<&[String]>,
+    stopped: Option<&Status>,
+) -> fmt::Result {
+    let Some(names) = names else {
+        let n = if modes.is_empty() {
+            "some".to_string()
+        } else {
+            modes.len().to_string()
+        };
+        write!(
+            f,
+            "{n} rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique)"
+        )?;
+        if let Some(why) = stopped {
+            write!(
+                f,
+                "; the dual solve stopped before converging ({})",
+                StatusCode(why)
+            )?;
+        }
+        return Ok(());
+    };
+    let mut names = names.join("; ");
+    if names.is_empty() {
+        names = "(the modes could not be identified)".to_string();
+    }
+    match stopped {
+        None => write!(
+            f,
+            "the supports and the active contacts do not determine every rigid motion, so the state is not unique: {names}; add a support or a contact that holds it"
+        ),
+        Some(why) => write!(
+            f,
+            "no equilibrium found: the dual solve stopped before converging ({}) with rigid motions that no support or active contact holds: {names}; the load probably has a moment or a direction that the contacts cannot balance",
+            StatusCode(why)
+        ),
+    }
+}
+
+/// How a dual solve stopped, by the status's code name, a breakdown with its
+/// cause quoted: `MaxIterations`, `Breakdown("p^T A p = ...")` (what the
+/// messages have always shown).
+struct StatusCode<'a>(&'a Status);
+
+impl fmt::Display for StatusCode<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.0 {
+            Status::Breakdown(cause) => write!(f, "Breakdown({:?})", cause.to_string()),
+            status => write!(f, "{status:?}"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::qp::Breakdown;
+
+    /// The messages read as the strings they replaced: how the solve stopped
+    /// by the status's code name, a breakdown's cause quoted.
+    #[test]
+    fn undetermined_modes_read_as_before() {
+        let stopped = Some(Status::Breakdown(Breakdown::ProjectedCgCurvature {
+            curvature: -1.0,
+        }));
+        let unnamed = SolveError::Undetermined {
+            modes: vec![(0, 2)],
+            names: None,
+            stopped: stopped.clone(),
+        };
+        assert_eq!(
+            unnamed.to_string(),
+            "1 rigid motions of subdomains are not determined by the supports and the active contacts (the state is not unique); the dual solve stopped before converging (Breakdown(\"p^T A p = -1e0 in projected CG\"))"
+        );
+        let named = SolveError::Undetermined {
+            modes: vec![(0, 2)],
+            names: Some(vec!["body `punch` (rotation)".into()]),
+            stopped: Some(Status::MaxIterations),
+        };
+        assert_eq!(
+            named.to_string(),
+            "no equilibrium found: the dual solve stopped before converging (MaxIterations) with rigid motions that no support or active contact holds: body `punch` (rotation); the load probably has a moment or a direction that the contacts cannot balance"
+        );
+        let none = SolveError::Undetermined {
+            modes: vec![],
+            names: Some(vec![]),
+            stopped: None,
+        };
+        assert_eq!(
+            none.to_string(),
+            "the supports and the active contacts do not determine every rigid motion, so the state is not unique: (the modes could not be identified); add a support or a contact that holds it"
+        );
+        let classical = SolveError::RedundantReactions {
+            rows: 3,
+            svd: SvdError::NoConvergence,
+        };
+        assert_eq!(
+            classical.to_string(),
+            "classical FETI: the reactions of 3 redundant rows on held dofs cannot be recovered (NoConvergence); use `method = tfeti`"
+        );
+    }
+}

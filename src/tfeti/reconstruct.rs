@@ -105,6 +105,7 @@ fn kernel_coefficients(
             .into_iter()
             .map(|i| dual.mode(i))
             .collect(),
+        names: None,
         stopped: None,
     })?;
     let mut alphas = Vec::with_capacity(fls.len());

@@ -12,7 +12,9 @@ use super::dual::ProjectedM;
 use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
-use crate::qp::{estimate_norm, smalbe, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
+use crate::qp::{
+    estimate_norm, smalbe, Breakdown, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status,
+};
 
 pub(super) fn norm(v: &[f64]) -> f64 {
     dot(v, v).sqrt()
@@ -68,11 +70,13 @@ pub fn dual_solve_from(
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let m = dual.multipliers();
-    let g = Orthonormal(dual);
     let l_tilde = particular(dual, f);
     // d - F l~ with d = B K^+ f - c, one pass over the factors.
     let loads = dual.cluster().loads_less(f, &l_tilde);
     let (d, b) = homogenized_rhs(dual, loads, c, dual.cluster().cancellation(f, &l_tilde));
+    if n_equality == m {
+        return equality_solve(dual, f, &l_tilde, &d, &b, settings, start);
+    }
     let lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
             if i < n_equality {
@@ -82,43 +86,9 @@ pub fn dual_solve_from(
             }
         })
         .collect();
-    if n_equality == m {
-        // Equalities only (SMALE): projected CG. Iterates started at 0 stay in
-        // Im P = ker G~, so the constraint holds without an outer loop.
-        let x0 = start
-            .filter(|s| s.lambda.len() == m)
-            .and_then(|s| homogenized_start(dual, &s.lambda, &l_tilde));
-        let (lhat, f_lhat, info) = projected_cg(dual, &b, settings, x0);
-        let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
-        let (u, alpha) = reconstruct(dual, f, n_equality, &lambda, (&lhat, f_lhat), &d)?;
-        return Ok(DualSolution {
-            lambda,
-            u,
-            alpha,
-            info,
-            b_norm: norm(&b),
-            end: None,
-        });
-    }
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
-    let mut power = 0;
-    let pfp = match start.and_then(|s| s.pfp) {
-        Some(pfp) => pfp,
-        None => {
-            let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
-            dual.project(&mut v);
-            let mut w = vec![0.0; m];
-            let (pfp, used) = estimate_norm(
-                &ProjectedF::new(dual, 1.0),
-                &mut v,
-                &mut w,
-                settings.mprgp.power_iterations,
-            );
-            power = used;
-            pfp
-        }
-    };
+    let (pfp, power) = projected_norm(dual, settings, start);
     let scaled = pfp > 0.0 && pfp.is_finite();
     let scale = if scaled { 1.0 / pfp } else { 1.0 };
     // SMALBE's Hessian is A = P F P / ||P F P||, so ||A|| = 1 (to the power
@@ -131,65 +101,15 @@ pub fn dual_solve_from(
         smalbe_start.norms = Some((1.0, settings.rho_factor.max(1.0)));
     }
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
-    // The start, homogenized, and projected onto ker G unless SMALBE's `mu`
-    // comes with it: `mu` is the previous start's, and SMALBE (which puts the
-    // start on the bounds) takes an infeasible start, whereas projecting moves
-    // every multiplier by the rigid-mode imbalance the design change left
-    // (scont_large: 7 % fewer applications per warm state solve without it).
-    let mut lhat = match start {
-        Some(s) if s.lambda.len() == m => {
-            let l0 = &s.lambda;
-            let mut x: Vec<f64> = l0.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
-            if s.smalbe.as_ref().is_none_or(|w| w.mu.is_none()) {
-                dual.project(&mut x);
-            }
-            if s.active_set {
-                for i in n_equality..m {
-                    if l0[i] <= 0.0 {
-                        x[i] = lower_bounds[i];
-                    }
-                }
-            }
-            x
-        }
-        _ => vec![0.0; m],
-    };
+    let mut lhat = inequality_start(dual, start, &l_tilde, &lower_bounds, n_equality);
     // The preconditioner approximates the inverse of the scaled Hessian
     // P F P / ||P F P||: ||P F P|| P M P.
     let precond = dual
         .preconditioner()
         .map(|m| ProjectedM::new(dual, m, 1.0 / scale));
-    // SMALBE's feasibility G x = 0 is the balance of every subdomain's
-    // rigid modes (G l = e with G l~ = e). SMALBE measures it, orthonormalized,
-    // against ||b||, which for a body held by contact alone can be many times
-    // the forces (hertz3d: 14x): at tolerance 1e-6 the contact force was off
-    // the load by 2e-5. So SMALBE also stops only when the primal equilibrium
-    // the KKT report measures holds to the tolerance:
-    // ||K u - f + B^T l|| <= eps max(||f||, ||B^T l||).
-    let grams = dual.equilibrium_grams();
-    let f_norm = f
-        .iter()
-        .flat_map(|fs| fs.iter())
-        .map(|v| v * v)
-        .sum::<f64>()
-        .sqrt();
-    let tolerance = settings.tolerance;
-    let balanced = |x: &[f64]| -> bool {
-        let cluster = dual.cluster();
-        let mut c = vec![0.0; dual.kernel_dim()];
-        cluster.apply_g(x, &mut c);
-        let lambda: Vec<f64> = x.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
-        let bt_norm = cluster
-            .apply_bt(&lambda)
-            .iter()
-            .flat_map(|v| v.iter())
-            .map(|v| v * v)
-            .sum::<f64>()
-            .sqrt();
-        let residual = cluster.equilibrium_residual(grams, &c);
-        residual <= tolerance * f_norm.max(bt_norm)
-    };
+    let balanced = balanced(dual, f, &l_tilde, settings.tolerance);
     let a = ProjectedF::new(dual, scale);
+    let g = Orthonormal(dual);
     let problem = smalbe::Problem {
         precond: precond.as_ref().map(|m| m as &dyn Operator),
         also_feasible: Some(&balanced),
@@ -203,10 +123,11 @@ pub fn dual_solve_from(
 
     let (u, alpha) =
         reconstruct(dual, f, n_equality, &lambda, (&lhat, None), &d).map_err(|e| match e {
-            SolveError::Undetermined { modes, .. } if info.status != Status::Converged => {
+            SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
                 SolveError::Undetermined {
                     modes,
-                    stopped: Some(format!("{:?}", info.status)),
+                    names,
+                    stopped: Some(info.status.clone()),
                 }
             }
             e => e,
@@ -219,6 +140,131 @@ pub fn dual_solve_from(
         b_norm: norm(&b),
         end: Some((end, pfp)),
     })
+}
+
+/// Equalities only (SMALE): projected CG on the homogenized problem (`d`,
+/// `b`, particular solution `l~`), then the reconstruction. Iterates started
+/// at 0 stay in Im P = ker G~, so the constraint holds without an outer loop.
+fn equality_solve(
+    dual: &Dual,
+    f: &[&[f64]],
+    l_tilde: &[f64],
+    d: &[f64],
+    b: &[f64],
+    settings: &SmalbeSettings,
+    start: Option<&DualStart>,
+) -> Result<DualSolution, SolveError> {
+    let m = dual.multipliers();
+    let x0 = start
+        .filter(|s| s.lambda.len() == m)
+        .and_then(|s| homogenized_start(dual, &s.lambda, l_tilde));
+    let (lhat, f_lhat, info) = projected_cg(dual, b, settings, x0);
+    let lambda: Vec<f64> = lhat.iter().zip(l_tilde).map(|(a, b)| a + b).collect();
+    // Every row is an equality: n_equality = m.
+    let (u, alpha) = reconstruct(dual, f, m, &lambda, (&lhat, f_lhat), d)?;
+    Ok(DualSolution {
+        lambda,
+        u,
+        alpha,
+        info,
+        b_norm: norm(b),
+        end: None,
+    })
+}
+
+/// `||P F P||`: the start's, or by power iteration from a deterministic
+/// start; with the applications that took (0 for the start's).
+fn projected_norm(
+    dual: &Dual,
+    settings: &SmalbeSettings,
+    start: Option<&DualStart>,
+) -> (f64, usize) {
+    if let Some(pfp) = start.and_then(|s| s.pfp) {
+        return (pfp, 0);
+    }
+    let m = dual.multipliers();
+    let mut v: Vec<f64> = (0..m).map(|i| 1.0 + (i % 7) as f64 / 7.0).collect();
+    dual.project(&mut v);
+    let mut w = vec![0.0; m];
+    estimate_norm(
+        &ProjectedF::new(dual, 1.0),
+        &mut v,
+        &mut w,
+        settings.mprgp.power_iterations,
+    )
+}
+
+/// SMALBE's start `l^ = l0 - l~` from the start's multipliers `l0` (zero
+/// without them), projected onto ker G unless SMALBE's `mu` comes with it:
+/// `mu` is the previous start's, and SMALBE (which puts the start on the
+/// bounds) takes an infeasible start, whereas projecting moves every
+/// multiplier by the rigid-mode imbalance the design change left
+/// (scont_large: 7 % fewer applications per warm state solve without it).
+/// With `active_set`, the inequality rows whose `l0` is not positive start on
+/// their bounds.
+fn inequality_start(
+    dual: &Dual,
+    start: Option<&DualStart>,
+    l_tilde: &[f64],
+    lower_bounds: &[f64],
+    n_equality: usize,
+) -> Vec<f64> {
+    let m = dual.multipliers();
+    match start {
+        Some(s) if s.lambda.len() == m => {
+            let l0 = &s.lambda;
+            let mut x: Vec<f64> = l0.iter().zip(l_tilde).map(|(a, b)| a - b).collect();
+            if s.smalbe.as_ref().is_none_or(|w| w.mu.is_none()) {
+                dual.project(&mut x);
+            }
+            if s.active_set {
+                for i in n_equality..m {
+                    if l0[i] <= 0.0 {
+                        x[i] = lower_bounds[i];
+                    }
+                }
+            }
+            x
+        }
+        _ => vec![0.0; m],
+    }
+}
+
+/// SMALBE's extra feasibility test on `l^` (`l = l^ + l~`). Its own, `G x = 0`,
+/// is the balance of every subdomain's rigid modes (G l = e with G l~ = e),
+/// measured orthonormalized against ||b||, which for a body held by contact
+/// alone can be many times the forces (hertz3d: 14x): at tolerance 1e-6 the
+/// contact force was off the load by 2e-5. So SMALBE also stops only when the
+/// primal equilibrium the KKT report measures holds to the tolerance:
+/// ||K u - f + B^T l|| <= eps max(||f||, ||B^T l||).
+fn balanced<'a>(
+    dual: &'a Dual,
+    f: &[&[f64]],
+    l_tilde: &'a [f64],
+    tolerance: f64,
+) -> impl Fn(&[f64]) -> bool + Sync + 'a {
+    let grams = dual.equilibrium_grams();
+    let f_norm = f
+        .iter()
+        .flat_map(|fs| fs.iter())
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt();
+    move |x: &[f64]| -> bool {
+        let cluster = dual.cluster();
+        let mut c = vec![0.0; dual.kernel_dim()];
+        cluster.apply_g(x, &mut c);
+        let lambda: Vec<f64> = x.iter().zip(l_tilde).map(|(a, b)| a + b).collect();
+        let bt_norm = cluster
+            .apply_bt(&lambda)
+            .iter()
+            .flat_map(|v| v.iter())
+            .map(|v| v * v)
+            .sum::<f64>()
+            .sqrt();
+        let residual = cluster.equilibrium_residual(grams, &c);
+        residual <= tolerance * f_norm.max(bt_norm)
+    }
 }
 
 /// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;
@@ -315,7 +361,7 @@ fn projected_cg(
         info.inner_iterations += 1;
         let pap: f64 = p.iter().zip(&ap).map(|(x, y)| x * y).sum();
         if pap <= 0.0 || !pap.is_finite() {
-            info.status = Status::Breakdown(format!("p^T A p = {pap:e} in projected CG"));
+            info.status = Status::Breakdown(Breakdown::ProjectedCgCurvature { curvature: pap });
             break;
         }
         let alpha = rz / pap;

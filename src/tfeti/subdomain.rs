@@ -135,6 +135,55 @@ fn from_reduced(reduced: &[usize], xr: &[f64], x: &mut [f64]) {
     }
 }
 
+/// The reduced index of each of `n` dofs, `usize::MAX` for the `fixed` ones
+/// (sorted), and how many are left.
+fn reduced_numbering(n: usize, fixed: &[usize]) -> (Vec<usize>, usize) {
+    let mut reduced = vec![usize::MAX; n];
+    let mut next = 0;
+    for (d, slot) in reduced.iter_mut().enumerate() {
+        if fixed.binary_search(&d).is_err() {
+            *slot = next;
+            next += 1;
+        }
+    }
+    (reduced, next)
+}
+
+/// A new symbolic factorization of `K_rr` (`krr`, the dofs numbered by
+/// `reduced`), or the one another subdomain of the same pattern and order
+/// put in `shared` (this one is put there otherwise). 3D: ordered by nested
+/// dissection of the brick where it stores fewer values than AMD
+/// (`super::ordering`) and `order_by` asks for it.
+fn fixed_symbolic(
+    mesh: &Geometry,
+    order_by: FactorOrdering,
+    krr: &UpperCsc,
+    reduced: &[usize],
+    shared: Option<&SymbolicCache>,
+) -> Result<Arc<SymbolicCholesky<usize>>, SubdomainError> {
+    let dim = mesh.element.dim();
+    let n = reduced.len();
+    let order = (dim == 3 && order_by == FactorOrdering::Dissection)
+        .then(|| ordering::lattice(mesh.elements, n / dim))
+        .flatten()
+        .map(|at| ordering::dof_order(&ordering::nested_dissection(&at), dim, reduced));
+    let key = SymbolicKey {
+        col_ptr: krr.symbolic().col_ptr(),
+        row_idx: krr.symbolic().row_idx(),
+        order: order.as_deref(),
+    };
+    if let Some(s) = shared.and_then(|c| c.get(&key)) {
+        return Ok(s);
+    }
+    let symbolic = Arc::new(
+        symbolic_best(krr.symbolic(), order.as_deref()).map_err(SubdomainError::NotPositive)?,
+    );
+    if let Some(c) = shared {
+        c.insert(&key, &symbolic);
+    }
+    Ok(symbolic)
+}
+
 /// A subdomain's stiffness, kernel and generalized inverse.
 pub struct Subdomain {
     /// Dofs (`dim` per node).
@@ -281,123 +330,108 @@ impl Subdomain {
         shared: Option<&SymbolicCache>,
     ) -> Result<Self, SubdomainError> {
         let k = assemble(mesh)?;
+        let same_pattern = previous.is_some_and(|p| p.kind == kind && p.k.same_pattern(&k));
+        let previous = previous.filter(|_| same_pattern);
+        match kind {
+            Kind::Total { ordering } => Self::build_total(mesh, k, ordering, previous, shared),
+            Kind::Classical { eliminated, eps } => {
+                Self::build_classical(mesh, k, eliminated, eps, previous)
+            }
+        }
+    }
+
+    /// TFETI: the rigid modes as kernel, `K_rr` (the stiffness `k` without
+    /// the fixing dofs) factorized, on `previous`'s symbolic factorization
+    /// (a build of the same pattern) when it fixed the same dofs.
+    fn build_total(
+        mesh: &Geometry,
+        k: UpperCsc,
+        order_by: FactorOrdering,
+        previous: Option<&Subdomain>,
+        shared: Option<&SymbolicCache>,
+    ) -> Result<Self, SubdomainError> {
         let dim = mesh.element.dim();
         let coords = mesh.coords;
         let n = k.n;
-        let same_pattern = previous.is_some_and(|p| p.kind == kind && p.k.same_pattern(&k));
-        match &kind {
-            Kind::Total { ordering: order_by } => {
-                let r = rigid_modes(coords, dim);
-                let fixed = fixing_dofs(coords, dim, mesh.corners);
-                let old = previous
-                    .filter(|_| same_pattern)
-                    .and_then(|p| match &p.factor {
-                        Factor::Fixed {
-                            fixed: f, symbolic, ..
-                        } if *f == fixed => Some(symbolic.clone()),
-                        _ => None,
-                    });
-                let mut reduced = vec![usize::MAX; n];
-                let mut next = 0;
-                for (d, slot) in reduced.iter_mut().enumerate() {
-                    if fixed.binary_search(&d).is_err() {
-                        *slot = next;
-                        next += 1;
-                    }
-                }
-                // K_rr: the upper triangle without the fixed rows and columns.
-                let krr = k.without(&reduced, next);
-                let a = SparseColMatRef::new(krr.symbolic(), &krr.values);
-                let symbolic_reused = old.is_some();
-                let symbolic = match old {
-                    Some(s) => s,
-                    None => {
-                        // 3D: nested dissection of the brick where it stores
-                        // fewer values than AMD (`super::ordering`).
-                        let order = (dim == 3 && *order_by == FactorOrdering::Dissection)
-                            .then(|| ordering::lattice(mesh.elements, n / dim))
-                            .flatten()
-                            .map(|at| {
-                                ordering::dof_order(
-                                    &ordering::nested_dissection(&at),
-                                    dim,
-                                    &reduced,
-                                )
-                            });
-                        let key = SymbolicKey {
-                            col_ptr: krr.symbolic().col_ptr(),
-                            row_idx: krr.symbolic().row_idx(),
-                            order: order.as_deref(),
-                        };
-                        match shared.and_then(|c| c.get(&key)) {
-                            Some(s) => s,
-                            None => {
-                                let symbolic = Arc::new(
-                                    symbolic_best(a.symbolic(), order.as_deref())
-                                        .map_err(SubdomainError::NotPositive)?,
-                                );
-                                if let Some(c) = shared {
-                                    c.insert(&key, &symbolic);
-                                }
-                                symbolic
-                            }
-                        }
-                    }
-                };
-                let (l_values, buf) = llt_numeric(&symbolic, a, 1)
-                    .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
-                let kdim = r.len() / n.max(1);
-                Ok(Subdomain {
-                    n,
-                    dim,
-                    kind,
-                    k,
-                    r,
-                    kdim,
-                    detection: None,
-                    factor: Factor::Fixed {
-                        fixed,
-                        reduced,
-                        symbolic,
-                        l_values,
-                    },
-                    symbolic_reused,
-                    work: Mutex::new(Work {
-                        buf,
-                        x: vec![0.0; next],
-                    }),
-                    schurs: Mutex::new(Vec::new()),
-                })
-            }
-            Kind::Classical { eliminated, eps } => {
-                let old = previous
-                    .filter(|_| same_pattern)
-                    .map(|p| p.factor.symbolic().clone());
-                let symbolic_reused = old.is_some();
-                let reg = detect(&k, coords, dim, eliminated, *eps, old)?;
-                let kdim = reg.r.len() / n.max(1);
-                Ok(Subdomain {
-                    n,
-                    dim,
-                    kind: kind.clone(),
-                    k,
-                    r: reg.r,
-                    kdim,
-                    detection: Some(reg.detection),
-                    factor: Factor::Regularized {
-                        scaling: reg.scaling,
-                        symbolic: reg.symbolic,
-                        l_values: reg.l_values,
-                    },
-                    symbolic_reused,
-                    work: Mutex::new(Work {
-                        buf: reg.buf,
-                        x: vec![0.0; n],
-                    }),
-                    schurs: Mutex::new(Vec::new()),
-                })
-            }
-        }
+        let r = rigid_modes(coords, dim);
+        let fixed = fixing_dofs(coords, dim, mesh.corners);
+        let old = previous.and_then(|p| match &p.factor {
+            Factor::Fixed {
+                fixed: f, symbolic, ..
+            } if *f == fixed => Some(symbolic.clone()),
+            _ => None,
+        });
+        let (reduced, next) = reduced_numbering(n, &fixed);
+        // K_rr: the upper triangle without the fixed rows and columns.
+        let krr = k.without(&reduced, next);
+        let a = SparseColMatRef::new(krr.symbolic(), &krr.values);
+        let symbolic_reused = old.is_some();
+        let symbolic = match old {
+            Some(s) => s,
+            None => fixed_symbolic(mesh, order_by, &krr, &reduced, shared)?,
+        };
+        let (l_values, buf) = llt_numeric(&symbolic, a, 1)
+            .map_err(|e| SubdomainError::NotPositive(format!("{e:?}")))?;
+        let kdim = r.len() / n.max(1);
+        Ok(Subdomain {
+            n,
+            dim,
+            kind: Kind::Total { ordering: order_by },
+            k,
+            r,
+            kdim,
+            detection: None,
+            factor: Factor::Fixed {
+                fixed,
+                reduced,
+                symbolic,
+                l_values,
+            },
+            symbolic_reused,
+            work: Mutex::new(Work {
+                buf,
+                x: vec![0.0; next],
+            }),
+            schurs: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// Classical FETI: `eliminated` removed from the stiffness `k`, the
+    /// kernel of the rest by pivot detection with tolerance `eps`, on
+    /// `previous`'s symbolic factorization (a build of the same pattern).
+    fn build_classical(
+        mesh: &Geometry,
+        k: UpperCsc,
+        eliminated: Vec<usize>,
+        eps: f64,
+        previous: Option<&Subdomain>,
+    ) -> Result<Self, SubdomainError> {
+        let dim = mesh.element.dim();
+        let n = k.n;
+        let old = previous.map(|p| p.factor.symbolic().clone());
+        let symbolic_reused = old.is_some();
+        let reg = detect(&k, mesh.coords, dim, &eliminated, eps, old)?;
+        let kdim = reg.r.len() / n.max(1);
+        Ok(Subdomain {
+            n,
+            dim,
+            kind: Kind::Classical { eliminated, eps },
+            k,
+            r: reg.r,
+            kdim,
+            detection: Some(reg.detection),
+            factor: Factor::Regularized {
+                scaling: reg.scaling,
+                symbolic: reg.symbolic,
+                l_values: reg.l_values,
+            },
+            symbolic_reused,
+            work: Mutex::new(Work {
+                buf: reg.buf,
+                x: vec![0.0; n],
+            }),
+            schurs: Mutex::new(Vec::new()),
+        })
     }
 
     /// Primal dofs.
