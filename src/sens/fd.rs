@@ -121,6 +121,48 @@ fn active_set(state: &State) -> Vec<bool> {
         .collect()
 }
 
+/// The functionals at the design with variable `i` moved by `shift`, whether
+/// the contact active set differs from the base's, and the solve's Hessian
+/// applications. Subdomains the step does not move keep the base's
+/// factorization; the others refactor on its symbolic one.
+fn perturbed(
+    scene: &Scene,
+    base: &State,
+    design: &[f64],
+    i: usize,
+    shift: f64,
+    base_active: &[bool],
+) -> Result<(Vec<f64>, bool, usize), GradientError> {
+    let mut d = design.to_vec();
+    d[i] += shift;
+    let from_base = SolveOptions::from(base, WarmStart::OFF);
+    let st = solve_with(scene, &d, &from_base, &mut |_| {}).map_err(|error| {
+        let var = &scene.design[i];
+        GradientError::Perturbed {
+            variable: var.name.clone(),
+            step: shift,
+            value: design[i],
+            bounds: (var.lower, var.upper),
+            error: Box::new(error),
+        }
+    })?;
+    let v: Vec<f64> = Eval {
+        scene,
+        design: &d,
+        state: &st,
+        initial: Some((base, design)),
+    }
+    .all()
+    .into_iter()
+    .map(|(_, v)| v)
+    .collect();
+    Ok((
+        v,
+        active_set(&st) != base_active,
+        st.info.hessian_applications,
+    ))
+}
+
 /// Gradient by finite differences with step `h` (absolute) and the scheme,
 /// about `state` (solved at the scene's `design_init`). The perturbed solves
 /// start cold, so a base that started warm (from a nearby design) is solved
@@ -161,38 +203,7 @@ pub(super) fn gradient(
     let mut hessian = base.info.hessian_applications;
     let mut changed = Vec::new();
     for i in 0..design.len() {
-        let eval_at = |shift: f64| -> Result<(Vec<f64>, bool, usize), GradientError> {
-            let mut d = design.clone();
-            d[i] += shift;
-            // Subdomains the step does not move keep the base's factorization;
-            // the others refactor on its symbolic one.
-            let from_base = SolveOptions::from(base, WarmStart::OFF);
-            let st = solve_with(scene, &d, &from_base, &mut |_| {}).map_err(|error| {
-                let var = &scene.design[i];
-                GradientError::Perturbed {
-                    variable: var.name.clone(),
-                    step: shift,
-                    value: design[i],
-                    bounds: (var.lower, var.upper),
-                    error: Box::new(error),
-                }
-            })?;
-            let v: Vec<f64> = Eval {
-                scene,
-                design: &d,
-                state: &st,
-                initial: Some((base, &design)),
-            }
-            .all()
-            .into_iter()
-            .map(|(_, v)| v)
-            .collect();
-            Ok((
-                v,
-                active_set(&st) != base_active,
-                st.info.hessian_applications,
-            ))
-        };
+        let eval_at = |shift: f64| perturbed(scene, base, &design, i, shift, &base_active);
         let (plus, changed_p, hp) = eval_at(h)?;
         solves += 1;
         hessian += hp;

@@ -81,37 +81,7 @@ impl<'a> Checker<'a> {
                             .get(p.span.end..field.span.start)
                             .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
                     });
-                // `x = 0 .. w mm`: a unit after a name on the same line (a
-                // number takes its unit directly, `10 mm`).
-                let unit_after = i
-                    .checked_sub(1)
-                    .and_then(|j| block.fields.get(j))
-                    .filter(|p| p.value.is_some() && crate::lang::units::is_unit(name))
-                    .filter(|p| {
-                        self.src
-                            .get(p.span.end..field.span.start)
-                            .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
-                    });
-                if let (Some(p), None) = (unit_after, after_grid) {
-                    let text = self.src.get(p.span.start..p.span.end).unwrap_or_default();
-                    let value = text.split_once('=').map_or(text, |(_, v)| v).trim();
-                    let last = value
-                        .rsplit(|c: char| !(c.is_alphanumeric() || c == '_'))
-                        .next()
-                        .filter(|n| !n.is_empty())
-                        .unwrap_or("NAME");
-                    self.error(
-                        Diagnostic::new(
-                            "cso::unit",
-                            format!("a unit cannot follow a name: `{name}` after `{value}`"),
-                        )
-                        .label(field.name.span, "a unit after a name")
-                        .help(format!(
-                            "a constant carries its unit where it is defined: write it in the `let` \
-                             (`let {last} = 10 {name}`) and use the name alone; or multiply: \
-                             `{last} * 1 {name}`"
-                        )),
-                    );
+                if after_grid.is_none() && self.unit_after_name(block, i) {
                     continue;
                 }
                 if let Some(p) = after_grid {
@@ -290,6 +260,48 @@ impl<'a> Checker<'a> {
                 None
             }
         }
+    }
+
+    /// `x = 0 .. w mm`: a unit written after a name on the same line (a
+    /// number takes its unit directly, `10 mm`) parses as a field of its own
+    /// without a value; say what it is. True where it reported that.
+    fn unit_after_name(&mut self, block: &Block, i: usize) -> bool {
+        let Some(field) = block.fields.get(i) else {
+            return false;
+        };
+        let name = field.name.name.as_str();
+        let unit_after = i
+            .checked_sub(1)
+            .and_then(|j| block.fields.get(j))
+            .filter(|p| p.value.is_some() && crate::lang::units::is_unit(name))
+            .filter(|p| {
+                self.src
+                    .get(p.span.end..field.span.start)
+                    .is_some_and(|gap| gap.chars().all(|c| c == ' ' || c == '\t'))
+            });
+        let Some(p) = unit_after else {
+            return false;
+        };
+        let text = self.src.get(p.span.start..p.span.end).unwrap_or_default();
+        let value = text.split_once('=').map_or(text, |(_, v)| v).trim();
+        let last = value
+            .rsplit(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .next()
+            .filter(|n| !n.is_empty())
+            .unwrap_or("NAME");
+        self.error(
+            Diagnostic::new(
+                "cso::unit",
+                format!("a unit cannot follow a name: `{name}` after `{value}`"),
+            )
+            .label(field.name.span, "a unit after a name")
+            .help(format!(
+                "a constant carries its unit where it is defined: write it in the `let` \
+                 (`let {last} = 10 {name}`) and use the name alone; or multiply: \
+                 `{last} * 1 {name}`"
+            )),
+        );
+        true
     }
 
     fn needs_value(&self, field: &Field, expect: &str) -> Diagnostic {
