@@ -19,6 +19,7 @@
 
 use super::png::Raster;
 use plotters::coord::ranged1d::{AsRangedCoord, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::ops::Range;
@@ -381,6 +382,41 @@ pub fn mesh_plot(
     outline: &[Vec<[f64; 2]>],
     unit: &str,
 ) -> Result<String, PlotError> {
+    check_mesh_input(points, cells, values)?;
+    let mesh = MeshPicture::new(points, cells, values, outline);
+    let mut image = None;
+    let mut svg = String::new();
+    {
+        let size = (MESH_WIDTH, mesh.height());
+        let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
+        root.fill(&WHITE).map_err(draw_err)?;
+        let root = root.titled(title, (FONT, TITLE_SIZE)).map_err(draw_err)?;
+        let (chart_area, bar_area) = root.split_horizontally(MESH_WIDTH - COLORBAR_WIDTH);
+        let mut axes = mesh_axes(&chart_area, mesh.bounds)?;
+        if mesh.drawn.len() > MAX_VECTOR_CELLS {
+            image = Some(mesh.rasterize(&axes));
+        } else {
+            mesh.draw_cells(&mut axes.chart)?;
+        }
+        mesh.draw_outline(&mut axes.chart)?;
+        if let Some((lo, hi)) = mesh.scale {
+            draw_colorbar(&bar_area, lo, hi, axes.plot_h, unit).map_err(draw_err)?;
+        }
+        root.present().map_err(draw_err)?;
+    }
+    if let Some(image) = image {
+        image.insert_into(&mut svg);
+    }
+    Ok(svg)
+}
+
+/// [`PlotError::Input`] unless there is one value per cell and every cell's
+/// points exist.
+fn check_mesh_input(
+    points: &[[f64; 2]],
+    cells: &[[usize; 4]],
+    values: Option<&[f64]>,
+) -> Result<(), PlotError> {
     if let Some(v) = values {
         if v.len() != cells.len() {
             return Err(PlotError::Input(format!(
@@ -401,80 +437,100 @@ pub fn mesh_plot(
             points.len()
         )));
     }
+    Ok(())
+}
 
-    let finite = |p: &[f64; 2]| p.iter().all(|&v| shown(v, false));
-    let drawn: Vec<usize> = (0..cells.len())
-        .filter(|&c| cells[c].iter().all(|&i| finite(&points[i])))
-        .collect();
-    let used = drawn
-        .iter()
-        .flat_map(|&c| cells[c].iter().map(|&i| points[i]))
-        .chain(outline.iter().flatten().copied().filter(finite));
-    let bounds = used.fold(None, |b: Option<[f64; 4]>, p| {
-        Some(match b {
-            None => [p[0], p[0], p[1], p[1]],
-            Some([x0, x1, y0, y1]) => [x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1])],
-        })
-    });
-    let [x0, x1, y0, y1] = bounds.unwrap_or([0.0, 1.0, 0.0, 1.0]);
+/// A point plotters can draw (see [`shown`]).
+fn finite_point(p: &[f64; 2]) -> bool {
+    p.iter().all(|&v| shown(v, false))
+}
 
-    let scale = values.and_then(|v| {
-        let (lo, hi) = v
+/// What [`mesh_plot`] draws, its input checked: the cells it can draw, the
+/// extent of those and the outlines, and the colour scale.
+struct MeshPicture<'a> {
+    points: &'a [[f64; 2]],
+    cells: &'a [[usize; 4]],
+    values: Option<&'a [f64]>,
+    outline: &'a [Vec<[f64; 2]>],
+    /// The cells whose corners are all finite.
+    drawn: Vec<usize>,
+    /// `[x0, x1, y0, y1]` of the drawn cells and the outlines' finite points.
+    bounds: [f64; 4],
+    /// The range of the finite values, when there are any.
+    scale: Option<(f64, f64)>,
+}
+
+/// The mesh's chart with its axes drawn, the data ranges it maps (`[start,
+/// end]` on x and y) and the height of its plotting area in pixels.
+struct MeshAxes<'a, 'b> {
+    chart: ChartContext<'a, SVGBackend<'b>, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    xs: [f64; 2],
+    ys: [f64; 2],
+    plot_h: u32,
+}
+
+/// The cells as one PNG and where it goes in the SVG (pixels).
+struct EmbeddedImage {
+    x: i32,
+    y: i32,
+    w: i32,
+    h: i32,
+    png: Vec<u8>,
+}
+
+impl<'a> MeshPicture<'a> {
+    fn new(
+        points: &'a [[f64; 2]],
+        cells: &'a [[usize; 4]],
+        values: Option<&'a [f64]>,
+        outline: &'a [Vec<[f64; 2]>],
+    ) -> Self {
+        let drawn: Vec<usize> = (0..cells.len())
+            .filter(|&c| cells[c].iter().all(|&i| finite_point(&points[i])))
+            .collect();
+        let used = drawn
             .iter()
-            .filter(|x| x.is_finite())
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
-                (lo.min(x), hi.max(x))
-            });
-        (lo <= hi).then_some((lo, hi))
-    });
+            .flat_map(|&c| cells[c].iter().map(|&i| points[i]))
+            .chain(outline.iter().flatten().copied().filter(finite_point));
+        let bounds = used.fold(None, |b: Option<[f64; 4]>, p| {
+            Some(match b {
+                None => [p[0], p[0], p[1], p[1]],
+                Some([x0, x1, y0, y1]) => [x0.min(p[0]), x1.max(p[0]), y0.min(p[1]), y1.max(p[1])],
+            })
+        });
+        let scale = values.and_then(|v| {
+            let (lo, hi) = v
+                .iter()
+                .filter(|x| x.is_finite())
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+                    (lo.min(x), hi.max(x))
+                });
+            (lo <= hi).then_some((lo, hi))
+        });
+        MeshPicture {
+            points,
+            cells,
+            values,
+            outline,
+            drawn,
+            bounds: bounds.unwrap_or([0.0, 1.0, 0.0, 1.0]),
+            scale,
+        }
+    }
 
-    // Height from the data's aspect ratio, within limits; the equal-scale
-    // ranges below absorb what the limits cut off.
-    let plot_w = f64::from(MESH_WIDTH - COLORBAR_WIDTH - 2 * MESH_MARGIN - MESH_Y_LABELS);
-    let aspect = if x1 > x0 { (y1 - y0) / (x1 - x0) } else { 1.0 };
-    let plot_h = (plot_w * aspect).clamp(150.0, 800.0);
-    let height = plot_h as u32 + 2 * MESH_MARGIN + MESH_X_LABELS + 50;
+    /// The SVG's height: from the data's aspect ratio, within limits; the
+    /// equal-scale ranges of [`mesh_axes`] absorb what the limits cut off.
+    fn height(&self) -> u32 {
+        let [x0, x1, y0, y1] = self.bounds;
+        let plot_w = f64::from(MESH_WIDTH - COLORBAR_WIDTH - 2 * MESH_MARGIN - MESH_Y_LABELS);
+        let aspect = if x1 > x0 { (y1 - y0) / (x1 - x0) } else { 1.0 };
+        let plot_h = (plot_w * aspect).clamp(150.0, 800.0);
+        plot_h as u32 + 2 * MESH_MARGIN + MESH_X_LABELS + 50
+    }
 
-    let raster = drawn.len() > MAX_VECTOR_CELLS;
-    let mut image = None;
-    let mut svg = String::new();
-    {
-        let root = SVGBackend::with_string(&mut svg, (MESH_WIDTH, height)).into_drawing_area();
-        root.fill(&WHITE).map_err(draw_err)?;
-        let root = root.titled(title, (FONT, TITLE_SIZE)).map_err(draw_err)?;
-        let (chart_area, bar_area) = root.split_horizontally(MESH_WIDTH - COLORBAR_WIDTH);
-
-        let builder = || {
-            let mut b = ChartBuilder::on(&chart_area);
-            b.margin(MESH_MARGIN)
-                .x_label_area_size(MESH_X_LABELS)
-                .y_label_area_size(MESH_Y_LABELS);
-            b
-        };
-        // Building a chart without a caption draws nothing, so a first build
-        // measures the plotting area exactly; the second uses ranges with equal
-        // units per pixel on both axes.
-        let (w, h) = builder()
-            .build_cartesian_2d(0.0..1.0, 0.0..1.0)
-            .map_err(draw_err)?
-            .plotting_area()
-            .dim_in_pixel();
-        let (xr, yr) = equal_aspect([x0, x1], [y0, y1], (w, h));
-        let (xs, ys) = ([xr.start, xr.end], [yr.start, yr.end]);
-        let mut chart = builder().build_cartesian_2d(xr, yr).map_err(draw_err)?;
-        chart
-            .configure_mesh()
-            .disable_mesh()
-            .x_desc("x (m)")
-            .y_desc("y (m)")
-            .axis_desc_style((FONT, LABEL_SIZE))
-            .label_style((FONT, LABEL_SIZE))
-            .x_label_formatter(&|v| tick_label(*v))
-            .y_label_formatter(&|v| tick_label(*v))
-            .draw()
-            .map_err(draw_err)?;
-
-        let fill = |c: usize| match (values, scale) {
+    /// A cell's colour: its value under viridis, grey without one.
+    fn fill(&self, c: usize) -> RGBColor {
+        match (self.values, self.scale) {
             (Some(v), Some((lo, hi))) if v[c].is_finite() => {
                 // Halved so that a range of +-1e300 does not overflow.
                 let t = if hi > lo {
@@ -485,74 +541,146 @@ pub fn mesh_plot(
                 viridis(t)
             }
             _ => NO_VALUE,
-        };
-        let corners = |c: usize| -> Vec<(f64, f64)> {
-            cells[c]
-                .iter()
-                .map(|&i| (points[i][0], points[i][1]))
-                .collect()
-        };
-        if raster {
-            // The plotting area in SVG pixels, from the chart's own mapping.
-            let (ax, ay) = chart.backend_coord(&(xs[0], ys[1]));
-            let (bx, by) = chart.backend_coord(&(xs[1], ys[0]));
-            let (wpx, hpx) = ((bx - ax).max(1), (by - ay).max(1));
-            let mut r = Raster::new(
-                (f64::from(wpx) * RASTER_SCALE) as usize,
-                (f64::from(hpx) * RASTER_SCALE) as usize,
-            );
-            let (sx, sy) = (r.w as f64 / (xs[1] - xs[0]), r.h as f64 / (ys[1] - ys[0]));
-            let px = |i: usize| [(points[i][0] - xs[0]) * sx, (ys[1] - points[i][1]) * sy];
-            for &c in &drawn {
-                let [a, b, cc, d] = cells[c].map(px);
-                let colour = fill(c);
-                r.triangle([a, b, cc], colour);
-                r.triangle([a, cc, d], colour);
-            }
-            image = Some((ax, ay, wpx, hpx, r.png()));
-        } else {
-            chart
-                .draw_series(
-                    drawn
-                        .iter()
-                        .map(|&c| Polygon::new(corners(c), fill(c).filled())),
-                )
-                .map_err(draw_err)?;
-            chart
-                .draw_series(drawn.iter().map(|&c| {
-                    let mut ring = corners(c);
-                    ring.push(ring[0]);
-                    PathElement::new(ring, EDGE.stroke_width(1))
-                }))
-                .map_err(draw_err)?;
         }
+    }
+
+    fn corners(&self, c: usize) -> Vec<(f64, f64)> {
+        self.cells[c]
+            .iter()
+            .map(|&i| (self.points[i][0], self.points[i][1]))
+            .collect()
+    }
+
+    /// The cells as one image over the plotting area (no borders).
+    fn rasterize(&self, axes: &MeshAxes) -> EmbeddedImage {
+        let (xs, ys) = (axes.xs, axes.ys);
+        // The plotting area in SVG pixels, from the chart's own mapping.
+        let (ax, ay) = axes.chart.backend_coord(&(xs[0], ys[1]));
+        let (bx, by) = axes.chart.backend_coord(&(xs[1], ys[0]));
+        let (wpx, hpx) = ((bx - ax).max(1), (by - ay).max(1));
+        let mut r = Raster::new(
+            (f64::from(wpx) * RASTER_SCALE) as usize,
+            (f64::from(hpx) * RASTER_SCALE) as usize,
+        );
+        let (sx, sy) = (r.w as f64 / (xs[1] - xs[0]), r.h as f64 / (ys[1] - ys[0]));
+        let points = self.points;
+        let px = |i: usize| [(points[i][0] - xs[0]) * sx, (ys[1] - points[i][1]) * sy];
+        for &c in &self.drawn {
+            let [a, b, cc, d] = self.cells[c].map(px);
+            let colour = self.fill(c);
+            r.triangle([a, b, cc], colour);
+            r.triangle([a, cc, d], colour);
+        }
+        EmbeddedImage {
+            x: ax,
+            y: ay,
+            w: wpx,
+            h: hpx,
+            png: r.png(),
+        }
+    }
+
+    /// The cells as polygons, then their dark borders.
+    fn draw_cells<DB: DrawingBackend, CT: CoordTranslate<From = (f64, f64)>>(
+        &self,
+        chart: &mut ChartContext<DB, CT>,
+    ) -> Result<(), PlotError> {
         chart
-            .draw_series(outline.iter().map(|line| {
-                let pts = line.iter().filter(|p| finite(p)).map(|p| (p[0], p[1]));
+            .draw_series(
+                self.drawn
+                    .iter()
+                    .map(|&c| Polygon::new(self.corners(c), self.fill(c).filled())),
+            )
+            .map_err(draw_err)?;
+        chart
+            .draw_series(self.drawn.iter().map(|&c| {
+                let mut ring = self.corners(c);
+                ring.push(ring[0]);
+                PathElement::new(ring, EDGE.stroke_width(1))
+            }))
+            .map_err(draw_err)?;
+        Ok(())
+    }
+
+    /// The outlines' finite points as thin grey lines.
+    fn draw_outline<DB: DrawingBackend, CT: CoordTranslate<From = (f64, f64)>>(
+        &self,
+        chart: &mut ChartContext<DB, CT>,
+    ) -> Result<(), PlotError> {
+        chart
+            .draw_series(self.outline.iter().map(|line| {
+                let pts = line
+                    .iter()
+                    .filter(|p| finite_point(p))
+                    .map(|p| (p[0], p[1]));
                 PathElement::new(pts.collect::<Vec<_>>(), OUTLINE.stroke_width(1))
             }))
             .map_err(draw_err)?;
-
-        if let Some((lo, hi)) = scale {
-            draw_colorbar(&bar_area, lo, hi, h, unit).map_err(draw_err)?;
-        }
-        root.present().map_err(draw_err)?;
+        Ok(())
     }
-    if let Some((x, y, w, h, png)) = image {
-        // Under everything but the white background: the first element.
+}
+
+/// The chart on `area` with equal units per pixel on both axes around
+/// `bounds` (`[x0, x1, y0, y1]`), its axes drawn in metres.
+fn mesh_axes<'a, 'b>(
+    area: &'a DrawingArea<SVGBackend<'b>, Shift>,
+    bounds: [f64; 4],
+) -> Result<MeshAxes<'a, 'b>, PlotError> {
+    let [x0, x1, y0, y1] = bounds;
+    let builder = || {
+        let mut b = ChartBuilder::on(area);
+        b.margin(MESH_MARGIN)
+            .x_label_area_size(MESH_X_LABELS)
+            .y_label_area_size(MESH_Y_LABELS);
+        b
+    };
+    // Building a chart without a caption draws nothing, so a first build
+    // measures the plotting area exactly; the second uses ranges with equal
+    // units per pixel on both axes.
+    let (w, h) = builder()
+        .build_cartesian_2d(0.0..1.0, 0.0..1.0)
+        .map_err(draw_err)?
+        .plotting_area()
+        .dim_in_pixel();
+    let (xr, yr) = equal_aspect([x0, x1], [y0, y1], (w, h));
+    let (xs, ys) = ([xr.start, xr.end], [yr.start, yr.end]);
+    let mut chart = builder().build_cartesian_2d(xr, yr).map_err(draw_err)?;
+    chart
+        .configure_mesh()
+        .disable_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .axis_desc_style((FONT, LABEL_SIZE))
+        .label_style((FONT, LABEL_SIZE))
+        .x_label_formatter(&|v| tick_label(*v))
+        .y_label_formatter(&|v| tick_label(*v))
+        .draw()
+        .map_err(draw_err)?;
+    Ok(MeshAxes {
+        chart,
+        xs,
+        ys,
+        plot_h: h,
+    })
+}
+
+impl EmbeddedImage {
+    /// Puts the image under everything but the white background: after the
+    /// SVG's first element.
+    fn insert_into(&self, svg: &mut String) {
         let at = svg
             .find("<rect")
             .and_then(|r| svg[r..].find("/>").map(|e| r + e + 2))
             .unwrap_or(0);
+        let (x, y, w, h) = (self.x, self.y, self.w, self.h);
         let mut tag = format!(
             "\n<image x=\"{x}\" y=\"{y}\" width=\"{w}\" height=\"{h}\" \
              preserveAspectRatio=\"none\" href=\"data:image/png;base64,"
         );
-        super::vtu::base64_into(&mut tag, &png);
+        super::vtu::base64_into(&mut tag, &self.png);
         tag.push_str("\"/>");
         svg.insert_str(at, &tag);
     }
-    Ok(svg)
 }
 
 /// Ranges containing `[x0, x1] x [y0, y1]` (with a small margin), centred,

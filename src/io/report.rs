@@ -262,23 +262,20 @@ impl Report {
     /// machine-dependent times are left out.
     pub fn summary(&self, timings: bool) -> String {
         let mut o = String::new();
-        // For snapshots (timings off): 4 significant digits, and displacements
-        // below the solver's resolution (1e-6 of the largest) shown as 0.
         let umax = self.bodies.iter().map(|b| b.max_abs_u).fold(0.0, f64::max);
-        let num = |v: f64| {
-            if timings {
-                num(v)
-            } else {
-                num(format!("{v:.3e}").parse().unwrap_or(v))
-            }
-        };
-        let disp = |v: f64| {
-            if !timings && v.abs() < 1e-6 * umax {
-                "0".to_string()
-            } else {
-                num(v)
-            }
-        };
+        let n = Numbers { timings, umax };
+        self.write_sizes(&mut o, &n);
+        if timings {
+            self.write_timings(&mut o);
+        }
+        self.write_search(&mut o, &n);
+        self.write_residuals(&mut o, &n);
+        self.write_bodies_contacts_probes(&mut o, &n);
+        o
+    }
+
+    /// The method, the unknowns and multipliers, and how the dual solve ended.
+    fn write_sizes(&self, o: &mut String, n: &Numbers) {
         let s = &self.sizes;
         let m = &s.multipliers;
         let method = if s.method == "feti" {
@@ -297,7 +294,7 @@ impl Report {
             s.primal, s.dual, m.gluing, m.dirichlet, m.symmetry, m.ties, m.contact, s.kernel, s.subdomains
         );
         if let Some(k) = &s.kernel_detection {
-            let _ = writeln!(o, "  {}", k.line(!timings));
+            let _ = writeln!(o, "  {}", k.line(!n.timings));
         }
         let v = &self.solver;
         let status = dual_status(&v.status, v.max_iterations);
@@ -307,47 +304,61 @@ impl Report {
             v.outer_iterations,
             v.inner_iterations,
             v.hessian_applications,
-            num(v.tolerance)
+            n.num(v.tolerance)
         );
-        if timings {
-            let t = &self.times;
+    }
+
+    /// Times, factorizations and the dense local F (machine-dependent: left out
+    /// of snapshots).
+    fn write_timings(&self, o: &mut String) {
+        let s = &self.sizes;
+        let t = &self.times;
+        let _ = writeln!(
+            o,
+            "  time {:.3} s (lower {:.3}, factorize {:.3}, coarse {:.3}, solve {:.3}, reconstruct {:.3})",
+            t.total, t.lower, t.factorize, t.coarse, t.solve, t.reconstruct
+        );
+        let f = &s.factorizations;
+        let _ = writeln!(
+            o,
+            "  factorizations: {} symbolic, {} numeric, {} subdomains reused",
+            f.symbolic, f.numeric, f.reused
+        );
+        let l = &s.local_f;
+        if l.explicit > 0 {
             let _ = writeln!(
                 o,
-                "  time {:.3} s (lower {:.3}, factorize {:.3}, coarse {:.3}, solve {:.3}, reconstruct {:.3})",
-                t.total, t.lower, t.factorize, t.coarse, t.solve, t.reconstruct
-            );
-            let f = &s.factorizations;
-            let _ = writeln!(
-                o,
-                "  factorizations: {} symbolic, {} numeric, {} subdomains reused",
-                f.symbolic, f.numeric, f.reused
-            );
-            let l = &s.local_f;
-            if l.explicit > 0 {
-                let _ = writeln!(
-                    o,
-                    "  local F dense on {} of {} subdomains ({:.1} MB, {} reused, formed in {:.3} s)",
-                    l.explicit,
-                    s.subdomains,
-                    l.bytes as f64 / 1e6,
-                    l.reused,
-                    l.seconds
-                );
-            }
-        }
-        if v.search_rounds > 0 {
-            let searches: Vec<String> = self
-                .contacts
-                .iter()
-                .map(|c| format!("{} {} m", c.name, num(c.search)))
-                .collect();
-            let _ = writeln!(
-                o,
-                "  contact search widened ({} more solves): {}",
-                v.search_rounds,
-                searches.join(", ")
+                "  local F dense on {} of {} subdomains ({:.1} MB, {} reused, formed in {:.3} s)",
+                l.explicit,
+                s.subdomains,
+                l.bytes as f64 / 1e6,
+                l.reused,
+                l.seconds
             );
         }
+    }
+
+    /// The widened contact searches, if the solve had to widen them.
+    fn write_search(&self, o: &mut String, n: &Numbers) {
+        let v = &self.solver;
+        if v.search_rounds == 0 {
+            return;
+        }
+        let searches: Vec<String> = self
+            .contacts
+            .iter()
+            .map(|c| format!("{} {} m", c.name, n.num(c.search)))
+            .collect();
+        let _ = writeln!(
+            o,
+            "  contact search widened ({} more solves): {}",
+            v.search_rounds,
+            searches.join(", ")
+        );
+    }
+
+    /// The KKT residuals, energy and compliance.
+    fn write_residuals(&self, o: &mut String, n: &Numbers) {
         let k = &self.kkt;
         let _ = writeln!(
             o,
@@ -361,8 +372,8 @@ impl Report {
         let _ = write!(
             o,
             "  energy {} J, compliance {} J",
-            num(self.energy),
-            num(self.compliance)
+            n.num(self.energy),
+            n.num(self.compliance)
         );
         // A 2D scene is a slice: say of what thickness, and per metre of it.
         match self.thickness {
@@ -370,13 +381,17 @@ impl Report {
                 let _ = writeln!(
                     o,
                     " (2D, thickness {} m: {} J/m, {} J/m)",
-                    num(t),
-                    num(self.energy / t),
-                    num(self.compliance / t)
+                    n.num(t),
+                    n.num(self.energy / t),
+                    n.num(self.compliance / t)
                 );
             }
             _ => o.push('\n'),
         }
+    }
+
+    /// One line per body, contact and probe.
+    fn write_bodies_contacts_probes(&self, o: &mut String, n: &Numbers) {
         for b in &self.bodies {
             let bbar = if b.formulation.is_some() {
                 "  (B-bar)"
@@ -387,24 +402,23 @@ impl Report {
                 o,
                 "  body {:<10} max |u| {} m{bbar}",
                 b.name,
-                num(b.max_abs_u)
+                n.num(b.max_abs_u)
             );
         }
         for c in &self.contacts {
-            let _ = writeln!(o, "{}", contact_line(c, &num));
+            let _ = writeln!(o, "{}", contact_line(c, &|v| n.num(v)));
         }
         for p in &self.probes {
             let uz =
-                p.uz.map_or(String::new(), |uz| format!(", uz {} m", disp(uz)));
+                p.uz.map_or(String::new(), |uz| format!(", uz {} m", n.disp(uz)));
             let _ = writeln!(
                 o,
                 "  probe {:<10} ux {} m, uy {} m{uz}",
                 p.name,
-                disp(p.ux),
-                disp(p.uy)
+                n.disp(p.ux),
+                n.disp(p.uy)
             );
         }
-        o
     }
 
     pub fn summary_text(&self) -> String {
@@ -465,6 +479,34 @@ fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
         c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
     }
     contacts
+}
+
+/// How [`Report::summary`] writes numbers. For snapshots (timings off): 4
+/// significant digits, and displacements below the solver's resolution (1e-6 of
+/// the largest) shown as 0.
+struct Numbers {
+    timings: bool,
+    /// The largest displacement of any body.
+    umax: f64,
+}
+
+impl Numbers {
+    fn num(&self, v: f64) -> String {
+        if self.timings {
+            num(v)
+        } else {
+            num(format!("{v:.3e}").parse().unwrap_or(v))
+        }
+    }
+
+    /// A displacement component.
+    fn disp(&self, v: f64) -> String {
+        if !self.timings && v.abs() < 1e-6 * self.umax {
+            "0".to_string()
+        } else {
+            self.num(v)
+        }
+    }
 }
 
 /// A contact's summary line: its force (the resultant's size) and, where

@@ -121,9 +121,41 @@ fn grid_str(v: &[usize]) -> String {
 
 /// Builds the summary of a checked scene.
 pub fn summarize(scene: &Scene) -> Summary {
+    Summary {
+        scene: scene.name.clone(),
+        title: scene.title.clone(),
+        dim: scene.dim,
+        thickness: round6(scene.thickness),
+        totals: totals(scene),
+        memory: estimate(scene),
+        constants: rounded_params(scene),
+        materials: rounded_materials(scene),
+        bodies: body_summaries(scene),
+        obstacles: obstacle_summaries(scene),
+        conditions: condition_summaries(scene),
+        gravity: scene.gravity.clone(),
+        glues: glue_summaries(scene),
+        contacts: contact_summaries(scene),
+        probes: probe_summaries(scene),
+        design: scene.design.clone(),
+        objective: scene.objective.as_ref().map(|o| o.text.clone()),
+        constraints: scene.constraints.iter().map(|c| c.text.clone()).collect(),
+        solver: scene.solver.clone(),
+        sensitivity: scene.sensitivity.clone(),
+        optimize: scene.optimize.clone(),
+        tfeti: None,
+        tfeti_note: None,
+    }
+}
+
+/// A formula's value at the initial design (and the origin), rounded for people.
+fn at_init(f: &Formula, design: &[f64]) -> f64 {
+    round6(f.eval_f64([0.0; 3], design))
+}
+
+fn body_summaries(scene: &Scene) -> Vec<BodySummary> {
     let design = scene.design_init();
-    let at = |f: &Formula| round6(f.eval_f64([0.0; 3], &design));
-    let bodies: Vec<BodySummary> = scene
+    scene
         .bodies
         .iter()
         .map(|b| BodySummary {
@@ -132,7 +164,11 @@ pub fn summarize(scene: &Scene) -> Summary {
                 .materials
                 .get(b.material)
                 .map_or(String::new(), |m| m.name.clone()),
-            extent: b.extent.iter().map(|(lo, hi)| [at(lo), at(hi)]).collect(),
+            extent: b
+                .extent
+                .iter()
+                .map(|(lo, hi)| [at_init(lo, &design), at_init(hi, &design)])
+                .collect(),
             bottom: b.face_text[0].clone(),
             top: b.face_text[1].clone(),
             mesh: b.mesh.clone(),
@@ -147,8 +183,13 @@ pub fn summarize(scene: &Scene) -> Summary {
                 || b.bottom.as_ref().is_some_and(Formula::uses_design)
                 || b.top.as_ref().is_some_and(Formula::uses_design),
         })
-        .collect();
-    let obstacles = scene
+        .collect()
+}
+
+fn obstacle_summaries(scene: &Scene) -> Vec<ObstacleSummary> {
+    let design = scene.design_init();
+    let at = |f: &Formula| at_init(f, &design);
+    scene
         .obstacles
         .iter()
         .map(|o| match o {
@@ -186,9 +227,12 @@ pub fn summarize(scene: &Scene) -> Summary {
                 radius: Some(at(radius)),
             },
         })
-        .collect();
+        .collect()
+}
+
+fn condition_summaries(scene: &Scene) -> Vec<ConditionSummary> {
     let comps = ["ux", "uy", "uz"];
-    let conditions = scene
+    scene
         .conditions
         .iter()
         .map(|c| {
@@ -213,8 +257,11 @@ pub fn summarize(scene: &Scene) -> Summary {
                 detail,
             }
         })
-        .collect();
-    let glues = scene
+        .collect()
+}
+
+fn glue_summaries(scene: &Scene) -> Vec<PairSummary> {
+    scene
         .glues
         .iter()
         .map(|g| PairSummary {
@@ -223,8 +270,11 @@ pub fn summarize(scene: &Scene) -> Summary {
             secondary: g.secondary.text.clone(),
             search: None,
         })
-        .collect();
-    let contacts = scene
+        .collect()
+}
+
+fn contact_summaries(scene: &Scene) -> Vec<PairSummary> {
+    scene
         .contacts
         .iter()
         .map(|c| PairSummary {
@@ -239,8 +289,11 @@ pub fn summarize(scene: &Scene) -> Summary {
             secondary: c.secondary.text.clone(),
             search: c.search.map(round6),
         })
-        .collect();
-    let probes = scene
+        .collect()
+}
+
+fn probe_summaries(scene: &Scene) -> Vec<ProbeSummary> {
+    scene
         .probes
         .iter()
         .map(|p| ProbeSummary {
@@ -251,17 +304,29 @@ pub fn summarize(scene: &Scene) -> Summary {
                 .map_or(String::new(), |b| b.name.clone()),
             at: p.at.iter().map(|v| round6(*v)).collect(),
         })
-        .collect();
-    let totals = Totals {
+        .collect()
+}
+
+fn totals(scene: &Scene) -> Totals {
+    Totals {
         bodies: scene.bodies.len(),
         subdomains: scene.bodies.iter().map(Body::subdomain_count).sum(),
         elements: scene.bodies.iter().map(Body::elements).sum(),
         nodes: scene.bodies.iter().map(Body::nodes).sum(),
         primal_dofs: scene.bodies.iter().map(Body::primal_dofs).sum(),
         design_variables: scene.design.len(),
-    };
+    }
+}
+
+fn rounded_params(scene: &Scene) -> Vec<Param> {
     let mut params = scene.params.clone();
     params.iter_mut().for_each(|p| p.value = round6(p.value));
+    params
+}
+
+/// The materials rounded for people, with the formulation `auto` chose where it
+/// chose B-bar.
+fn rounded_materials(scene: &Scene) -> Vec<Material> {
     let mut materials = scene.materials.clone();
     let element = crate::fem::Element::for_dim(scene.dim.n());
     for m in &mut materials {
@@ -273,31 +338,7 @@ pub fn summarize(scene: &Scene) -> Summary {
         m.poisson = round6(m.poisson);
         m.density = m.density.map(round6);
     }
-    Summary {
-        scene: scene.name.clone(),
-        title: scene.title.clone(),
-        dim: scene.dim,
-        thickness: round6(scene.thickness),
-        totals,
-        memory: estimate(scene),
-        constants: params,
-        materials,
-        bodies,
-        obstacles,
-        conditions,
-        gravity: scene.gravity.clone(),
-        glues,
-        contacts,
-        probes,
-        design: scene.design.clone(),
-        objective: scene.objective.as_ref().map(|o| o.text.clone()),
-        constraints: scene.constraints.iter().map(|c| c.text.clone()).collect(),
-        solver: scene.solver.clone(),
-        sensitivity: scene.sensitivity.clone(),
-        optimize: scene.optimize.clone(),
-        tfeti: None,
-        tfeti_note: None,
-    }
+    materials
 }
 
 /// The summary with the TFETI operators' sizes (lowers and factorizes).
@@ -317,6 +358,26 @@ fn section(out: &mut String, title: &str) {
 impl fmt::Display for Summary {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let mut o = String::new();
+        self.write_header(&mut o);
+        self.write_constants(&mut o);
+        self.write_materials(&mut o);
+        self.write_bodies(&mut o);
+        self.write_obstacles(&mut o);
+        self.write_loads(&mut o);
+        self.write_pairs(&mut o);
+        self.write_probes(&mut o);
+        self.write_design(&mut o);
+        self.write_objective(&mut o);
+        self.write_operators(&mut o);
+        self.write_settings(&mut o);
+        f.write_str(&o)
+    }
+}
+
+/// The sections of the text form, in the order [`Summary`]'s `Display` writes them.
+impl Summary {
+    /// The scene's name, kind, title, totals and memory estimate.
+    fn write_header(&self, o: &mut String) {
         let t = &self.totals;
         let kind = match self.dim {
             Dimension::Two => format!("2D plane strain, thickness {} m", num(self.thickness)),
@@ -344,15 +405,22 @@ impl fmt::Display for Summary {
             crate::lang::check::bytes(m.factors),
             crate::lang::check::bytes(m.vectors)
         );
-        if !self.constants.is_empty() {
-            section(&mut o, "constants");
-            for p in &self.constants {
-                let set = if p.overridden { "   (--set)" } else { "" };
-                let unit = p.unit.as_ref().map_or(String::new(), |u| format!(" {u}"));
-                let _ = writeln!(o, "  {:<10} = {}{unit}{set}", p.name, num(p.value));
-            }
+    }
+
+    fn write_constants(&self, o: &mut String) {
+        if self.constants.is_empty() {
+            return;
         }
-        section(&mut o, "materials");
+        section(o, "constants");
+        for p in &self.constants {
+            let set = if p.overridden { "   (--set)" } else { "" };
+            let unit = p.unit.as_ref().map_or(String::new(), |u| format!(" {u}"));
+            let _ = writeln!(o, "  {:<10} = {}{unit}{set}", p.name, num(p.value));
+        }
+    }
+
+    fn write_materials(&self, o: &mut String) {
+        section(o, "materials");
         for m in &self.materials {
             let rho = m
                 .density
@@ -370,7 +438,10 @@ impl fmt::Display for Summary {
                 num(m.poisson)
             );
         }
-        section(&mut o, "bodies");
+    }
+
+    fn write_bodies(&self, o: &mut String) {
+        section(o, "bodies");
         let axes = ["x", "y", "z"];
         for b in &self.bodies {
             let ext: Vec<String> = b
@@ -404,40 +475,53 @@ impl fmt::Display for Summary {
                 if b.designed { ", moves with the design" } else { "" }
             );
         }
-        if !self.obstacles.is_empty() {
-            section(&mut o, "obstacles");
-            for ob in &self.obstacles {
-                let what = match (&ob.normal, ob.radius) {
-                    (Some(n), _) => format!(
-                        "plane through {} m, outward normal {}",
-                        vec_str(&ob.point),
-                        vec_str(n)
-                    ),
-                    (None, Some(r)) => format!(
-                        "{} at {} m, radius {} m",
-                        ob.kind,
-                        vec_str(&ob.point),
-                        num(r)
-                    ),
-                    _ => ob.kind.to_string(),
-                };
-                let _ = writeln!(o, "  {:<10} {what}", ob.name);
-            }
+    }
+
+    fn write_obstacles(&self, o: &mut String) {
+        if self.obstacles.is_empty() {
+            return;
         }
-        if !self.conditions.is_empty() || self.gravity.is_some() {
-            section(&mut o, "supports and loads");
-            for c in &self.conditions {
-                let _ = writeln!(o, "  {:<9} {:<22} {}", c.kind, c.selection, c.detail);
-            }
-            if let Some(g) = &self.gravity {
-                let _ = writeln!(o, "  gravity   {} m/s^2", vec_str(g));
-            }
+        section(o, "obstacles");
+        for ob in &self.obstacles {
+            let what = match (&ob.normal, ob.radius) {
+                (Some(n), _) => format!(
+                    "plane through {} m, outward normal {}",
+                    vec_str(&ob.point),
+                    vec_str(n)
+                ),
+                (None, Some(r)) => format!(
+                    "{} at {} m, radius {} m",
+                    ob.kind,
+                    vec_str(&ob.point),
+                    num(r)
+                ),
+                _ => ob.kind.to_string(),
+            };
+            let _ = writeln!(o, "  {:<10} {what}", ob.name);
         }
+    }
+
+    /// Supports, loads and gravity.
+    fn write_loads(&self, o: &mut String) {
+        if self.conditions.is_empty() && self.gravity.is_none() {
+            return;
+        }
+        section(o, "supports and loads");
+        for c in &self.conditions {
+            let _ = writeln!(o, "  {:<9} {:<22} {}", c.kind, c.selection, c.detail);
+        }
+        if let Some(g) = &self.gravity {
+            let _ = writeln!(o, "  gravity   {} m/s^2", vec_str(g));
+        }
+    }
+
+    /// Glues, then contacts.
+    fn write_pairs(&self, o: &mut String) {
         for (title, pairs) in [("glue", &self.glues), ("contacts", &self.contacts)] {
             if pairs.is_empty() {
                 continue;
             }
-            section(&mut o, title);
+            section(o, title);
             for p in pairs {
                 let search = p
                     .search
@@ -449,39 +533,55 @@ impl fmt::Display for Summary {
                 );
             }
         }
-        if !self.probes.is_empty() {
-            section(&mut o, "probes");
-            for p in &self.probes {
-                let _ = writeln!(o, "  {:<10} {} at {} m", p.name, p.body, vec_str(&p.at));
-            }
+    }
+
+    fn write_probes(&self, o: &mut String) {
+        if self.probes.is_empty() {
+            return;
         }
-        if !self.design.is_empty() {
-            section(&mut o, &format!("design variables ({})", self.design.len()));
-            for d in &self.design {
-                let _ = writeln!(
-                    o,
-                    "  {:<10} init {:<8} in [{}, {}]",
-                    d.name,
-                    num(d.init),
-                    num(d.lower),
-                    num(d.upper)
-                );
-            }
+        section(o, "probes");
+        for p in &self.probes {
+            let _ = writeln!(o, "  {:<10} {} at {} m", p.name, p.body, vec_str(&p.at));
         }
-        if let Some(obj) = &self.objective {
-            section(&mut o, "objective");
-            let _ = writeln!(o, "  minimize {obj}");
-            for c in &self.constraints {
-                let _ = writeln!(o, "  subject to {c}");
-            }
+    }
+
+    fn write_design(&self, o: &mut String) {
+        if self.design.is_empty() {
+            return;
         }
+        section(o, &format!("design variables ({})", self.design.len()));
+        for d in &self.design {
+            let _ = writeln!(
+                o,
+                "  {:<10} init {:<8} in [{}, {}]",
+                d.name,
+                num(d.init),
+                num(d.lower),
+                num(d.upper)
+            );
+        }
+    }
+
+    fn write_objective(&self, o: &mut String) {
+        let Some(obj) = &self.objective else {
+            return;
+        };
+        section(o, "objective");
+        let _ = writeln!(o, "  minimize {obj}");
+        for c in &self.constraints {
+            let _ = writeln!(o, "  subject to {c}");
+        }
+    }
+
+    /// The operators' sizes, or why they were not built (nothing when not asked for).
+    fn write_operators(&self, o: &mut String) {
         let operators = match self.solver.method {
             crate::lang::scene::SolverMethod::Feti => "classical FETI operators",
             crate::lang::scene::SolverMethod::Tfeti => "TFETI operators",
         };
         if let Some(t) = &self.tfeti {
             let k = &t.by_kind;
-            section(&mut o, operators);
+            section(o, operators);
             let _ = writeln!(
                 o,
                 "  primal unknowns {}, multipliers {} (gluing {}, supports {}, symmetry {}, ties {}, contact {})",
@@ -498,10 +598,13 @@ impl fmt::Display for Summary {
                 let _ = writeln!(o, "  {m}");
             }
         } else if let Some(n) = &self.tfeti_note {
-            section(&mut o, operators);
+            section(o, operators);
             let _ = writeln!(o, "  not built: {n}");
         }
-        section(&mut o, "settings");
+    }
+
+    fn write_settings(&self, o: &mut String) {
+        section(o, "settings");
         let s = &self.solver;
         let _ = writeln!(
             o,
@@ -530,11 +633,9 @@ impl fmt::Display for Summary {
                 num(op.tolerance)
             );
         }
-        f.write_str(&o)
     }
 }
 
-/// "1 body", "2 bodies".
 /// The line `cso check` prints for a scene that checks: its name, dimension,
 /// size and primal unknowns.
 pub fn check_line(file: &std::path::Path, scene: &Scene) -> String {
@@ -550,6 +651,7 @@ pub fn check_line(file: &std::path::Path, scene: &Scene) -> String {
     )
 }
 
+/// "1 body", "2 bodies".
 pub fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
 }

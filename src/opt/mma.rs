@@ -65,11 +65,24 @@ impl Mma {
     /// Given the design `x`, the objective gradient `df0`, constraint values `g`
     /// (`g_i <= 0` wanted) and their gradients `dg[i]`, returns the next design.
     pub fn step(&mut self, x: &[f64], df0: &[f64], g: &[f64], dg: &[Vec<f64>]) -> Step {
-        let n = x.len();
-        let m = g.len();
+        self.update_asymptotes(x);
+        let sub = self.subproblem(x, df0, g, dg);
+        let l = sub.solve_dual();
+        let next = sub.x_of(&l);
+        self.x2 = self.x1.take();
+        self.x1 = Some(x.to_vec());
+        Step {
+            x: next,
+            multipliers: l,
+        }
+    }
+
+    /// Moves the asymptotes `low`, `upp` around `x`: at the initial distance
+    /// for the first two steps, then apart where the last steps went one way
+    /// (1.2) and together where they oscillated (0.7), within 0.01 .. 10 ranges.
+    fn update_asymptotes(&mut self, x: &[f64]) {
         let s = &self.settings;
-        // Asymptotes.
-        for j in 0..n {
+        for j in 0..x.len() {
             let range = (self.upper[j] - self.lower[j]).max(1e-12);
             match (&self.x1, &self.x2) {
                 (Some(x1), Some(x2)) => {
@@ -92,18 +105,22 @@ impl Mma {
                 }
             }
         }
-        // Move limits and the separable approximations.
+    }
+
+    /// The convex separable subproblem at `x` under the current asymptotes:
+    /// move limits and the approximations of the objective and constraints.
+    fn subproblem<'a>(
+        &'a self,
+        x: &'a [f64],
+        df0: &[f64],
+        g: &[f64],
+        dg: &[Vec<f64>],
+    ) -> Subproblem<'a> {
+        let n = x.len();
+        let m = g.len();
+        let s = &self.settings;
         let mut alpha = vec![0.0; n];
         let mut beta = vec![0.0; n];
-        let approx = |j: usize, d: f64| -> (f64, f64) {
-            let range = (self.upper[j] - self.lower[j]).max(1e-12);
-            let (ux, xl) = (self.upp[j] - x[j], x[j] - self.low[j]);
-            let reg = 0.001 * d.abs() + 1e-6 / range;
-            (
-                ux * ux * (d.max(0.0) + reg),
-                xl * xl * ((-d).max(0.0) + reg),
-            )
-        };
         for j in 0..n {
             let range = self.upper[j] - self.lower[j];
             alpha[j] = self.lower[j]
@@ -113,9 +130,9 @@ impl Mma {
                 .min(0.9 * self.upp[j] + 0.1 * x[j])
                 .min(x[j] + s.move_limit * range);
         }
-        let p0: Vec<(f64, f64)> = (0..n).map(|j| approx(j, df0[j])).collect();
+        let p0: Vec<(f64, f64)> = (0..n).map(|j| self.approx(x, j, df0[j])).collect();
         let pi: Vec<Vec<(f64, f64)>> = (0..m)
-            .map(|i| (0..n).map(|j| approx(j, dg[i][j])).collect())
+            .map(|i| (0..n).map(|j| self.approx(x, j, dg[i][j])).collect())
             .collect();
         let ri: Vec<f64> = (0..m)
             .map(|i| {
@@ -124,73 +141,124 @@ impl Mma {
                     .sum::<f64>()
             })
             .collect();
-        // x(l): the minimizer of the Lagrangian of the subproblem, per variable.
-        let x_of = |l: &[f64]| -> Vec<f64> {
-            (0..n)
-                .map(|j| {
-                    let p = p0[j].0 + (0..m).map(|i| l[i] * pi[i][j].0).sum::<f64>();
-                    let q = p0[j].1 + (0..m).map(|i| l[i] * pi[i][j].1).sum::<f64>();
-                    let (sp, sq) = (p.max(0.0).sqrt(), q.max(0.0).sqrt());
-                    let v = if sp + sq > 0.0 {
-                        (sp * self.low[j] + sq * self.upp[j]) / (sp + sq)
-                    } else {
-                        x[j]
-                    };
-                    v.clamp(alpha[j], beta[j])
-                })
-                .collect()
-        };
-        // d phi / d l_i = g~_i(x(l)) - y_i(l), with the slack y_i = max(0, l_i - c).
-        let c = s.slack_penalty;
-        let grad = |l: &[f64], i: usize| -> f64 {
-            let xs = x_of(l);
-            let gi = ri[i]
-                + (0..n)
-                    .map(|j| {
-                        pi[i][j].0 / (self.upp[j] - xs[j]) + pi[i][j].1 / (xs[j] - self.low[j])
-                    })
-                    .sum::<f64>();
-            gi - (l[i] - c).max(0.0)
-        };
-        // Maximize the concave dual: coordinate bisection sweeps over l_i >= 0.
+        Subproblem {
+            x,
+            low: &self.low,
+            upp: &self.upp,
+            alpha,
+            beta,
+            p0,
+            pi,
+            ri,
+            slack_penalty: s.slack_penalty,
+        }
+    }
+
+    /// The coefficients `(p, q)` of `p/(U - x) + q/(x - L)` for the derivative
+    /// `d` along variable `j`, with Svanberg's regularization.
+    fn approx(&self, x: &[f64], j: usize, d: f64) -> (f64, f64) {
+        let range = (self.upper[j] - self.lower[j]).max(1e-12);
+        let (ux, xl) = (self.upp[j] - x[j], x[j] - self.low[j]);
+        let reg = 0.001 * d.abs() + 1e-6 / range;
+        (
+            ux * ux * (d.max(0.0) + reg),
+            xl * xl * ((-d).max(0.0) + reg),
+        )
+    }
+}
+
+/// One MMA subproblem: `min sum_j p0_j/(U_j - x_j) + q0_j/(x_j - L_j)` subject
+/// to the approximated constraints and `alpha <= x <= beta`, solved through
+/// its dual in the multipliers `l` (one per constraint).
+struct Subproblem<'a> {
+    /// The design the subproblem is built at.
+    x: &'a [f64],
+    /// The asymptotes `L` and `U`.
+    low: &'a [f64],
+    upp: &'a [f64],
+    /// Move limits: the bounds of the subproblem's variables.
+    alpha: Vec<f64>,
+    beta: Vec<f64>,
+    /// `(p, q)` per variable of the objective and of each constraint.
+    p0: Vec<(f64, f64)>,
+    pi: Vec<Vec<(f64, f64)>>,
+    /// Each constraint's constant term.
+    ri: Vec<f64>,
+    /// Penalty of the slacks `y_i = max(0, l_i - c)`.
+    slack_penalty: f64,
+}
+
+impl Subproblem<'_> {
+    /// x(l): the minimizer of the Lagrangian of the subproblem, per variable.
+    fn x_of(&self, l: &[f64]) -> Vec<f64> {
+        let (n, m) = (self.x.len(), self.ri.len());
+        let (p0, pi) = (&self.p0, &self.pi);
+        (0..n)
+            .map(|j| {
+                let p = p0[j].0 + (0..m).map(|i| l[i] * pi[i][j].0).sum::<f64>();
+                let q = p0[j].1 + (0..m).map(|i| l[i] * pi[i][j].1).sum::<f64>();
+                let (sp, sq) = (p.max(0.0).sqrt(), q.max(0.0).sqrt());
+                let v = if sp + sq > 0.0 {
+                    (sp * self.low[j] + sq * self.upp[j]) / (sp + sq)
+                } else {
+                    self.x[j]
+                };
+                v.clamp(self.alpha[j], self.beta[j])
+            })
+            .collect()
+    }
+
+    /// d phi / d l_i = g~_i(x(l)) - y_i(l), with the slack y_i = max(0, l_i - c).
+    fn grad(&self, l: &[f64], i: usize) -> f64 {
+        let pi = &self.pi;
+        let xs = self.x_of(l);
+        let gi = self.ri[i]
+            + (0..self.x.len())
+                .map(|j| pi[i][j].0 / (self.upp[j] - xs[j]) + pi[i][j].1 / (xs[j] - self.low[j]))
+                .sum::<f64>();
+        gi - (l[i] - self.slack_penalty).max(0.0)
+    }
+
+    /// Maximizes the concave dual: coordinate bisection sweeps over `l_i >= 0`.
+    fn solve_dual(&self) -> Vec<f64> {
+        let m = self.ri.len();
         let mut l = vec![0.0; m];
         for _sweep in 0..(if m == 1 { 1 } else { 60 }) {
             for i in 0..m {
-                let mut lo = 0.0;
-                if grad(&l, i) <= 0.0 {
-                    l[i] = 0.0;
-                    continue;
-                }
-                let mut hi = 1.0;
-                loop {
-                    let mut t = l.clone();
-                    t[i] = hi;
-                    if grad(&t, i) <= 0.0 || hi > 1e12 {
-                        break;
-                    }
-                    lo = hi;
-                    hi *= 4.0;
-                }
-                for _ in 0..100 {
-                    let mid = 0.5 * (lo + hi);
-                    let mut t = l.clone();
-                    t[i] = mid;
-                    if grad(&t, i) > 0.0 {
-                        lo = mid;
-                    } else {
-                        hi = mid;
-                    }
-                }
-                l[i] = 0.5 * (lo + hi);
+                l[i] = self.maximize_along(&l, i);
             }
         }
-        let next = x_of(&l);
-        self.x2 = self.x1.take();
-        self.x1 = Some(x.to_vec());
-        Step {
-            x: next,
-            multipliers: l,
+        l
+    }
+
+    /// The dual's maximizer along `l_i` with the other multipliers fixed: 0
+    /// where the dual falls from there, else bracketed (`hi` times 4) and bisected.
+    fn maximize_along(&self, l: &[f64], i: usize) -> f64 {
+        let mut lo = 0.0;
+        if self.grad(l, i) <= 0.0 {
+            return 0.0;
         }
+        let mut hi = 1.0;
+        loop {
+            let mut t = l.to_vec();
+            t[i] = hi;
+            if self.grad(&t, i) <= 0.0 || hi > 1e12 {
+                break;
+            }
+            lo = hi;
+            hi *= 4.0;
+        }
+        for _ in 0..100 {
+            let mid = 0.5 * (lo + hi);
+            let mut t = l.to_vec();
+            t[i] = mid;
+            if self.grad(&t, i) > 0.0 {
+                lo = mid;
+            } else {
+                hi = mid;
+            }
+        }
+        0.5 * (lo + hi)
     }
 }
 

@@ -182,29 +182,82 @@ fn round2(n: usize) -> usize {
     (n + p / 2) / p * p
 }
 
+/// How [`Comparison::markdown`] writes numbers: `exact`, as measured (with
+/// times), or stable across machines (counts to two digits, residuals as
+/// orders of magnitude).
+#[derive(Clone, Copy)]
+struct Style {
+    exact: bool,
+}
+
+impl Style {
+    /// A CG count: they may differ by a step with round-off; sizes may not.
+    fn count(self, n: usize) -> usize {
+        if self.exact {
+            n
+        } else {
+            round2(n)
+        }
+    }
+
+    /// The ratio of two CG counts as written.
+    fn cg_ratio(self, f: usize, t: usize) -> String {
+        ratio(self.count(f), self.count(t))
+    }
+
+    /// A residual: as measured, or its order of magnitude (an upper bound).
+    fn small(self, v: f64) -> String {
+        if self.exact || v <= 0.0 {
+            format!("{v:.0e}")
+        } else {
+            format!("<= 1e{}", v.log10().ceil() as i32)
+        }
+    }
+}
+
+/// `t / f` to two decimals, `-` when `f` is 0.
+fn ratio(f: usize, t: usize) -> String {
+    if f == 0 {
+        "-".to_string()
+    } else {
+        format!("{:.2}", t as f64 / f as f64)
+    }
+}
+
 impl Comparison {
     /// The Markdown tables. `exact`: counts as measured and times; otherwise
     /// counts to two significant digits and no times (stable output).
     pub fn markdown(&self, exact: bool) -> String {
-        // CG counts may differ by a step with round-off; sizes may not.
-        let count = |n: usize| if exact { n } else { round2(n) };
-        let ratio = |f: usize, t: usize| {
-            if f == 0 {
-                "-".to_string()
-            } else {
-                format!("{:.2}", t as f64 / f as f64)
-            }
-        };
-        let cg_ratio = |f: usize, t: usize| ratio(count(f), count(t));
-        // Residuals: as measured, or their order of magnitude (an upper bound).
-        let small = |v: f64| {
-            if exact || v <= 0.0 {
-                format!("{v:.0e}")
-            } else {
-                format!("<= 1e{}", v.log10().ceil() as i32)
-            }
-        };
+        let style = Style { exact };
         let mut o = String::new();
+        self.write_heading(&mut o);
+        let (f, t) = match (&self.feti, &self.tfeti) {
+            (Ok(f), Ok(t)) => (f, t),
+            (f, t) => {
+                write_failures(&mut o, [("FETI", f), ("Total FETI", t)], style);
+                return o;
+            }
+        };
+        write_state_table(&mut o, f, t, style);
+        if let Some(d) = self.difference {
+            let _ = writeln!(
+                o,
+                "\nmax |u_FETI - u_TFETI| / max |u| {} (both solve the same discrete problem).",
+                if exact {
+                    format!("= {d:.0e}")
+                } else {
+                    style.small(d)
+                }
+            );
+        }
+        if !self.design.is_empty() {
+            self.write_sensitivities(&mut o, f, t, style);
+        }
+        o
+    }
+
+    /// The title, the tolerances, and each eps FETI was refused with.
+    fn write_heading(&self, o: &mut String) {
         let _ = writeln!(o, "# FETI vs Total FETI: `{}`\n", self.scene);
         let _ = writeln!(
             o,
@@ -214,83 +267,11 @@ impl Comparison {
         for (eps, why) in &self.refused_eps {
             let _ = writeln!(o, "FETI with eps = {eps:e} was refused: {why}\n");
         }
-        let (f, t) = match (&self.feti, &self.tfeti) {
-            (Ok(f), Ok(t)) => (f, t),
-            (f, t) => {
-                for (name, c) in [("FETI", f), ("Total FETI", t)] {
-                    match c {
-                        Err(e) => {
-                            let _ = writeln!(o, "{name} failed: {e}\n");
-                        }
-                        Ok(c) => {
-                            let _ = writeln!(
-                                o,
-                                "{name}: primal/dual {}/{}, CG steps {}, KKT residual {}\n",
-                                c.primal,
-                                c.state.dual,
-                                count(c.state.hessian_applications),
-                                small(c.kkt)
-                            );
-                        }
-                    }
-                }
-                return o;
-            }
-        };
-        let _ = writeln!(o, "| | FETI | Total FETI | Ratio |");
-        let _ = writeln!(o, "|---|---|---|---|");
-        let _ = writeln!(
-            o,
-            "| Primal/Dual var. | {}/{} | {}/{} | {} |",
-            f.primal,
-            f.state.dual,
-            t.primal,
-            t.state.dual,
-            ratio(f.state.dual, t.state.dual)
-        );
-        let _ = writeln!(
-            o,
-            "| Kernel dim. | {} | {} | {} |",
-            f.kernel,
-            t.kernel,
-            ratio(f.kernel, t.kernel)
-        );
-        let _ = writeln!(
-            o,
-            "| CG steps | {} | {} | {} |",
-            count(f.state.hessian_applications),
-            count(t.state.hessian_applications),
-            cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
-        );
-        if exact {
-            let _ = writeln!(
-                o,
-                "| Time [s] | {:.3} | {:.3} | {:.2} |",
-                f.state.seconds,
-                t.state.seconds,
-                t.state.seconds / f.state.seconds.max(1e-9)
-            );
-        }
-        let _ = writeln!(
-            o,
-            "| KKT residual | {} | {} | |",
-            small(f.kkt),
-            small(t.kkt)
-        );
-        if let Some(d) = self.difference {
-            let _ = writeln!(
-                o,
-                "\nmax |u_FETI - u_TFETI| / max |u| {} (both solve the same discrete problem).",
-                if exact {
-                    format!("= {d:.0e}")
-                } else {
-                    small(d)
-                }
-            );
-        }
-        if self.design.is_empty() {
-            return o;
-        }
+    }
+
+    /// The sensitivities' table: per method, the dual size and CG steps of the
+    /// state and of each design variable, then their ratios.
+    fn write_sensitivities(&self, o: &mut String, f: &Column, t: &Column, style: Style) {
         let _ = writeln!(
             o,
             "\nSemi-analytical sensitivities, one solve per design variable:\n"
@@ -308,39 +289,111 @@ impl Comparison {
                 continue;
             }
             let mut dual = format!("| {} | Dual | {} |", c.method, c.state.dual);
-            let mut cg = format!("| | CG | {} |", count(c.state.hessian_applications));
+            let mut cg = format!("| | CG | {} |", style.count(c.state.hessian_applications));
             for s in &c.sensitivities {
                 let _ = write!(dual, " {} |", s.dual);
-                let _ = write!(cg, " {} |", count(s.hessian_applications));
+                let _ = write!(cg, " {} |", style.count(s.hessian_applications));
             }
             let _ = writeln!(o, "{dual}\n{cg}");
         }
         if f.sensitivities.len() == t.sensitivities.len() && !f.sensitivities.is_empty() {
-            let mut dual = format!("| Ratio | Dual | {} |", ratio(f.state.dual, t.state.dual));
-            let mut cg = format!(
-                "| | CG | {} |",
-                cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
-            );
-            for (a, b) in f.sensitivities.iter().zip(&t.sensitivities) {
-                let _ = write!(dual, " {} |", ratio(a.dual, b.dual));
-                let _ = write!(
-                    cg,
-                    " {} |",
-                    cg_ratio(a.hessian_applications, b.hessian_applications)
-                );
+            write_sensitivity_ratios(o, f, t, style);
+        }
+    }
+}
+
+/// What each method gave when one of them failed: the failure, or the
+/// other's sizes, CG steps and residual.
+fn write_failures(o: &mut String, columns: [(&str, &Result<Column, String>); 2], style: Style) {
+    for (name, c) in columns {
+        match c {
+            Err(e) => {
+                let _ = writeln!(o, "{name} failed: {e}\n");
             }
-            let _ = writeln!(o, "{dual}\n{cg}");
-            if exact {
-                let fs: f64 = f.sensitivities.iter().map(|s| s.seconds).sum();
-                let ts: f64 = t.sensitivities.iter().map(|s| s.seconds).sum();
+            Ok(c) => {
                 let _ = writeln!(
                     o,
-                    "\nSensitivity time [s]: FETI {fs:.3}, Total FETI {ts:.3} (ratio {:.2}).",
-                    ts / fs.max(1e-9)
+                    "{name}: primal/dual {}/{}, CG steps {}, KKT residual {}\n",
+                    c.primal,
+                    c.state.dual,
+                    style.count(c.state.hessian_applications),
+                    style.small(c.kkt)
                 );
             }
         }
-        o
+    }
+}
+
+/// The state solve's table: sizes, kernels, CG steps, time (exact only) and
+/// KKT residuals of FETI `f` and Total FETI `t`.
+fn write_state_table(o: &mut String, f: &Column, t: &Column, style: Style) {
+    let _ = writeln!(o, "| | FETI | Total FETI | Ratio |");
+    let _ = writeln!(o, "|---|---|---|---|");
+    let _ = writeln!(
+        o,
+        "| Primal/Dual var. | {}/{} | {}/{} | {} |",
+        f.primal,
+        f.state.dual,
+        t.primal,
+        t.state.dual,
+        ratio(f.state.dual, t.state.dual)
+    );
+    let _ = writeln!(
+        o,
+        "| Kernel dim. | {} | {} | {} |",
+        f.kernel,
+        t.kernel,
+        ratio(f.kernel, t.kernel)
+    );
+    let _ = writeln!(
+        o,
+        "| CG steps | {} | {} | {} |",
+        style.count(f.state.hessian_applications),
+        style.count(t.state.hessian_applications),
+        style.cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
+    );
+    if style.exact {
+        let _ = writeln!(
+            o,
+            "| Time [s] | {:.3} | {:.3} | {:.2} |",
+            f.state.seconds,
+            t.state.seconds,
+            t.state.seconds / f.state.seconds.max(1e-9)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "| KKT residual | {} | {} | |",
+        style.small(f.kkt),
+        style.small(t.kkt)
+    );
+}
+
+/// The sensitivities' ratio rows (Total FETI over FETI) and, exact only, the
+/// total times; for columns with one sensitivity per design variable each.
+fn write_sensitivity_ratios(o: &mut String, f: &Column, t: &Column, style: Style) {
+    let mut dual = format!("| Ratio | Dual | {} |", ratio(f.state.dual, t.state.dual));
+    let mut cg = format!(
+        "| | CG | {} |",
+        style.cg_ratio(f.state.hessian_applications, t.state.hessian_applications)
+    );
+    for (a, b) in f.sensitivities.iter().zip(&t.sensitivities) {
+        let _ = write!(dual, " {} |", ratio(a.dual, b.dual));
+        let _ = write!(
+            cg,
+            " {} |",
+            style.cg_ratio(a.hessian_applications, b.hessian_applications)
+        );
+    }
+    let _ = writeln!(o, "{dual}\n{cg}");
+    if style.exact {
+        let fs: f64 = f.sensitivities.iter().map(|s| s.seconds).sum();
+        let ts: f64 = t.sensitivities.iter().map(|s| s.seconds).sum();
+        let _ = writeln!(
+            o,
+            "\nSensitivity time [s]: FETI {fs:.3}, Total FETI {ts:.3} (ratio {:.2}).",
+            ts / fs.max(1e-9)
+        );
     }
 }
 

@@ -179,147 +179,35 @@ pub fn study(
     base.solver.tolerance = base.solver.tolerance.min(1e-8);
     base.solver.max_iterations = base.solver.max_iterations.max(100_000);
     let d = scene.dim.n();
-    let start = Instant::now();
+    let budget = Budget {
+        settings,
+        start: Instant::now(),
+        dim: d,
+    };
     let mut levels: Vec<Level> = Vec::new();
     let mut names: Vec<Quantity> = Vec::new();
     let mut copies = None;
     let mut stopped = None;
     for k in 0..settings.levels {
         let s = refine(&base, k as u32)?;
-        let mesh = s
-            .bodies
-            .iter()
-            .map(|b| counts(&b.mesh))
-            .collect::<Vec<_>>()
-            .join("; ");
-        let need = estimate(&s).total();
-        if let Some(limit) = settings.memory_limit {
-            if need > limit as f64 {
-                if k == 0 {
-                    return Err(ConvergenceError::Memory {
-                        mesh,
-                        need: bytes(need),
-                        limit: bytes(limit as f64),
-                    });
-                }
-                stopped = Some(format!(
-                    "level {k} ({mesh}) would need about {}, more than the memory limit {}",
-                    bytes(need),
-                    bytes(limit as f64)
-                ));
-                break;
-            }
+        let mesh = joined_counts(&s, |b| &b.mesh);
+        if let Some(why) = budget.stop_before(k, &s, &mesh, &levels)? {
+            stopped = Some(why);
+            break;
         }
-        if let (Some(max), Some(last)) = (settings.max_seconds, levels.last()) {
-            // Cost grows at least like the unknowns (2^d per level); by the
-            // last two levels' ratio when that is larger.
-            let grew = match levels.len() {
-                n if n >= 2 => last.seconds / levels[n - 2].seconds.max(1e-9),
-                _ => 0.0,
-            };
-            let next = last.seconds * grew.max((1usize << d) as f64);
-            let spent = start.elapsed().as_secs_f64();
-            if spent + next > max {
-                stopped = Some(format!(
-                    "level {k} ({mesh}) would take about {next:.0} s more, past --max-seconds {max} (spent {spent:.0} s)"
-                ));
-                break;
-            }
-        }
-        let t = Instant::now();
-        let state =
-            solve(&s, &s.design_init(), &mut |_| {}).map_err(|error| ConvergenceError::Solve {
-                level: k,
-                mesh: mesh.clone(),
-                error: Box::new(error),
-            })?;
-        let seconds = t.elapsed().as_secs_f64();
-        let mut q = quantities(&s, &state);
-        if let Some(h) = &settings.hertz {
-            let of = |suffix: &str| {
-                let name = format!("{} {suffix}", h.contact_name);
-                q.iter()
-                    .find(|q| q.name == name)
-                    .map_or(f64::NAN, |q| q.value)
-            };
-            let force = of("force");
-            let extent = of(if h.line {
-                "contact length"
-            } else {
-                "contact area"
-            });
-            let c = match copies {
-                Some(c) => c,
-                None => {
-                    let c = h.copies(force, s.thickness)?;
-                    copies = Some(c);
-                    c
-                }
-            };
-            // The model's contact length or area, as Hertz's half-width or radius.
-            let name = format!(
-                "{} contact {}",
-                h.contact_name,
-                if h.line { "length" } else { "area" }
-            );
-            if let Some(e) = q.iter_mut().find(|q| q.name == name) {
-                *e = Quantity {
-                    name: format!("{} {}", h.contact_name, h.size_name()),
-                    unit: "m",
-                    value: h.size_of(extent, c),
-                    negligible: false,
-                };
-            }
-        }
-        if k == 0 {
-            names = q.clone();
-        }
-        let level = Level {
+        let run = LevelRun {
+            scene: &s,
             level: k,
-            mesh,
-            cuts: s
-                .bodies
-                .iter()
-                .map(|b| counts(&b.subdomains))
-                .collect::<Vec<_>>()
-                .join("; "),
-            subdomains: state.problem.subdomains.len(),
-            dofs: grid_dofs(&s),
-            primal: state.problem.primal_dofs(),
-            dual: state.multipliers,
-            hessian_applications: state.info.hessian_applications,
-            converged: state.converged(),
-            seconds,
-            peak_memory: super::bench::peak_memory(),
-            values: q.iter().map(|q| q.value).collect(),
+            hertz: settings.hertz.as_ref(),
         };
+        let (level, q) = run.solve(mesh, &mut copies)?;
+        if k == 0 {
+            names = q;
+        }
         progress(&level);
         levels.push(level);
     }
-    let hertz = settings.hertz.as_ref();
-    // Probe components that are zero by symmetry are left out, of the
-    // levels' values too.
-    let kept: Vec<usize> = (0..names.len()).filter(|&i| !names[i].negligible).collect();
-    let quantities = kept
-        .iter()
-        .map(|&i| (i, &names[i]))
-        .map(|(i, q)| {
-            let values: Vec<f64> = levels.iter().map(|l| l.values[i]).collect();
-            let reference = hertz.and_then(|h| {
-                if q.name == format!("{} peak pressure", h.contact_name) {
-                    Some(h.peak)
-                } else if q.name == format!("{} {}", h.contact_name, h.size_name()) {
-                    Some(h.size)
-                } else {
-                    None
-                }
-            });
-            series(&q.name, q.unit, values, reference)
-        })
-        .collect();
-    for l in &mut levels {
-        l.values = kept.iter().map(|&i| l.values[i]).collect();
-    }
+    let quantities = kept_series(&names, &mut levels, settings.hertz.as_ref());
     Ok(Convergence {
         scene: scene.name.clone(),
         dim: d,
@@ -330,6 +218,214 @@ pub fn study(
         copies,
         stopped,
     })
+}
+
+/// Every body's counts (`80 x 80`), `;` between bodies.
+fn joined_counts(s: &Scene, of: impl Fn(&crate::lang::scene::Body) -> &[usize]) -> String {
+    s.bodies
+        .iter()
+        .map(|b| counts(of(b)))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// What may stop the study before a level: the memory limit, and
+/// `--max-seconds` counted from `start`.
+struct Budget<'a> {
+    settings: &'a Settings,
+    start: Instant,
+    /// The scene's dimension (a level has 2^dim times the unknowns of the last).
+    dim: usize,
+}
+
+impl Budget<'_> {
+    /// Why level `k` (scene `s`, meshes `mesh`) is not solved, after `levels`;
+    /// an error when level 0 does not fit in memory (the study would have nothing).
+    fn stop_before(
+        &self,
+        k: usize,
+        s: &Scene,
+        mesh: &str,
+        levels: &[Level],
+    ) -> Result<Option<String>, ConvergenceError> {
+        if let Some(why) = self.over_memory(k, s, mesh)? {
+            return Ok(Some(why));
+        }
+        Ok(self.over_time(k, mesh, levels))
+    }
+
+    fn over_memory(
+        &self,
+        k: usize,
+        s: &Scene,
+        mesh: &str,
+    ) -> Result<Option<String>, ConvergenceError> {
+        let need = estimate(s).total();
+        let Some(limit) = self.settings.memory_limit else {
+            return Ok(None);
+        };
+        if need > limit as f64 {
+            if k == 0 {
+                return Err(ConvergenceError::Memory {
+                    mesh: mesh.to_string(),
+                    need: bytes(need),
+                    limit: bytes(limit as f64),
+                });
+            }
+            return Ok(Some(format!(
+                "level {k} ({mesh}) would need about {}, more than the memory limit {}",
+                bytes(need),
+                bytes(limit as f64)
+            )));
+        }
+        Ok(None)
+    }
+
+    /// Predicted from the levels solved so far.
+    fn over_time(&self, k: usize, mesh: &str, levels: &[Level]) -> Option<String> {
+        let (Some(max), Some(last)) = (self.settings.max_seconds, levels.last()) else {
+            return None;
+        };
+        // Cost grows at least like the unknowns (2^d per level); by the
+        // last two levels' ratio when that is larger.
+        let grew = match levels.len() {
+            n if n >= 2 => last.seconds / levels[n - 2].seconds.max(1e-9),
+            _ => 0.0,
+        };
+        let next = last.seconds * grew.max((1usize << self.dim) as f64);
+        let spent = self.start.elapsed().as_secs_f64();
+        (spent + next > max).then(|| {
+            format!(
+                "level {k} ({mesh}) would take about {next:.0} s more, past --max-seconds {max} (spent {spent:.0} s)"
+            )
+        })
+    }
+}
+
+/// One level to solve: its refined scene, its number, the Hertz reference.
+struct LevelRun<'a> {
+    scene: &'a Scene,
+    level: usize,
+    hertz: Option<&'a Hertz>,
+}
+
+impl LevelRun<'_> {
+    /// Solves the level and measures it: the row of the level table and the
+    /// quantities (with Hertz: the contact's extent as Hertz's size, with
+    /// `copies` found at the first level).
+    fn solve(
+        &self,
+        mesh: String,
+        copies: &mut Option<f64>,
+    ) -> Result<(Level, Vec<Quantity>), ConvergenceError> {
+        let s = self.scene;
+        let t = Instant::now();
+        let state =
+            solve(s, &s.design_init(), &mut |_| {}).map_err(|error| ConvergenceError::Solve {
+                level: self.level,
+                mesh: mesh.clone(),
+                error: Box::new(error),
+            })?;
+        let seconds = t.elapsed().as_secs_f64();
+        let mut q = quantities(s, &state);
+        if let Some(h) = self.hertz {
+            as_hertz_size(h, &mut q, s.thickness, copies)?;
+        }
+        let level = Level {
+            level: self.level,
+            mesh,
+            cuts: joined_counts(s, |b| &b.subdomains),
+            subdomains: state.problem.subdomains.len(),
+            dofs: grid_dofs(s),
+            primal: state.problem.primal_dofs(),
+            dual: state.multipliers,
+            hessian_applications: state.info.hessian_applications,
+            converged: state.converged(),
+            seconds,
+            peak_memory: super::bench::peak_memory(),
+            values: q.iter().map(|q| q.value).collect(),
+        };
+        Ok((level, q))
+    }
+}
+
+/// Replaces the contact's length or area among the quantities by Hertz's
+/// half-width or radius of the whole body (`copies` of the model, found from
+/// the contact force the first time).
+fn as_hertz_size(
+    h: &Hertz,
+    q: &mut [Quantity],
+    thickness: f64,
+    copies: &mut Option<f64>,
+) -> Result<(), HertzError> {
+    let of = |suffix: &str| {
+        let name = format!("{} {suffix}", h.contact_name);
+        q.iter()
+            .find(|q| q.name == name)
+            .map_or(f64::NAN, |q| q.value)
+    };
+    let force = of("force");
+    let extent = of(if h.line {
+        "contact length"
+    } else {
+        "contact area"
+    });
+    let c = match *copies {
+        Some(c) => c,
+        None => {
+            let c = h.copies(force, thickness)?;
+            *copies = Some(c);
+            c
+        }
+    };
+    // The model's contact length or area, as Hertz's half-width or radius.
+    let name = format!(
+        "{} contact {}",
+        h.contact_name,
+        if h.line { "length" } else { "area" }
+    );
+    if let Some(e) = q.iter_mut().find(|q| q.name == name) {
+        *e = Quantity {
+            name: format!("{} {}", h.contact_name, h.size_name()),
+            unit: "m",
+            value: h.size_of(extent, c),
+            negligible: false,
+        };
+    }
+    Ok(())
+}
+
+/// Each quantity's series over the levels, but for probe components that
+/// are zero by symmetry: those are left out, of the levels' values too.
+fn kept_series(
+    names: &[Quantity],
+    levels: &mut [Level],
+    hertz: Option<&Hertz>,
+) -> Vec<QuantitySeries> {
+    let kept: Vec<usize> = (0..names.len()).filter(|&i| !names[i].negligible).collect();
+    let quantities = kept
+        .iter()
+        .map(|&i| (i, &names[i]))
+        .map(|(i, q)| {
+            let values: Vec<f64> = levels.iter().map(|l| l.values[i]).collect();
+            series(&q.name, q.unit, values, hertz.and_then(|h| reference(h, q)))
+        })
+        .collect();
+    for l in levels.iter_mut() {
+        l.values = kept.iter().map(|&i| l.values[i]).collect();
+    }
+    quantities
+}
+
+/// Hertz's value of a quantity, where it has one (peak pressure, size).
+fn reference(h: &Hertz, q: &Quantity) -> Option<f64> {
+    if q.name == format!("{} peak pressure", h.contact_name) {
+        Some(h.peak)
+    } else if q.name == format!("{} {}", h.contact_name, h.size_name()) {
+        Some(h.size)
+    } else {
+        None
+    }
 }
 
 fn relative(a: f64, b: f64) -> f64 {
