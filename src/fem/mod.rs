@@ -1,8 +1,9 @@
-//! Finite elements: bilinear quadrilaterals in plane strain (2D) and trilinear
-//! hexahedra (3D) behind the [`Element`] interface that the solver assembles
-//! from, and the facets of their faces (segments; bilinear quadrilaterals in
-//! [`quadface`]), generic over the number type so that shape derivatives reuse
-//! the same code.
+//! Finite elements: bilinear quadrilaterals and linear triangles in plane
+//! strain (2D), trilinear hexahedra and linear tetrahedra (3D) behind the
+//! [`Element`] interface that the solver assembles from, and the facets of
+//! their faces (segments in 2D; bilinear quadrilaterals in [`quadface`] and
+//! linear triangles in [`triface`] in 3D), generic over the number type so
+//! that shape derivatives reuse the same code.
 
 pub mod element;
 pub mod facet;
@@ -10,10 +11,14 @@ pub mod hex;
 pub mod quad;
 pub mod quadface;
 pub mod shape_gradient;
+pub mod tet;
+pub mod tri;
+pub mod triface;
 
 pub use element::{Element, Formulation, Section, NEARLY_INCOMPRESSIBLE};
 pub use facet::{Facet, Orientation, Segment};
 pub use quad::{plane_strain, quad_stiffness, quad_strain_at, Quad};
+pub use triface::TriFacet;
 
 #[cfg(test)]
 mod tests;
