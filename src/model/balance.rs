@@ -114,13 +114,7 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
     None
 }
 
-fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
-
-fn norm(v: &[f64]) -> f64 {
-    dot(v, v).sqrt()
-}
+use crate::num::vector::{dot, norm};
 
 /// `min ||A x - b||` over `x >= 0` (the columns of `A` given), by Lawson-Hanson;
 /// returns the residual norm.

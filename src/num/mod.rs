@@ -32,6 +32,21 @@ pub fn norm<T: Scalar, const D: usize>(a: &[T; D]) -> T {
     dot(a, a).sqrt()
 }
 
+/// Dot products and norms of slices (dual vectors, residuals), summed in
+/// order by `Iterator::sum`: the one copy every solver uses, so that their
+/// results stay bit for bit what they were.
+pub mod vector {
+    /// `a . b`.
+    pub fn dot(a: &[f64], b: &[f64]) -> f64 {
+        a.iter().zip(b).map(|(x, y)| x * y).sum()
+    }
+
+    /// `||v||`.
+    pub fn norm(v: &[f64]) -> f64 {
+        dot(v, v).sqrt()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -559,13 +559,7 @@ pub(super) fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
-pub(super) fn dot(x: &[f64], y: &[f64]) -> f64 {
-    x.iter().zip(y).map(|(a, b)| a * b).sum()
-}
-
-pub(super) fn norm2(x: &[f64]) -> f64 {
-    dot(x, x).sqrt()
-}
+pub(super) use crate::num::vector::{dot, norm as norm2};
 
 /// A deterministic start vector for the power method: positive, with entries
 /// varying pseudo-randomly so that it is not orthogonal to the dominant

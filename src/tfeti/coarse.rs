@@ -690,9 +690,7 @@ mod tests {
         Cluster::new(subs, LocalRows::split(nx * ny, rows), m)
     }
 
-    fn norm(v: &[f64]) -> f64 {
-        v.iter().map(|x| x * x).sum::<f64>().sqrt()
-    }
+    use crate::num::vector::norm;
 
     #[test]
     fn the_sparse_and_dense_grams_are_the_entrywise_one_bit_for_bit() {

@@ -18,9 +18,7 @@ use super::cluster::Cluster;
 use super::dual::Dual;
 use crate::model::{Problem, RowKind};
 
-fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
+use crate::num::vector::norm;
 
 /// KKT residuals in primal terms, each relative to a natural scale.
 #[derive(Debug, Clone, Default, serde::Serialize)]

@@ -16,13 +16,7 @@ use crate::qp::{
     estimate_norm, smalbe, Breakdown, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status,
 };
 
-pub(super) fn norm(v: &[f64]) -> f64 {
-    dot(v, v).sqrt()
-}
-
-pub(super) fn dot(a: &[f64], b: &[f64]) -> f64 {
-    a.iter().zip(b).map(|(x, y)| x * y).sum()
-}
+pub(super) use crate::num::vector::{dot, norm};
 
 /// A solved dual problem and the primal solution reconstructed from it.
 pub struct DualSolution {

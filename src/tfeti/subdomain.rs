@@ -797,9 +797,7 @@ pub(crate) mod tests {
 
     // Classical FETI subdomains (kernel by pivot detection).
 
-    fn norm(v: &[f64]) -> f64 {
-        v.iter().map(|x| x * x).sum::<f64>().sqrt()
-    }
+    use crate::num::vector::norm;
 
     /// `||K^ K^+ K^ x - K^ x|| / ||K^ x||` over random `x` (free dofs only).
     fn pinv_error(s: &Subdomain, eliminated: &[usize]) -> f64 {
