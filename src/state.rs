@@ -210,7 +210,7 @@ pub fn precheck(
     elimination: Option<&Elimination>,
 ) -> Result<(), SolveError> {
     precheck_start(scene, design, problem)?;
-    precheck_balance(problem)?;
+    precheck_balance(scene, problem)?;
     precheck_held(problem, elimination)
 }
 
@@ -229,12 +229,13 @@ fn precheck_start(scene: &Scene, design: &[f64], problem: &Problem) -> Result<()
 
 /// [`precheck`]'s tests of the loads: every load balanced by supports and
 /// contacts pushing.
-fn precheck_balance(problem: &Problem) -> Result<(), SolveError> {
+fn precheck_balance(scene: &Scene, problem: &Problem) -> Result<(), SolveError> {
     if let Some(u) = crate::model::balance::unbalanced_force(problem) {
         return Err(SolveError::Unbalanced {
             body: problem.bodies[u.body].name.clone(),
             load: u.load,
             why: u.why,
+            out_of_reach: out_of_reach(scene, problem, u.body),
         });
     }
     if let Some(u) = crate::model::balance::unbalanced_wrench(problem) {
@@ -248,6 +249,7 @@ fn precheck_balance(problem: &Problem) -> Result<(), SolveError> {
         };
         return Err(SolveError::Unbalanced {
             body: problem.bodies[u.body].name.clone(),
+            out_of_reach: out_of_reach(scene, problem, u.body),
             load: u.force,
             why: format!(
                 "with its moment, {} N m about ({}), no combination of its supports and of contacts pushing balances it ({:.0e} of the load is left over); the body would roll or slide off",
@@ -258,6 +260,30 @@ fn precheck_balance(problem: &Problem) -> Result<(), SolveError> {
         });
     }
     Ok(())
+}
+
+/// The contacts of body `b` (either side) that got no row: what might have
+/// held it, and why it did not.
+fn out_of_reach(
+    scene: &Scene,
+    problem: &Problem,
+    b: usize,
+) -> Vec<crate::tfeti::error::OutOfReach> {
+    use crate::lang::scene::Primary;
+    problem
+        .idle_contacts
+        .iter()
+        .filter_map(|idle| {
+            let c = scene.contacts.get(idle.contact)?;
+            let on_primary = matches!(&c.primary, Primary::Face(sel) if sel.body == b);
+            (c.secondary.body == b || on_primary).then(|| crate::tfeti::error::OutOfReach {
+                contact: c.name.clone(),
+                search: idle.search,
+                nearest: idle.nearest,
+                obstacle: matches!(c.primary, Primary::Obstacle(_)),
+            })
+        })
+        .collect()
 }
 
 /// [`precheck`]'s test of the supports: no contact row that supports alone
@@ -316,7 +342,9 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
                 "set `search` on this contact above the largest displacement"
             }))
         }
-        SolveError::Unbalanced { body, .. } => {
+        SolveError::Unbalanced {
+            body, out_of_reach, ..
+        } => {
             let b = scene.bodies.iter().position(|x| &x.name == body)?;
             let mut d = Diagnostic::new("cso::unbalanced", message).label(
                 *places.bodies.get(b)?,
@@ -333,9 +361,28 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
                     }
                 }
             }
-            Some(d.help(
-                "add a support (`fix`, `symmetry`) or a contact that can push against the load, or check the load's sign",
-            ))
+            for o in out_of_reach {
+                let c = scene.contacts.iter().position(|c| c.name == o.contact);
+                if let Some(at) = c.and_then(|c| places.contacts.get(c)) {
+                    d = d.label(*at, "gets no row: out of reach");
+                }
+            }
+            Some(d.help(match out_of_reach.first() {
+                Some(o) if o.nearest.is_some_and(|g| g < 0.0) && o.obstacle => format!(
+                    "turn the obstacle's `normal` of contact `{}` towards the body",
+                    o.contact
+                ),
+                Some(o) if o.nearest.is_some_and(|g| g < 0.0) => format!(
+                    "swap `primary` and `secondary` of contact `{}`, or choose the face that faces the other body",
+                    o.contact
+                ),
+                Some(o) => format!(
+                    "raise `search` of contact `{}` above the gap (`search = {} m` or more), or move the bodies closer",
+                    o.contact,
+                    crate::lang::diag::num(o.nearest.map_or(o.search, |g| 1.25 * g.abs()))
+                ),
+                None => "add a support (`fix`, `symmetry`) or a contact that can push against the load, or check the load's sign".to_string(),
+            }))
         }
         SolveError::Subdomain { body, .. } => {
             Some(Diagnostic::new("cso::subdomain", message).label(body_at(body)?, "in this body"))
@@ -379,12 +426,13 @@ pub fn warnings(scene: &Scene, problem: &Problem) -> Vec<String> {
     problem
         .idle_contacts
         .iter()
-        .map(|&(c, search)| {
+        .map(|idle| {
+            let c = &scene.contacts[idle.contact];
             format!(
                 "contact `{}` adds no row: no node of `{}` comes within the search distance ({} m) of its primary side, so it cannot act; move the bodies closer or raise `search`",
-                scene.contacts[c].name,
-                scene.contacts[c].secondary.text,
-                crate::lang::diag::num(search)
+                c.name,
+                c.secondary.text,
+                crate::lang::diag::num(idle.search)
             )
         })
         .collect()
@@ -853,7 +901,7 @@ fn solve_on(
         Some(sol) => sol,
         None => {
             if first_on_active_set {
-                precheck_balance(problem)?;
+                precheck_balance(scene, problem)?;
             }
             let t = Instant::now();
             ops.system

@@ -347,3 +347,46 @@ probe tip {{ body = beam, at = (1, 0, 0) }}
     );
     assert!((-0.16..-0.14).contains(&uz), "{uz}");
 }
+
+#[test]
+fn a_contact_out_of_reach_is_named_with_its_gap_and_search() {
+    // The roller 5 mm above its floor (issue 34, item 9): nothing holds it,
+    // and the refusal says which contact could have, how far its nearest node
+    // is and what its search distance was; with the floor's normal turned
+    // away the nodes lie behind it, and the message names the normal.
+    use crate::fixture::{example_src, Edit};
+    let floor = "obstacle floor { point = (0, 0), normal = (0, 1) }";
+    for (normal, behind) in [("(0, 1)", false), ("(0, -1)", true)] {
+        let src = example_src("hertz2d").edit(
+            floor,
+            &format!("obstacle floor {{ point = (0, -5 mm), normal = {normal} }}"),
+        );
+        let s = scene(&src);
+        let Err(e) = solve(&s, &s.design_init(), &mut |_| {}) else {
+            panic!("the roller floats: nothing holds it");
+        };
+        let SolveError::Unbalanced { out_of_reach, .. } = &e else {
+            panic!("{e}");
+        };
+        assert_eq!(out_of_reach.len(), 1, "{e}");
+        let o = &out_of_reach[0];
+        assert_eq!(o.contact, "seat");
+        let gap = o.nearest.expect("the nodes project onto the floor");
+        assert!((gap.abs() - 0.005).abs() < 1e-12, "{gap}");
+        assert_eq!(gap < 0.0, behind, "{gap}");
+        assert!(o.search < 0.005, "{}", o.search);
+        let text = e.to_string();
+        assert!(text.contains("contact `seat` cannot act"), "{text}");
+        assert_eq!(
+            text.contains("`normal` must point towards the body"),
+            behind,
+            "{text}"
+        );
+        let d = cso::state::diagnostic(&s, &e).expect("points at the scene");
+        let help = d.help.clone().unwrap_or_default();
+        assert!(
+            help.contains(if behind { "`normal`" } else { "raise `search`" }),
+            "{help}"
+        );
+    }
+}

@@ -37,12 +37,25 @@ pub struct Problem {
     /// Contacts whose bodies start inside each other (beyond round-off).
     pub penetrations: Vec<Penetration>,
     /// Contacts that got no row: no secondary node within the search distance
-    /// of the primary side (index into the scene's contacts, search distance).
-    pub idle_contacts: Vec<(usize, f64)>,
+    /// of the primary side.
+    pub idle_contacts: Vec<IdleContact>,
     /// The search distance of each contact (index into the scene's contacts):
     /// its `search`, or the default. Nodes whose |initial gap| exceeds it get
     /// no row.
     pub searches: Vec<f64>,
+}
+
+/// A contact that got no row: no secondary node came within its search
+/// distance of the primary side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IdleContact {
+    /// Index into the scene's contacts.
+    pub contact: usize,
+    /// Its search distance.
+    pub search: f64,
+    /// The signed initial gap of its secondary node nearest the primary side
+    /// (negative: behind it), if any node projects onto it at all.
+    pub nearest: Option<f64>,
 }
 
 /// The deepest initial overlap of one contact: its secondary node lies `depth`

@@ -7,7 +7,7 @@ use super::geometry::{
     contact_row, coords, normalize, obstacle_row, owner, project, selected_nodes, selected_pieces,
     tie_row, tributary_areas, FaceEdge, FaceQuad, ObstacleShape, Pattern, Piece,
 };
-use super::{LowerError, Penetration, Problem};
+use super::{IdleContact, LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
 use crate::lang::scene::{Condition, Primary, Scene, Selection};
 use crate::num::{norm, sub};
@@ -503,6 +503,13 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
         // contact state: the deepest overlap beyond round-off is reported.
         let tolerance = 1e-9 * problem.bodies[sec.body].diagonal();
         let mut deepest: Option<(f64, [f64; 3])> = None;
+        // The nearest node left out by the search distance (signed gap).
+        let mut nearest: Option<f64> = None;
+        let mut left_out = |gap: f64| {
+            if nearest.is_none_or(|n: f64| gap.abs() < n.abs()) {
+                nearest = Some(gap);
+            }
+        };
         let before = rows.len();
         for node in nodes {
             let p = pos[sec.body][node];
@@ -513,6 +520,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                         continue;
                     };
                     if gap.abs() > search {
+                        left_out(gap);
                         continue;
                     }
                     let (e, pr) =
@@ -524,6 +532,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                         continue;
                     };
                     if gap.abs() > search {
+                        left_out(gap);
                         continue;
                     }
                     (
@@ -556,7 +565,11 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             });
         }
         if rows.len() == before {
-            idle.push((ci, search));
+            idle.push(IdleContact {
+                contact: ci,
+                search,
+                nearest,
+            });
         }
     }
     Ok((overlaps, idle, searches))
@@ -564,7 +577,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
 
 /// The deepest overlap of each contact that has one, the contacts that got
 /// no row (with their search distance), and each contact's search distance.
-type ContactFindings = (Vec<Penetration>, Vec<(usize, f64)>, Vec<f64>);
+type ContactFindings = (Vec<Penetration>, Vec<IdleContact>, Vec<f64>);
 
 /// The primary side of a contact, as lowering searches it.
 enum Side<P, const D: usize> {

@@ -80,6 +80,8 @@ pub enum SolveError {
         body: String,
         load: Vec<f64>,
         why: String,
+        /// The body's contacts that got no row (they might have held it).
+        out_of_reach: Vec<OutOfReach>,
     },
     /// Distributed runs: what the lowest failing rank reported, the same on
     /// every rank.
@@ -191,19 +193,69 @@ impl fmt::Display for SolveError {
                 f,
                 "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"
             ),
-            SolveError::Unbalanced { body, load, why } => write!(
-                f,
-                "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",
-                load.iter()
-                    .map(|x| crate::lang::diag::num(*x))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
+            SolveError::Unbalanced {
+                body,
+                load,
+                why,
+                out_of_reach,
+            } => {
+                write!(
+                    f,
+                    "the load on body `{body}`, ({}) N in all, cannot be carried: {why}",
+                    load.iter()
+                        .map(|x| crate::lang::diag::num(*x))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                )?;
+                out_of_reach.iter().try_for_each(|o| write!(f, "; {o}"))
+            }
         }
     }
 }
 
 impl std::error::Error for SolveError {}
+
+/// A contact that got no row because its secondary nodes start beyond its
+/// search distance of the primary side.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OutOfReach {
+    pub contact: String,
+    pub search: f64,
+    /// The signed initial gap of the nearest secondary node (negative:
+    /// behind the primary side), if any projects onto it.
+    pub nearest: Option<f64>,
+    /// The primary side is an obstacle (whose `normal` decides which side
+    /// is behind).
+    pub obstacle: bool,
+}
+
+impl fmt::Display for OutOfReach {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use crate::lang::diag::num;
+        let (c, search) = (&self.contact, num(self.search));
+        match self.nearest {
+            Some(g) if g < 0.0 && self.obstacle => write!(
+                f,
+                "contact `{c}` cannot act: its secondary nodes lie behind the obstacle (the nearest {} m), beyond its search distance {search} m; the obstacle's `normal` must point towards the body",
+                num(-g)
+            ),
+            Some(g) if g < 0.0 => write!(
+                f,
+                "contact `{c}` cannot act: its secondary nodes lie behind the primary face (the nearest {} m), beyond its search distance {search} m; check which face is primary",
+                num(-g)
+            ),
+            Some(g) => write!(
+                f,
+                "contact `{c}` cannot act: its nearest secondary node starts {} m from the primary side, beyond its search distance {search} m",
+                num(g)
+            ),
+            None => write!(
+                f,
+                "contact `{c}` cannot act: no secondary node projects onto its primary side"
+            ),
+        }
+    }
+}
 
 /// [`SolveError::Undetermined`] in words: with the modes named (by the
 /// driver), what holds none of them and what to do; else their count.
