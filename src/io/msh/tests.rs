@@ -732,3 +732,59 @@ fn damaged_files_give_errors_not_panics() {
         }
     }
 }
+
+/// `n = (b - a) x (c - a)` of a facet's first three nodes.
+fn facet_normal(m: &ImportedMesh, f: &[usize]) -> [f64; 3] {
+    let (a, b, c) = (m.nodes[f[0]], m.nodes[f[1]], m.nodes[f[2]]);
+    let (u, v) = (sub(b, a), sub(c, a));
+    [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ]
+}
+
+/// Files written by another program (meshio's MSH 4.1 writer, see
+/// tests/meshes/make_cube_tets.py): ASCII and binary read alike, the cube
+/// comes back whole (volume 1e-6 m^3), every boundary facet faces away from
+/// its centre, and `bottom` (written facing in) comes back facing -z.
+#[test]
+fn files_written_by_meshio() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/meshes");
+    let o = ImportOptions {
+        unit: 1e-3,
+        region: Some("cube"),
+        ..opts(3)
+    };
+    let ascii = read_msh(&dir.join("cube_tets_ascii.msh"), &o).unwrap();
+    let binary = read_msh(&dir.join("cube_tets_binary.msh"), &o).unwrap();
+    assert_eq!(ascii, binary);
+    let m = ascii;
+    assert_eq!(
+        (m.kind, m.nodes.len(), m.cells.len()),
+        (CellKind::Tet4, 8, 6)
+    );
+    assert_eq!(m.nodes[6], [0.01, 0.01, 0.01]);
+    let volume: f64 = m
+        .cells
+        .iter()
+        .map(|c| {
+            let p: Vec<[f64; 3]> = c.iter().map(|&n| m.nodes[n]).collect();
+            det3(sub(p[1], p[0]), sub(p[2], p[0]), sub(p[3], p[0])) / 6.0
+        })
+        .sum();
+    assert!((volume - 1e-6).abs() < 1e-18, "{volume}");
+    assert_eq!(m.boundary.len(), 12);
+    for f in &m.boundary {
+        let n = facet_normal(&m, f);
+        let a = m.nodes[f[0]];
+        let out: f64 = (0..3).map(|k| n[k] * (a[k] - 0.005)).sum();
+        assert!(out > 0.0, "{f:?} faces in");
+    }
+    assert_eq!(m.faces.len(), 1);
+    assert_eq!(m.faces[0].name, "bottom");
+    assert_eq!(m.faces[0].facets.len(), 2);
+    for f in &m.faces[0].facets {
+        assert!(facet_normal(&m, f)[2] < 0.0, "{f:?}");
+    }
+}
