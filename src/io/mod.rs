@@ -3,6 +3,7 @@
 
 pub mod atomic;
 pub mod export;
+pub mod msh;
 pub mod optimization;
 pub mod outputs;
 pub mod plot;

@@ -11,6 +11,7 @@ pub mod geometry;
 pub mod grid;
 mod loads;
 mod mesh;
+pub mod partition;
 mod rows;
 mod search;
 

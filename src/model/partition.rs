@@ -1,0 +1,331 @@
+//! Subdomains of an imported body (issue 35): its cells cut into `n` parts by
+//! METIS (k-way on the cell dual graph), each part one connected piece, the
+//! same cut for the same mesh every time.
+//!
+//! Connected parts matter to TFETI: a subdomain's kernel is its rigid modes,
+//! and a part in two pieces has twice as many (the pieces float apart), which
+//! the rigid modes computed from the subdomain's node coordinates would miss.
+//! METIS is asked for connected parts where the mesh is connected, and
+//! [`connect_parts`] checks and repairs what it returns all the same.
+
+use crate::io::msh::{sorted_facets, CellKind};
+use metis::option::{Contig, Seed};
+use metis::Idx;
+use std::fmt;
+use std::sync::Mutex;
+
+/// The seed of METIS's random numbers: fixed, so that a mesh always gets the
+/// same cut (and a report the same numbers).
+const SEED: Idx = 20_240_035;
+
+/// METIS keeps its random generator in a global (GKlib's `mt` array), and its
+/// error path swaps process-wide signal handlers: two calls at once would race
+/// (cuts that change from run to run, or worse). Every call holds this lock.
+static METIS_LOCK: Mutex<()> = Mutex::new(());
+
+/// The cell dual graph in compressed rows: cells are adjacent when they share
+/// a facet (an edge in 2D, a face in 3D). Sharing only a node or an edge in 3D
+/// does not count: such cells do not hold each other.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct DualGraph {
+    /// Row starts: the neighbours of cell `c` are `adjncy[xadj[c]..xadj[c + 1]]`.
+    pub xadj: Vec<usize>,
+    /// Neighbours, sorted within each row, each once.
+    pub adjncy: Vec<usize>,
+}
+
+impl DualGraph {
+    /// The dual graph of `cells` (node indices per cell, of one `kind`), from
+    /// the facets sorted by their node keys: two cells with equal keys share
+    /// that facet.
+    pub fn new(kind: CellKind, cells: &[Vec<usize>]) -> DualGraph {
+        let facets = sorted_facets(kind, cells);
+        let mut pairs: Vec<(usize, usize)> = Vec::new();
+        for run in facets.chunk_by(|a, b| a.key == b.key) {
+            for (i, a) in run.iter().enumerate() {
+                for b in &run[i + 1..] {
+                    if a.cell != b.cell {
+                        pairs.push((a.cell, b.cell));
+                        pairs.push((b.cell, a.cell));
+                    }
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        let mut xadj = vec![0; cells.len() + 1];
+        for &(a, _) in &pairs {
+            xadj[a + 1] += 1;
+        }
+        for c in 0..cells.len() {
+            xadj[c + 1] += xadj[c];
+        }
+        DualGraph {
+            xadj,
+            adjncy: pairs.into_iter().map(|(_, b)| b).collect(),
+        }
+    }
+
+    /// Number of cells.
+    pub fn cells(&self) -> usize {
+        self.xadj.len().saturating_sub(1)
+    }
+
+    /// The cells that share a facet with cell `c`.
+    pub fn neighbours(&self, c: usize) -> &[usize] {
+        match (self.xadj.get(c), self.xadj.get(c + 1)) {
+            (Some(&a), Some(&b)) => &self.adjncy[a..b],
+            _ => &[],
+        }
+    }
+
+    /// Connected pieces of the cells for which `keep` holds, joined through
+    /// neighbours that also keep: each kept cell's piece number (pieces
+    /// numbered in the order of their first cell), `usize::MAX` for the others;
+    /// and each piece's cells.
+    fn pieces(&self, keep: impl Fn(usize, usize) -> bool) -> (Vec<usize>, Vec<Vec<usize>>) {
+        let mut piece_of = vec![usize::MAX; self.cells()];
+        let mut pieces: Vec<Vec<usize>> = Vec::new();
+        for start in 0..self.cells() {
+            if piece_of[start] != usize::MAX {
+                continue;
+            }
+            let id = pieces.len();
+            piece_of[start] = id;
+            let mut members = vec![start];
+            let mut next = 0;
+            while let Some(&c) = members.get(next) {
+                next += 1;
+                for &d in self.neighbours(c) {
+                    if piece_of[d] == usize::MAX && keep(c, d) {
+                        piece_of[d] = id;
+                        members.push(d);
+                    }
+                }
+            }
+            pieces.push(members);
+        }
+        (piece_of, pieces)
+    }
+}
+
+/// A cut of a body's cells into subdomains.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Partition {
+    /// The subdomain (0..n) of each cell.
+    pub part_of_cell: Vec<usize>,
+    /// Pieces that METIS left apart from the rest of their part and that were
+    /// moved to a neighbouring part (0 usually; worth a note when not).
+    pub moved_pieces: usize,
+}
+
+impl Partition {
+    /// Cells per subdomain.
+    pub fn sizes(&self, parts: usize) -> Vec<usize> {
+        part_sizes(&self.part_of_cell, parts)
+    }
+}
+
+/// Cells per part (parts numbered below `parts`; others not counted).
+fn part_sizes(part_of_cell: &[usize], parts: usize) -> Vec<usize> {
+    let mut sizes = vec![0; parts];
+    for &p in part_of_cell {
+        if let Some(s) = sizes.get_mut(p) {
+            *s += 1;
+        }
+    }
+    sizes
+}
+
+/// Why a body cannot be cut as asked.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum PartitionError {
+    /// `subdomains = 0`.
+    NoParts,
+    /// More subdomains than cells.
+    TooManyParts { parts: usize, cells: usize },
+    /// METIS failed (its message), or the mesh is too large for its indices.
+    Metis(String),
+    /// METIS left a subdomain without cells.
+    EmptyPart { part: usize, parts: usize },
+    /// A subdomain in pieces that share no facet with another subdomain: the
+    /// mesh itself is in pieces (cut each piece on its own).
+    Disconnected { part: usize, pieces: usize },
+}
+
+impl std::error::Error for PartitionError {}
+
+impl fmt::Display for PartitionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            PartitionError::NoParts => write!(f, "a body needs at least 1 subdomain"),
+            PartitionError::TooManyParts { parts, cells } => write!(
+                f,
+                "{parts} subdomains for {cells} elements: a subdomain needs at least one \
+                 element; ask for at most {cells}"
+            ),
+            PartitionError::Metis(m) => write!(f, "METIS could not cut the mesh: {m}"),
+            PartitionError::EmptyPart { part, parts } => write!(
+                f,
+                "METIS left subdomain {part} of {parts} empty: ask for fewer subdomains"
+            ),
+            PartitionError::Disconnected { part, pieces } => write!(
+                f,
+                "subdomain {part} is in {pieces} pieces and the mesh too: a body's mesh must be \
+                 one piece to be cut into subdomains"
+            ),
+        }
+    }
+}
+
+/// Cuts `cells` (of one `kind`) into `n` connected subdomains.
+pub fn partition(
+    kind: CellKind,
+    cells: &[Vec<usize>],
+    n: usize,
+) -> Result<Partition, PartitionError> {
+    if n == 0 {
+        return Err(PartitionError::NoParts);
+    }
+    if n > cells.len() {
+        return Err(PartitionError::TooManyParts {
+            parts: n,
+            cells: cells.len(),
+        });
+    }
+    let graph = DualGraph::new(kind, cells);
+    let mut part_of_cell = if n == 1 {
+        vec![0; cells.len()]
+    } else {
+        metis_kway(&graph, n)?
+    };
+    if let Some(part) = part_sizes(&part_of_cell, n).iter().position(|&s| s == 0) {
+        return Err(PartitionError::EmptyPart { part, parts: n });
+    }
+    let moved_pieces = connect_parts(&graph, &mut part_of_cell)?;
+    Ok(Partition {
+        part_of_cell,
+        moved_pieces,
+    })
+}
+
+/// METIS_PartGraphKway with a fixed seed and default balance (`ufactor` 30:
+/// parts within 3 % of the mean), asking for connected parts where the graph
+/// is connected (METIS stops with an error when asked that of a graph in
+/// pieces).
+fn metis_kway(graph: &DualGraph, n: usize) -> Result<Vec<usize>, PartitionError> {
+    let too_large = |_| PartitionError::Metis("the mesh is too large for METIS's indices".into());
+    let xadj: Vec<Idx> = graph
+        .xadj
+        .iter()
+        .map(|&x| Idx::try_from(x))
+        .collect::<Result<_, _>>()
+        .map_err(too_large)?;
+    let adjncy: Vec<Idx> = graph
+        .adjncy
+        .iter()
+        .map(|&x| Idx::try_from(x))
+        .collect::<Result<_, _>>()
+        .map_err(too_large)?;
+    let nparts = Idx::try_from(n).map_err(too_large)?;
+    let connected = graph.pieces(|_, _| true).1.len() <= 1;
+    let mut part: Vec<Idx> = vec![0; graph.cells()];
+    let _lock = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    metis::Graph::new(1, nparts, &xadj, &adjncy)
+        .map_err(|e| PartitionError::Metis(e.to_string()))?
+        .set_option(Seed(SEED))
+        .set_option(Contig(connected))
+        .part_kway(&mut part)
+        .map_err(|e| PartitionError::Metis(e.to_string()))?;
+    part.into_iter()
+        .map(|p| usize::try_from(p).ok().filter(|&p| p < n))
+        .collect::<Option<Vec<usize>>>()
+        .ok_or_else(|| PartitionError::Metis("METIS returned a part out of range".into()))
+}
+
+/// Makes every part one connected piece: the largest piece of each part stays
+/// (ties: the one with the lowest cell), every other piece moves to the
+/// neighbouring part with which it shares most facets (ties: the lower part),
+/// counted against the parts' staying pieces so that each move joins a piece
+/// that stays; repeated until all parts are connected. Each move leaves one
+/// piece fewer, so this ends. On a connected mesh every round moves one piece
+/// at least: a cluster of moving cells has a staying neighbour, which is of
+/// another part (were it of the same part, the moving cell would be in its
+/// piece). So a round that moves nothing means the mesh itself is in pieces:
+/// an error. Returns the pieces moved. Parts are numbered from 0, as METIS
+/// numbers them.
+pub fn connect_parts(
+    graph: &DualGraph,
+    part_of_cell: &mut [usize],
+) -> Result<usize, PartitionError> {
+    let mut moved = 0;
+    loop {
+        let parts = part_of_cell.iter().max().map_or(0, |p| p.saturating_add(1));
+        let (piece_of, pieces) = graph.pieces(|c, d| part_of_cell[c] == part_of_cell[d]);
+        let mut main: Vec<Option<usize>> = vec![None; parts];
+        for (id, cells) in pieces.iter().enumerate() {
+            let part = part_of_cell[cells[0]];
+            if main[part].is_none_or(|m| pieces[m].len() < cells.len()) {
+                main[part] = Some(id);
+            }
+        }
+        let strays: Vec<usize> = (0..pieces.len())
+            .filter(|&id| main[part_of_cell[pieces[id][0]]] != Some(id))
+            .collect();
+        if strays.is_empty() {
+            return Ok(moved);
+        }
+        let stays = |d: usize| main[part_of_cell[d]] == Some(piece_of[d]);
+        let targets: Vec<(usize, usize)> = strays
+            .iter()
+            .filter_map(|&id| {
+                best_neighbour(graph, part_of_cell, &pieces[id], stays).map(|p| (id, p))
+            })
+            .collect();
+        if targets.is_empty() {
+            let part = part_of_cell[pieces[strays[0]][0]];
+            let count = pieces.iter().filter(|p| part_of_cell[p[0]] == part).count();
+            return Err(PartitionError::Disconnected {
+                part,
+                pieces: count,
+            });
+        }
+        for (id, part) in &targets {
+            for &c in &pieces[*id] {
+                part_of_cell[c] = *part;
+            }
+        }
+        moved += targets.len();
+    }
+}
+
+/// The part, other than the piece's own, with which the piece shares most
+/// facets through cells for which `counts` holds (ties: the lower part).
+fn best_neighbour(
+    graph: &DualGraph,
+    part_of_cell: &[usize],
+    piece: &[usize],
+    counts: impl Fn(usize) -> bool,
+) -> Option<usize> {
+    let own = part_of_cell[*piece.first()?];
+    let mut shared: Vec<(usize, usize)> = Vec::new();
+    for &c in piece {
+        for &d in graph.neighbours(c) {
+            let p = part_of_cell[d];
+            if p == own || !counts(d) {
+                continue;
+            }
+            match shared.iter_mut().find(|(q, _)| *q == p) {
+                Some((_, n)) => *n += 1,
+                None => shared.push((p, 1)),
+            }
+        }
+    }
+    shared
+        .into_iter()
+        .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)))
+        .map(|(p, _)| p)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,159 @@
+use super::*;
+
+/// An `nx` x `ny` grid of quadrilaterals, cell `j nx + i`.
+fn quad_grid(nx: usize, ny: usize) -> Vec<Vec<usize>> {
+    let node = |i: usize, j: usize| j * (nx + 1) + i;
+    let mut cells = Vec::new();
+    for j in 0..ny {
+        for i in 0..nx {
+            cells.push(vec![
+                node(i, j),
+                node(i + 1, j),
+                node(i + 1, j + 1),
+                node(i, j + 1),
+            ]);
+        }
+    }
+    cells
+}
+
+/// An `n`^3 grid of cubes, each cut into 6 tetrahedra about its diagonal
+/// 0-6 (Kuhn's cut: neighbouring cubes' faces match).
+fn tet_cube(n: usize) -> Vec<Vec<usize>> {
+    let node = |i: usize, j: usize, k: usize| (k * (n + 1) + j) * (n + 1) + i;
+    let mut cells = Vec::new();
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = [
+                    node(i, j, k),
+                    node(i + 1, j, k),
+                    node(i + 1, j + 1, k),
+                    node(i, j + 1, k),
+                    node(i, j, k + 1),
+                    node(i + 1, j, k + 1),
+                    node(i + 1, j + 1, k + 1),
+                    node(i, j + 1, k + 1),
+                ];
+                for [a, b] in [[1, 2], [2, 3], [3, 7], [7, 4], [4, 5], [5, 1]] {
+                    cells.push(vec![c[0], c[a], c[b], c[6]]);
+                }
+            }
+        }
+    }
+    cells
+}
+
+/// Every part is one piece of the dual graph.
+fn connected(graph: &DualGraph, part: &[usize], parts: usize) -> bool {
+    let (_, pieces) = graph.pieces(|c, d| part[c] == part[d]);
+    pieces.len() == parts
+}
+
+#[test]
+fn dual_graph_joins_cells_through_facets_only() {
+    let g = DualGraph::new(CellKind::Quad4, &quad_grid(2, 2));
+    assert_eq!(g.xadj, vec![0, 2, 4, 6, 8]);
+    assert_eq!(g.neighbours(0), &[1, 2]);
+    assert_eq!(g.neighbours(3), &[1, 2]);
+    // Two triangles sharing one node: no edge.
+    let g = DualGraph::new(CellKind::Tri3, &[vec![0, 1, 2], vec![1, 3, 4]]);
+    assert_eq!(g.adjncy, Vec::<usize>::new());
+    // Each interior tetrahedron of a cube cut in 6 has 4 neighbours.
+    let g = DualGraph::new(CellKind::Tet4, &tet_cube(1));
+    assert!((0..6).all(|c| g.neighbours(c).len() == 2), "{g:?}");
+    let g = DualGraph::new(CellKind::Tet4, &tet_cube(3));
+    assert_eq!(g.adjncy.len(), 2 * (6 * 27 * 4 - 6 * 9 * 2) / 2);
+}
+
+#[test]
+fn grid_8x8_into_4_balanced_connected_and_repeatable() {
+    let cells = quad_grid(8, 8);
+    let p = partition(CellKind::Quad4, &cells, 4).unwrap();
+    // METIS's default imbalance is 3 %: at most 16.48 cells, so 16 each.
+    assert_eq!(p.sizes(4), vec![16; 4]);
+    assert_eq!(p.moved_pieces, 0);
+    let g = DualGraph::new(CellKind::Quad4, &cells);
+    assert!(connected(&g, &p.part_of_cell, 4));
+    assert_eq!(partition(CellKind::Quad4, &cells, 4).unwrap(), p);
+}
+
+#[test]
+fn tetrahedra_into_8_connected() {
+    let cells = tet_cube(4);
+    let p = partition(CellKind::Tet4, &cells, 8).unwrap();
+    let sizes = p.sizes(8);
+    let mean = cells.len() as f64 / 8.0;
+    assert!(
+        sizes
+            .iter()
+            .all(|&s| s as f64 <= 1.03 * mean + 1.0 && s > 0),
+        "{sizes:?}"
+    );
+    let g = DualGraph::new(CellKind::Tet4, &cells);
+    assert!(connected(&g, &p.part_of_cell, 8));
+    assert_eq!(partition(CellKind::Tet4, &cells, 8).unwrap(), p);
+}
+
+#[test]
+fn one_part_and_wrong_counts() {
+    let cells = quad_grid(2, 2);
+    let p = partition(CellKind::Quad4, &cells, 1).unwrap();
+    assert_eq!(p.part_of_cell, vec![0; 4]);
+    let e = partition(CellKind::Quad4, &cells, 5).unwrap_err();
+    assert_eq!(e, PartitionError::TooManyParts { parts: 5, cells: 4 });
+    assert!(e.to_string().contains("at most 4"), "{e}");
+    assert_eq!(
+        partition(CellKind::Quad4, &cells, 0),
+        Err(PartitionError::NoParts)
+    );
+    // As many parts as cells: one each.
+    let mut p = partition(CellKind::Quad4, &cells, 4).unwrap();
+    p.part_of_cell.sort_unstable();
+    assert_eq!(p.part_of_cell, vec![0, 1, 2, 3]);
+}
+
+#[test]
+fn stray_pieces_join_their_neighbours() {
+    // 4 x 4: left half 0, right half 1, each with a corner cell of the other.
+    let g = DualGraph::new(CellKind::Quad4, &quad_grid(4, 4));
+    let mut part: Vec<usize> = (0..16).map(|c| usize::from(c % 4 >= 2)).collect();
+    part[3] = 0;
+    part[12] = 1;
+    assert!(!connected(&g, &part, 2));
+    assert_eq!(connect_parts(&g, &mut part), Ok(2));
+    let halves: Vec<usize> = (0..16).map(|c| usize::from(c % 4 >= 2)).collect();
+    assert_eq!(part, halves);
+    // 4 x 3, rows from the bottom; the cell X of part 3 is apart from its
+    // part's column and shares 1 facet with part 0, 1 with part 1 and 2 with
+    // part 2: it goes to part 2.
+    //   2 2 2 3
+    //   1 X 2 3
+    //   0 0 0 3
+    let g = DualGraph::new(CellKind::Quad4, &quad_grid(4, 3));
+    let mut part = vec![0, 0, 0, 3, 1, 3, 2, 3, 2, 2, 2, 3];
+    assert_eq!(connect_parts(&g, &mut part), Ok(1));
+    assert_eq!(part, [0, 0, 0, 3, 1, 2, 2, 3, 2, 2, 2, 3]);
+    // Connected parts are left alone.
+    let mut same = part.clone();
+    assert_eq!(connect_parts(&g, &mut same), Ok(0));
+    assert_eq!(same, part);
+}
+
+#[test]
+fn a_part_of_a_mesh_in_pieces_cannot_be_joined() {
+    let cells = vec![vec![0, 1, 2, 3], vec![4, 5, 6, 7]];
+    let g = DualGraph::new(CellKind::Quad4, &cells);
+    let mut part = vec![0, 0];
+    assert_eq!(
+        connect_parts(&g, &mut part),
+        Err(PartitionError::Disconnected { part: 0, pieces: 2 })
+    );
+    assert_eq!(
+        partition(CellKind::Quad4, &cells, 1),
+        Err(PartitionError::Disconnected { part: 0, pieces: 2 })
+    );
+    // Two parts for two pieces: METIS (no contiguity asked) gives one each.
+    let p = partition(CellKind::Quad4, &cells, 2).unwrap();
+    assert_ne!(p.part_of_cell[0], p.part_of_cell[1]);
+}
