@@ -384,6 +384,50 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
                 None => "add a support (`fix`, `symmetry`) or a contact that can push against the load, or check the load's sign".to_string(),
             }))
         }
+        SolveError::FreeRigidModes(modes) => {
+            // The modes are named "body `NAME` (motion)" (`name_modes`).
+            let mut d = Diagnostic::new("cso::free-rigid-motion", message);
+            for (b, body) in scene.bodies.iter().enumerate() {
+                let tag = format!("body `{}` ", body.name);
+                let free: Vec<&str> = modes
+                    .iter()
+                    .filter_map(|m| m.strip_prefix(&tag))
+                    .map(|m| m.trim_matches(|c| c == '(' || c == ')'))
+                    .collect();
+                if let (false, Some(at)) = (free.is_empty(), places.bodies.get(b)) {
+                    d = d.label(*at, format!("free: {}", free.join(", ")));
+                }
+            }
+            (!d.labels.is_empty()).then(|| {
+                d.help("add a support (`fix`, `symmetry`), a glue or a contact that acts in that direction")
+            })
+        }
+        SolveError::Infeasible(_) => {
+            // The supports of the bodies it names, and those bodies.
+            let mut d = Diagnostic::new("cso::infeasible", message.clone());
+            for (b, body) in scene.bodies.iter().enumerate() {
+                if !message.contains(&format!("body `{}`", body.name)) {
+                    continue;
+                }
+                if let Some(at) = places.bodies.get(b) {
+                    d = d.label(*at, "held into what it touches");
+                }
+                for (k, cond) in scene.conditions.iter().enumerate() {
+                    let sel = match cond {
+                        Condition::Fix { sel, .. }
+                        | Condition::Displace { sel, .. }
+                        | Condition::Symmetry { sel } => sel,
+                        _ => continue,
+                    };
+                    if let (true, Some(at)) = (sel.body == b, places.conditions.get(k)) {
+                        d = d.label(*at, "this support");
+                    }
+                }
+            }
+            (!d.labels.is_empty()).then(|| {
+                d.help("a support that moves a contact node must leave it room: check the prescribed displacement's sign and size, or the gap")
+            })
+        }
         SolveError::Subdomain { body, .. } => {
             Some(Diagnostic::new("cso::subdomain", message).label(body_at(body)?, "in this body"))
         }
@@ -412,7 +456,7 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
 /// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
 /// adds to the language checks; nothing is assembled or factorized); the
 /// warnings of the lowered problem on success.
-pub fn precheck_scene(scene: &Scene) -> Result<Vec<String>, SolveError> {
+pub fn precheck_scene(scene: &Scene) -> Result<Vec<crate::lang::diag::Diagnostic>, SolveError> {
     let design = scene.design_init();
     let problem = lower(scene, &design).map_err(SolveError::from)?;
     precheck(scene, &design, &problem, None)?;
@@ -421,19 +465,34 @@ pub fn precheck_scene(scene: &Scene) -> Result<Vec<String>, SolveError> {
 
 /// What a user should hear about a lowered problem that is not an error: a
 /// contact that gets no row at all (its surfaces never come within the search
-/// distance, so it cannot act).
-pub fn warnings(scene: &Scene, problem: &Problem) -> Vec<String> {
+/// distance, so it cannot act), as warnings on the contact's place.
+pub fn warnings(scene: &Scene, problem: &Problem) -> Vec<crate::lang::diag::Diagnostic> {
+    use crate::lang::diag::{num, Diagnostic};
     problem
         .idle_contacts
         .iter()
-        .map(|idle| {
-            let c = &scene.contacts[idle.contact];
-            format!(
-                "contact `{}` adds no row: no node of `{}` comes within the search distance ({} m) of its primary side, so it cannot act; move the bodies closer or raise `search`",
-                c.name,
-                c.secondary.text,
-                crate::lang::diag::num(idle.search)
-            )
+        .filter_map(|idle| {
+            let c = scene.contacts.get(idle.contact)?;
+            let d = Diagnostic::warning(
+                "cso::idle-contact",
+                format!(
+                    "contact `{}` adds no row: no node of `{}` comes within the search distance ({} m) of its primary side, so it cannot act",
+                    c.name,
+                    c.secondary.text,
+                    num(idle.search)
+                ),
+            );
+            let d = match scene.source.places.contacts.get(idle.contact) {
+                Some(at) => d.label(
+                    *at,
+                    match idle.nearest {
+                        Some(g) => format!("its nearest node starts {} m away", num(g.abs())),
+                        None => "no node projects onto its primary side".to_string(),
+                    },
+                ),
+                None => d,
+            };
+            Some(d.help("move the bodies closer or raise `search`"))
         })
         .collect()
 }

@@ -766,9 +766,12 @@ fn a_contact_whose_surfaces_never_meet_is_warned_about() {
     for cmd in ["check", "solve"] {
         let (code, _, err) = cso(&[cmd, &lifted.to_string_lossy()]);
         assert!(cmd == "solve" || code == 0, "{cmd}: {err}");
+        // A warning on the contact's place, like the checker's warnings.
         assert!(
-            err.contains("warning:")
-                && err.contains("contact `seat` adds no row: no node of `punch.bottom` comes within the search distance"),
+            err.contains("cso::idle-contact")
+                && err.contains("contact `seat` adds no row")
+                && err.contains("contact seat {")
+                && err.contains("its nearest node starts"),
             "{cmd}: {err}"
         );
     }

@@ -390,3 +390,60 @@ fn a_contact_out_of_reach_is_named_with_its_gap_and_search() {
         );
     }
 }
+
+#[test]
+fn findings_after_checking_point_at_the_scene() {
+    // Issue 34, item 10: a contact that adds no row, a rigid motion nothing
+    // holds and supports that push a contact node through its obstacle are
+    // diagnostics with the scene's spans (warning or error), not plain lines.
+    let base = "scene s { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 12 x 4 }
+body punch { material = soft, x = 1 .. 2, y = 1.5 .. 2.5, mesh = 4 x 4 }
+fix base.bottom
+fix punch.top
+contact seat { primary = base.top, secondary = punch.bottom }
+";
+    let s = scene(base);
+    let warnings = cso::state::precheck_scene(&s).expect("checks");
+    assert_eq!(warnings.len(), 1);
+    let w = &warnings[0];
+    assert!(!w.is_error() && w.code == "cso::idle-contact", "{w:?}");
+    let seat = base.find("contact seat").expect("in the text");
+    assert_eq!(w.labels[0].span.start, seat);
+    assert!(w.labels[0].text.contains("0.5 m away"), "{w:?}");
+
+    let free = scene(
+        &base
+            .replace("fix punch.top\n", "fix punch.top { uy }\n")
+            .replace("1.5 .. 2.5", "1 .. 2"),
+    );
+    let e = solve(&free, &[], &mut |_| {})
+        .err()
+        .expect("punch free along x");
+    let d = cso::state::diagnostic(&free, &e).expect("points at the body");
+    assert_eq!(
+        d.labels[0].span.start,
+        base.find("body punch").expect("in the text")
+    );
+    assert!(d.labels[0].text.contains("translation in x"), "{d:?}");
+
+    let pushed = "scene floor { dim = 2 }
+material mat { E = 1000, nu = 0.3 }
+body blk { material = mat, x = 0 .. 1, y = 0 .. 1, mesh = 4 x 4 }
+obstacle ground { point = (0, 0), normal = (0, 1) }
+displace blk.bottom { uy = -0.01 }
+fix blk.top { ux }
+contact c { primary = ground, secondary = blk.bottom }
+";
+    let s = scene(pushed);
+    let e = solve(&s, &[], &mut |_| {}).err().expect("infeasible");
+    let d = cso::state::diagnostic(&s, &e).expect("points at the body and supports");
+    let starts: Vec<usize> = d.labels.iter().map(|l| l.span.start).collect();
+    for item in ["body blk", "displace blk.bottom", "fix blk.top"] {
+        assert!(
+            starts.contains(&pushed.find(item).expect("in the text")),
+            "{item}: {d:?}"
+        );
+    }
+}

@@ -14,8 +14,9 @@ impl Check {
             // nothing can carry, supports against contacts.
             Ok(scene) => match cso::state::precheck_scene(&scene) {
                 Ok(warnings) => {
-                    for w in warnings {
-                        errln!("warning: {}: {w}", file.display());
+                    if !warnings.is_empty() {
+                        let name = file.display().to_string();
+                        err!("{}", diag::render(&warnings, &name, &scene.source.text));
                     }
                     outln!("{}", cso::io::summary::check_line(file, &scene));
                     0

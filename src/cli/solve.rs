@@ -49,8 +49,12 @@ impl Solve {
         }
         bar.finish();
         let state = result.map_err(|e| fail_solve(&file, &scene, &e))?;
-        for w in cso::state::warnings(&scene, &state.problem) {
-            errln!("warning: {file}: {w}");
+        let warnings = cso::state::warnings(&scene, &state.problem);
+        if !warnings.is_empty() {
+            err!(
+                "{}",
+                cso::lang::diag::render(&warnings, &file.to_string(), &scene.source.text)
+            );
         }
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
