@@ -1153,3 +1153,34 @@ fn every_command_lists_its_options_in_one_order() {
         }
     }
 }
+
+#[test]
+fn a_quarter_model_charts_pressure_against_the_distance_from_its_axis() {
+    // Issue 34, item 5: hertz3d models a quarter of the ball (symmetry planes
+    // x = 0 and y = 0). The force-weighted mean of its contact nodes lies off
+    // the axis; the chart measures from the axis, where the peak is.
+    let path = scene_replacing(
+        "hertz3d.cso",
+        "mesh = 24 x 24 x 16",
+        "mesh = 8 x 8 x 6",
+        "quarter",
+    );
+    let dir = std::env::temp_dir().join(format!("cso-cli-quarter-{}", std::process::id()));
+    let d = dir.to_string_lossy().to_string();
+    let (code, _, err) = cso(&["solve", &path.to_string_lossy(), "-o", &d, "-q"]);
+    assert_eq!(code, 0, "{err}");
+    let svg = std::fs::read_to_string(dir.join("contact_seat.svg")).expect("chart");
+    assert!(svg.contains("distance from the symmetry axis (m)"), "{svg}");
+    // Without the planes the centre of the force is the only reference.
+    let free = scene_replacing_in(&path, "symmetry ball.left\n", "fix ball.left { ux }\n");
+    let free = scene_replacing_in(&free, "symmetry ball.front\n", "fix ball.front { uy }\n");
+    let (code, _, err) = cso(&["solve", &free.to_string_lossy(), "-o", &d, "-q"]);
+    assert_eq!(code, 0, "{err}");
+    let svg = std::fs::read_to_string(dir.join("contact_seat.svg")).expect("chart");
+    assert!(
+        svg.contains("distance from the centre of the contact force (m)"),
+        "{svg}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_file(&path);
+}

@@ -769,11 +769,18 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
             }
         }
     }
-    for c in &report.contacts {
-        // 2D: pressure along x. 3D: against the distance from the force's centre.
-        let (xlabel, x): (&str, Vec<f64>) = match centre_of_force(c) {
-            Some(o) => (
-                "distance from the centre of the contact force (m)",
+    for (ci, c) in report.contacts.iter().enumerate() {
+        // 2D: pressure along x. 3D: against the distance from the force's
+        // centre, moved onto the symmetry planes the contact's bodies have
+        // (the axis of a quarter model, not a point off it).
+        let centre = centre_of_force(c).map(|o| onto_symmetry(scene, state, ci, o));
+        let (xlabel, x): (&str, Vec<f64>) = match centre {
+            Some((o, planes)) => (
+                match planes {
+                    0 => "distance from the centre of the contact force (m)",
+                    1 => "distance from the centre of the contact force on the symmetry plane (m)",
+                    _ => "distance from the symmetry axis (m)",
+                },
                 c.nodes
                     .iter()
                     .map(|n| {
@@ -888,6 +895,50 @@ fn centre_of_force(c: &ContactReport) -> Option<[f64; 3]> {
         o[2] += w * n.z.unwrap_or(0.0);
     }
     Some(o)
+}
+
+/// `o` moved onto every symmetry plane of contact `ci`'s bodies (a
+/// structured body's `symmetry` face: a plane normal to an axis), with the
+/// number of planes: on a quarter model the centre of the force lies on the
+/// axis the planes share, where the force-weighted mean of its nodes does not.
+fn onto_symmetry(scene: &Scene, state: &State, ci: usize, mut o: [f64; 3]) -> ([f64; 3], usize) {
+    use crate::lang::scene::{Condition, Primary};
+    let p = &state.problem;
+    let contact = &scene.contacts[ci];
+    let mut bodies = vec![contact.secondary.body];
+    if let Primary::Face(sel) = &contact.primary {
+        bodies.push(sel.body);
+    }
+    let mut planes = [false; 3];
+    for cond in &scene.conditions {
+        let Condition::Symmetry { sel } = cond else {
+            continue;
+        };
+        let Some(body) = p
+            .bodies
+            .get(sel.body)
+            .filter(|_| bodies.contains(&sel.body))
+        else {
+            continue;
+        };
+        let Some((axis, _)) = body.grid.face_axis(sel.face) else {
+            continue;
+        };
+        // A plane only where the face is one (a curved face has no axis).
+        let along: Vec<f64> = body
+            .face_nodes(sel.face)
+            .iter()
+            .map(|&n| body.coords[n][axis])
+            .collect();
+        let flat = along
+            .iter()
+            .all(|a| (a - along[0]).abs() <= 1e-9 * body.diagonal());
+        if let (false, true) = (along.is_empty(), flat) {
+            o[axis] = along[0];
+            planes[axis] = true;
+        }
+    }
+    (o, planes.iter().filter(|p| **p).count())
 }
 
 /// The 2D deformed mesh coloured by von Mises stress, magnified so the largest
