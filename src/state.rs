@@ -384,50 +384,8 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
                 None => "add a support (`fix`, `symmetry`) or a contact that can push against the load, or check the load's sign".to_string(),
             }))
         }
-        SolveError::FreeRigidModes(modes) => {
-            // The modes are named "body `NAME` (motion)" (`name_modes`).
-            let mut d = Diagnostic::new("cso::free-rigid-motion", message);
-            for (b, body) in scene.bodies.iter().enumerate() {
-                let tag = format!("body `{}` ", body.name);
-                let free: Vec<&str> = modes
-                    .iter()
-                    .filter_map(|m| m.strip_prefix(&tag))
-                    .map(|m| m.trim_matches(|c| c == '(' || c == ')'))
-                    .collect();
-                if let (false, Some(at)) = (free.is_empty(), places.bodies.get(b)) {
-                    d = d.label(*at, format!("free: {}", free.join(", ")));
-                }
-            }
-            (!d.labels.is_empty()).then(|| {
-                d.help("add a support (`fix`, `symmetry`), a glue or a contact that acts in that direction")
-            })
-        }
-        SolveError::Infeasible(_) => {
-            // The supports of the bodies it names, and those bodies.
-            let mut d = Diagnostic::new("cso::infeasible", message.clone());
-            for (b, body) in scene.bodies.iter().enumerate() {
-                if !message.contains(&format!("body `{}`", body.name)) {
-                    continue;
-                }
-                if let Some(at) = places.bodies.get(b) {
-                    d = d.label(*at, "held into what it touches");
-                }
-                for (k, cond) in scene.conditions.iter().enumerate() {
-                    let sel = match cond {
-                        Condition::Fix { sel, .. }
-                        | Condition::Displace { sel, .. }
-                        | Condition::Symmetry { sel } => sel,
-                        _ => continue,
-                    };
-                    if let (true, Some(at)) = (sel.body == b, places.conditions.get(k)) {
-                        d = d.label(*at, "this support");
-                    }
-                }
-            }
-            (!d.labels.is_empty()).then(|| {
-                d.help("a support that moves a contact node must leave it room: check the prescribed displacement's sign and size, or the gap")
-            })
-        }
+        SolveError::FreeRigidModes(modes) => free_motion_diagnostic(scene, modes, message),
+        SolveError::Infeasible(_) => infeasible_diagnostic(scene, message),
         SolveError::Subdomain { body, .. } => {
             Some(Diagnostic::new("cso::subdomain", message).label(body_at(body)?, "in this body"))
         }
@@ -451,6 +409,65 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
         ),
         _ => None,
     }
+}
+
+/// [`diagnostic`] of free rigid motions: each free body labelled with its
+/// motions.
+fn free_motion_diagnostic(
+    scene: &Scene,
+    modes: &[String],
+    message: String,
+) -> Option<crate::lang::diag::Diagnostic> {
+    use crate::lang::diag::Diagnostic;
+    let places = &scene.source.places;
+    // The modes are named "body `NAME` (motion)" (`name_modes`).
+    let mut d = Diagnostic::new("cso::free-rigid-motion", message);
+    for (b, body) in scene.bodies.iter().enumerate() {
+        let tag = format!("body `{}` ", body.name);
+        let free: Vec<&str> = modes
+            .iter()
+            .filter_map(|m| m.strip_prefix(&tag))
+            .map(|m| m.trim_matches(|c| c == '(' || c == ')'))
+            .collect();
+        if let (false, Some(at)) = (free.is_empty(), places.bodies.get(b)) {
+            d = d.label(*at, format!("free: {}", free.join(", ")));
+        }
+    }
+    (!d.labels.is_empty()).then(|| {
+        d.help("add a support (`fix`, `symmetry`), a glue or a contact that acts in that direction")
+    })
+}
+
+/// [`diagnostic`] of supports that contradict a contact: the bodies it names
+/// and their supports labelled.
+fn infeasible_diagnostic(scene: &Scene, message: String) -> Option<crate::lang::diag::Diagnostic> {
+    use crate::lang::diag::Diagnostic;
+    use crate::lang::scene::Condition;
+    let places = &scene.source.places;
+    // The supports of the bodies it names, and those bodies.
+    let mut d = Diagnostic::new("cso::infeasible", message.clone());
+    for (b, body) in scene.bodies.iter().enumerate() {
+        if !message.contains(&format!("body `{}`", body.name)) {
+            continue;
+        }
+        if let Some(at) = places.bodies.get(b) {
+            d = d.label(*at, "held into what it touches");
+        }
+        for (k, cond) in scene.conditions.iter().enumerate() {
+            let sel = match cond {
+                Condition::Fix { sel, .. }
+                | Condition::Displace { sel, .. }
+                | Condition::Symmetry { sel } => sel,
+                _ => continue,
+            };
+            if let (true, Some(at)) = (sel.body == b, places.conditions.get(k)) {
+                d = d.label(*at, "this support");
+            }
+        }
+    }
+    (!d.labels.is_empty()).then(|| {
+            d.help("a support that moves a contact node must leave it room: check the prescribed displacement's sign and size, or the gap")
+        })
 }
 
 /// Lowers a scene at its own design and runs [`precheck`] (what `cso check`
@@ -554,7 +571,7 @@ pub fn setup_reusing(
     design: &[f64],
     previous: Option<&State>,
 ) -> Result<Setup, SolveError> {
-    setup_on(scene, design, previous, serial(), false)
+    setup_on(scene, design, previous, serial(), false, None)
 }
 
 /// [`setup_reusing`] on the ranks of `comm`: every rank lowers the scene (the
@@ -569,8 +586,11 @@ fn setup_on(
     previous: Option<&State>,
     comm: Arc<dyn Comm>,
     defer_precheck: bool,
+    phases: Option<Phases>,
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
+    let tell = |p: Phase| tell(phases, p);
+    tell(Phase::Lowering);
     let problem = lower(scene, design).map_err(SolveError::from)?;
     let lower_time = t0.elapsed().as_secs_f64();
     let feti = scene.solver.method == crate::lang::scene::SolverMethod::Feti;
@@ -589,6 +609,7 @@ fn setup_on(
         elimination.as_deref(),
         &bounds,
         &*comm,
+        phases,
     )?;
     let factorizations = count_factorizations(&subs, &*comm);
     let local = LocalRows::split(
@@ -643,6 +664,7 @@ fn build_subdomains(
     elimination: Option<&Elimination>,
     bounds: &[usize],
     comm: &dyn Comm,
+    phases: Option<Phases>,
 ) -> Result<Vec<(Arc<Subdomain>, bool)>, SolveError> {
     let kind = |s: usize| match elimination {
         None => Kind::Total {
@@ -664,6 +686,13 @@ fn build_subdomains(
     };
     let owned = bounds[comm.rank()]..bounds[comm.rank() + 1];
     let symbolic = SymbolicCache::default();
+    let of = owned.len();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    let tell_done = || {
+        let done = 1 + done.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        tell(phases, Phase::Factorizing { done, of });
+    };
+    tell(phases, Phase::Factorizing { done: 0, of });
     let subs: Vec<Result<(Arc<Subdomain>, bool), SolveError>> = problem.subdomains[owned.clone()]
         .par_iter()
         .enumerate()
@@ -681,7 +710,10 @@ fn build_subdomains(
             }
             let g = Geometry::of(m);
             let built = match earlier(s) {
-                Some((old, true)) => return Ok((old, true)),
+                Some((old, true)) => {
+                    tell_done();
+                    return Ok((old, true));
+                }
                 Some((old, false)) => old.rebuilt(&g),
                 None => match kind(s) {
                     Kind::Total { ordering } => Subdomain::total_shared(&g, ordering, &symbolic),
@@ -690,6 +722,7 @@ fn build_subdomains(
                     }
                 },
             };
+            tell_done();
             built
                 .map(|sub| (Arc::new(sub), false))
                 .map_err(|error| SolveError::Subdomain {
@@ -861,6 +894,33 @@ pub struct SolveOptions<'a> {
     /// with 0, a first solve that leaves a node without a row inside its
     /// primary side is refused.
     pub search_rounds: usize,
+    /// Told when each phase starts (and each subdomain factorized), for
+    /// progress on long solves; may be called from the thread pool.
+    pub phases: Option<Phases<'a>>,
+}
+
+/// A phase of the state solve, for progress reports: before the dual
+/// iterations (which the observer sees) a big scene spends minutes here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Phase {
+    /// Meshes, loads and constraint rows from the scene.
+    Lowering,
+    /// Assembling and factorizing this process's subdomains: `done` of `of`.
+    Factorizing { done: usize, of: usize },
+    /// The coarse problem and the dual operators.
+    Coarse,
+    /// The dual iterations.
+    Dual,
+}
+
+/// Where [`Phase`]s are reported.
+pub type Phases<'a> = &'a (dyn Fn(Phase) + Sync);
+
+/// Tells `phases`, if any, that phase `p` starts.
+fn tell(phases: Option<Phases>, p: Phase) {
+    if let Some(f) = phases {
+        f(p);
+    }
 }
 
 impl Default for SolveOptions<'_> {
@@ -871,6 +931,7 @@ impl Default for SolveOptions<'_> {
             warm: WarmStart::OFF,
             comm: None,
             search_rounds: MAX_SEARCH_ROUNDS,
+            phases: None,
         }
     }
 }
@@ -915,16 +976,30 @@ pub fn solve_with(
     solve_searching(scene, design, options, comm, observer)
 }
 
+/// What one round of the search loop starts from: the state to reuse, which
+/// of its factorizations, its warm start, and where phases are told.
+struct Round<'a> {
+    previous: Option<&'a State>,
+    refactor: Refactor,
+    warm: WarmStart,
+    phases: Option<Phases<'a>>,
+}
+
 /// One state solve on the rows lowering gives (no search loop).
 fn solve_on(
     scene: &Scene,
     design: &[f64],
-    previous: Option<&State>,
-    refactor: Refactor,
-    warm: WarmStart,
+    round: Round,
     comm: Arc<dyn Comm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<State, SolveError> {
+    let Round {
+        previous,
+        refactor,
+        warm,
+        phases,
+    } = round;
+    let tell = |p: Phase| tell(phases, p);
     let t0 = Instant::now();
     let mut times = Times::default();
     let first_on_active_set = active_set_first(scene, previous, warm, &*comm);
@@ -934,17 +1009,20 @@ fn solve_on(
         previous.filter(|_| refactor == Refactor::Changed),
         comm,
         first_on_active_set,
+        phases,
     )?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
 
     let t = Instant::now();
+    tell(Phase::Coarse);
     let ops = Operators::of(scene, setup, first_on_active_set)?;
     times.coarse = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let problem = &ops.problem;
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
     let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+    tell(Phase::Dual);
     let settings = smalbe_settings(scene);
     let start = warm_start(previous, warm, problem);
     let warm_started = start.is_some();

@@ -362,3 +362,38 @@ fn a_converged_solve_at_zero_gap_reports_every_kkt_residual_below_its_tolerance(
         );
     }
 }
+
+#[test]
+fn a_solve_tells_each_phase_before_its_iterations() {
+    // Issue 34, item 7: a big scene spends minutes lowering and factorizing
+    // before the dual iterations; each phase, and each subdomain factorized,
+    // is told as it comes (from the thread pool too).
+    use cso::state::{solve_with, Phase, SolveOptions};
+    use std::sync::Mutex;
+    let s = crate::fixture::example("two_blocks");
+    let seen = Mutex::new(Vec::new());
+    let record = |p: Phase| seen.lock().expect("not poisoned").push(p);
+    let options = SolveOptions {
+        phases: Some(&record),
+        ..Default::default()
+    };
+    solve_with(&s, &s.design_init(), &options, &mut |_| {}).expect("solves");
+    let seen = seen.into_inner().expect("not poisoned");
+    let n = 16;
+    assert_eq!(seen.first(), Some(&Phase::Lowering), "{seen:?}");
+    assert_eq!(seen[1], Phase::Factorizing { done: 0, of: n }, "{seen:?}");
+    let mut done: Vec<usize> = seen
+        .iter()
+        .filter_map(|p| match p {
+            Phase::Factorizing { done, .. } if *done > 0 => Some(*done),
+            _ => None,
+        })
+        .collect();
+    done.sort();
+    assert_eq!(done, (1..=n).collect::<Vec<_>>(), "{seen:?}");
+    assert_eq!(
+        &seen[seen.len() - 2..],
+        [Phase::Coarse, Phase::Dual],
+        "{seen:?}"
+    );
+}

@@ -38,8 +38,10 @@ impl Solve {
         let t0 = Instant::now();
         let result = pool.install(|| {
             let mut observer = |info: &cso::qp::QpInfo| bar.update(|| tables::solve_progress(info));
+            let phases = |p: cso::state::Phase| bar.update(|| tables::phase_progress(p));
             let options = cso::state::SolveOptions {
                 comm: ranks.clone(),
+                phases: Some(&phases),
                 ..Default::default()
             };
             cso::state::solve_with(&scene, &scene.design_init(), &options, &mut observer)

@@ -93,6 +93,19 @@ pub fn solve_progress(info: &QpInfo) -> String {
     )
 }
 
+/// The progress line of a phase of the state solve before its iterations.
+pub fn phase_progress(p: crate::state::Phase) -> String {
+    use crate::state::Phase;
+    match p {
+        Phase::Lowering => "lowering the scene (meshes, loads, constraint rows)".to_string(),
+        Phase::Factorizing { done, of } => {
+            format!("assembling and factorizing subdomains: {done} of {of}")
+        }
+        Phase::Coarse => "coarse problem and dual operators".to_string(),
+        Phase::Dual => "dual iterations starting".to_string(),
+    }
+}
+
 /// The progress line of one design iteration of `cso optimize`.
 pub fn iterate_progress(it: &Iterate) -> String {
     format!(

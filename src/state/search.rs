@@ -10,7 +10,7 @@
 //! The check reads the gathered displacements, which every rank holds, so a
 //! distributed solve takes the same decision on every rank.
 
-use super::{solve_on, Refactor, SolveError, SolveOptions, State, WarmStart};
+use super::{solve_on, Refactor, Round, SolveError, SolveOptions, State, WarmStart};
 use crate::lang::scene::Scene;
 use crate::model::{unheld, SearchFindings, Unheld};
 use crate::qp::QpInfo;
@@ -61,9 +61,12 @@ pub(super) fn solve_searching(
     let mut state = solve_on(
         &widened_scene(scene, &widened),
         design,
-        previous,
-        options.refactor,
-        options.warm,
+        Round {
+            previous,
+            refactor: options.refactor,
+            warm: options.warm,
+            phases: options.phases,
+        },
         comm.clone(),
         observer,
     )?;
@@ -90,9 +93,12 @@ pub(super) fn solve_searching(
         state = solve_on(
             &widened_scene(scene, &widened),
             design,
-            Some(&earlier),
-            Refactor::Changed,
-            WarmStart::OFF,
+            Round {
+                previous: Some(&earlier),
+                refactor: Refactor::Changed,
+                warm: WarmStart::OFF,
+                phases: options.phases,
+            },
             comm.clone(),
             observer,
         )?;
