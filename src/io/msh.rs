@@ -19,90 +19,29 @@ use std::collections::HashMap;
 use std::fmt;
 use std::path::{Path, PathBuf};
 
-/// The element kinds a body may be made of (one kind per body).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub enum CellKind {
-    /// Linear triangle (Gmsh type 2), nodes counter-clockwise.
-    Tri3,
-    /// Bilinear quadrilateral (Gmsh type 3), nodes counter-clockwise (as VTK).
-    Quad4,
-    /// Linear tetrahedron (Gmsh type 4), `det[p1-p0, p2-p0, p3-p0] > 0`.
-    Tet4,
-    /// Trilinear hexahedron (Gmsh type 5), as VTK: bottom 0-3 counter-clockwise
-    /// seen from +z, top 4-7 above them.
-    Hex8,
-}
+/// The element kinds a body may be made of (one kind per body): the
+/// elements themselves, whose facet tables (oriented outward for a cell of
+/// positive measure) orient the faces read here.
+pub use crate::fem::Element as CellKind;
 
-/// Local facets of each kind, each ordered so that its normal (counter-clockwise
-/// seen from outside; in 2D the segment runs with the body on its left) points
-/// out of a cell of positive measure. Imported faces and boundary facets carry
-/// this orientation, so a caller gets outward normals without looking at cells.
-const TRI3_FACETS: [&[usize]; 3] = [&[0, 1], &[1, 2], &[2, 0]];
-const QUAD4_FACETS: [&[usize]; 4] = [&[0, 1], &[1, 2], &[2, 3], &[3, 0]];
-const TET4_FACETS: [&[usize]; 4] = [&[0, 2, 1], &[0, 1, 3], &[0, 3, 2], &[1, 2, 3]];
-const HEX8_FACETS: [&[usize]; 6] = [
-    &[0, 3, 2, 1],
-    &[4, 5, 6, 7],
-    &[0, 1, 5, 4],
-    &[1, 2, 6, 5],
-    &[2, 3, 7, 6],
-    &[3, 0, 4, 7],
-];
-
-impl CellKind {
-    /// The kind of a Gmsh element type, if cso takes it.
-    pub fn from_gmsh(t: ElementType) -> Option<CellKind> {
-        match t {
-            ElementType::Tri3 => Some(CellKind::Tri3),
-            ElementType::Qua4 => Some(CellKind::Quad4),
-            ElementType::Tet4 => Some(CellKind::Tet4),
-            ElementType::Hex8 => Some(CellKind::Hex8),
-            _ => None,
-        }
-    }
-
-    /// 2 for triangles and quadrilaterals, 3 for tetrahedra and hexahedra.
-    pub fn dim(self) -> usize {
-        match self {
-            CellKind::Tri3 | CellKind::Quad4 => 2,
-            CellKind::Tet4 | CellKind::Hex8 => 3,
-        }
-    }
-
-    /// Nodes per cell.
-    pub fn nodes(self) -> usize {
-        match self {
-            CellKind::Tri3 => 3,
-            CellKind::Quad4 | CellKind::Tet4 => 4,
-            CellKind::Hex8 => 8,
-        }
-    }
-
-    /// The local facets (segments in 2D, triangles or quadrilaterals in 3D),
-    /// oriented outward (see [`TRI3_FACETS`]).
-    pub fn facets(self) -> &'static [&'static [usize]] {
-        match self {
-            CellKind::Tri3 => &TRI3_FACETS,
-            CellKind::Quad4 => &QUAD4_FACETS,
-            CellKind::Tet4 => &TET4_FACETS,
-            CellKind::Hex8 => &HEX8_FACETS,
-        }
-    }
-
-    /// Nodes per facet: 2, 3 (tetrahedra) or 4 (hexahedra).
-    pub fn facet_nodes(self) -> usize {
-        self.facets()[0].len()
+/// The kind of a Gmsh element type, if cso takes it.
+pub fn kind_of_gmsh(t: ElementType) -> Option<CellKind> {
+    match t {
+        ElementType::Tri3 => Some(CellKind::Tri3),
+        ElementType::Qua4 => Some(CellKind::Quad4),
+        ElementType::Tet4 => Some(CellKind::Tet4),
+        ElementType::Hex8 => Some(CellKind::Hex8),
+        _ => None,
     }
 }
 
-impl fmt::Display for CellKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            CellKind::Tri3 => "3-node triangles",
-            CellKind::Quad4 => "4-node quadrilaterals",
-            CellKind::Tet4 => "4-node tetrahedra",
-            CellKind::Hex8 => "8-node hexahedra",
-        })
+/// A kind in words, plural, for messages (`4-node tetrahedra`).
+pub fn kind_words(k: CellKind) -> &'static str {
+    match k {
+        CellKind::Tri3 => "3-node triangles",
+        CellKind::Quad4 => "4-node quadrilaterals",
+        CellKind::Tet4 => "4-node tetrahedra",
+        CellKind::Hex8 => "8-node hexahedra",
     }
 }
 
@@ -784,12 +723,12 @@ fn body_kind(body: &Body, dim: usize) -> Result<CellKind, MeshError> {
             None => counts.push((*t, 1)),
         }
     }
-    let name = |t: ElementType| match CellKind::from_gmsh(t) {
-        Some(k) => k.to_string(),
+    let name = |t: ElementType| match kind_of_gmsh(t) {
+        Some(k) => kind_words(k).to_string(),
         None => format!("Gmsh elements of type {t:?} ({})", t as i32),
     };
     match counts.as_slice() {
-        [(t, n)] => match CellKind::from_gmsh(*t) {
+        [(t, n)] => match kind_of_gmsh(*t) {
             Some(k) if k.dim() == dim => Ok(k),
             _ => Err(MeshError::UnsupportedKind {
                 kind: name(*t),
@@ -1022,7 +961,7 @@ fn face_groups(
             };
             touching += 1;
             match on_boundary.get(&facet_key(&local)) {
-                Some(&b) if local.len() == mesh.kind.facet_nodes() => {
+                Some(&b) if local.len() == mesh.kind.facets()[0].len() => {
                     facets.push(mesh.boundary[b].clone())
                 }
                 _ => off += 1,

@@ -436,9 +436,10 @@ fn single_tetrahedron() {
     assert_eq!(m.kind, CellKind::Tet4);
     assert_eq!(m.cells, vec![vec![0, 1, 2, 3]]);
     assert_eq!(m.cell_tags, vec![2]);
+    // The four faces in `fem::Element::Tet4`'s order, each outward.
     assert_eq!(
         m.boundary,
-        vec![vec![0, 2, 1], vec![0, 1, 3], vec![0, 3, 2], vec![1, 2, 3]]
+        vec![vec![0, 2, 1], vec![0, 1, 3], vec![1, 2, 3], vec![0, 3, 2]]
     );
     assert_eq!(m.faces.len(), 1);
     assert_eq!(m.faces[0].name, "base");
