@@ -14,6 +14,7 @@ pub mod shape_gradient;
 pub mod tet;
 pub mod tri;
 pub mod triface;
+mod vec3;
 
 pub use element::{Element, Formulation, Section, NEARLY_INCOMPRESSIBLE};
 pub use facet::{Facet, Orientation, Segment};

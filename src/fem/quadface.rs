@@ -8,6 +8,7 @@
 //! `x_xi x x_eta` points outward.
 
 use super::facet::{Facet, Orientation};
+use super::vec3::{cross, dot};
 use crate::num::Scalar;
 
 /// Node coordinates of one face.
@@ -19,18 +20,6 @@ const G: f64 = 0.577_350_269_189_625_8; // 1/sqrt(3)
 /// Shape functions at `(xi, eta)`.
 pub fn shape<T: Scalar>(xi: T, eta: T) -> [T; 4] {
     CORNERS.map(|c| (T::from(1.0) + xi * c[0]) * (T::from(1.0) + eta * c[1]) * 0.25)
-}
-
-fn cross<T: Scalar>(a: [T; 3], b: [T; 3]) -> [T; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot<T: Scalar>(a: [T; 3], b: [T; 3]) -> T {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
 /// The point and the two tangents `x_xi`, `x_eta` at `(xi, eta)`.

@@ -9,22 +9,11 @@
 //! interleaved: `[ux0, uy0, uz0, ux1, ...]`. Its faces are linear triangles
 //! ([`super::triface::TriFacet`]).
 
+use super::vec3::{cross, dot};
 use crate::num::Scalar;
 
 /// Node coordinates of one element.
 pub type Tet<T> = [[T; 3]; 4];
-
-fn cross<T: Scalar>(a: [T; 3], b: [T; 3]) -> [T; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot<T: Scalar>(a: [T; 3], b: [T; 3]) -> T {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
 
 /// Six times the signed volume's gradient with respect to nodes 1, 2 and 3
 /// (the cofactors of the Jacobian, whose rows are the edges `x_k - x_0`), and

@@ -11,26 +11,11 @@
 //! put the outward normal along `(x1 - x0) x (x2 - x0)`.
 
 use super::facet::{pin, Facet, Orientation, PIN};
+use super::vec3::{cross, dot, sub};
 use crate::num::Scalar;
 
 /// Node coordinates of one face.
 pub type TriFace<T> = [[T; 3]; 3];
-
-fn cross<T: Scalar>(a: [T; 3], b: [T; 3]) -> [T; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-fn dot<T: Scalar>(a: [T; 3], b: [T; 3]) -> T {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn sub<T: Scalar>(a: [T; 3], b: [T; 3]) -> [T; 3] {
-    std::array::from_fn(|k| a[k] - b[k])
-}
 
 /// A linear triangle as a [`Facet`]: local coordinates barycentric; the
 /// orientation says whether the node order is counter-clockwise seen from
