@@ -18,6 +18,7 @@ fn run(src: &str) {
         let opts = CheckOptions {
             overrides: Vec::new(),
             memory_limit: limit,
+            base_dir: None,
         };
         if let Err(d) = compile(src, &opts) {
             assert!(!d.is_empty());

@@ -79,6 +79,14 @@ fn global_dof(problem: &Problem, offsets: &[usize], s: usize, d: usize) -> usize
     offsets[sub.body] + dim * sub.grid[d / dim] + d % dim
 }
 
+/// The cells of an imported body (none for a structured one).
+fn imported_cells(body: &cso::model::BodyMesh) -> &[Vec<usize>] {
+    match &body.layout {
+        cso::model::Layout::Mesh(m) => &m.imported.mesh.cells,
+        cso::model::Layout::Grid(_) => &[],
+    }
+}
+
 /// The grid cell whose lowest corner is `ijk`, as the element's nodes should
 /// list it: counter-clockwise in 2D; bottom face then top face in 3D.
 fn cell(grid: &cso::model::grid::Grid, [i, j, k]: [usize; 3]) -> Vec<usize> {
@@ -108,25 +116,46 @@ pub(crate) fn assemble(problem: &Problem) -> Global {
     let mut k: Vec<(usize, usize, f64)> = Vec::new();
     let mut f = vec![0.0; n];
     // Every element of every body exactly once.
+    // Imported bodies: each of the file's cells once, in the file's node order.
     let mut seen: Vec<Vec<bool>> = problem
         .bodies
         .iter()
-        .map(|b| vec![false; b.grid.n[..dim].iter().product()])
+        .map(|b| match b.grid() {
+            Some(g) => vec![false; g.n[..dim].iter().product()],
+            None => vec![false; imported_cells(b).len()],
+        })
+        .collect();
+    let cell_ids: Vec<std::collections::HashMap<Vec<usize>, usize>> = problem
+        .bodies
+        .iter()
+        .map(|b| {
+            imported_cells(b)
+                .iter()
+                .enumerate()
+                .map(|(i, c)| (c.clone(), i))
+                .collect()
+        })
         .collect();
     for (s, sub) in problem.subdomains.iter().enumerate() {
         let body = &problem.bodies[sub.body];
-        let g = &body.grid;
         for e in sub.elements.chunks_exact(sub.element.nodes()) {
             let nodes: Vec<usize> = e.iter().map(|&a| sub.grid[a]).collect();
-            // The element is identified by its lowest grid corner.
-            let ijk = g.ijk(nodes[0]);
-            assert_eq!(
-                nodes,
-                cell(g, ijk),
-                "subdomain {s}: an element is not a grid cell in the expected order"
-            );
-            let id = (ijk[2] * g.n[1] + ijk[1]) * g.n[0] + ijk[0];
-            assert!(!seen[sub.body][id], "element {ijk:?} assembled twice");
+            let id = match body.grid() {
+                Some(g) => {
+                    // The element is identified by its lowest grid corner.
+                    let ijk = g.ijk(nodes[0]);
+                    assert_eq!(
+                        nodes,
+                        cell(g, ijk),
+                        "subdomain {s}: an element is not a grid cell in the expected order"
+                    );
+                    (ijk[2] * g.n[1] + ijk[1]) * g.n[0] + ijk[0]
+                }
+                None => *cell_ids[sub.body]
+                    .get(&nodes)
+                    .expect("an element of an imported body is one of its file's cells"),
+            };
+            assert!(!seen[sub.body][id], "element {id} assembled twice");
             seen[sub.body][id] = true;
             // Coordinates from the body grid (not from the subdomain's copy).
             let x: Vec<f64> = nodes

@@ -499,6 +499,7 @@ impl Cli {
                 Some(MemoryLimit::None) => None,
                 None => Some(cso::machine_memory_limit()),
             },
+            base_dir: None,
         }
     }
 }

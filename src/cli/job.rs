@@ -60,6 +60,10 @@ pub fn load(path: &Path, opts: &CheckOptions) -> Result<Scene, u8> {
 pub fn load_as(path: &Path, opts: &CheckOptions, json: bool) -> Result<Scene, u8> {
     let bytes = std::fs::read(path)
         .map_err(|e| fail(EXIT_IO, format!("cannot read {}: {e}", path.display())))?;
+    let opts = &CheckOptions {
+        base_dir: path.parent().map(Path::to_path_buf),
+        ..opts.clone()
+    };
     let (checked, src) = match diag::decode(bytes) {
         Ok(src) => (compile(&src, opts), src),
         Err(bad) => {

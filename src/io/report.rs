@@ -26,8 +26,8 @@
 //! - `probes`: `ux`, `uy` (and `uz`, `z` in 3D) at the node nearest to each probe point;
 //!   contact nodes carry `z` in 3D too.
 
-use crate::fem::hex::{hex_strain_at, isotropic, isotropic_deviatoric};
-use crate::fem::quad::{plane_strain, plane_strain_deviatoric, quad_strain_at};
+use crate::fem::hex::{isotropic, isotropic_deviatoric};
+use crate::fem::quad::{plane_strain, plane_strain_deviatoric};
 use crate::fem::Formulation;
 use crate::io::atomic::write_atomic;
 use crate::io::plot::{line_chart, mesh_plot, Series};
@@ -584,12 +584,7 @@ fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) 
             Some(_) => plane_strain_deviatoric(s.young, s.poisson),
             None => plane_strain(s.young, s.poisson),
         };
-        let x: [[f64; 2]; 4] = std::array::from_fn(|k| {
-            let p = m.point(e[k]);
-            [p[0], p[1]]
-        });
-        let ue: [f64; 8] = std::array::from_fn(|i| ue[i]);
-        let eps = quad_strain_at(&x, &ue, 0.0, 0.0);
+        let eps = centre_strain(m, e, &ue);
         let mut sig: Vec<f64> = (0..3)
             .map(|r| (0..3).map(|c| dm[r][c] * eps[c]).sum())
             .collect();
@@ -614,9 +609,7 @@ fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) 
         Some(_) => isotropic_deviatoric(s.young, s.poisson),
         None => isotropic(s.young, s.poisson),
     };
-    let x: [[f64; 3]; 8] = std::array::from_fn(|k| m.point(e[k]));
-    let ue: [f64; 24] = std::array::from_fn(|i| ue[i]);
-    let eps = hex_strain_at(&x, &ue, [0.0; 3]);
+    let eps = centre_strain(m, e, &ue);
     let mut sig: Vec<f64> = (0..6)
         .map(|r| (0..6).map(|c| dm[r][c] * eps[c]).sum())
         .collect();
@@ -628,6 +621,16 @@ fn element_stress(m: &SubdomainMesh, e: &[usize], u: &[f64]) -> (Vec<f64>, f64) 
         + 3.0 * (sig[3] * sig[3] + sig[4] * sig[4] + sig[5] * sig[5]))
         .sqrt();
     (sig, vm)
+}
+
+/// The strain at an element's centre (zero for an element that is not
+/// valid: lowering refuses those, so it does not happen in a solved state).
+fn centre_strain(m: &SubdomainMesh, e: &[usize], ue: &[f64]) -> Vec<f64> {
+    let d = m.dim();
+    let x: Vec<f64> = e.iter().flat_map(|&k| m.point(k)[..d].to_vec()).collect();
+    m.element
+        .centre_strain(&x, ue)
+        .unwrap_or_else(|| vec![0.0; if d == 2 { 3 } else { 6 }])
 }
 
 /// Displacement, stress, von Mises, subdomain id and contact pressure (both
@@ -658,11 +661,7 @@ pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> Bo
     let mesh = VtuMesh {
         points: &points,
         connectivity: &connectivity,
-        cell_type: if p.dim == 2 {
-            CellType::Quad
-        } else {
-            CellType::Hexahedron
-        },
+        cell_type: CellType::of(p.subdomains[first].element),
     };
     // VTU vectors have three components: 3D stress goes as normal and shear parts.
     let part = |k: usize| -> Vec<[f64; 3]> {
@@ -824,7 +823,7 @@ fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Optio
     let body = &p.bodies[sel.body];
     let quads: Vec<crate::model::FaceQuad> =
         crate::model::geometry::selected_pieces(p, sel, &scene.design_init());
-    let Some((axis, _)) = body.grid.face_axis(sel.face) else {
+    let Some(axis) = body.face_axis(sel.face) else {
         return Ok(None);
     };
     if quads.is_empty() {
@@ -921,7 +920,7 @@ fn onto_symmetry(scene: &Scene, state: &State, ci: usize, mut o: [f64; 3]) -> ([
         else {
             continue;
         };
-        let Some((axis, _)) = body.grid.face_axis(sel.face) else {
+        let Some(axis) = body.face_axis(sel.face) else {
             continue;
         };
         // A plane only where the face is one (a curved face has no axis).
@@ -939,6 +938,32 @@ fn onto_symmetry(scene: &Scene, state: &State, ci: usize, mut o: [f64; 3]) -> ([
         }
     }
     (o, planes.iter().filter(|p| **p).count())
+}
+
+/// The outline of a 2D body at rest: one ring around a structured block; an
+/// imported body's boundary segments.
+fn outline_of(body: &crate::model::BodyMesh) -> Vec<Vec<[f64; 2]>> {
+    use crate::lang::scene::{Face, FaceRef};
+    let xy = |k: usize| [body.coords[k][0], body.coords[k][1]];
+    if body.grid().is_none() {
+        return body
+            .face_facets(FaceRef::Boundary)
+            .iter()
+            .map(|f| f.iter().map(|&k| xy(k)).collect())
+            .collect();
+    }
+    let side = |f: Face| body.face_nodes(FaceRef::Side(f));
+    let ring: Vec<[f64; 2]> = [
+        side(Face::Bottom),
+        side(Face::Right),
+        side(Face::Top).into_iter().rev().collect(),
+        side(Face::Left).into_iter().rev().collect(),
+    ]
+    .concat()
+    .into_iter()
+    .map(xy)
+    .collect();
+    vec![ring]
 }
 
 /// The 2D deformed mesh coloured by von Mises stress, magnified so the largest
@@ -974,31 +999,12 @@ fn deformed_plot(
             all_points.push([c[0] + magnify * f.disp[k][0], c[1] + magnify * f.disp[k][1]]);
         }
         for cell in &f.cells {
-            all_cells.push([
-                cell[0] + base,
-                cell[1] + base,
-                cell[2] + base,
-                cell[3] + base,
-            ]);
+            // A triangle is drawn as a quadrilateral with its last corner twice.
+            let at = |k: usize| cell[k.min(cell.len() - 1)] + base;
+            all_cells.push([at(0), at(1), at(2), at(3)]);
         }
         all_vm.extend_from_slice(&f.von_mises);
-        let ring: Vec<[f64; 2]> = [
-            body.face_nodes(crate::lang::scene::Face::Bottom),
-            body.face_nodes(crate::lang::scene::Face::Right),
-            body.face_nodes(crate::lang::scene::Face::Top)
-                .into_iter()
-                .rev()
-                .collect(),
-            body.face_nodes(crate::lang::scene::Face::Left)
-                .into_iter()
-                .rev()
-                .collect(),
-        ]
-        .concat()
-        .into_iter()
-        .map(|k| [body.coords[k][0], body.coords[k][1]])
-        .collect();
-        outline.push(ring);
+        outline.extend(outline_of(body));
     }
     let title = deformed_title(&scene.name, magnify);
     mesh_plot(

@@ -44,6 +44,10 @@ pub enum CellType {
     /// Trilinear hexahedron (`VTK_HEXAHEDRON` = 12), bottom face
     /// counter-clockwise then top face in the same order.
     Hexahedron,
+    /// Linear triangle (`VTK_TRIANGLE` = 5), counter-clockwise.
+    Triangle,
+    /// Linear tetrahedron (`VTK_TETRA` = 10), positive volume.
+    Tetrahedron,
 }
 
 impl CellType {
@@ -52,6 +56,19 @@ impl CellType {
         match self {
             CellType::Quad => 9,
             CellType::Hexahedron => 12,
+            CellType::Triangle => 5,
+            CellType::Tetrahedron => 10,
+        }
+    }
+
+    /// The cell type of an element kind (the node orders agree).
+    pub fn of(element: crate::fem::Element) -> CellType {
+        use crate::fem::Element;
+        match element {
+            Element::Quad4 => CellType::Quad,
+            Element::Hex8 => CellType::Hexahedron,
+            Element::Tri3 => CellType::Triangle,
+            Element::Tet4 => CellType::Tetrahedron,
         }
     }
 
@@ -60,6 +77,8 @@ impl CellType {
         match self {
             CellType::Quad => 4,
             CellType::Hexahedron => 8,
+            CellType::Triangle => 3,
+            CellType::Tetrahedron => 4,
         }
     }
 }

@@ -278,21 +278,171 @@ pub struct Body {
     pub mesh: Vec<usize>,
     /// Subdomain cuts along each axis (each divides `mesh`).
     pub subdomains: Vec<usize>,
+    /// A body read from a mesh file (`mesh = "FILE"`): its cells and cut.
+    /// `extent` is then its bounding box, `mesh` empty, `subdomains` the one
+    /// count, and no face is curved.
+    pub imported: Option<std::sync::Arc<Imported>>,
+}
+
+/// A body read from a Gmsh file, in metres, with its METIS cut.
+#[derive(Debug, Clone)]
+pub struct Imported {
+    /// The path as written in the scene.
+    pub file: String,
+    /// The SHA-256 of the file's bytes (provenance).
+    pub sha256: String,
+    pub mesh: crate::io::msh::ImportedMesh,
+    /// The subdomain of each cell (`0 .. subdomains`).
+    pub part_of_cell: Vec<usize>,
+    pub subdomains: usize,
+    /// Pieces of subdomains METIS left disconnected, moved to a neighbour.
+    pub moved_pieces: usize,
+}
+
+impl Imported {
+    /// Facets of a face: a physical group or the whole boundary (node indices,
+    /// oriented outward).
+    pub fn facets(&self, face: FaceRef) -> &[Vec<usize>] {
+        match face {
+            FaceRef::Group(g) => self.mesh.faces.get(g).map_or(&[], |f| &f.facets),
+            FaceRef::Boundary => &self.mesh.boundary,
+            FaceRef::Side(_) => &[],
+        }
+    }
+
+    /// The nodes of a face, sorted.
+    pub fn face_nodes(&self, face: FaceRef) -> Vec<usize> {
+        let mut v: Vec<usize> = self.facets(face).iter().flatten().copied().collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// The axis a selection of a face is normal to, if its nodes are flat and
+    /// normal to one: all within `1e-9` of the body's size of one coordinate.
+    /// `None` also for a selection without nodes.
+    pub fn flat_axis(&self, face: FaceRef, filter: Option<&Cond>, design: &[f64]) -> Option<usize> {
+        let d = self.mesh.dim;
+        let span = |pts: &mut dyn Iterator<Item = &[f64; 3]>, a: usize| {
+            pts.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+                (l.min(p[a]), h.max(p[a]))
+            })
+        };
+        let size = (0..d)
+            .map(|a| {
+                let (lo, hi) = span(&mut self.mesh.nodes.iter(), a);
+                hi - lo
+            })
+            .fold(0.0, f64::max);
+        let nodes: Vec<[f64; 3]> = self
+            .face_nodes(face)
+            .into_iter()
+            .map(|n| self.mesh.nodes[n])
+            .filter(|p| filter.is_none_or(|f| f.holds(*p, design, 1e-9 * size)))
+            .collect();
+        (0..d).find(|&a| {
+            let (lo, hi) = span(&mut nodes.iter(), a);
+            !nodes.is_empty() && hi - lo <= 1e-9 * size
+        })
+    }
+
+    /// The area (2D) or volume (3D) of the mesh: its cells' sum. An imported
+    /// body does not move with the design, so this is a constant.
+    pub fn measure(&self) -> f64 {
+        let d = self.mesh.dim;
+        self.mesh
+            .cells
+            .iter()
+            .map(|c| {
+                let x: Vec<f64> = c
+                    .iter()
+                    .flat_map(|&n| self.mesh.nodes[n][..d].to_vec())
+                    .collect();
+                self.mesh.kind.measure(&x).unwrap_or(0.0)
+            })
+            .sum()
+    }
+
+    /// The name of a face (`boundary` or the group's).
+    pub fn face_name(&self, face: FaceRef) -> String {
+        match face {
+            FaceRef::Group(g) => self
+                .mesh
+                .faces
+                .get(g)
+                .map_or_else(String::new, |f| f.name.clone()),
+            FaceRef::Boundary => "boundary".into(),
+            FaceRef::Side(f) => f.name().into(),
+        }
+    }
 }
 
 impl Body {
     // Counts saturate: a scene too large to solve is refused by the checker's
     // memory estimate, but its summary must not overflow on the way.
     pub fn elements(&self) -> usize {
+        if let Some(m) = &self.imported {
+            return m.mesh.cells.len();
+        }
         saturating_product(self.mesh.iter().copied())
     }
 
     pub fn nodes(&self) -> usize {
+        if let Some(m) = &self.imported {
+            return m.mesh.nodes.len();
+        }
         saturating_product(self.mesh.iter().map(|m| m.saturating_add(1)))
     }
 
     pub fn subdomain_count(&self) -> usize {
+        if let Some(m) = &self.imported {
+            return m.subdomains;
+        }
         saturating_product(self.subdomains.iter().copied())
+    }
+
+    /// The element kind of this body in `dim` dimensions.
+    pub fn element(&self, dim: usize) -> crate::fem::Element {
+        match &self.imported {
+            Some(m) => m.mesh.kind,
+            None => crate::fem::Element::for_dim(dim),
+        }
+    }
+
+    /// The name of a face of this body.
+    pub fn face_name(&self, face: FaceRef) -> String {
+        match (&self.imported, face) {
+            (Some(m), _) => m.face_name(face),
+            (None, FaceRef::Side(f)) => f.name().into(),
+            (None, _) => "boundary".into(),
+        }
+    }
+
+    /// The positions of a face's nodes at a design (grid order for a
+    /// structured side, node order for an imported face).
+    pub fn face_points(&self, face: FaceRef, design: &[f64]) -> Vec<[f64; 3]> {
+        match (&self.imported, face) {
+            (Some(m), _) => m
+                .face_nodes(face)
+                .into_iter()
+                .map(|n| m.mesh.nodes[n])
+                .collect(),
+            (None, FaceRef::Side(f)) => self
+                .face_indices(f)
+                .into_iter()
+                .map(|i| self.node(i, design))
+                .collect(),
+            (None, _) => Vec::new(),
+        }
+    }
+
+    /// Nodes of a face (saturating), to decide whether listing them is cheap.
+    pub fn face_ref_node_count(&self, face: FaceRef) -> usize {
+        match (&self.imported, face) {
+            (Some(m), _) => m.facets(face).len().saturating_mul(self.extent.len()),
+            (None, FaceRef::Side(f)) => self.face_node_count(f),
+            (None, _) => 0,
+        }
     }
 
     /// Elements of one subdomain along each axis.
@@ -306,6 +456,12 @@ impl Body {
 
     /// Primal unknowns: each subdomain has its own copy of its nodes (TFETI).
     pub fn primal_dofs(&self) -> usize {
+        if let Some(m) = &self.imported {
+            // Interface nodes are copied; at most a few per cent at sensible cuts.
+            let copies = m.subdomains.saturating_mul(m.mesh.nodes.len() / 50 + 1);
+            return (m.mesh.nodes.len() + copies.min(m.mesh.nodes.len()))
+                .saturating_mul(self.extent.len());
+        }
         let per = saturating_product(self.subdomain_mesh().iter().map(|h| h.saturating_add(1)));
         saturating_product([per, self.subdomain_count(), self.extent.len()])
     }
@@ -479,11 +635,31 @@ impl Face {
     }
 }
 
+/// A face of a body: a side of a structured block, or a face of an imported
+/// body (one of its file's physical groups, or its whole boundary).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum FaceRef {
+    Side(Face),
+    /// Index into the imported mesh's [`crate::io::msh::ImportedMesh::faces`].
+    Group(usize),
+    Boundary,
+}
+
+impl FaceRef {
+    /// The structured side, if it is one.
+    pub fn side(self) -> Option<Face> {
+        match self {
+            FaceRef::Side(f) => Some(f),
+            _ => None,
+        }
+    }
+}
+
 /// Nodes (and edges/faces) of one face of one body, optionally filtered.
 #[derive(Debug, Clone)]
 pub struct Selection {
     pub body: usize,
-    pub face: Face,
+    pub face: FaceRef,
     pub filter: Option<Cond>,
     /// As written, for reports.
     pub text: String,

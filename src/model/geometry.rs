@@ -11,14 +11,11 @@
 //! [`FaceEdge`] (two nodes) in 2D, a [`FaceQuad`] (four) in 3D. Rows, loads and
 //! tributary areas are written once over pieces.
 
-use super::grid::Grid;
-use super::Problem;
+use super::{BodyMesh, Problem};
 use crate::fem::facet::{Facet, Orientation, Segment};
-use crate::fem::hex::hex_gauss;
-use crate::fem::quad::quad_gauss;
 use crate::fem::quadface::QuadFacet;
 use crate::lang::expr::Point;
-use crate::lang::scene::{Body, Condition, Face, Obstacle, Scene, Selection};
+use crate::lang::scene::{Body, Condition, Face, FaceRef, Obstacle, Scene, Selection};
 use crate::num::{dot, norm, sub, Scalar};
 use std::collections::{HashMap, HashSet};
 
@@ -42,7 +39,7 @@ pub trait Piece<const D: usize, const N: usize>: Copy + std::fmt::Debug + Partia
     fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; D]]>]) -> Self::Facet<T>;
 
     /// Every piece of a body's face, in face order.
-    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self>;
+    fn of_face(body: usize, face: FaceRef, mesh: &BodyMesh) -> Vec<Self>;
 }
 
 /// One edge of a body's face: its grid nodes in face order and which way that
@@ -78,14 +75,28 @@ impl Piece<2, 2> for FaceEdge {
         self.segment(pos)
     }
 
-    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self> {
-        grid.face_nodes(face)
+    fn of_face(body: usize, face: FaceRef, mesh: &BodyMesh) -> Vec<Self> {
+        let (Some(grid), FaceRef::Side(side)) = (mesh.grid(), face) else {
+            // An imported face: its segments run with the body on their left.
+            return mesh
+                .face_facets(face)
+                .into_iter()
+                .filter(|f| f.len() == 2)
+                .map(|f| FaceEdge {
+                    body,
+                    a: f[0],
+                    b: f[1],
+                    orientation: Orientation::CounterClockwise,
+                })
+                .collect();
+        };
+        grid.face_nodes(side)
             .windows(2)
             .map(|w| FaceEdge {
                 body,
                 a: w[0],
                 b: w[1],
-                orientation: face_orientation(face),
+                orientation: face_orientation(side),
             })
             .collect()
     }
@@ -115,9 +126,10 @@ impl Piece<3, 4> for FaceQuad {
         QuadFacet::new(self.nodes.map(|n| x[n]), Orientation::CounterClockwise)
     }
 
-    fn of_face(body: usize, face: Face, grid: &Grid) -> Vec<Self> {
-        grid.face_facets(face)
+    fn of_face(body: usize, face: FaceRef, mesh: &BodyMesh) -> Vec<Self> {
+        mesh.face_facets(face)
             .into_iter()
+            .filter(|q| q.len() == 4)
             .map(|q| FaceQuad {
                 body,
                 nodes: [q[0], q[1], q[2], q[3]],
@@ -148,6 +160,15 @@ pub fn node_positions<T: Scalar, const D: usize>(scene: &Scene, design: &[T]) ->
 
 /// One body's grid node positions ([`node_positions`]).
 pub fn body_positions<T: Scalar, const D: usize>(b: &Body, design: &[T]) -> Vec<[T; D]> {
+    if let Some(m) = &b.imported {
+        // An imported body's nodes do not move with the design.
+        return m
+            .mesh
+            .nodes
+            .iter()
+            .map(|p| std::array::from_fn(|a| T::from(p[a])))
+            .collect();
+    }
     let n: [usize; 3] = std::array::from_fn(|a| if a < D { b.mesh[a] } else { 0 });
     // The curved faces once per column, not once per node.
     let v = D - 1;
@@ -219,7 +240,7 @@ pub(crate) fn selected_pieces<P: Piece<D, N>, const D: usize, const N: usize>(
                 .collect()
         })
         .collect();
-    P::of_face(sel.body, sel.face, &body.grid)
+    P::of_face(sel.body, sel.face, body)
         .into_iter()
         .filter(|p| p.nodes().iter().all(|n| keep.contains(n)))
         .filter(|p| p.facet(&pos).measure() != 0.0)
@@ -585,22 +606,9 @@ pub(crate) fn nodal_loads<T: Scalar, P: Piece<D, N>, const D: usize, const N: us
             }
         };
         for e in m.element_nodes() {
-            if D == 2 {
-                let xe: [[T; 2]; 4] = std::array::from_fn(|k| {
-                    let p = x[m.grid[e[k]]];
-                    [p[0], p[1]]
-                });
-                for (n, det) in quad_gauss(&xe) {
-                    add(e, &n, det);
-                }
-            } else {
-                let xe: [[T; 3]; 8] = std::array::from_fn(|k| {
-                    let p = x[m.grid[e[k]]];
-                    [p[0], p[1], p[2]]
-                });
-                for (n, det) in hex_gauss(&xe) {
-                    add(e, &n, det);
-                }
+            let xe: Vec<T> = e.iter().flat_map(|&k| x[m.grid[k]]).collect();
+            for (n, det) in m.element.load_points(&xe) {
+                add(e, &n, det);
             }
         }
     }
@@ -911,7 +919,7 @@ fix b.bottom
         assert_eq!(lowered, f);
         // Each of the 4 edges gives half its share to each end: ends get 1/8, the
         // others 1/4 of the resultant (summed over their copies).
-        let top = problem.bodies[0].face_nodes(Face::Top);
+        let top = problem.bodies[0].face_nodes(FaceRef::Side(Face::Top));
         for (k, &node) in top.iter().enumerate() {
             let mut fy = 0.0;
             for (s, l) in problem.bodies[0].copies(node) {
@@ -944,7 +952,7 @@ fix b.bottom
             .all(|e| e.orientation == Orientation::Clockwise));
         let areas = tributary_areas(&edges, &coords::<2>(&problem), 0.5);
         let edge = 5f64.sqrt() / 4.0;
-        let top = problem.bodies[0].face_nodes(Face::Top);
+        let top = problem.bodies[0].face_nodes(FaceRef::Side(Face::Top));
         for (k, node) in top.iter().enumerate() {
             let want = if k == 0 || k == 4 { edge / 2.0 } else { edge } * 0.5;
             assert!(close(areas[node], want), "node {k}: {}", areas[node]);
@@ -959,7 +967,7 @@ fix b.bottom
             "pressure b.top = 3\ntraction b.right = (1, 2)\ngravity = (1, -9.81)",
         );
         let loads = face_loads::<FaceEdge, 2, 2>(&scene, &problem, &[]);
-        let top = problem.bodies[0].face_nodes(Face::Top);
+        let top = problem.bodies[0].face_nodes(FaceRef::Side(Face::Top));
         let edges = &loads[0].pieces;
         let base: Vec<Vec<[f64; 2]>> = coords::<2>(&problem);
         assert_eq!(node_positions::<f64, 2>(&scene, &[]), base);

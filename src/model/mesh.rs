@@ -1,42 +1,101 @@
-//! Structured meshes of bodies, cut into subdomains that each own a copy of their nodes.
+//! Meshes of bodies (structured grids, or cells read from a file), cut into
+//! subdomains that each own a copy of their nodes.
 
 use super::grid::Grid;
 use super::LowerError;
 use crate::fem::{Element, Section};
-use crate::lang::scene::Scene;
+use crate::lang::scene::{FaceRef, Imported, Scene};
+use std::sync::Arc;
 
-/// One body's structured grid, nodes placed by the column-morphing rule and
-/// numbered as [`Grid::node`] says (`j (nx + 1) + i` in 2D).
+/// One body's mesh: its nodes (a structured grid's placed by the
+/// column-morphing rule and numbered as [`Grid::node`] says, `j (nx + 1) + i`
+/// in 2D; an imported body's in its file's order) and how its subdomains copy them.
 #[derive(Debug, Clone)]
 pub struct BodyMesh {
     pub name: String,
     /// Global index of this body's first subdomain.
     pub first_subdomain: usize,
-    /// The index arithmetic of the grid and its blocks (2D and 3D).
-    pub grid: Grid,
+    /// The index arithmetic of its nodes, faces and subdomains.
+    pub layout: Layout,
     /// Node positions; `z = 0` in 2D.
     pub coords: Vec<[f64; 3]>,
+}
+
+/// How a body's nodes, faces and subdomains are found.
+#[derive(Debug, Clone)]
+pub enum Layout {
+    /// A structured grid cut into blocks (2D and 3D).
+    Grid(Grid),
+    /// Cells read from a file, cut by METIS.
+    Mesh(Arc<MeshLayout>),
+}
+
+/// An imported body's cut: the copies of each node in its subdomains.
+#[derive(Debug, Clone)]
+pub struct MeshLayout {
+    pub dim: usize,
+    pub imported: Arc<Imported>,
+    /// Per node, every (subdomain of the body, local node), ascending by
+    /// subdomain: the first one owns it.
+    pub copies: Vec<Vec<(usize, usize)>>,
 }
 
 impl BodyMesh {
     /// 2 or 3.
     pub fn dim(&self) -> usize {
-        self.grid.dim
+        match &self.layout {
+            Layout::Grid(g) => g.dim,
+            Layout::Mesh(m) => m.dim,
+        }
+    }
+
+    /// The structured grid, if the body is one.
+    pub fn grid(&self) -> Option<&Grid> {
+        match &self.layout {
+            Layout::Grid(g) => Some(g),
+            Layout::Mesh(_) => None,
+        }
     }
 
     /// Subdomains of this body: `first_subdomain ..` this many.
     pub fn subdomains(&self) -> usize {
-        self.grid.blocks()
+        match &self.layout {
+            Layout::Grid(g) => g.blocks(),
+            Layout::Mesh(m) => m.imported.subdomains,
+        }
     }
 
-    /// Every copy of a grid node: (global subdomain, local node), the first one is
+    /// Every copy of a node: (global subdomain, local node), the first one is
     /// the node's "owner" (used for loads, supports and contact rows).
     pub fn copies(&self, node: usize) -> Vec<(usize, usize)> {
-        self.grid
-            .copies(node)
+        let local = match &self.layout {
+            Layout::Grid(g) => g.copies(node),
+            Layout::Mesh(m) => m.copies[node].clone(),
+        };
+        local
             .into_iter()
             .map(|(b, l)| (self.first_subdomain + b, l))
             .collect()
+    }
+
+    /// The axis a face (or the selected part of it) is normal to: a structured
+    /// side's, or an imported face's where it is flat.
+    pub fn face_axis(&self, face: FaceRef) -> Option<usize> {
+        match (&self.layout, face) {
+            (Layout::Grid(g), FaceRef::Side(f)) => g.face_axis(f).map(|(a, _)| a),
+            (Layout::Mesh(m), _) => m.imported.flat_axis(face, None, &[]),
+            _ => None,
+        }
+    }
+
+    /// The facets of a face, outward by the right-hand rule (see
+    /// [`Grid::face_facets`]); an imported face's as its file has them.
+    pub fn face_facets(&self, face: FaceRef) -> Vec<Vec<usize>> {
+        match (&self.layout, face) {
+            (Layout::Grid(g), FaceRef::Side(f)) => g.face_facets(f),
+            (Layout::Mesh(m), _) => m.imported.facets(face).to_vec(),
+            _ => Vec::new(),
+        }
     }
 
     /// Lower and upper corners of the body's nodes (`z` is 0 in 2D).
@@ -74,10 +133,14 @@ impl BodyMesh {
         best.1
     }
 
-    /// Grid nodes of a face, in order (2D: along the face; 3D: row-major over
-    /// the face's two axes).
-    pub fn face_nodes(&self, face: crate::lang::scene::Face) -> Vec<usize> {
-        self.grid.face_nodes(face)
+    /// Nodes of a face, in order (a structured side: along the face in 2D,
+    /// row-major over the face's two axes in 3D; an imported face: ascending).
+    pub fn face_nodes(&self, face: FaceRef) -> Vec<usize> {
+        match (&self.layout, face) {
+            (Layout::Grid(g), FaceRef::Side(f)) => g.face_nodes(f),
+            (Layout::Mesh(m), _) => m.imported.face_nodes(face),
+            _ => Vec::new(),
+        }
     }
 }
 
@@ -127,64 +190,201 @@ impl SubdomainMesh {
     }
 }
 
-/// Builds every body's grid and its subdomains at the given design.
+/// Builds every body's mesh and its subdomains at the given design.
 pub fn build(
     scene: &Scene,
     design: &[f64],
 ) -> Result<(Vec<BodyMesh>, Vec<SubdomainMesh>), LowerError> {
     let mut bodies = Vec::new();
     let mut subs = Vec::new();
-    for body in &scene.bodies {
-        let grid = Grid::new(&body.mesh, &body.subdomains);
-        let dim = grid.dim;
-        let mut coords = Vec::with_capacity(grid.nodes());
-        for node in 0..grid.nodes() {
-            let ijk = grid.ijk(node);
-            let c = body.node(ijk, design);
-            if !c[..dim].iter().all(|v| v.is_finite()) {
-                let at: Vec<String> = ijk[..dim].iter().map(|v| v.to_string()).collect();
-                return Err(LowerError::Geometry(format!(
-                    "node ({}) of body `{}` has no finite position at this design",
-                    at.join(", "),
-                    body.name
-                )));
-            }
-            coords.push(if dim == 2 { [c[0], c[1], 0.0] } else { c });
-        }
-        let mesh = BodyMesh {
-            name: body.name.clone(),
-            first_subdomain: subs.len(),
-            grid,
-            coords,
-        };
+    for (b, body) in scene.bodies.iter().enumerate() {
         let material = &scene.materials[body.material];
-        let element = Element::for_dim(dim);
-        let section = material.section(element, scene.thickness);
-        let elements = grid.block_elements();
-        for bz in 0..grid.s[2] {
-            for by in 0..grid.s[1] {
-                for bx in 0..grid.s[0] {
-                    let nodes = grid.nodes_of_block([bx, by, bz]);
-                    let mut coords = Vec::with_capacity(dim * nodes.len());
-                    for &g in &nodes {
-                        coords.extend_from_slice(&mesh.coords[g][..dim]);
-                    }
-                    let n = nodes.len();
-                    subs.push(SubdomainMesh {
-                        body: bodies.len(),
-                        block: [bx, by, bz],
-                        element,
-                        corners: grid.block_corners(),
-                        coords,
-                        grid: nodes,
-                        elements: elements.clone(),
-                        section,
-                        f: vec![0.0; dim * n],
-                    });
-                }
+        let mesh = match &body.imported {
+            Some(imported) => {
+                let section = material.section(imported.mesh.kind, scene.thickness);
+                let (mesh, cut) = imported_mesh(&body.name, imported, (b, subs.len()), section);
+                subs.extend(cut);
+                mesh
             }
-        }
+            None => {
+                let mesh = grid_mesh(body, design, subs.len())?;
+                let Layout::Grid(grid) = mesh.layout else {
+                    unreachable!("a structured body's layout is its grid")
+                };
+                let element = Element::for_dim(grid.dim);
+                let section = material.section(element, scene.thickness);
+                grid_subdomains(&mesh, &grid, b, element, section, &mut subs);
+                mesh
+            }
+        };
         bodies.push(mesh);
     }
     Ok((bodies, subs))
+}
+
+/// A structured body's grid nodes at a design.
+fn grid_mesh(
+    body: &crate::lang::scene::Body,
+    design: &[f64],
+    first_subdomain: usize,
+) -> Result<BodyMesh, LowerError> {
+    let grid = Grid::new(&body.mesh, &body.subdomains);
+    let dim = grid.dim;
+    let mut coords = Vec::with_capacity(grid.nodes());
+    for node in 0..grid.nodes() {
+        let ijk = grid.ijk(node);
+        let c = body.node(ijk, design);
+        if !c[..dim].iter().all(|v| v.is_finite()) {
+            let at: Vec<String> = ijk[..dim].iter().map(|v| v.to_string()).collect();
+            return Err(LowerError::Geometry(format!(
+                "node ({}) of body `{}` has no finite position at this design",
+                at.join(", "),
+                body.name
+            )));
+        }
+        coords.push(if dim == 2 { [c[0], c[1], 0.0] } else { c });
+    }
+    Ok(BodyMesh {
+        name: body.name.clone(),
+        first_subdomain,
+        layout: Layout::Grid(grid),
+        coords,
+    })
+}
+
+/// The blocks of a structured body, each with its own copy of its nodes.
+fn grid_subdomains(
+    mesh: &BodyMesh,
+    grid: &Grid,
+    body: usize,
+    element: Element,
+    section: Section,
+    subs: &mut Vec<SubdomainMesh>,
+) {
+    let dim = grid.dim;
+    let elements = grid.block_elements();
+    for bz in 0..grid.s[2] {
+        for by in 0..grid.s[1] {
+            for bx in 0..grid.s[0] {
+                let nodes = grid.nodes_of_block([bx, by, bz]);
+                let mut coords = Vec::with_capacity(dim * nodes.len());
+                for &g in &nodes {
+                    coords.extend_from_slice(&mesh.coords[g][..dim]);
+                }
+                let n = nodes.len();
+                subs.push(SubdomainMesh {
+                    body,
+                    block: [bx, by, bz],
+                    element,
+                    corners: grid.block_corners(),
+                    coords,
+                    grid: nodes,
+                    elements: elements.clone(),
+                    section,
+                    f: vec![0.0; dim * n],
+                });
+            }
+        }
+    }
+}
+
+/// An imported body and its subdomains: the cells of each part of the METIS
+/// cut, with their nodes renumbered locally in ascending body order.
+fn imported_mesh(
+    name: &str,
+    imported: &Arc<Imported>,
+    (body, first_subdomain): (usize, usize),
+    section: Section,
+) -> (BodyMesh, Vec<SubdomainMesh>) {
+    let m = &imported.mesh;
+    let dim = m.dim;
+    let parts = imported.subdomains;
+    let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); parts];
+    for (c, &p) in imported.part_of_cell.iter().enumerate() {
+        cells_of[p].push(c);
+    }
+    let mut copies: Vec<Vec<(usize, usize)>> = vec![Vec::new(); m.nodes.len()];
+    let mut subs = Vec::with_capacity(parts);
+    let mut local = vec![usize::MAX; m.nodes.len()];
+    for (p, cells) in cells_of.iter().enumerate() {
+        let mut nodes: Vec<usize> = cells
+            .iter()
+            .flat_map(|&c| m.cells[c].iter().copied())
+            .collect();
+        nodes.sort_unstable();
+        nodes.dedup();
+        for (l, &n) in nodes.iter().enumerate() {
+            local[n] = l;
+            copies[n].push((p, l));
+        }
+        let elements: Vec<usize> = cells
+            .iter()
+            .flat_map(|&c| m.cells[c].iter().map(|&n| local[n]))
+            .collect();
+        let coords: Vec<f64> = nodes
+            .iter()
+            .flat_map(|&n| m.nodes[n][..dim].to_vec())
+            .collect();
+        subs.push(SubdomainMesh {
+            body,
+            block: [p, 0, 0],
+            element: m.kind,
+            corners: far_apart(&coords, dim),
+            f: vec![0.0; coords.len()],
+            coords,
+            grid: nodes,
+            elements,
+            section,
+        });
+    }
+    let mesh = BodyMesh {
+        name: name.to_string(),
+        first_subdomain,
+        layout: Layout::Mesh(Arc::new(MeshLayout {
+            dim,
+            imported: imported.clone(),
+            copies,
+        })),
+        coords: m.nodes.clone(),
+    };
+    (mesh, subs)
+}
+
+/// Far-apart nodes of a subdomain for fixing its kernel (see
+/// `tfeti::kernel::fixing_dofs`): A farthest from the centroid, B farthest from
+/// A, and in 3D C farthest from the line AB (not collinear with them).
+pub fn far_apart(coords: &[f64], dim: usize) -> Vec<usize> {
+    let n = coords.len() / dim;
+    let at = |k: usize| &coords[dim * k..dim * k + dim];
+    let centre: Vec<f64> = (0..dim)
+        .map(|a| (0..n).map(|k| at(k)[a]).sum::<f64>() / n.max(1) as f64)
+        .collect();
+    let dist2 = |p: &[f64], q: &[f64]| p.iter().zip(q).map(|(x, y)| (x - y).powi(2)).sum::<f64>();
+    let farthest = |score: &dyn Fn(usize) -> f64| {
+        (0..n).fold((0, f64::NEG_INFINITY), |best, k| {
+            let s = score(k);
+            if s > best.1 {
+                (k, s)
+            } else {
+                best
+            }
+        })
+    };
+    let a = farthest(&|k| dist2(at(k), &centre)).0;
+    let b = farthest(&|k| dist2(at(k), at(a))).0;
+    if dim == 2 {
+        return vec![a, b];
+    }
+    let ab: Vec<f64> = (0..3).map(|i| at(b)[i] - at(a)[i]).collect();
+    let off_line = |k: usize| {
+        let ak: Vec<f64> = (0..3).map(|i| at(k)[i] - at(a)[i]).collect();
+        let c = [
+            ab[1] * ak[2] - ab[2] * ak[1],
+            ab[2] * ak[0] - ab[0] * ak[2],
+            ab[0] * ak[1] - ab[1] * ak[0],
+        ];
+        c.iter().map(|v| v * v).sum::<f64>()
+    };
+    let c = farthest(&off_line).0;
+    vec![a, b, c]
 }

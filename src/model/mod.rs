@@ -16,7 +16,7 @@ mod rows;
 mod search;
 
 pub use geometry::{FaceEdge, FaceQuad};
-pub use mesh::{BodyMesh, SubdomainMesh};
+pub use mesh::{BodyMesh, Layout, MeshLayout, SubdomainMesh};
 pub use rows::{ContactPrimary, Named, Row, RowKind};
 pub use search::{unheld, SearchFindings, Unheld};
 

@@ -205,8 +205,11 @@ fn supports(
             ),
             Condition::Displace { sel, values } => (sel, values.clone(), RowKind::Dirichlet),
             Condition::Symmetry { sel } => {
-                let Some((axis, _)) = problem.bodies[sel.body].grid.face_axis(sel.face) else {
-                    continue;
+                let Some(axis) = problem.bodies[sel.body].face_axis(sel.face) else {
+                    return Err(LowerError::Geometry(format!(
+                        "`symmetry {}` is not a flat face normal to an axis",
+                        sel.text
+                    )));
                 };
                 (sel, vec![(axis, 0.0)], RowKind::Symmetry)
             }
@@ -611,7 +614,13 @@ mod tests {
             }
         }
         let pos = vec![pos];
-        let pieces = FaceQuad::of_face(0, Face::Top, &grid);
+        let mesh = crate::model::BodyMesh {
+            name: "block".into(),
+            first_subdomain: 0,
+            layout: crate::model::Layout::Grid(grid),
+            coords: Vec::new(),
+        };
+        let pieces = FaceQuad::of_face(0, crate::lang::scene::FaceRef::Side(Face::Top), &mesh);
         let counts = side_counts(&pieces);
         let boxes = boxes_of(&pieces, &pos);
         let mut seed = 7u64;

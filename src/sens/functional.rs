@@ -30,6 +30,9 @@ pub(crate) fn ring(body: &Body) -> Vec<[usize; 3]> {
 /// Area of a 2D body's mesh (shoelace over its boundary nodes) in any number
 /// type: with dual numbers, the exact derivative of the discrete area.
 pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
+    if let Some(m) = &body.imported {
+        return T::from(m.measure());
+    }
     let pts: Vec<[T; 3]> = ring(body).iter().map(|&i| body.node_t(i, design)).collect();
     let mut twice = T::from(0.0);
     for k in 0..pts.len() {
@@ -42,6 +45,9 @@ pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
 /// Volume of a 3D body's mesh: the sum of its hexahedra's volumes (2x2x2
 /// Gauss integrates a trilinear map's det J exactly), in any number type.
 pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
+    if let Some(m) = &body.imported {
+        return T::from(m.measure());
+    }
     let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
     // Every node once (a node is shared by up to eight hexahedra).
     let mut pts = Vec::with_capacity((n[0] + 1) * (n[1] + 1) * (n[2] + 1));

@@ -330,7 +330,10 @@ impl Tape {
             .iter()
             .enumerate()
             .map(|(b, body)| {
-                let (value, g) = if DIM == 2 {
+                let (value, g) = if let Some(m) = &body.imported {
+                    // Its nodes do not move: the measure is a constant.
+                    (m.measure(), Vec::new())
+                } else if DIM == 2 {
                     area_gradient(body, &pos[b])
                 } else {
                     volume_gradient(body, &pos[b])
@@ -606,10 +609,11 @@ fn velocities<const DIM: usize>(scene: &Scene, design: &[f64]) -> Vec<Vec<Vec<f6
     let mut out = vec![vec![Vec::new(); scene.bodies.len()]; m];
     for (b, body) in scene.bodies.iter().enumerate() {
         let formulas = body.extent.iter().flat_map(|(lo, hi)| [lo, hi]);
-        if !formulas
-            .chain(&body.bottom)
-            .chain(&body.top)
-            .any(|f| f.uses_design())
+        if body.imported.is_some()
+            || !formulas
+                .chain(&body.bottom)
+                .chain(&body.top)
+                .any(|f| f.uses_design())
         {
             continue;
         }

@@ -45,14 +45,19 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
 
 /// The estimate of one body.
 pub fn estimate_body(body: &Body) -> MemoryEstimate {
-    let d = body.mesh.len() as f64;
-    let subs: f64 = body.subdomains.iter().map(|&s| s as f64).product();
-    let per_sub_nodes: f64 = body
-        .mesh
-        .iter()
-        .zip(&body.subdomains)
-        .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
-        .product();
+    let d = body.extent.len() as f64;
+    let subs: f64 = body.subdomain_count() as f64;
+    let per_sub_nodes: f64 = match &body.imported {
+        // A simplex mesh has about as many nodes per dof of coupling as a
+        // brick mesh of the same node count: the brick figures serve.
+        Some(_) => body.primal_dofs() as f64 / d / subs.max(1.0),
+        None => body
+            .mesh
+            .iter()
+            .zip(&body.subdomains)
+            .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
+            .product(),
+    };
     let n = per_sub_nodes * d;
     // Rows of Q1/hex8 stiffness couple 9 or 27 nodes; 12 bytes per entry (value + index).
     let row = if d == 2.0 { 18.0 } else { 81.0 };

@@ -13,12 +13,12 @@ use crate::lang::scene::{Material, Scene};
 /// One warning per body whose material is nearly incompressible and whose
 /// elements lock.
 pub(super) fn warnings(scene: &Scene, spans: &[BodySpans]) -> Vec<Diagnostic> {
-    let element = Element::for_dim(scene.dim.n());
     scene
         .bodies
         .iter()
         .zip(spans)
         .filter_map(|(body, spans)| {
+            let element: Element = body.element(scene.dim.n());
             let material = scene.materials.get(body.material)?;
             let used = material.section(element, scene.thickness).formulation;
             if material.poisson < NEARLY_INCOMPRESSIBLE || used == Formulation::Bbar {

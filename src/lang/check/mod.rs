@@ -32,6 +32,9 @@ pub struct CheckOptions {
     pub overrides: Vec<(String, String)>,
     /// Refuse scenes whose estimated memory exceeds this many bytes (None: no limit).
     pub memory_limit: Option<u64>,
+    /// The scene file's folder: `mesh = "FILE"` paths are relative to it
+    /// (None: the current folder).
+    pub base_dir: Option<std::path::PathBuf>,
 }
 
 /// Parses and checks a source text. Every error of the file is reported, sorted by

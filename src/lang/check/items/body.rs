@@ -20,7 +20,6 @@ impl<'a> Checker<'a> {
         let label = name.map_or("body".to_string(), |n| format!("body `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
         let d = self.dim.n();
-        let f = self.body_fields(block, &label, at);
         let mut body = Body {
             name: name.map_or(String::new(), |n| n.name.clone()),
             material: usize::MAX,
@@ -30,7 +29,13 @@ impl<'a> Checker<'a> {
             face_text: [None, None],
             mesh: vec![1; d],
             subdomains: vec![1; d],
+            imported: None,
         };
+        if let Some(file) = super::imported::mesh_file(block) {
+            self.imported_body(body, block, file, (&label, at));
+            return;
+        }
+        let f = self.body_fields(block, &label, at);
         if let Some(i) = f.get("material").and_then(|fl| self.body_material(fl)) {
             body.material = i;
         }
@@ -117,7 +122,7 @@ impl<'a> Checker<'a> {
     }
 
     /// `material = NAME`: the index of a material.
-    fn body_material(&mut self, fl: &'a Field) -> Option<usize> {
+    pub(super) fn body_material(&mut self, fl: &'a Field) -> Option<usize> {
         let e = self.expr_of(fl, "a material name")?;
         match &e.kind {
             ExprKind::Name(n) => self.lookup(Kind::Material, n, e.span),

@@ -5,6 +5,7 @@ mod body;
 mod conditions;
 mod contact;
 mod design;
+mod imported;
 mod loads;
 mod material;
 mod probe;

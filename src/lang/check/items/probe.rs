@@ -56,6 +56,22 @@ impl<'a> Checker<'a> {
         }
         let body = self.bodies.get(b)?;
         let d = body.extent.len();
+        if let Some(m) = &body.imported {
+            // Within the bounding box, by a tenth of its size.
+            let (lo, hi): (Vec<f64>, Vec<f64>) = body
+                .extent
+                .iter()
+                .map(|(l, h)| (l.eval_f64([0.0; 3], &[]), h.eval_f64([0.0; 3], &[])))
+                .unzip();
+            let tol = (0..d).map(|a| hi[a] - lo[a]).fold(0.0, f64::max) / 10.0;
+            if point.len() != d
+                || (0..d).all(|a| point[a] >= lo[a] - tol && point[a] <= hi[a] + tol)
+            {
+                return Some(());
+            }
+            let nodes = m.mesh.nodes.clone();
+            return self.probe_outside(b, &nodes, span);
+        }
         if point.len() != d || body.face_node_count(Face::Bottom) > 1_000_000 {
             return Some(());
         }
@@ -77,6 +93,14 @@ impl<'a> Checker<'a> {
         if (0..d).all(|a| point[a] >= lo[a] - tol && point[a] <= hi[a] + tol) {
             return Some(());
         }
+        self.probe_outside(b, &nodes, span)
+    }
+
+    /// The error for a probe outside body `b`, whose nodes are these.
+    fn probe_outside(&mut self, b: usize, nodes: &[[f64; 3]], span: Span) -> Option<()> {
+        let body = self.bodies.get(b)?;
+        let d = body.extent.len();
+        let (lo, hi) = bounding_box(nodes, d);
         let spans: Vec<String> = (0..d).map(|a| extent_text(a, lo[a], hi[a])).collect();
         let name = body.name.clone();
         self.error(

@@ -40,6 +40,11 @@ impl<'a> Checker<'a> {
             return None;
         };
         let body = self.lookup(Kind::Body, body_name, base.span);
+        let imported = body.and_then(|b| self.bodies.get(b)?.imported.clone());
+        if let Some(m) = imported {
+            let face_ref = self.imported_face(&m, body_name, face)?;
+            return self.finish_selection(body?, face_ref, filter, e);
+        }
         let faces: Vec<Face> = Face::ALL
             .iter()
             .copied()
@@ -74,18 +79,70 @@ impl<'a> Checker<'a> {
                 return None;
             }
         };
+        self.finish_selection(body?, FaceRef::Side(face_kind), filter, e)
+    }
+
+    fn finish_selection(
+        &mut self,
+        body: usize,
+        face: FaceRef,
+        filter: Option<&Expr>,
+        e: &Expr,
+    ) -> Option<Selection> {
         let filter = match filter {
             Some(f) => Some(self.filter(f)?),
             None => None,
         };
         let sel = Selection {
-            body: body?,
-            face: face_kind,
+            body,
+            face,
             filter,
             text: self.text(e.span).to_string(),
         };
         self.not_empty(&sel, e.span)?;
         Some(sel)
+    }
+
+    /// A face of an imported body: one of its file's physical groups of
+    /// dimension d - 1 on it, or `boundary`.
+    fn imported_face(
+        &mut self,
+        m: &Imported,
+        body_name: &str,
+        face: &crate::lang::ast::Ident,
+    ) -> Option<FaceRef> {
+        if face.name == "boundary" {
+            return Some(FaceRef::Boundary);
+        }
+        if let Some(g) = m.mesh.faces.iter().position(|g| g.name == face.name) {
+            return Some(FaceRef::Group(g));
+        }
+        let mut names: Vec<&str> = m.mesh.faces.iter().map(|g| g.name.as_str()).collect();
+        names.push("boundary");
+        let help = crate::lang::suggest::did_you_mean(&face.name, names.iter().copied())
+            .unwrap_or_else(|| {
+                format!(
+                    "the faces of `{body_name}` are its file's physical groups of dimension {} \
+                     and `boundary`: {}",
+                    self.dim.n() - 1,
+                    quote_list(&names)
+                )
+            });
+        let side = Face::ALL.iter().any(|f| f.name() == face.name);
+        let message = if side {
+            format!(
+                "body `{body_name}` is read from `{}`: it has no side `{}`",
+                m.file, face.name
+            )
+        } else {
+            format!("unknown face `{}` of body `{body_name}`", face.name)
+        };
+        self.error(
+            Diagnostic::new("cso::selection", message)
+                .label(face.span, "not a face of the mesh")
+                .help(help),
+        );
+        None
     }
 
     /// A filtered selection keeps at least one node at the initial design.
@@ -99,15 +156,11 @@ impl<'a> Checker<'a> {
         let Some(body) = self.bodies.get(sel.body) else {
             return Some(());
         };
-        if body.face_node_count(sel.face) > 1_000_000 {
+        if body.face_ref_node_count(sel.face) > 1_000_000 {
             return Some(()); // too large to list here; the lowering checks it
         }
         let design = self.design_init();
-        let nodes: Vec<[f64; 3]> = body
-            .face_indices(sel.face)
-            .into_iter()
-            .map(|i| body.node(i, &design))
-            .collect();
+        let nodes = body.face_points(sel.face, &design);
         if nodes.iter().flatten().any(|c| !c.is_finite()) {
             return Some(()); // the body's own error is reported elsewhere
         }
@@ -120,7 +173,7 @@ impl<'a> Checker<'a> {
         if nodes.iter().any(|c| filter.holds(*c, &design, 1e-9 * size)) {
             return Some(());
         }
-        let face = format!("{}.{}", body.name, sel.face.name());
+        let face = format!("{}.{}", body.name, body.face_name(sel.face));
         let spans: Vec<String> = (0..d).map(|a| extent_text(a, lo[a], hi[a])).collect();
         self.error(
             Diagnostic::new(

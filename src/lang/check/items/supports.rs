@@ -130,7 +130,32 @@ impl<'a> Checker<'a> {
     /// Symmetry needs a plane face: not a curved one.
     fn flat_face(&mut self, sel: &Selection, at: Span) -> Option<()> {
         let body = self.bodies.get(sel.body)?;
-        if body.is_curved(sel.face) {
+        if let Some(m) = &body.imported {
+            if m.flat_axis(sel.face, sel.filter.as_ref(), &self.design_init())
+                .is_none()
+            {
+                self.error(
+                    Diagnostic::new(
+                        "cso::symmetry",
+                        format!(
+                            "`symmetry` needs a flat face normal to an axis; `{}` is not",
+                            sel.text
+                        ),
+                    )
+                    .label(at, "not a plane x, y or z = const")
+                    .help(
+                        "give the symmetry plane its own physical group in the mesh file, or \
+                         filter the face to it (`part.boundary[x < 1 mm]`)",
+                    ),
+                );
+                return None;
+            }
+            return Some(());
+        }
+        let Some(face) = sel.face.side() else {
+            return Some(());
+        };
+        if body.is_curved(face) {
             self.error(
                 Diagnostic::new(
                     "cso::symmetry",

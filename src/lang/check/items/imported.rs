@@ -1,0 +1,242 @@
+//! `body NAME { material, mesh = "FILE", unit, region, subdomains = N }`: a
+//! body read from a Gmsh MSH 4.1 file and cut into `N` subdomains by METIS.
+//! The file is read here, so that every problem with it (unreadable, wrong
+//! version, unknown region, mixed or inverted elements, pieces) is an error on
+//! the `mesh = ...` span, with the rest of the scene's errors.
+
+use crate::io::msh::{ImportOptions, MeshError};
+use crate::lang::ast::{Block, Expr, ExprKind, Field, Span, Value};
+use crate::lang::check::fields::{opt, req, Fields, Spec};
+use crate::lang::check::{BodySpans, Checker};
+use crate::lang::diag::Diagnostic;
+use crate::lang::expr::Formula;
+use crate::lang::scene::*;
+use crate::lang::units::{self, Dim};
+use crate::model::partition::partition;
+use std::sync::Arc;
+
+/// The file a body's `mesh` field names, if it is a string (`mesh = "a.msh"`).
+pub(crate) fn mesh_file(block: &Block) -> Option<(&str, Span)> {
+    block.fields.iter().find_map(|f| match &f.value {
+        Some(Value::Expr(Expr {
+            kind: ExprKind::Str(s),
+            span,
+        })) if f.name.name == "mesh" => Some((s.as_str(), *span)),
+        _ => None,
+    })
+}
+
+impl<'a> Checker<'a> {
+    /// A body whose `mesh` names a file.
+    pub(crate) fn imported_body(
+        &mut self,
+        mut body: Body,
+        block: &'a Block,
+        (file, file_span): (&str, Span),
+        (label, at): (&str, Span),
+    ) {
+        let errors_before = self.diags.len();
+        let f = self.imported_fields(block, label, at);
+        if let Some(i) = f.get("material").and_then(|fl| self.body_material(fl)) {
+            body.material = i;
+        }
+        let unit = f.get("unit").map_or(Some(1.0), |fl| self.length_unit(fl));
+        let region = f.get("region").and_then(|fl| self.region_name(fl));
+        let parts = f.get("subdomains").map_or(Some(1), |fl| {
+            let e = self.expr_of(fl, "a subdomain count")?;
+            self.integer(e, 1, "`subdomains`")
+        });
+        let spans = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
+        let (region_span, parts_span) = (spans("region"), spans("subdomains"));
+        if let (Some(unit), Some(parts)) = (unit, parts) {
+            let read = self.read_mesh(file, unit, region.as_deref());
+            match read {
+                Ok((mesh, sha256)) => {
+                    if let Some(imported) = self.cut(mesh, parts, parts_span.unwrap_or(file_span)) {
+                        let imported = Imported {
+                            file: file.to_string(),
+                            sha256,
+                            ..imported
+                        };
+                        body.extent = bounding_extent(&imported.mesh);
+                        body.subdomains = vec![parts];
+                        body.mesh = Vec::new();
+                        body.imported = Some(Arc::new(imported));
+                    }
+                }
+                Err(e) => self.mesh_error(&e, file, file_span, region_span),
+            }
+        }
+        self.body_spans.push(BodySpans {
+            name: at,
+            mesh: Some(file_span),
+            faces: [None, None],
+            ok: self.diags.len() == errors_before,
+        });
+        self.bodies.push(body);
+    }
+
+    fn imported_fields(&mut self, block: &'a Block, label: &str, at: Span) -> Fields<'a> {
+        let spec: Vec<Spec> = vec![
+            req("material", "material = NAME"),
+            req("mesh", "mesh = \"part.msh\""),
+            opt("unit", "unit = mm"),
+            opt("region", "region = \"NAME\""),
+            opt("subdomains", "subdomains = 8"),
+        ];
+        let hint = |n: &str| match n {
+            "x" | "y" | "z" | "bottom" | "top" => Some(format!(
+                "a body read from a mesh file takes its shape from the file; remove `{n}` \
+                 (or drop `mesh = \"...\"` for a structured block)"
+            )),
+            "units" | "scale" => Some("the file's length unit is written `unit = mm`".into()),
+            "group" | "physical" => {
+                Some("the physical group to take is written `region = \"NAME\"`".into())
+            }
+            "subdomain" | "parts" | "cuts" => {
+                Some("the subdomain count is written `subdomains = 8`".into())
+            }
+            _ => None,
+        };
+        self.fields(block, &spec, label, at, &hint)
+    }
+
+    /// `unit = mm`: metres per unit of the file's coordinates.
+    fn length_unit(&mut self, fl: &'a Field) -> Option<f64> {
+        let e = self.expr_of(fl, "a length unit")?;
+        let name = match &e.kind {
+            ExprKind::Name(n) => n.as_str(),
+            _ => "",
+        };
+        match units::unit(name) {
+            Some((factor, dim)) if dim == Dim::LENGTH => Some(factor),
+            _ => {
+                let lengths: Vec<&str> = units::known_units()
+                    .into_iter()
+                    .filter(|u| units::unit(u).is_some_and(|(_, d)| d == Dim::LENGTH))
+                    .collect();
+                let near: Vec<&str> = units::nearest_units(name)
+                    .into_iter()
+                    .filter(|u| lengths.contains(u))
+                    .collect();
+                let help = match near.first() {
+                    Some(u) => format!("did you mean `{u}`?"),
+                    None => format!("the length units are {}", lengths.join(", ")),
+                };
+                self.error(
+                    Diagnostic::new(
+                        "cso::unit",
+                        format!(
+                            "`unit` expects a length unit, found `{}`",
+                            self.text(e.span)
+                        ),
+                    )
+                    .label(e.span, "not a length unit")
+                    .help(help),
+                );
+                None
+            }
+        }
+    }
+
+    /// `region = "NAME"`.
+    fn region_name(&mut self, fl: &'a Field) -> Option<String> {
+        let e = self.expr_of(fl, "a physical group's name")?;
+        if let ExprKind::Str(s) = &e.kind {
+            return Some(s.clone());
+        }
+        self.error(
+            Diagnostic::new(
+                "cso::wrong-value",
+                "`region` expects the name of a physical group, in quotes",
+            )
+            .label(e.span, "not a quoted name")
+            .help(format!("write `region = \"{}\"`", self.text(e.span))),
+        );
+        None
+    }
+
+    /// Reads the file, relative to the scene's folder; its bytes' SHA-256.
+    fn read_mesh(
+        &self,
+        file: &str,
+        unit: f64,
+        region: Option<&str>,
+    ) -> Result<(crate::io::msh::ImportedMesh, String), MeshError> {
+        let path = match &self.opts.base_dir {
+            Some(dir) => dir.join(file),
+            None => std::path::PathBuf::from(file),
+        };
+        let bytes = std::fs::read(&path).map_err(|e| MeshError::Unreadable {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        let opts = ImportOptions {
+            dim: self.dim.n(),
+            unit,
+            region,
+            allow_disconnected: false,
+        };
+        let mesh = crate::io::msh::parse_msh(&bytes, &opts)?;
+        Ok((mesh, super::super::sha256_hex(&bytes)))
+    }
+
+    /// Cuts the mesh into `parts` subdomains (METIS, fixed seed).
+    fn cut(
+        &mut self,
+        mesh: crate::io::msh::ImportedMesh,
+        parts: usize,
+        span: Span,
+    ) -> Option<Imported> {
+        match partition(mesh.kind, &mesh.cells, parts) {
+            Ok(p) => Some(Imported {
+                file: String::new(),
+                sha256: String::new(),
+                part_of_cell: p.part_of_cell,
+                subdomains: parts,
+                moved_pieces: p.moved_pieces,
+                mesh,
+            }),
+            Err(e) => {
+                self.error(
+                    Diagnostic::new("cso::subdomains", e.to_string())
+                        .label(span, format!("{parts} subdomains")),
+                );
+                None
+            }
+        }
+    }
+
+    fn mesh_error(&mut self, e: &MeshError, file: &str, file_span: Span, region: Option<Span>) {
+        let (span, label) = match (e, region) {
+            (MeshError::RegionNotFound { .. } | MeshError::EmptyRegion { .. }, Some(r)) => {
+                (r, "this region")
+            }
+            (MeshError::Unreadable { .. }, _) => (file_span, "this file"),
+            _ => (file_span, "read from here"),
+        };
+        let mut d = Diagnostic::new("cso::mesh-file", e.to_string()).label(span, label);
+        if let MeshError::Unreadable { path, .. } = e {
+            d = d.help(format!(
+                "the path `{file}` is taken relative to the scene's folder: `{}` was tried",
+                path.display()
+            ));
+        }
+        self.error(d);
+    }
+}
+
+/// The bounding box of a mesh's nodes, as constant extents.
+fn bounding_extent(mesh: &crate::io::msh::ImportedMesh) -> Vec<(Formula, Formula)> {
+    (0..mesh.dim)
+        .map(|a| {
+            let (lo, hi) = mesh
+                .nodes
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+                    (l.min(p[a]), h.max(p[a]))
+                });
+            (Formula::Const(lo), Formula::Const(hi))
+        })
+        .collect()
+}

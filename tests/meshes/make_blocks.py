@@ -1,0 +1,11 @@
+"""Writes the 2D block meshes of cso's tests (run: python3 make_blocks.py):
+block_quads.msh, the block [0, 40] x [0, 20] mm of 8 x 4 quadrangles, node
+for node the structured body `x = 0 .. 40 mm, y = 0 .. 20 mm, mesh = 8 x 4`;
+block_tris.msh, the same grid with each quadrangle cut into two triangles.
+Coordinates in mm; faces `bottom`, `right`, `top`, `left`."""
+from msh41 import write, grid_2d
+
+for name, tri in [("block_quads.msh", False), ("block_tris.msh", True)]:
+    nodes, cells, sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=tri)
+    groups = [(s, 1, 1, lines) for s, lines in sides.items()]
+    write(name, 2, nodes, cells, groups, region="block")
