@@ -10,6 +10,7 @@ mod fixture;
 mod front_end;
 mod fuzz;
 mod hard;
+mod imported;
 mod locking;
 #[cfg(feature = "mpi")]
 mod mpi;

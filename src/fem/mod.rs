@@ -2,12 +2,13 @@
 //! strain (2D), trilinear hexahedra and linear tetrahedra (3D) behind the
 //! [`Element`] interface that the solver assembles from, and the facets of
 //! their faces (segments in 2D; bilinear quadrilaterals in [`quadface`] and
-//! linear triangles in [`triface`] in 3D), generic over the number type so
-//! that shape derivatives reuse the same code.
+//! linear triangles in [`triface`] in 3D, either behind [`patch`]), generic
+//! over the number type so that shape derivatives reuse the same code.
 
 pub mod element;
 pub mod facet;
 pub mod hex;
+pub mod patch;
 pub mod quad;
 pub mod quadface;
 pub mod shape_gradient;

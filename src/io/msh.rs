@@ -160,6 +160,9 @@ pub enum MeshError {
         dim: usize,
         found: Vec<(usize, usize)>,
     },
+    /// A file with elements of a higher dimension than the scene's (a 3D mesh
+    /// in a 2D scene), and no `region` to say which elements to take.
+    HigherDimension { dim: usize, elements: usize },
     /// No physical group of dimension `dim` with this name. `nearest`: the
     /// names of dimension `dim`, nearest first; `other_dims`: dimensions where
     /// the name exists.
@@ -217,6 +220,13 @@ impl fmt::Display for MeshError {
             MeshError::Parse(m) => write!(f, "the mesh file is not valid MSH 4.1: {m}"),
             MeshError::Options(m) => write!(f, "{m}"),
             MeshError::NoElements { dim, found } => no_elements(f, *dim, found),
+            MeshError::HigherDimension { dim, elements } => write!(
+                f,
+                "the mesh file holds {elements} elements of more than {dim} dimensions: is it \
+                 a {}D mesh in a {dim}D scene? (name a region of dimension {dim} to take \
+                 those elements only)",
+                dim + 1
+            ),
             MeshError::RegionNotFound {
                 name,
                 dim,
@@ -652,6 +662,18 @@ fn select_body<'f>(
         return Err(MeshError::NoElements {
             dim: opts.dim,
             found,
+        });
+    }
+    let higher = blocks
+        .iter()
+        .filter(|b| usize::try_from(b.entity_dim).is_ok_and(|d| d > opts.dim))
+        .map(|b| b.elements.len())
+        .sum::<usize>();
+    if higher > 0 && opts.region.is_none() {
+        // A 3D mesh's surface triangles are not a 2D body.
+        return Err(MeshError::HigherDimension {
+            dim: opts.dim,
+            elements: higher,
         });
     }
     let entities: Option<Vec<i32>> = match opts.region {

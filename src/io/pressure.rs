@@ -9,7 +9,7 @@ use crate::lang::scene::{Primary, Scene};
 use crate::model::geometry::{
     contact_row, coords, selected_pieces, tributary_areas, Pattern, Piece,
 };
-use crate::model::{FaceEdge, FaceQuad, Named, RowKind};
+use crate::model::{FaceEdge, FacePatch, Named, RowKind};
 use crate::state::State;
 
 /// Nodal contact pressure (Pa) of body `b` at `design` (the one `state` was
@@ -32,7 +32,7 @@ pub fn nodal_pressure(scene: &Scene, design: &[f64], state: &State, b: usize) ->
     if p.dim == 2 {
         add_primary::<FaceEdge, 2, 2>(scene, design, state, b, &mut pressure);
     } else {
-        add_primary::<FaceQuad, 3, 4>(scene, design, state, b, &mut pressure);
+        add_primary::<FacePatch, 3, 4>(scene, design, state, b, &mut pressure);
     }
     pressure
 }

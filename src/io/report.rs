@@ -821,7 +821,7 @@ fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Optio
     let p = &state.problem;
     let sel = &scene.contacts[ci].secondary;
     let body = &p.bodies[sel.body];
-    let quads: Vec<crate::model::FaceQuad> =
+    let quads: Vec<crate::model::FacePatch> =
         crate::model::geometry::selected_pieces(p, sel, &scene.design_init());
     let Some(axis) = body.face_axis(sel.face) else {
         return Ok(None);

@@ -5,7 +5,7 @@
 //! each named by the scene item it comes from, and the solved state is checked
 //! by the driver ([`crate::state`]) with the same error.
 
-use super::geometry::{coords, face_loads, FaceEdge, FaceQuad, Piece};
+use super::geometry::{coords, face_loads, FaceEdge, FacePatch, Piece};
 use super::{Problem, RowKind};
 use crate::fem::facet::Facet;
 use crate::lang::diag::num;
@@ -76,7 +76,7 @@ pub fn check(scene: &Scene, problem: &Problem, design: &[f64]) -> Result<(), Not
     if problem.dim == 2 {
         check_face_loads::<FaceEdge, 2, 2>(scene, problem, design)?;
     } else {
-        check_face_loads::<FaceQuad, 3, 4>(scene, problem, design)?;
+        check_face_loads::<FacePatch, 3, 4>(scene, problem, design)?;
     }
     for (k, cond) in scene.conditions.iter().enumerate() {
         if let Condition::Displace { sel, values } = cond {

@@ -8,12 +8,12 @@
 //! once on `f64` (`rows.rs`); only the evaluation is shared.
 //!
 //! A [`Piece`] is one facet of a body's face named by its grid nodes: a
-//! [`FaceEdge`] (two nodes) in 2D, a [`FaceQuad`] (four) in 3D. Rows, loads and
+//! [`FaceEdge`] (two nodes) in 2D, a [`FacePatch`] (four) in 3D. Rows, loads and
 //! tributary areas are written once over pieces.
 
 use super::{BodyMesh, Problem};
 use crate::fem::facet::{Facet, Orientation, Segment};
-use crate::fem::quadface::QuadFacet;
+use crate::fem::patch::PatchFacet;
 use crate::lang::expr::Point;
 use crate::lang::scene::{Body, Condition, Face, FaceRef, Obstacle, Scene, Selection};
 use crate::num::{dot, norm, sub, Scalar};
@@ -102,16 +102,19 @@ impl Piece<2, 2> for FaceEdge {
     }
 }
 
-/// One quadrilateral of a body's face in 3D, its nodes counter-clockwise seen
-/// from outside (as [`Grid::face_facets`] orders them).
+/// One facet of a body's face in 3D: a quadrilateral, or a triangle with its
+/// third node repeated (`fem::patch`), its nodes counter-clockwise seen from
+/// outside (as [`crate::model::grid::Grid::face_facets`] and the imported
+/// faces order them).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct FaceQuad {
+pub struct FacePatch {
     pub body: usize,
     pub nodes: [usize; 4],
+    pub triangle: bool,
 }
 
-impl Piece<3, 4> for FaceQuad {
-    type Facet<T: Scalar> = QuadFacet<T>;
+impl Piece<3, 4> for FacePatch {
+    type Facet<T: Scalar> = PatchFacet<T>;
 
     fn body(&self) -> usize {
         self.body
@@ -121,18 +124,30 @@ impl Piece<3, 4> for FaceQuad {
         self.nodes
     }
 
-    fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; 3]]>]) -> QuadFacet<T> {
+    fn facet<T: Scalar>(&self, pos: &[impl AsRef<[[T; 3]]>]) -> PatchFacet<T> {
         let x = pos[self.body].as_ref();
-        QuadFacet::new(self.nodes.map(|n| x[n]), Orientation::CounterClockwise)
+        PatchFacet::new(
+            self.nodes.map(|n| x[n]),
+            Orientation::CounterClockwise,
+            self.triangle,
+        )
     }
 
     fn of_face(body: usize, face: FaceRef, mesh: &BodyMesh) -> Vec<Self> {
         mesh.face_facets(face)
             .into_iter()
-            .filter(|q| q.len() == 4)
-            .map(|q| FaceQuad {
-                body,
-                nodes: [q[0], q[1], q[2], q[3]],
+            .filter_map(|q| match q[..] {
+                [a, b, c, d] => Some(FacePatch {
+                    body,
+                    nodes: [a, b, c, d],
+                    triangle: false,
+                }),
+                [a, b, c] => Some(FacePatch {
+                    body,
+                    nodes: [a, b, c, c],
+                    triangle: true,
+                }),
+                _ => None,
             })
             .collect()
     }
@@ -670,7 +685,7 @@ mod tests {
         // 3D: two faces meeting along the ridge x = 1 (from (1, 0, 1) to
         // (1, 2, 1)); a node over the ridge at y = 0.5 gets the ridge point
         // (1, 0.5, 1) and the vertical normal from both.
-        let lo = QuadFacet::new(
+        let lo = crate::fem::quadface::QuadFacet::new(
             [
                 [0.0, 0.0, 0.8],
                 [1.0, 0.0, 1.0],
@@ -679,7 +694,7 @@ mod tests {
             ],
             Orientation::CounterClockwise,
         );
-        let hi = QuadFacet::new(
+        let hi = crate::fem::quadface::QuadFacet::new(
             [
                 [1.0, 0.0, 1.0],
                 [2.0, 0.0, 0.8],

@@ -1,7 +1,7 @@
 //! Consistent nodal loads: tractions and pressures on face facets, gravity on
 //! elements, evaluated on `f64` by the generic code of [`super::geometry`].
 
-use super::geometry::{coords, face_loads, nodal_loads, FaceEdge, FaceQuad, Piece};
+use super::geometry::{coords, face_loads, nodal_loads, FaceEdge, FacePatch, Piece};
 use super::{LowerError, Problem};
 use crate::lang::scene::Scene;
 
@@ -10,7 +10,7 @@ pub fn apply(scene: &Scene, problem: &mut Problem, design: &[f64]) -> Result<(),
     if problem.dim == 2 {
         apply_by::<FaceEdge, 2, 2>(scene, problem, design)
     } else {
-        apply_by::<FaceQuad, 3, 4>(scene, problem, design)
+        apply_by::<FacePatch, 3, 4>(scene, problem, design)
     }
 }
 

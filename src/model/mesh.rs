@@ -4,7 +4,7 @@
 use super::grid::Grid;
 use super::LowerError;
 use crate::fem::{Element, Section};
-use crate::lang::scene::{FaceRef, Imported, Scene};
+use crate::lang::scene::{FaceRef, Imported, Scene, Selection};
 use std::sync::Arc;
 
 /// One body's mesh: its nodes (a structured grid's placed by the
@@ -78,13 +78,22 @@ impl BodyMesh {
             .collect()
     }
 
-    /// The axis a face (or the selected part of it) is normal to: a structured
-    /// side's, or an imported face's where it is flat.
+    /// The axis a face is normal to: a structured side's, or an imported
+    /// face's where it is flat.
     pub fn face_axis(&self, face: FaceRef) -> Option<usize> {
         match (&self.layout, face) {
             (Layout::Grid(g), FaceRef::Side(f)) => g.face_axis(f).map(|(a, _)| a),
             (Layout::Mesh(m), _) => m.imported.flat_axis(face, None, &[]),
             _ => None,
+        }
+    }
+
+    /// The axis a selection is normal to: its side's, or where the selected
+    /// nodes of an imported face are flat.
+    pub fn selection_axis(&self, sel: &Selection, design: &[f64]) -> Option<usize> {
+        match &self.layout {
+            Layout::Mesh(m) => m.imported.flat_axis(sel.face, sel.filter.as_ref(), design),
+            Layout::Grid(_) => self.face_axis(sel.face),
         }
     }
 

@@ -15,7 +15,7 @@ pub mod partition;
 mod rows;
 mod search;
 
-pub use geometry::{FaceEdge, FaceQuad};
+pub use geometry::{FaceEdge, FacePatch};
 pub use mesh::{BodyMesh, Layout, MeshLayout, SubdomainMesh};
 pub use rows::{ContactPrimary, Named, Row, RowKind};
 pub use search::{unheld, SearchFindings, Unheld};

@@ -5,7 +5,7 @@
 
 use super::geometry::{
     contact_row, coords, normalize, obstacle_row, owner, project, selected_nodes, selected_pieces,
-    tie_row, tributary_areas, FaceEdge, FaceQuad, ObstacleShape, Pattern, Piece,
+    tie_row, tributary_areas, FaceEdge, FacePatch, ObstacleShape, Pattern, Piece,
 };
 use super::{IdleContact, LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
@@ -68,8 +68,8 @@ pub enum RowKind {
 pub enum ContactPrimary {
     /// A face edge (2D).
     Segment(FaceEdge),
-    /// A face quadrilateral (3D).
-    Quad(FaceQuad),
+    /// A face quadrilateral or triangle (3D).
+    Patch(FacePatch),
     Obstacle(usize),
 }
 
@@ -93,13 +93,13 @@ impl Named for FaceEdge {
     }
 }
 
-impl Named for FaceQuad {
+impl Named for FacePatch {
     fn named(self) -> ContactPrimary {
-        ContactPrimary::Quad(self)
+        ContactPrimary::Patch(self)
     }
     fn of(primary: &ContactPrimary) -> Option<Self> {
         match primary {
-            ContactPrimary::Quad(q) => Some(*q),
+            ContactPrimary::Patch(q) => Some(*q),
             _ => None,
         }
     }
@@ -124,7 +124,7 @@ pub fn build(scene: &Scene, problem: &mut Problem, design: &[f64]) -> Result<(),
     if problem.dim == 2 {
         by_pieces::<FaceEdge, 2, 2>(scene, problem, design, &mut rows)?;
     } else {
-        by_pieces::<FaceQuad, 3, 4>(scene, problem, design, &mut rows)?;
+        by_pieces::<FacePatch, 3, 4>(scene, problem, design, &mut rows)?;
     }
     problem.rows = rows;
     Ok(())
@@ -205,7 +205,7 @@ fn supports(
             ),
             Condition::Displace { sel, values } => (sel, values.clone(), RowKind::Dirichlet),
             Condition::Symmetry { sel } => {
-                let Some(axis) = problem.bodies[sel.body].face_axis(sel.face) else {
+                let Some(axis) = problem.bodies[sel.body].selection_axis(sel, design) else {
                     return Err(LowerError::Geometry(format!(
                         "`symmetry {}` is not a flat face normal to an axis",
                         sel.text
@@ -265,13 +265,24 @@ pub(super) fn side_counts<P: Piece<D, N>, const D: usize, const N: usize>(
                 *counts.entry((n, n)).or_insert(0) += 1;
             }
         } else {
-            for k in 0..N {
-                let (a, b) = (nodes[k], nodes[(k + 1) % N]);
+            let m = corners(&nodes);
+            for k in 0..m {
+                let (a, b) = (nodes[k], nodes[(k + 1) % m]);
                 *counts.entry((a.min(b), a.max(b))).or_insert(0) += 1;
             }
         }
     }
     counts
+}
+
+/// The corners of a 3D piece: 3 for a triangle (its last node repeated in the
+/// fourth slot, see `fem::patch`), else all of them.
+fn corners<const N: usize>(nodes: &[usize; N]) -> usize {
+    if N > 3 && nodes[N - 1] == nodes[N - 2] {
+        N - 1
+    } else {
+        N
+    }
 }
 
 /// Is the point of `piece` with shape weights `weights` (on the piece's
@@ -283,12 +294,13 @@ fn on_inner_side<P: Piece<D, N>, const D: usize, const N: usize>(
     counts: &HashMap<(usize, usize), usize>,
 ) -> bool {
     let nodes = piece.nodes();
+    let m = corners(&nodes);
     let on: Vec<usize> = (0..N).filter(|&k| weights[k].abs() > 1e-12).collect();
     let shared = |a: usize, b: usize| counts.get(&(a.min(b), a.max(b))).copied().unwrap_or(0) > 1;
     match on.as_slice() {
         [k] if N == 2 => shared(nodes[*k], nodes[*k]),
-        // A corner of a quadrilateral: inside when both its edges are.
-        [k] => shared(nodes[*k], nodes[(k + 1) % N]) && shared(nodes[*k], nodes[(k + N - 1) % N]),
+        // A corner of a quadrilateral or triangle: inside when both its edges are.
+        [k] => shared(nodes[*k], nodes[(k + 1) % m]) && shared(nodes[*k], nodes[(k + m - 1) % m]),
         [a, b] if N > 2 => shared(nodes[*a], nodes[*b]),
         _ => false,
     }
@@ -594,7 +606,7 @@ enum Side<P, const D: usize> {
 mod tests {
     use super::*;
     use crate::lang::scene::Face;
-    use crate::model::geometry::FaceQuad;
+    use crate::model::geometry::FacePatch;
     use crate::model::grid::Grid;
 
     /// The box-pruned search picks what looking at every piece picks: on the
@@ -620,7 +632,7 @@ mod tests {
             layout: crate::model::Layout::Grid(grid),
             coords: Vec::new(),
         };
-        let pieces = FaceQuad::of_face(0, crate::lang::scene::FaceRef::Side(Face::Top), &mesh);
+        let pieces = FacePatch::of_face(0, crate::lang::scene::FaceRef::Side(Face::Top), &mesh);
         let counts = side_counts(&pieces);
         let boxes = boxes_of(&pieces, &pos);
         let mut seed = 7u64;

@@ -8,7 +8,7 @@
 
 use super::geometry::{coords, selected_nodes, selected_pieces, ObstacleShape, Piece};
 use super::rows::{boxes_of, nearest_piece, side_counts, Aabb};
-use super::{FaceEdge, FaceQuad, Problem, RowKind};
+use super::{FaceEdge, FacePatch, Problem, RowKind};
 use crate::lang::scene::{Primary, Scene};
 use std::collections::{HashMap, HashSet};
 
@@ -57,7 +57,7 @@ pub fn unheld(
     if problem.dim == 2 {
         check::<FaceEdge, 2, 2>(scene, problem, design, u, accuracy)
     } else {
-        check::<FaceQuad, 3, 4>(scene, problem, design, u, accuracy)
+        check::<FacePatch, 3, 4>(scene, problem, design, u, accuracy)
     }
 }
 

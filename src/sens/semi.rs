@@ -23,7 +23,7 @@ use super::tape::{seeded, Rhs, RowDerivative, Tape};
 use crate::lang::expr::{Arith, Point};
 use crate::lang::scene::{Functional, Leaf, Scene};
 use crate::model::geometry::{
-    face_loads, nodal_loads, node_positions, selected_pieces, tributary_areas, FaceEdge, FaceQuad,
+    face_loads, nodal_loads, node_positions, selected_pieces, tributary_areas, FaceEdge, FacePatch,
     Piece,
 };
 use crate::model::{Named, RowKind};
@@ -618,7 +618,7 @@ impl<'a> Sensitivity<'a> {
         if self.state.problem.dim == 2 {
             self.rhs_in::<FaceEdge, 2, 2, 6>(i)
         } else {
-            self.rhs_in::<FaceQuad, 3, 4, 15>(i)
+            self.rhs_in::<FacePatch, 3, 4, 15>(i)
         }
     }
 
@@ -644,7 +644,7 @@ impl<'a> Sensitivity<'a> {
             load_derivative::<FaceEdge, 2, 2>(scene, state, &pos, &design)
         } else {
             let pos = self.tape().dual_positions::<3>(state, i);
-            load_derivative::<FaceQuad, 3, 4>(scene, state, &pos, &design)
+            load_derivative::<FacePatch, 3, 4>(scene, state, &pos, &design)
         })
     }
 
@@ -654,7 +654,7 @@ impl<'a> Sensitivity<'a> {
             if self.state.problem.dim == 2 {
                 Tape::build::<FaceEdge, 2, 2, 6>(self.scene, self.state)
             } else {
-                Tape::build::<FaceQuad, 3, 4, 15>(self.scene, self.state)
+                Tape::build::<FacePatch, 3, 4, 15>(self.scene, self.state)
             }
         })
     }
@@ -815,7 +815,7 @@ impl<'a> Sensitivity<'a> {
             tributary_areas(&pieces, &pos, thickness)
         } else {
             let pos = node_positions::<D, 3>(self.scene, dd);
-            let pieces = selected_pieces::<FaceQuad, 3, 4>(p, sec, &design);
+            let pieces = selected_pieces::<FacePatch, 3, 4>(p, sec, &design);
             tributary_areas(&pieces, &pos, thickness)
         };
         p.rows

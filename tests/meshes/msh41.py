@@ -88,3 +88,68 @@ def grid_2d(x0, x1, y0, y1, nx, ny, triangles=False):
         "left": [(at(0, j + 1), at(0, j)) for j in range(ny)],
     }
     return nodes, cells, sides
+
+
+def grid_3d(lo, hi, n, tets=False, warp=None):
+    """A structured 3D grid of the box `lo .. hi` with `n` cells per axis
+    (node (i, j, k) at (k (ny + 1) + j) (nx + 1) + i, as cso numbers its
+    structured bodies), optionally moved by `warp(x, y, z) -> (x, y, z)`; its
+    cells (hexahedra, or each cut into the six tetrahedra about its diagonal
+    from the lowest to the highest corner, Kuhn's conforming cut) and its six
+    sides (left, right, front, back, bottom, top) as quadrangles or the
+    triangles the tetrahedra induce on them."""
+    nx, ny, nz = n
+    at = lambda i, j, k: (k * (ny + 1) + j) * (nx + 1) + i
+    nodes = []
+    for k in range(nz + 1):
+        for j in range(ny + 1):
+            for i in range(nx + 1):
+                p = [lo[a] + (hi[a] - lo[a]) * (i, j, k)[a] / n[a] for a in range(3)]
+                nodes.append(tuple(warp(*p)) if warp else tuple(p))
+    cells = []
+    for k in range(nz):
+        for j in range(ny):
+            for i in range(nx):
+                c = lambda a, b, d: at(i + a, j + b, k + d)
+                if not tets:
+                    cells.append((c(0, 0, 0), c(1, 0, 0), c(1, 1, 0), c(0, 1, 0),
+                                  c(0, 0, 1), c(1, 0, 1), c(1, 1, 1), c(0, 1, 1)))
+                    continue
+                for perm in ((0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)):
+                    step = [0, 0, 0]
+                    path = [c(0, 0, 0)]
+                    for a in perm:
+                        step[a] = 1
+                        path.append(c(*step))
+                    cells.append(positive(nodes, path))
+    def side(axis, far):
+        t = [a for a in range(3) if a != axis]
+        out = []
+        for b in range(n[t[1]]):
+            for a in range(n[t[0]]):
+                def corner(da, db):
+                    ijk = [0, 0, 0]
+                    ijk[axis] = n[axis] if far else 0
+                    ijk[t[0]] = a + da
+                    ijk[t[1]] = b + db
+                    return at(*ijk)
+                q = (corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1))
+                if tets:
+                    out += [(q[0], q[1], q[2]), (q[0], q[2], q[3])]
+                else:
+                    out.append(q)
+        return out
+    names = [("left", 0, 0), ("right", 0, 1), ("front", 1, 0), ("back", 1, 1),
+             ("bottom", 2, 0), ("top", 2, 1)]
+    sides = {name: side(axis, far) for name, axis, far in names}
+    return nodes, (4 if tets else 5, cells), sides
+
+
+def positive(nodes, tet):
+    """The tetrahedron's nodes in an order of positive volume."""
+    p = [nodes[v] for v in tet]
+    u = [[p[m][a] - p[0][a] for a in range(3)] for m in (1, 2, 3)]
+    det = (u[0][0] * (u[1][1] * u[2][2] - u[1][2] * u[2][1])
+           - u[0][1] * (u[1][0] * u[2][2] - u[1][2] * u[2][0])
+           + u[0][2] * (u[1][0] * u[2][1] - u[1][1] * u[2][0]))
+    return tuple(tet) if det > 0 else (tet[0], tet[2], tet[1], tet[3])

@@ -301,6 +301,6 @@ mod tests {
 
     #[test]
     fn the_tape_equals_the_per_direction_rhs_in_3d() {
-        tape_matches::<FaceQuad, 3, 4>(&crate::studies::bench::scont3d_with(2));
+        tape_matches::<FacePatch, 3, 4>(&crate::studies::bench::scont3d_with(2));
     }
 }

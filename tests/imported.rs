@@ -1,0 +1,211 @@
+//! Bodies read from Gmsh files (tests/meshes, written by its Python scripts):
+//! an imported mesh that is a structured body node for node gives that body's
+//! answer for any METIS cut; triangles and tetrahedra agree with the
+//! undecomposed reference solve; bad input is an error on its span.
+
+use crate::reference::{check, compile_scene};
+use cso::lang::compile;
+use cso::state::solve;
+
+/// A 2D press: a structured base, and a punch given by `punch` (its body
+/// fields), pushed down by a prescribed displacement.
+fn press_2d(punch: &str) -> String {
+    format!(
+        "scene press {{ dim = 2 }}
+material steel {{ E = 200 GPa, nu = 0.3 }}
+body base {{ material = steel, x = -10 mm .. 50 mm, y = -10 mm .. 0 mm, mesh = 12 x 2, subdomains = 2 x 1 }}
+body punch {{ material = steel, {punch} }}
+fix base.bottom
+displace punch.top {{ ux = 0.002 mm, uy = -0.01 mm }}
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+"
+    )
+}
+
+/// The 3D press: a structured base under a brick.
+fn press_3d(brick: &str, contact: &str) -> String {
+    format!(
+        "scene press3d {{ dim = 3 }}
+material steel {{ E = 200 GPa, nu = 0.3 }}
+body base {{ material = steel, x = -5 mm .. 25 mm, y = -5 mm .. 25 mm, z = -6 mm .. 0 mm, mesh = 6 x 6 x 2, subdomains = 2 x 1 x 1 }}
+body brick {{ material = steel, {brick} }}
+fix base.bottom
+displace brick.top {{ ux = 0.001 mm, uy = 0, uz = -0.01 mm }}
+{contact}
+"
+    )
+}
+
+/// Energy and the contact's resultant force of a solved scene.
+fn energy_and_force(src: &str) -> (f64, f64) {
+    let scene = compile_scene(src);
+    let state = solve(&scene, &scene.design_init(), &mut |_| {}).expect("solves");
+    assert!(state.converged(), "{:?}", state.info);
+    let f = state.problem.contact_resultant(&state.lambda, 0);
+    (state.energy(), f.iter().map(|v| v * v).sum::<f64>().sqrt())
+}
+
+fn close(a: (f64, f64), b: (f64, f64), what: &str) {
+    for (x, y) in [(a.0, b.0), (a.1, b.1)] {
+        assert!(
+            (x - y).abs() <= 1e-6 * y.abs(),
+            "{what}: {x} against the structured body's {y}"
+        );
+    }
+}
+
+#[test]
+fn an_imported_quadrilateral_mesh_is_the_structured_body_for_any_cut() {
+    let want = energy_and_force(&press_2d(
+        "x = 0 .. 40 mm, y = 0 .. 20 mm, mesh = 8 x 4, subdomains = 2 x 1",
+    ));
+    for parts in [1, 2, 3, 5] {
+        let got = energy_and_force(&press_2d(&format!(
+            "mesh = \"block_quads.msh\", unit = mm, subdomains = {parts}"
+        )));
+        close(got, want, &format!("2D, {parts} subdomains"));
+    }
+}
+
+#[test]
+fn an_imported_hexahedral_mesh_is_the_structured_body_for_any_cut() {
+    let contact = "contact seat { primary = base.top, secondary = brick.bottom }";
+    let want = energy_and_force(&press_3d(
+        "x = 0 .. 20 mm, y = 0 .. 20 mm, z = 0 .. 10 mm, mesh = 4 x 4 x 2, subdomains = 2 x 1 x 1",
+        contact,
+    ));
+    for parts in [1, 3, 4] {
+        let got = energy_and_force(&press_3d(
+            &format!("mesh = \"brick_hexes.msh\", unit = mm, subdomains = {parts}"),
+            contact,
+        ));
+        close(got, want, &format!("3D, {parts} subdomains"));
+    }
+}
+
+#[test]
+fn imported_triangles_agree_with_the_reference() {
+    check(
+        "triangles on a base",
+        &press_2d("mesh = \"block_tris.msh\", unit = mm, subdomains = 3"),
+        1e-6,
+        1e-5,
+    );
+    // The triangles' edges as the primary side.
+    let src = press_2d("mesh = \"block_tris.msh\", unit = mm, subdomains = 2").replace(
+        "primary = base.top, secondary = punch.bottom",
+        "primary = punch.bottom, secondary = base.top",
+    );
+    check("a base under triangles", &src, 1e-6, 1e-5);
+}
+
+#[test]
+fn imported_tetrahedra_agree_with_the_reference() {
+    let brick = "mesh = \"brick_tets.msh\", unit = mm, subdomains = 3";
+    check(
+        "tetrahedra on a base",
+        &press_3d(
+            brick,
+            "contact seat { primary = base.top, secondary = brick.bottom }",
+        ),
+        1e-6,
+        1e-5,
+    );
+    // Node-to-triangle rows: the tetrahedra's faces as the primary side.
+    check(
+        "a base under tetrahedra",
+        &press_3d(
+            brick,
+            "contact seat { primary = brick.bottom, secondary = base.top }",
+        ),
+        1e-6,
+        1e-5,
+    );
+}
+
+#[test]
+fn floating_tetrahedra_on_a_rigid_plane_agree_with_the_reference() {
+    // Held only by the plane and two symmetry faces: every subdomain's
+    // kernel is fixed from its own nodes.
+    let src = "scene float { dim = 3 }
+material steel { E = 200 GPa, nu = 0.3 }
+body brick { material = steel, mesh = \"brick_tets.msh\", unit = mm, subdomains = 4 }
+obstacle floor { point = (0, 0, -0.001 mm), normal = (0.02, 0.01, 1) }
+symmetry brick.left
+symmetry brick.front
+pressure brick.top = 50 MPa
+contact seat { primary = floor, secondary = brick.bottom }
+";
+    check("tetrahedra on a plane", src, 1e-6, 1e-5);
+}
+
+/// The rendered errors of a scene that must not check.
+fn errors(src: &str) -> String {
+    match compile(src, &crate::options()) {
+        Ok(_) => panic!("the scene checks:\n{src}"),
+        Err(d) => d
+            .iter()
+            .map(|d| format!("{} | {}", d.message, d.help.clone().unwrap_or_default()))
+            .collect::<Vec<_>>()
+            .join("\n"),
+    }
+}
+
+#[test]
+fn bad_imported_bodies_are_errors_that_say_what_to_change() {
+    let e = errors(&press_2d("mesh = \"nowhere.msh\""));
+    assert!(
+        e.contains("cannot read the mesh file") && e.contains("nowhere.msh"),
+        "{e}"
+    );
+    let e = errors(&press_2d(
+        "mesh = \"block_tris.msh\", unit = mm, x = 0 .. 1",
+    ));
+    assert!(e.contains("takes its shape from the file"), "{e}");
+    let e = errors(&press_2d("mesh = \"block_tris.msh\", unit = mn"));
+    assert!(e.contains("did you mean `mm`"), "{e}");
+    let e = errors(&press_2d("mesh = \"block_tris.msh\", region = \"blok\""));
+    assert!(
+        e.contains("no physical group `blok`") && e.contains("`block`"),
+        "{e}"
+    );
+    let e = errors(&press_2d("mesh = \"block_tris.msh\", subdomains = 1000"));
+    assert!(e.contains("1000 subdomains for 64 elements"), "{e}");
+    let e = errors(&press_2d("mesh = \"brick_tets.msh\""));
+    assert!(e.contains("is it a 3D mesh in a 2D scene?"), "{e}");
+    let e = errors(
+        &press_2d("mesh = \"block_tris.msh\", unit = mm")
+            .replace("secondary = punch.bottom", "secondary = punch.botom"),
+    );
+    assert!(
+        e.contains("unknown face `botom`") && e.contains("did you mean `bottom`"),
+        "{e}"
+    );
+    let e = errors(
+        &press_2d("mesh = \"block_tris.msh\", unit = mm")
+            .replace("secondary = punch.bottom", "secondary = punch.front"),
+    );
+    assert!(e.contains("has no side `front`"), "{e}");
+    let e = errors(&format!(
+        "{}symmetry punch.boundary\n",
+        press_2d("mesh = \"block_tris.msh\", unit = mm")
+    ));
+    assert!(e.contains("needs a flat face normal to an axis"), "{e}");
+}
+
+#[test]
+fn an_imported_face_filtered_to_a_plane_is_a_symmetry_face() {
+    let src = format!(
+        "{}symmetry punch.boundary[x < 1 mm]\n",
+        press_2d("mesh = \"block_tris.msh\", unit = mm")
+    )
+    .replace("ux = 0.002 mm, ", "");
+    let scene = compile_scene(&src);
+    let state = solve(&scene, &scene.design_init(), &mut |_| {}).expect("solves");
+    assert!(state.converged());
+    assert_eq!(
+        state.problem.row_counts().symmetry,
+        5,
+        "the 5 nodes at x = 0"
+    );
+}
