@@ -18,7 +18,11 @@ fn every_example_checks_and_its_summary_is_stable() {
             .expect("stem")
             .to_string_lossy()
             .to_string();
-        let scene = match compile(&src, &options()) {
+        let opts = cso::lang::CheckOptions {
+            base_dir: path.parent().map(std::path::Path::to_path_buf),
+            ..options()
+        };
+        let scene = match compile(&src, &opts) {
             Ok(s) => s,
             Err(d) => panic!(
                 "{name} does not check:\n{}",

@@ -67,6 +67,23 @@ pub struct BodySummary {
     pub primal_dofs: usize,
     /// Moves with the design variables.
     pub designed: bool,
+    /// Read from a mesh file (`mesh = "FILE"`): the file and what it holds.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub imported: Option<ImportedSummary>,
+}
+
+/// What an imported body is made of.
+#[derive(Debug, Clone, Serialize)]
+pub struct ImportedSummary {
+    /// The path as written in the scene.
+    pub file: String,
+    pub sha256: String,
+    /// The element kind in words (`triangles`, `tetrahedra`, ...).
+    pub elements: &'static str,
+    /// The file's face groups on the body, and `boundary`.
+    pub faces: Vec<String>,
+    /// Pieces of subdomains METIS left disconnected, moved to a neighbour.
+    pub moved_pieces: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -182,6 +199,19 @@ fn body_summaries(scene: &Scene) -> Vec<BodySummary> {
                 .any(|(l, h)| l.uses_design() || h.uses_design())
                 || b.bottom.as_ref().is_some_and(Formula::uses_design)
                 || b.top.as_ref().is_some_and(Formula::uses_design),
+            imported: b.imported.as_ref().map(|m| ImportedSummary {
+                file: m.file.clone(),
+                sha256: m.sha256.clone(),
+                elements: crate::io::msh::kind_words(m.mesh.kind),
+                faces: m
+                    .mesh
+                    .faces
+                    .iter()
+                    .map(|f| f.name.clone())
+                    .chain(["boundary".to_string()])
+                    .collect(),
+                moved_pieces: m.moved_pieces,
+            }),
         })
         .collect()
 }
@@ -455,6 +485,21 @@ impl Summary {
                 if let Some(t) = text {
                     let _ = writeln!(o, "  {:<10} {face} = {t}", "");
                 }
+            }
+            if let Some(m) = &b.imported {
+                let _ = writeln!(
+                    o,
+                    "  {:<10} mesh `{}`: {} {}, {} nodes, {} subdomains (METIS), {} primal unknowns",
+                    "",
+                    m.file,
+                    b.elements,
+                    m.elements,
+                    b.nodes,
+                    grid_str(&b.subdomains),
+                    b.primal_dofs,
+                );
+                let _ = writeln!(o, "  {:<10} faces {}", "", m.faces.join(", "));
+                continue;
             }
             let per: Vec<usize> = b
                 .mesh

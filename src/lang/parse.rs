@@ -962,6 +962,9 @@ mod tests {
     fn examples_parse() {
         for entry in std::fs::read_dir("examples").unwrap() {
             let path = entry.unwrap().path();
+            if path.extension().is_none_or(|e| e != "cso") {
+                continue; // meshes and their scripts
+            }
             let src = std::fs::read_to_string(&path).unwrap();
             let (file, diags) = parse_file(&src);
             assert!(diags.is_empty(), "{}: {:?}", path.display(), diags);

@@ -297,6 +297,9 @@ pub struct Imported {
     pub subdomains: usize,
     /// Pieces of subdomains METIS left disconnected, moved to a neighbour.
     pub moved_pieces: usize,
+    /// Nodes over all subdomains, each subdomain with its own copy of its
+    /// interface nodes.
+    pub copied_nodes: usize,
 }
 
 impl Imported {
@@ -457,10 +460,7 @@ impl Body {
     /// Primal unknowns: each subdomain has its own copy of its nodes (TFETI).
     pub fn primal_dofs(&self) -> usize {
         if let Some(m) = &self.imported {
-            // Interface nodes are copied; at most a few per cent at sensible cuts.
-            let copies = m.subdomains.saturating_mul(m.mesh.nodes.len() / 50 + 1);
-            return (m.mesh.nodes.len() + copies.min(m.mesh.nodes.len()))
-                .saturating_mul(self.extent.len());
+            return m.copied_nodes.saturating_mul(self.extent.len());
         }
         let per = saturating_product(self.subdomain_mesh().iter().map(|h| h.saturating_add(1)));
         saturating_product([per, self.subdomain_count(), self.extent.len()])

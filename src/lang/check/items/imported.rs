@@ -192,6 +192,7 @@ impl<'a> Checker<'a> {
             Ok(p) => Some(Imported {
                 file: String::new(),
                 sha256: String::new(),
+                copied_nodes: copied_nodes(&mesh.cells, &p.part_of_cell, mesh.nodes.len()),
                 part_of_cell: p.part_of_cell,
                 subdomains: parts,
                 moved_pieces: p.moved_pieces,
@@ -224,6 +225,26 @@ impl<'a> Checker<'a> {
         }
         self.error(d);
     }
+}
+
+/// Nodes over all parts of a cut, each part counting every node its cells use.
+fn copied_nodes(cells: &[Vec<usize>], part_of_cell: &[usize], nodes: usize) -> usize {
+    // The last part that counted each node: cells sorted by part count each
+    // (node, part) pair once.
+    let mut order: Vec<usize> = (0..cells.len()).collect();
+    order.sort_by_key(|&c| part_of_cell[c]);
+    let mut last = vec![usize::MAX; nodes];
+    let mut count = 0;
+    for c in order {
+        let p = part_of_cell[c];
+        for &n in &cells[c] {
+            if last[n] != p {
+                last[n] = p;
+                count += 1;
+            }
+        }
+    }
+    count
 }
 
 /// The bounding box of a mesh's nodes, as constant extents.
