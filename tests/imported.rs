@@ -3,8 +3,9 @@
 //! answer for any METIS cut; triangles and tetrahedra agree with the
 //! undecomposed reference solve; bad input is an error on its span.
 
-use crate::reference::{check, compile_scene};
+use crate::reference::{check, check_method, compile_scene};
 use cso::lang::compile;
+use cso::lang::scene::SolverMethod;
 use cso::state::solve;
 
 /// A 2D press: a structured base, and a punch given by `punch` (its body
@@ -207,5 +208,39 @@ fn an_imported_face_filtered_to_a_plane_is_a_symmetry_face() {
         state.problem.row_counts().symmetry,
         5,
         "the 5 nodes at x = 0"
+    );
+}
+
+/// The coarse quarter half-ball of tests/meshes (examples/meshes/hertz_ball.py
+/// with 5 cells per axis): on a rigid plane, and on its graded block.
+fn ball(primary: &str, block: &str) -> String {
+    format!(
+        "scene ball {{ dim = 3 }}
+material steel {{ E = 210 GPa, nu = 0.3 }}
+body ball {{ material = steel, mesh = \"ball_coarse.msh\", unit = mm, subdomains = 4 }}
+{block}
+obstacle floor {{ point = (0, 0, 0), normal = (0, 0, 1) }}
+symmetry ball.sym_x
+symmetry ball.sym_y
+pressure ball.top = 5 MPa
+contact seat {{ primary = {primary}, secondary = ball.surface[z < 10 mm] }}
+"
+    )
+}
+
+#[test]
+fn a_tetrahedral_ball_agrees_with_the_reference_on_a_plane_and_on_a_block() {
+    check("a ball on a rigid plane", &ball("floor", ""), 1e-6, 1e-5);
+    let block =
+        "body block { material = steel, mesh = \"block_coarse.msh\", unit = mm, subdomains = 3 }
+fix block.bottom
+symmetry block.sym_x
+symmetry block.sym_y";
+    check_method(
+        "a ball on a block",
+        &ball("block.top", block),
+        SolverMethod::Tfeti,
+        1e-6,
+        1e-5,
     );
 }

@@ -18,9 +18,15 @@ Coordinates in mm. The same geometry in Gmsh would be a Sphere and a Box cut
 by BooleanIntersection with Physical Surfaces of these names; the script is
 used here because Gmsh is not installed where cso is tested."""
 import math
+import sys
 from msh41 import write, grid_3d
 
-R, N = 50.0, 16
+# python3 hertz_ball.py [N BALL BLOCK]: N cells per cube axis (16), and
+# where to write (../ball.msh, ../block.msh); the tests take a coarse one.
+R = 50.0
+N = int(sys.argv[1]) if len(sys.argv) > 1 else 16
+BALL = sys.argv[2] if len(sys.argv) > 2 else "../ball.msh"
+BLOCK = sys.argv[3] if len(sys.argv) > 3 else "../block.msh"
 
 
 def grade(t, first):
@@ -33,7 +39,7 @@ def grade(t, first):
 
 def ball_point(u, v, w):
     # Cube (u, v, w) in [0, 1]^3, graded towards (0, 0, 1): the pole.
-    f = 0.4 / R  # 0.4 mm steps at the pole
+    f = 6.4 / N / R  # 0.4 mm steps at the pole for N = 16
     c = [grade(u, f), grade(v, f), 1.0 - grade(1.0 - w, f)]
     m, r = max(c), math.sqrt(sum(x * x for x in c))
     s = R * m / r if r > 0 else 0.0
@@ -49,14 +55,14 @@ groups = [
     ("top", 2, 2, sides["bottom"]),
     ("surface", 2, 2, sides["right"] + sides["back"] + sides["top"]),
 ]
-write("../ball.msh", 3, nodes, (kind, cells), groups, region="ball")
+write(BALL, 3, nodes, (kind, cells), groups, region="ball")
 
 L = 60.0
 
 
 def block_point(x, y, z):
     # Unit cube graded towards (0, 0, 1), the contact point at the top.
-    f = 0.4 / L
+    f = 6.4 / N / L
     return (L * grade(x, f), L * grade(y, f), -L * grade(1.0 - z, f))
 
 
@@ -68,4 +74,4 @@ groups = [
     ("top", 2, 3, sides["top"]),
     ("sides", 2, 3, sides["right"] + sides["back"]),
 ]
-write("../block.msh", 3, nodes, (kind, cells), groups, region="block")
+write(BLOCK, 3, nodes, (kind, cells), groups, region="block")
