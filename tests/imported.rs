@@ -244,3 +244,18 @@ symmetry block.sym_y";
         1e-5,
     );
 }
+
+#[test]
+fn a_rewritten_scene_names_its_mesh_by_the_absolute_path() {
+    let scene = compile_scene(&press_2d("mesh = \"block_tris.msh\", unit = mm"));
+    let text = scene.source.with_design(&[]);
+    let path = crate::root().join("tests/meshes/block_tris.msh");
+    let want = format!(
+        "mesh = \"{}\", unit = mm",
+        std::fs::canonicalize(path).expect("exists").display()
+    );
+    assert!(text.contains(&want), "{text}");
+    // It compiles from anywhere to the same body.
+    let again = compile(&text, &cso::lang::CheckOptions::default()).expect("checks");
+    assert_eq!(again.bodies[1].nodes(), scene.bodies[1].nodes());
+}

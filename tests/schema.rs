@@ -214,6 +214,39 @@ fn report_json_matches_its_documented_schema() {
     assert_eq!(errors.len(), 4, "{errors:#?}");
 }
 
+/// A scene with a body from a mesh file: its report names the file and its hash.
+#[test]
+fn a_report_names_the_mesh_files_it_read() {
+    let schema: Value = serde_json::from_str(
+        &std::fs::read_to_string(root().join("docs/report.schema.json")).expect("schema"),
+    )
+    .expect("the schema is JSON");
+    let dir = std::env::temp_dir().join(format!("cso-schema-ring-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = Command::new(env!("CARGO_BIN_EXE_cso"))
+        .args(["--quiet", "solve", "examples/ring.cso", "-o"])
+        .arg(&dir)
+        .current_dir(root())
+        .output()
+        .expect("cso runs");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = std::fs::read_to_string(dir.join("report.json")).expect("report");
+    let _ = std::fs::remove_dir_all(&dir);
+    let report: Value = serde_json::from_str(&text).expect("JSON");
+    let errors = errors_of(&report, &schema);
+    assert!(errors.is_empty(), "{errors:#?}");
+    let msh = std::fs::read(root().join("examples/ring.msh")).expect("mesh");
+    assert_eq!(report["meshes"][0]["file"], "ring.msh");
+    assert_eq!(
+        report["meshes"][0]["sha256"],
+        cso::lang::check::sha256_hex(&msh).as_str()
+    );
+}
+
 #[test]
 fn sha256_is_the_standard_digest() {
     // FIPS 180-2 test vectors: the hash is the same on every machine.

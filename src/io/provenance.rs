@@ -29,8 +29,18 @@ pub struct Header {
     pub input_sha256: Option<String>,
     /// `--set NAME=VALUE` overrides applied to the input, as given.
     pub overrides: Vec<String>,
+    /// The mesh files the scene's bodies were read from: the path as written
+    /// and the SHA-256 of the file's bytes.
+    pub meshes: Vec<MeshInput>,
     /// The unit of each kind of number in the file (SI).
     pub units: Vec<(String, String)>,
+}
+
+/// A mesh file an input scene reads.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshInput {
+    pub file: String,
+    pub sha256: String,
 }
 
 impl Header {
@@ -40,6 +50,15 @@ impl Header {
             input: scene.source.path.clone(),
             input_sha256: Some(scene.source.sha256.clone()),
             overrides: scene.source.overrides.clone(),
+            meshes: scene
+                .bodies
+                .iter()
+                .filter_map(|b| b.imported.as_ref())
+                .map(|m| MeshInput {
+                    file: m.file.clone(),
+                    sha256: m.sha256.clone(),
+                })
+                .collect(),
             ..Header::without_input(kind, units)
         }
     }
@@ -53,6 +72,7 @@ impl Header {
             input: None,
             input_sha256: None,
             overrides: Vec::new(),
+            meshes: Vec::new(),
             units: units
                 .iter()
                 .map(|(k, u)| (k.to_string(), u.to_string()))
@@ -85,6 +105,8 @@ struct HeaderJson<'a> {
     input: &'a Option<String>,
     input_sha256: &'a Option<String>,
     overrides: &'a [String],
+    #[serde(skip_serializing_if = "<[MeshInput]>::is_empty")]
+    meshes: &'a [MeshInput],
     #[serde(serialize_with = "units_object")]
     units: &'a [(String, String)],
 }
@@ -114,6 +136,7 @@ pub fn to_json<T: Serialize>(header: &Header, body: &T) -> Result<String, serde_
             input: &header.input,
             input_sha256: &header.input_sha256,
             overrides: &header.overrides,
+            meshes: &header.meshes,
             units: &header.units,
         },
         body,

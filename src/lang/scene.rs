@@ -112,6 +112,13 @@ pub enum Edit {
         end: usize,
         value: String,
     },
+    /// A `mesh = "FILE"` path, written as the absolute path of the file read
+    /// (quoted), so that the rewritten scene finds it from any folder.
+    MeshPath {
+        start: usize,
+        end: usize,
+        path: String,
+    },
 }
 
 impl Source {
@@ -151,6 +158,7 @@ impl Source {
                     (*start, *end, text)
                 }
                 Edit::Let { start, end, value } => (*start, *end, value.clone()),
+                Edit::MeshPath { start, end, path } => (*start, *end, format!("\"{path}\"")),
             })
             .collect();
         edits.sort_by_key(|e| std::cmp::Reverse(e.0));

@@ -52,6 +52,7 @@ impl<'a> Checker<'a> {
             let read = self.read_mesh(file, unit, region.as_deref());
             match read {
                 Ok((mesh, sha256)) => {
+                    self.keep_mesh_path(file, file_span);
                     if let Some(imported) = self.cut(mesh, parts, parts_span.unwrap_or(file_span)) {
                         let imported = Imported {
                             file: file.to_string(),
@@ -156,6 +157,30 @@ impl<'a> Checker<'a> {
         None
     }
 
+    /// The file's path relative to the scene's folder.
+    fn mesh_path(&self, file: &str) -> std::path::PathBuf {
+        match &self.opts.base_dir {
+            Some(dir) => dir.join(file),
+            None => std::path::PathBuf::from(file),
+        }
+    }
+
+    /// A scene rewritten elsewhere (`best.cso`) names the file by its absolute
+    /// path (a path with a `"` cannot be written, and stays as it was).
+    fn keep_mesh_path(&mut self, file: &str, span: Span) {
+        let Ok(path) = std::fs::canonicalize(self.mesh_path(file)) else {
+            return;
+        };
+        let path = path.to_string_lossy().to_string();
+        if !path.contains('"') && !path.contains('\n') {
+            self.edits.push(crate::lang::scene::Edit::MeshPath {
+                start: span.start,
+                end: span.end,
+                path,
+            });
+        }
+    }
+
     /// Reads the file, relative to the scene's folder; its bytes' SHA-256.
     fn read_mesh(
         &self,
@@ -163,10 +188,7 @@ impl<'a> Checker<'a> {
         unit: f64,
         region: Option<&str>,
     ) -> Result<(crate::io::msh::ImportedMesh, String), MeshError> {
-        let path = match &self.opts.base_dir {
-            Some(dir) => dir.join(file),
-            None => std::path::PathBuf::from(file),
-        };
+        let path = self.mesh_path(file);
         let bytes = std::fs::read(&path).map_err(|e| MeshError::Unreadable {
             path: path.clone(),
             reason: e.to_string(),
