@@ -259,3 +259,93 @@ fn a_rewritten_scene_names_its_mesh_by_the_absolute_path() {
     let again = compile(&text, &cso::lang::CheckOptions::default()).expect("checks");
     assert_eq!(again.bodies[1].nodes(), scene.bodies[1].nodes());
 }
+
+/// A block under traction on a fixed base face, its body given by `block`.
+fn loaded_block(block: &str) -> String {
+    format!(
+        "scene block {{ dim = 2 }}
+material steel {{ E = 200 GPa, nu = 0.3 }}
+body block {{ material = steel, {block} }}
+fix block.bottom
+traction block.top = (20 MPa, -50 MPa)
+"
+    )
+}
+
+fn solved_energy(scene: &cso::lang::Scene) -> f64 {
+    let state = solve(scene, &scene.design_init(), &mut |_| {}).expect("solves");
+    assert!(state.converged());
+    state.energy()
+}
+
+#[test]
+fn a_refined_imported_mesh_is_the_finer_grid() {
+    use cso::studies::refine::refine;
+    // Quadrilaterals: each into 4, the structured 16 x 8 grid; triangles: each
+    // into 4 (corners and middle) is again the grid cut along the same
+    // diagonals, at half the spacing.
+    for (file, structured_diagonals) in [("block_quads.msh", false), ("block_tris.msh", true)] {
+        let coarse = compile_scene(&loaded_block(&format!(
+            "mesh = \"{file}\", unit = mm, subdomains = 2"
+        )));
+        let fine = refine(&coarse, 1).expect("refines");
+        assert_eq!(fine.bodies[0].subdomain_count(), 8, "the subdomain rule");
+        assert_eq!(fine.bodies[0].elements(), 4 * coarse.bodies[0].elements());
+        if structured_diagonals {
+            // The energies of the coarse and fine triangle meshes bracket
+            // nothing by themselves; their refinement must stiffen less.
+            assert!(solved_energy(&fine) > solved_energy(&coarse));
+            continue;
+        }
+        let want = compile_scene(&loaded_block(
+            "x = 0 .. 40 mm, y = 0 .. 20 mm, mesh = 16 x 8, subdomains = 2 x 2",
+        ));
+        let (a, b) = (solved_energy(&fine), solved_energy(&want));
+        assert!(
+            (a - b).abs() <= 1e-6 * b,
+            "{a} against the 16 x 8 grid's {b}"
+        );
+    }
+}
+
+#[test]
+fn the_convergence_study_refines_imported_bodies_and_says_what_geometry_it_has() {
+    use cso::studies::convergence::{study, Settings};
+    let scene = compile_scene(&loaded_block(
+        "mesh = \"block_tris.msh\", unit = mm, subdomains = 2",
+    ));
+    let settings = Settings {
+        levels: 3,
+        coarsen: 0,
+        max_seconds: None,
+        memory_limit: None,
+        hertz: None,
+    };
+    let c = study(&scene, &settings, &mut |_| {}).expect("solves");
+    let meshes: Vec<&str> = c.levels.iter().map(|l| l.mesh.as_str()).collect();
+    assert_eq!(
+        meshes,
+        [
+            "64 3-node triangles",
+            "256 3-node triangles",
+            "1024 3-node triangles"
+        ]
+    );
+    let cuts: Vec<&str> = c.levels.iter().map(|l| l.cuts.as_str()).collect();
+    assert_eq!(cuts, ["2", "8", "32"]);
+    let note = c
+        .geometry
+        .as_deref()
+        .expect("the note on the file's geometry");
+    assert!(note.contains("`block` (block_tris.msh)") && note.contains("not of the CAD model's"));
+    assert!(c.markdown().contains(note));
+    let energy = &c.quantities[0];
+    assert_eq!(energy.name, "energy");
+    // Under a load the discrete energy rises towards the limit, by less
+    // each level (at a corner singularity's order, below 2).
+    let v = &energy.values;
+    assert!(v[0] < v[1] && v[1] < v[2], "{v:?}");
+    assert!(v[2] - v[1] < v[1] - v[0], "{v:?}");
+    let err = cso::studies::refine::coarsen(&scene, 1).expect_err("cannot coarsen");
+    assert!(err.to_string().contains("refined but not coarsened"));
+}

@@ -1039,5 +1039,7 @@ fn group_elements<'f>(
     groups.into_iter().collect()
 }
 
+pub mod refine;
+
 #[cfg(test)]
 mod tests;

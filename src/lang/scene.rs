@@ -311,6 +311,28 @@ pub struct Imported {
 }
 
 impl Imported {
+    /// The mesh cut into `parts` subdomains by METIS (fixed seed).
+    ///
+    /// # Errors
+    /// More parts than cells, or METIS failing.
+    pub fn cut(
+        file: String,
+        sha256: String,
+        mesh: crate::io::msh::ImportedMesh,
+        parts: usize,
+    ) -> Result<Imported, crate::model::partition::PartitionError> {
+        let p = crate::model::partition::partition(mesh.kind, &mesh.cells, parts)?;
+        Ok(Imported {
+            file,
+            sha256,
+            copied_nodes: copied_nodes(&mesh.cells, &p.part_of_cell, mesh.nodes.len()),
+            part_of_cell: p.part_of_cell,
+            subdomains: parts,
+            moved_pieces: p.moved_pieces,
+            mesh,
+        })
+    }
+
     /// Facets of a face: a physical group or the whole boundary (node indices,
     /// oriented outward).
     pub fn facets(&self, face: FaceRef) -> &[Vec<usize>] {
@@ -641,6 +663,25 @@ impl Face {
             Face::Top => (vertical, true),
         }
     }
+}
+
+/// Nodes over all parts of a cut, each part counting every node its cells use.
+fn copied_nodes(cells: &[Vec<usize>], part_of_cell: &[usize], nodes: usize) -> usize {
+    // Cells sorted by part count each (node, part) pair once.
+    let mut order: Vec<usize> = (0..cells.len()).collect();
+    order.sort_by_key(|&c| part_of_cell[c]);
+    let mut last = vec![usize::MAX; nodes];
+    let mut count = 0;
+    for c in order {
+        let p = part_of_cell[c];
+        for &n in &cells[c] {
+            if last[n] != p {
+                last[n] = p;
+                count += 1;
+            }
+        }
+    }
+    count
 }
 
 /// A face of a body: a side of a structured block, or a face of an imported

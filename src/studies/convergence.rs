@@ -160,6 +160,10 @@ pub struct Convergence {
     pub copies: Option<f64>,
     /// Why fewer levels were solved than asked, if so.
     pub stopped: Option<String>,
+    /// Where bodies come from mesh files: that their refinement keeps the
+    /// file's geometry.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<String>,
 }
 
 /// Runs the study; `progress` sees each level as it is solved.
@@ -190,7 +194,12 @@ pub fn study(
     let mut stopped = None;
     for k in 0..settings.levels {
         let s = refine(&base, k as u32)?;
-        let mesh = joined_counts(&s, |b| &b.mesh);
+        let mesh = s
+            .bodies
+            .iter()
+            .map(mesh_text)
+            .collect::<Vec<_>>()
+            .join("; ");
         if let Some(why) = budget.stop_before(k, &s, &mesh, &levels)? {
             stopped = Some(why);
             break;
@@ -217,6 +226,39 @@ pub fn study(
         hertz: settings.hertz.clone(),
         copies,
         stopped,
+        geometry: file_geometry(scene),
+    })
+}
+
+/// A body's mesh in the levels' table: `80 x 80`, or an imported body's
+/// element count and kind.
+fn mesh_text(b: &crate::lang::scene::Body) -> String {
+    match &b.imported {
+        Some(m) => format!(
+            "{} {}",
+            m.mesh.cells.len(),
+            crate::io::msh::kind_words(m.mesh.kind)
+        ),
+        None => counts(&b.mesh),
+    }
+}
+
+/// The note on bodies read from files: refining them splits their elements,
+/// new boundary nodes lie on the file's straight edges.
+fn file_geometry(scene: &Scene) -> Option<String> {
+    let files: Vec<String> = scene
+        .bodies
+        .iter()
+        .filter_map(|b| Some(format!("`{}` ({})", b.name, b.imported.as_ref()?.file)))
+        .collect();
+    (!files.is_empty()).then(|| {
+        format!(
+            "{} from mesh files: each level splits every element in {} (new nodes at the \
+             midpoints of straight edges), so a curved boundary stays the polygon of the file; \
+             the limit is that of the file's geometry, not of the CAD model's",
+            files.join(", "),
+            if scene.dim.n() == 2 { 4 } else { 8 }
+        )
     })
 }
 
@@ -508,6 +550,9 @@ impl Convergence {
         let mut o = String::new();
         if let Some(why) = &self.stopped {
             let _ = writeln!(o, "\nstopped: {why}");
+        }
+        if let Some(g) = &self.geometry {
+            let _ = writeln!(o, "\n{g}");
         }
         if let Some(h) = &self.hertz {
             let _ = writeln!(

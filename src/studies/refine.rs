@@ -14,7 +14,7 @@
 //! Coarsening ([`coarsen`]) halves mesh and cuts the same way, and where a cut
 //! count is odd it stays as it is (H/h then shrinks), if it still divides the mesh.
 
-use crate::lang::scene::Scene;
+use crate::lang::scene::{Imported, Scene};
 
 /// Why a scene cannot be coarsened as asked.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -28,6 +28,10 @@ pub enum RefineError {
     },
     #[error("{levels} refinement levels multiply the element counts by 2^{levels}, beyond what any machine can hold")]
     TooDeep { levels: u32 },
+    #[error("body `{body}` is read from `{file}`: a mesh from a file can be refined but not coarsened (start the study at the file's mesh: `--coarsen 0`)")]
+    Imported { body: String, file: String },
+    #[error("body `{body}`: {reason}")]
+    Cut { body: String, reason: String },
 }
 
 /// `16 x 16` as the language writes it.
@@ -49,6 +53,11 @@ pub fn refine(scene: &Scene, levels: u32) -> Result<Scene, RefineError> {
         .ok_or(RefineError::TooDeep { levels })?;
     let mut out = scene.clone();
     for body in &mut out.bodies {
+        if let Some(m) = &body.imported {
+            body.imported = Some(std::sync::Arc::new(refine_imported(&body.name, m, levels)?));
+            body.subdomains = vec![body.subdomain_count()];
+            continue;
+        }
         for n in body.mesh.iter_mut().chain(body.subdomains.iter_mut()) {
             *n = n
                 .checked_mul(factor)
@@ -56,6 +65,26 @@ pub fn refine(scene: &Scene, levels: u32) -> Result<Scene, RefineError> {
         }
     }
     Ok(out)
+}
+
+/// An imported body refined `levels` times (each cell into 4 in 2D, 8 in
+/// 3D: [`crate::io::msh::refine`]) and cut by METIS into as many more
+/// subdomains, so that each keeps its element count (the subdomain rule).
+fn refine_imported(body: &str, m: &Imported, levels: u32) -> Result<Imported, RefineError> {
+    let per = 1usize << m.mesh.dim;
+    let mut mesh = m.mesh.clone();
+    let mut parts = m.subdomains;
+    for _ in 0..levels {
+        if mesh.cells.len().saturating_mul(per) > 1 << 28 {
+            return Err(RefineError::TooDeep { levels });
+        }
+        mesh = crate::io::msh::refine::refined(&mesh);
+        parts = parts.saturating_mul(per);
+    }
+    Imported::cut(m.file.clone(), m.sha256.clone(), mesh, parts).map_err(|e| RefineError::Cut {
+        body: body.to_string(),
+        reason: e.to_string(),
+    })
 }
 
 /// The scene with every mesh divided by `2^times`; each cut count is halved
@@ -72,6 +101,12 @@ pub fn coarsen(scene: &Scene, times: u32) -> Result<Scene, RefineError> {
         .ok_or(RefineError::TooDeep { levels: times })?;
     let mut out = scene.clone();
     for body in &mut out.bodies {
+        if let (Some(m), true) = (&body.imported, times > 0) {
+            return Err(RefineError::Imported {
+                body: body.name.clone(),
+                file: m.file.clone(),
+            });
+        }
         if body.mesh.iter().any(|m| m % factor != 0) {
             return Err(RefineError::Mesh {
                 body: body.name.clone(),

@@ -12,7 +12,6 @@ use crate::lang::diag::Diagnostic;
 use crate::lang::expr::Formula;
 use crate::lang::scene::*;
 use crate::lang::units::{self, Dim};
-use crate::model::partition::partition;
 use std::sync::Arc;
 
 /// The file a body's `mesh` field names, if it is a string (`mesh = "a.msh"`).
@@ -210,16 +209,8 @@ impl<'a> Checker<'a> {
         parts: usize,
         span: Span,
     ) -> Option<Imported> {
-        match partition(mesh.kind, &mesh.cells, parts) {
-            Ok(p) => Some(Imported {
-                file: String::new(),
-                sha256: String::new(),
-                copied_nodes: copied_nodes(&mesh.cells, &p.part_of_cell, mesh.nodes.len()),
-                part_of_cell: p.part_of_cell,
-                subdomains: parts,
-                moved_pieces: p.moved_pieces,
-                mesh,
-            }),
+        match Imported::cut(String::new(), String::new(), mesh, parts) {
+            Ok(imported) => Some(imported),
             Err(e) => {
                 self.error(
                     Diagnostic::new("cso::subdomains", e.to_string())
@@ -247,26 +238,6 @@ impl<'a> Checker<'a> {
         }
         self.error(d);
     }
-}
-
-/// Nodes over all parts of a cut, each part counting every node its cells use.
-fn copied_nodes(cells: &[Vec<usize>], part_of_cell: &[usize], nodes: usize) -> usize {
-    // The last part that counted each node: cells sorted by part count each
-    // (node, part) pair once.
-    let mut order: Vec<usize> = (0..cells.len()).collect();
-    order.sort_by_key(|&c| part_of_cell[c]);
-    let mut last = vec![usize::MAX; nodes];
-    let mut count = 0;
-    for c in order {
-        let p = part_of_cell[c];
-        for &n in &cells[c] {
-            if last[n] != p {
-                last[n] = p;
-                count += 1;
-            }
-        }
-    }
-    count
 }
 
 /// The bounding box of a mesh's nodes, as constant extents.
