@@ -642,21 +642,15 @@ fn hertz3d_pressure_along_the_radius_against_the_analytic_curve() {
         .iter()
         .map(|&r| p0 / 1e9 * (1.0 - (r * 1e-3 / a).powi(2)).max(0.0).sqrt())
         .collect();
+    use cso::io::plot::{Series, Style};
     let svg = cso::io::plot::line_chart(
         "hertz3d: contact pressure against the distance from the axis",
         "r (mm)",
         "pressure (GPa)",
         &[
-            cso::io::plot::Series {
-                name: "cso, nodes of the 24 x 24 x 16 quarter",
-                x: &r,
-                y: &p,
-            },
-            cso::io::plot::Series {
-                name: "Hertz: p0 sqrt(1 - r^2/a^2)",
-                x: &curve_r,
-                y: &curve_p,
-            },
+            Series::line("cso, nodes of the 24 x 24 x 16 quarter", &r, &p)
+                .styled(Style::LinePoints),
+            Series::line("Hertz: p0 sqrt(1 - r^2/a^2)", &curve_r, &curve_p).styled(Style::Dashed),
         ],
         false,
         false,

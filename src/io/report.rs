@@ -30,7 +30,7 @@ use crate::fem::hex::{hex_strain_at, isotropic, isotropic_deviatoric};
 use crate::fem::quad::{plane_strain, plane_strain_deviatoric, quad_strain_at};
 use crate::fem::Formulation;
 use crate::io::atomic::write_atomic;
-use crate::io::plot::{line_chart, mesh_plot, Series};
+use crate::io::plot::{line_chart, MeshPlot, Series, Values};
 use crate::io::provenance::{self, Header, SOLVE_UNITS};
 use crate::io::vtu::{vtu_string, CellType, Encoding, Field, VtuMesh};
 use crate::lang::diag::{num, round6};
@@ -801,11 +801,7 @@ pub fn write_all(dir: &Path, scene: &Scene, state: &State, report: &Report) -> s
             &format!("{}: contact pressure along {}", scene.name, c.name),
             xlabel,
             "pressure (Pa)",
-            &[Series {
-                name: &c.name,
-                x: &x,
-                y: &y,
-            }],
+            &[Series::line(&c.name, &x, &y)],
             false,
             false,
         )
@@ -872,12 +868,22 @@ fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Optio
     }
     let names = ["x", "y", "z"];
     let title = format!(
-        "{}: contact pressure (Pa) on `{}`, seen along {} ({} and {} in m)",
-        scene.name, sel.text, names[axis], names[a], names[b]
+        "{}: contact pressure (Pa) on `{}`, seen along {}",
+        scene.name, sel.text, names[axis]
     );
-    mesh_plot(&title, &points, &cells, Some(&values), &[], "pressure (Pa)")
-        .map(Some)
-        .map_err(std::io::Error::other)
+    MeshPlot {
+        title: &title,
+        points: &points,
+        cells: &cells,
+        values: Values::Cells(&values),
+        outline: &[],
+        axes: [names[a], names[b]],
+        quantity: "pressure (Pa)",
+        unit: "",
+    }
+    .svg()
+    .map(Some)
+    .map_err(std::io::Error::other)
 }
 
 /// In 3D, the point where a contact's force acts (force-weighted mean of its
@@ -1001,14 +1007,17 @@ fn deformed_plot(
         outline.push(ring);
     }
     let title = deformed_title(&scene.name, magnify);
-    mesh_plot(
-        &title,
-        &all_points,
-        &all_cells,
-        Some(&all_vm),
-        &outline,
-        "von Mises (Pa)",
-    )
+    MeshPlot {
+        title: &title,
+        points: &all_points,
+        cells: &all_cells,
+        values: Values::Cells(&all_vm),
+        outline: &outline,
+        axes: ["x", "y"],
+        quantity: "von Mises",
+        unit: "Pa",
+    }
+    .svg()
     .map_err(std::io::Error::other)
 }
 
