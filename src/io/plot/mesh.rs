@@ -12,7 +12,8 @@ use plotters::prelude::*;
 use std::ops::Range;
 
 const MESH_WIDTH: u32 = 800;
-const COLORBAR_WIDTH: u32 = 110;
+/// Room for the colour bar, its ticks and its label (`von Mises (GPa)`).
+const COLORBAR_WIDTH: u32 = 140;
 const MESH_MARGIN: u32 = 15;
 const MESH_X_LABELS: u32 = 55;
 const MESH_Y_LABELS: u32 = 80;
@@ -383,7 +384,12 @@ fn mesh_axes(
         .map_err(draw_err)?
         .plotting_area()
         .dim_in_pixel();
-    let (xr, yr) = equal_aspect([x0, x1], [y0, y1], (w, h));
+    // The axes run from the area's first pixel to its last (see `Frame`).
+    let (xr, yr) = equal_aspect(
+        [x0, x1],
+        [y0, y1],
+        (w.saturating_sub(1), h.saturating_sub(1)),
+    );
     let magnitude = [xr.start, xr.end, yr.start, yr.end]
         .iter()
         .fold(0.0f64, |m, v| m.max(v.abs()));
@@ -476,7 +482,7 @@ impl ColourBar<'_> {
         let style = TextStyle::from((FONT, LABEL_SIZE).into_font()).color(&BLACK);
         let label = self.unit.label(self.label);
         if !label.is_empty() {
-            area.draw(&Text::new(label, (x0, top - UNIT_H + 2), style.clone()))?;
+            area.draw(&Text::new(label, (4, top - UNIT_H + 2), style.clone()))?;
         }
         let (lo, hi) = (self.unit.of(self.lo), self.unit.of(self.hi));
         let mid = tick_label(0.5 * lo + 0.5 * hi);
