@@ -897,7 +897,7 @@ fn a_3d_solve_writes_hexahedra_that_meshio_reads_and_a_pressure_map() {
     assert_eq!(code, 0, "{err}");
     let map = std::fs::read_to_string(dir.join("contact_seat_map.svg")).expect("map");
     assert!(
-        map.contains("contact pressure (Pa) on `brick.bottom`, seen along z"),
+        map.contains("contact pressure on brick.bottom, seen along z"),
         "{}",
         &map[..map.len().min(600)]
     );
@@ -1170,7 +1170,10 @@ fn a_quarter_model_charts_pressure_against_the_distance_from_its_axis() {
     let (code, _, err) = cso(&["solve", &path.to_string_lossy(), "-o", &d, "-q"]);
     assert_eq!(code, 0, "{err}");
     let svg = std::fs::read_to_string(dir.join("contact_seat.svg")).expect("chart");
-    assert!(svg.contains("distance from the symmetry axis (m)"), "{svg}");
+    assert!(
+        svg.contains("distance from the symmetry axis (mm)"),
+        "{svg}"
+    );
     // Without the planes the centre of the force is the only reference.
     let free = scene_replacing_in(&path, "symmetry ball.left\n", "fix ball.left { ux }\n");
     let free = scene_replacing_in(&free, "symmetry ball.front\n", "fix ball.front { uy }\n");
@@ -1178,7 +1181,7 @@ fn a_quarter_model_charts_pressure_against_the_distance_from_its_axis() {
     assert_eq!(code, 0, "{err}");
     let svg = std::fs::read_to_string(dir.join("contact_seat.svg")).expect("chart");
     assert!(
-        svg.contains("distance from the centre of the contact force (m)"),
+        svg.contains("distance from the centre of the contact force (mm)"),
         "{svg}"
     );
     let _ = std::fs::remove_dir_all(&dir);

@@ -1,5 +1,6 @@
 //! One integration-test binary (one link on 2 cores), made of modules.
 
+mod charts;
 mod cli;
 mod diagnostics;
 mod examples;

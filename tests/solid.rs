@@ -635,31 +635,24 @@ fn hertz3d_pressure_along_the_radius_against_the_analytic_curve() {
             );
         }
     }
-    let (r, p): (Vec<f64>, Vec<f64>) = pts.into_iter().map(|(r, p)| (r * 1e3, p / 1e9)).unzip();
-    let rmax = r.iter().fold(0.0f64, |m, v| m.max(*v));
-    let curve_r: Vec<f64> = (0..=200).map(|k| rmax * k as f64 / 200.0).collect();
+    let (r, p): (Vec<f64>, Vec<f64>) = pts.into_iter().unzip();
+    // Zoomed to the contact, as cso solve's chart is.
+    let (lo, hi) = cso::io::contact_charts::zoom(&r, &p, Some((0.0, a))).expect("a zone");
+    let curve_r: Vec<f64> = (0..=400).map(|k| hi * k as f64 / 400.0).collect();
     let curve_p: Vec<f64> = curve_r
         .iter()
-        .map(|&r| p0 / 1e9 * (1.0 - (r * 1e-3 / a).powi(2)).max(0.0).sqrt())
+        .map(|&r| p0 * (1.0 - (r / a).powi(2)).max(0.0).sqrt())
         .collect();
-    let svg = cso::io::plot::line_chart(
+    use cso::io::plot::{chart, Axis, Series, Style};
+    let svg = chart(
         "hertz3d: contact pressure against the distance from the axis",
-        "r (mm)",
-        "pressure (GPa)",
+        Axis::new("r").unit("m").range(lo, hi),
+        Axis::new("pressure").unit("Pa"),
         &[
-            cso::io::plot::Series {
-                name: "cso, nodes of the 24 x 24 x 16 quarter",
-                x: &r,
-                y: &p,
-            },
-            cso::io::plot::Series {
-                name: "Hertz: p0 sqrt(1 - r^2/a^2)",
-                x: &curve_r,
-                y: &curve_p,
-            },
+            Series::line("cso, nodes of the 24 x 24 x 16 quarter", &r, &p)
+                .styled(Style::LinePoints),
+            Series::line("Hertz: p0 sqrt(1 - r^2/a^2)", &curve_r, &curve_p).styled(Style::Dashed),
         ],
-        false,
-        false,
     )
     .expect("chart");
     std::fs::write(root().join("docs/hertz3d_pressure.svg"), svg).expect("writable");

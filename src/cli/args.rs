@@ -92,6 +92,8 @@ pub struct Solve {
     /// Dense or implicit local F (default: the scene's `solver { local_f }`).
     #[arg(long, value_enum)]
     pub local_f: Option<LocalF>,
+    #[command(flatten)]
+    pub hertz: HertzArgs,
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
@@ -361,7 +363,8 @@ pub enum StudyCommand {
 #[derive(Args, Debug)]
 pub struct HertzArgs {
     /// Compare with Hertz contact (2D: cylinder, plane strain; 3D: sphere) of
-    /// the scene's one contact, with the moduli of its bodies.
+    /// the scene's one contact, with the moduli of its bodies (solve: its
+    /// pressure drawn over contact_NAME.svg, its size and peak printed).
     #[arg(long)]
     pub hertz: bool,
     /// Hertz: radius of the curved face, a number with a unit (50mm) or the

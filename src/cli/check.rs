@@ -19,6 +19,12 @@ impl Check {
                         err!("{}", diag::render(&warnings, &name, &scene.source.text));
                     }
                     outln!("{}", cso::io::summary::check_line(file, &scene));
+                    // Big scenes: how much memory and time a solve will take
+                    // on the threads it would get.
+                    let threads = rayon::current_num_threads();
+                    if let Some(line) = cso::io::summary::estimate_line(&scene, threads) {
+                        outln!("{line}");
+                    }
                     0
                 }
                 Err(e) => fail_solve(&file.display(), &scene, &e),

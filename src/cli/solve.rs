@@ -24,6 +24,8 @@ impl Solve {
         if let Some(l) = self.local_f {
             scene.solver.local_f = l;
         }
+        // Before the solve: a --radius or --load that does not read fails now.
+        let hertz = together(ranks, self.hertz.reference(&scene))?;
         let prepared = if lead {
             prepare(self.out.as_deref())
         } else {
@@ -60,8 +62,11 @@ impl Solve {
         }
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
+        let reference = hertz.and_then(|h| hertz_line(&h, &scene, &report));
         if let Some(dir) = self.out.as_ref().filter(|_| lead) {
-            cso::io::report::write_all(dir, &scene, &state, &report).map_err(|e| {
+            let written =
+                cso::io::solve_files::write_all(dir, &scene, &state, &report, reference.as_ref());
+            written.map_err(|e| {
                 let msg = format!("cannot write results to {}: {e}", dir.display());
                 fail(EXIT_IO, msg)
             })?;
@@ -74,5 +79,35 @@ impl Solve {
             return Err(fail(EXIT_SCENE, msg));
         }
         Ok(())
+    }
+}
+
+/// With `--hertz`: Hertz's size and peak against the model's, printed, and
+/// the pressure to draw over the contact's chart; a warning and None where
+/// the model's contact force is not the Hertz load over 1, 2 or 4 copies.
+fn hertz_line(
+    h: &cso::studies::hertz::Hertz,
+    scene: &cso::lang::Scene,
+    report: &cso::io::report::Report,
+) -> Option<cso::io::contact_charts::PressureReference> {
+    let c = report.contacts.get(h.contact)?;
+    match h.pressure_reference(c.total_force, scene.thickness) {
+        Ok(r) => {
+            let peak = c.nodes.iter().map(|n| n.pressure).fold(0.0, f64::max);
+            outln!(
+                "  {}; the model's peak {} Pa is {:+.2}% off",
+                r.name,
+                cso::lang::diag::num(peak),
+                100.0 * (peak / h.peak - 1.0)
+            );
+            Some(r)
+        }
+        Err(e) => {
+            errln!(
+                "warning: --hertz: {e}; contact_{}.svg shows no Hertz pressure",
+                c.name
+            );
+            None
+        }
     }
 }

@@ -10,7 +10,10 @@ use cso::studies::output;
 
 impl HertzArgs {
     /// The Hertz solution `--hertz` asks for (None without it).
-    fn reference(&self, scene: &Scene) -> Result<Option<cso::studies::hertz::Hertz>, u8> {
+    pub(super) fn reference(
+        &self,
+        scene: &Scene,
+    ) -> Result<Option<cso::studies::hertz::Hertz>, u8> {
         if !self.hertz {
             return Ok(None);
         }

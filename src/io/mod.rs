@@ -2,6 +2,8 @@
 //! files each command writes.
 
 pub mod atomic;
+pub mod contact_charts;
+pub mod deformed;
 pub mod export;
 pub mod msh;
 pub mod optimization;
@@ -11,6 +13,7 @@ pub mod png;
 pub mod pressure;
 pub mod provenance;
 pub mod report;
+pub mod solve_files;
 pub mod summary;
 pub mod tables;
 pub mod vtu;

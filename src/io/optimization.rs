@@ -8,9 +8,10 @@
 //! the optimization, it is reported when the run ends.
 
 use super::atomic::write_atomic;
-use super::plot::{line_chart, Series};
+use super::plot::{chart, Axis, Scale, Series};
 use super::provenance::{scene_units, to_json, Header};
-use super::report::{body_fields, write_all, Report};
+use super::report::{body_fields, Report};
+use super::solve_files::write_all;
 use super::vtu::pvd_string;
 use crate::lang::Scene;
 use crate::opt::Optimization;
@@ -103,17 +104,14 @@ pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
     }
     let iters: Vec<f64> = run.history.iter().map(|h| h.iteration as f64).collect();
     let obj: Vec<f64> = run.history.iter().map(|h| h.objective).collect();
-    let svg = line_chart(
+    // Iterations are whole numbers: so are the ticks.
+    let iteration = Axis::new("iteration").scale(Scale::Integer);
+    let unit = scene.objective.as_ref().and_then(|o| o.unit.as_deref());
+    let svg = chart(
         &format!("{}: objective", scene.name),
-        "iteration",
-        "objective",
-        &[Series {
-            name: "objective",
-            x: &iters,
-            y: &obj,
-        }],
-        false,
-        false,
+        iteration,
+        Axis::new("objective").unit(unit.unwrap_or("")),
+        &[Series::line("objective", &iters, &obj)],
     )
     .map_err(io::Error::other)?;
     write_atomic(&dir.join("objective.svg"), svg.as_bytes())?;
@@ -125,19 +123,13 @@ pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
     let series: Vec<Series> = cons
         .iter()
         .zip(&names)
-        .map(|(y, n)| Series {
-            name: n,
-            x: &iters,
-            y,
-        })
+        .map(|(y, n)| Series::line(n, &iters, y))
         .collect();
-    let svg = line_chart(
+    let svg = chart(
         &format!("{}: constraints (g <= 0)", scene.name),
-        "iteration",
-        "g",
+        iteration,
+        Axis::new("g"),
         &series,
-        false,
-        false,
     )
     .map_err(io::Error::other)?;
     write_atomic(&dir.join("constraints.svg"), svg.as_bytes())?;
@@ -150,7 +142,7 @@ pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
         let state = crate::state::solve(&best, &best.design_init(), &mut |_| {})
             .map_err(io::Error::other)?;
         let report = Report::new(&best, &state);
-        write_all(dir, &best, &state, &report)?;
+        write_all(dir, &best, &state, &report, None)?;
     }
     Ok(())
 }
@@ -280,15 +272,13 @@ fn write_shapes(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()>
             let series: Vec<Series> = labels
                 .iter()
                 .zip(xs.iter().zip(&ys))
-                .map(|(n, (x, y))| Series { name: n, x, y })
+                .map(|(n, (x, y))| Series::line(n, x, y))
                 .collect();
-            let svg = line_chart(
+            let svg = chart(
                 &format!("{}: {face} face of {}{section}", scene.name, body.name),
-                "x (m)",
-                "height (m)",
+                Axis::new("x").unit("m"),
+                Axis::new("height").unit("m"),
                 &series,
-                false,
-                false,
             )
             .map_err(io::Error::other)?;
             write_atomic(

@@ -5,7 +5,7 @@
 //! `Display` is the text form. Numbers are rounded to 6 significant digits so the
 //! output is the same on every machine.
 
-use crate::lang::check::{estimate, MemoryEstimate};
+use crate::lang::check::{bytes, estimate, seconds, time_estimate, MemoryEstimate, APPLICATIONS};
 use crate::lang::expr::Formula;
 use crate::lang::scene::*;
 use serde::Serialize;
@@ -696,6 +696,33 @@ pub fn check_line(file: &std::path::Path, scene: &Scene) -> String {
     )
 }
 
+/// Scenes estimated to need more memory or time than this get
+/// [`estimate_line`].
+const BIG_BYTES: f64 = 1024.0 * 1024.0 * 1024.0;
+const BIG_SECONDS: f64 = 10.0;
+
+/// What `cso check` adds for a big scene (estimated at least 1 GiB or 10 s on
+/// `threads` threads): the memory and the time it will take, from the mesh
+/// alone ([`crate::lang::check::TimeEstimate`] says how rough). None for
+/// smaller scenes.
+pub fn estimate_line(scene: &Scene, threads: usize) -> Option<String> {
+    let memory = estimate(scene).total();
+    let t = time_estimate(scene).on(threads);
+    (memory >= BIG_BYTES || t.total() >= BIG_SECONDS).then(|| {
+        format!(
+            "  estimate: about {} of memory; on {} {}: {} to assemble and factorize, then {} per \
+             Hessian application (about {} in all at {:.0}; contact solves take hundreds to thousands)",
+            bytes(memory),
+            threads.max(1),
+            if threads > 1 { "threads" } else { "thread" },
+            seconds(t.setup),
+            seconds(t.per_application),
+            seconds(t.total()),
+            APPLICATIONS
+        )
+    })
+}
+
 /// "1 body", "2 bodies".
 pub fn plural(n: usize, one: &str, many: &str) -> String {
     format!("{n} {}", if n == 1 { one } else { many })
@@ -712,6 +739,31 @@ fn enum_name<T: Serialize>(v: &T) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn check_estimates_big_scenes_only() {
+        let scene = |mesh: usize, subs: usize| {
+            let src = format!(
+                "scene s {{ dim = 2 }}
+material steel {{ E = 210 GPa, nu = 0.3 }}
+body b {{ material = steel, x = 0 .. 1, y = 0 .. 1, mesh = {mesh} x {mesh}, subdomains = {subs} x {subs} }}
+fix b.bottom
+traction b.top = (0, -1 MPa)"
+            );
+            crate::lang::compile(&src, &crate::lang::CheckOptions::default()).expect("checks")
+        };
+        assert_eq!(estimate_line(&scene(80, 4), 2), None);
+        // 2 M unknowns over 100 subdomains: 2.8 GiB, 5 s to set up on one thread.
+        let line = estimate_line(&scene(1000, 10), 4).expect("a big scene");
+        assert_eq!(
+            line,
+            "  estimate: about 2.8 GiB of memory; on 4 threads: 1 s to assemble and factorize, \
+             then 0.11 s per Hessian application (about 56 s in all at 500; contact solves take \
+             hundreds to thousands)"
+        );
+        let one = estimate_line(&scene(1000, 10), 1).expect("a big scene");
+        assert!(one.contains("on 1 thread: 5 s"), "{one}");
+    }
 
     #[test]
     fn numbers_are_rounded_for_people() {

@@ -537,6 +537,7 @@ impl EpsSweep {
     /// The difference to TFETI against log10 eps; refused runs are drawn at
     /// 1 (no answer is as wrong as it gets) in their own series.
     pub fn svg(&self) -> Result<String, crate::io::plot::PlotError> {
+        use crate::io::plot::{chart, Axis, Scale, Series, Style};
         let pick = |f: &dyn Fn(&EpsRun) -> bool, y: &dyn Fn(&EpsRun) -> f64| {
             let runs: Vec<&EpsRun> = self.runs.iter().filter(|r| f(r)).collect();
             (
@@ -551,34 +552,20 @@ impl EpsSweep {
         let large = pick(&|r| r.refused.as_deref() == Some("too large"), &|_| 1.0);
         let failed = pick(&|r| r.refused.as_deref() == Some("failed"), &|_| 1.0);
         let series = [
-            crate::io::plot::Series {
-                name: "solved: difference to TFETI",
-                x: &solved.0,
-                y: &solved.1,
-            },
-            crate::io::plot::Series {
-                name: "refused: eps too small (drawn at 1)",
-                x: &small.0,
-                y: &small.1,
-            },
-            crate::io::plot::Series {
-                name: "refused: eps too large (drawn at 1)",
-                x: &large.0,
-                y: &large.1,
-            },
-            crate::io::plot::Series {
-                name: "failed otherwise (drawn at 1)",
-                x: &failed.0,
-                y: &failed.1,
-            },
+            Series::line("solved: difference to TFETI", &solved.0, &solved.1)
+                .styled(Style::LinePoints),
+            Series::line("refused: eps too small (drawn at 1)", &small.0, &small.1)
+                .styled(Style::Points),
+            Series::line("refused: eps too large (drawn at 1)", &large.0, &large.1)
+                .styled(Style::Points),
+            Series::line("failed otherwise (drawn at 1)", &failed.0, &failed.1)
+                .styled(Style::Points),
         ];
-        crate::io::plot::line_chart(
+        chart(
             &format!("{}: classical FETI over its pivot tolerance", self.scene),
-            "log10 eps (a zero pivot: d_j <= eps K_jj)",
-            "max |u_FETI - u_TFETI| / max |u|",
+            Axis::new("log10 eps (a zero pivot: d_j <= eps K_jj)"),
+            Axis::new("max |u_FETI - u_TFETI| / max |u|").scale(Scale::Log),
             &series,
-            false,
-            true,
         )
     }
 }

@@ -17,7 +17,7 @@
 use super::hertz::{Hertz, HertzError};
 use super::measure::{quantities, Quantity};
 use super::refine::{coarsen, counts, grid_dofs, refine, RefineError};
-use crate::io::plot::{line_chart, PlotError, Series};
+use crate::io::plot::{line_chart, PlotError, Series, Style};
 use crate::lang::check::{bytes, estimate};
 use crate::lang::diag::num;
 use crate::lang::scene::Scene;
@@ -694,7 +694,15 @@ impl Convergence {
         let series: Vec<Series> = names
             .iter()
             .zip(xs.iter().zip(&ys))
-            .map(|(n, (x, y))| Series { name: n, x, y })
+            .map(|(n, (x, y))| {
+                // Few levels: each a marker; the slope a reference.
+                let style = if n.starts_with("slope") {
+                    Style::Dashed
+                } else {
+                    Style::LinePoints
+                };
+                Series::line(n, x, y).styled(style)
+            })
             .collect();
         line_chart(title, x_label, "relative error", &series, true, true).map(Some)
     }

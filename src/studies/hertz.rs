@@ -23,6 +23,9 @@
 //! # Reference
 //! K. L. Johnson, *Contact Mechanics*, Cambridge 1985, sections 4.2 and 4.3.
 
+use crate::io::contact_charts::PressureReference;
+use crate::io::plot::axis::tick_label;
+use crate::io::plot::units::Prefixed;
 use crate::lang::scene::{Dimension, Primary, Scene};
 use crate::lang::units::{unit, Dim};
 use serde::Serialize;
@@ -250,6 +253,35 @@ impl Hertz {
         }
     }
 
+    /// Its pressure, to be drawn over the contact's chart of a model whose
+    /// contact carries `force` (N; in 2D for the scene's `thickness`), named
+    /// with its size and peak.
+    ///
+    /// # Errors
+    /// As [`Hertz::copies`]: the load is not this model's.
+    pub fn pressure_reference(
+        &self,
+        force: f64,
+        thickness: f64,
+    ) -> Result<PressureReference, HertzError> {
+        self.copies(force, thickness)?;
+        let show = |v: f64, unit: &str| {
+            let p = Prefixed::choose(unit, v);
+            format!("{} {}", tick_label(p.of(v)), p.unit)
+        };
+        let size = if self.line { "b" } else { "a" };
+        Ok(PressureReference {
+            contact: self.contact,
+            name: format!(
+                "Hertz ({size} = {}, p0 = {})",
+                show(self.size, "m"),
+                show(self.peak, "Pa")
+            ),
+            size: self.size,
+            peak: self.peak,
+        })
+    }
+
     /// What the size is called.
     pub fn size_name(&self) -> &'static str {
         if self.line {
@@ -338,6 +370,11 @@ contact d { primary = floor, secondary = b.left }\n";
         assert_eq!(h.copies(1e6, 1.0), Ok(2.0));
         assert_eq!(h.copies(0.5e6, 0.25), Ok(1.0));
         assert!(h.copies(0.7e6, 1.0).is_err());
+        // The chart's reference: only for the model the load belongs to.
+        let r = h.pressure_reference(1e6, 1.0).expect("a half model");
+        assert_eq!((r.contact, r.size, r.peak), (0, h.size, h.peak));
+        assert_eq!(r.name, "Hertz (b = 0.7428 mm, p0 = 1.714 GPa)");
+        assert!(h.pressure_reference(0.7e6, 1.0).is_err());
         // A half model's contact length is b.
         assert_eq!(h.size_of(1e-3, 2.0), 1e-3);
         assert_eq!(h.size_of(2e-3, 1.0), 1e-3);

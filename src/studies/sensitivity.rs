@@ -229,10 +229,13 @@ impl Study {
         out
     }
 
-    /// Error against wall time on log-log axes, one series per method and
-    /// tolerance; runs whose perturbed solves changed the active set separately.
-    /// (Hessian applications, which repeat exactly, are in the CSV and JSON.)
+    /// Error against wall time on log-log axes, one series per method (finite
+    /// differences per scheme, as points; the exact methods as a line from the
+    /// loosest tolerance to the tightest); runs whose perturbed solves changed
+    /// the active set separately. (Hessian applications, which repeat
+    /// exactly, are in the CSV and JSON.)
     pub fn svg(&self) -> Result<String, crate::io::plot::PlotError> {
+        use crate::io::plot::{Series, Style};
         let mut keys: Vec<String> = Vec::new();
         let mut xs: Vec<Vec<f64>> = Vec::new();
         let mut ys: Vec<Vec<f64>> = Vec::new();
@@ -256,17 +259,22 @@ impl Study {
             xs[i].push(r.seconds.max(1e-6));
             ys[i].push(r.error.max(1e-16));
         }
-        // Points of a series in order of time, so its line reads left to right.
-        for (x, y) in xs.iter_mut().zip(ys.iter_mut()) {
-            let mut pts: Vec<(f64, f64)> = x.iter().copied().zip(y.iter().copied()).collect();
-            pts.sort_by(|a, b| a.0.total_cmp(&b.0));
-            *x = pts.iter().map(|p| p.0).collect();
-            *y = pts.iter().map(|p| p.1).collect();
-        }
-        let series: Vec<crate::io::plot::Series> = keys
+        // Finite differences over steps and tolerances are no curve (where
+        // the step is small the error is the solver's noise over h): each run
+        // a marker, never a line through them. The exact methods' runs are a
+        // line in the order of their tolerances (the runs' order), not of
+        // their times, which noise would zigzag.
+        let series: Vec<Series> = keys
             .iter()
             .zip(xs.iter().zip(&ys))
-            .map(|(k, (x, y))| crate::io::plot::Series { name: k, x, y })
+            .map(|(k, (x, y))| {
+                let style = if k.starts_with("finite") {
+                    Style::Points
+                } else {
+                    Style::LinePoints
+                };
+                Series::line(k, x, y).styled(style)
+            })
             .collect();
         crate::io::plot::line_chart(
             &format!("{}: gradient error against cost", self.scene),

@@ -258,19 +258,20 @@ impl Sweep {
                 )
             })
             .collect();
-        let series: Vec<crate::io::plot::Series> = self
+        use crate::io::plot::{chart, Axis, Scale, Series, Style};
+        let series: Vec<Series> = self
             .series
             .iter()
             .zip(&data)
-            .map(|((name, _), (x, y))| crate::io::plot::Series { name, x, y })
+            .map(|((name, _), (x, y))| Series::line(name, x, y).styled(Style::LinePoints))
             .collect();
-        crate::io::plot::line_chart(
-            &format!("state solve cost: {}", self.name),
-            &self.parameter,
-            "Hessian applications",
-            &series,
-            self.log_x,
-            false,
-        )
+        let x = Axis::new(&self.parameter).scale(if self.log_x {
+            Scale::Log
+        } else {
+            Scale::Linear
+        });
+        // A count: whole-number ticks.
+        let y = Axis::new("Hessian applications").scale(Scale::Integer);
+        chart(&format!("state solve cost: {}", self.name), x, y, &series)
     }
 }

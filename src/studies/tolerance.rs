@@ -11,7 +11,7 @@
 //! nothing, since the answer is no closer to the continuum.
 
 use super::measure::{displacement_difference, quantities, Quantity};
-use crate::io::plot::{line_chart, PlotError, Series};
+use crate::io::plot::{line_chart, PlotError, Series, Style};
 use crate::lang::scene::{Preconditioner, Scene, SolverMethod};
 use crate::state::{solve, SolveError, State};
 use serde::Serialize;
@@ -363,7 +363,15 @@ impl ToleranceStudy {
         let series: Vec<Series> = names
             .iter()
             .zip(xs.iter().zip(&ys))
-            .map(|(n, (x, y))| Series { name: n, x, y })
+            .map(|(n, (x, y))| {
+                // A mesh error is a level to compare with, not a result.
+                let style = if n.starts_with("mesh error") {
+                    Style::Dashed
+                } else {
+                    Style::LinePoints
+                };
+                Series::line(n, x, y).styled(style)
+            })
             .collect();
         line_chart(
             &format!("{}: solver error against time", self.scene),

@@ -1,5 +1,7 @@
 //! How much memory a scene will need, estimated from its mesh before anything is
-//! allocated, so that a scene too large for the machine is refused up front.
+//! allocated, so that a scene too large for the machine is refused up front; and
+//! roughly how long it will take ([`time_estimate`]), which `cso check` prints
+//! for big scenes.
 //!
 //! The factor sizes follow what faer's supernodal Cholesky with AMD ordering gave on
 //! square plane-strain Q1 subdomains (`shared/design/crates.md`: 2,178 dofs -> 0.69 MB,
@@ -43,34 +45,153 @@ pub fn estimate(scene: &Scene) -> MemoryEstimate {
         })
 }
 
+/// A body's subdomains: how many, and each one's unknowns and factor
+/// nonzeros (estimated, see the module's note).
+struct Subdomains {
+    dim: f64,
+    count: f64,
+    dofs: f64,
+    factor_nonzeros: f64,
+}
+
+impl Subdomains {
+    fn of(body: &Body) -> Subdomains {
+        let dim = body.extent.len() as f64;
+        let count: f64 = body.subdomain_count() as f64;
+        let per_sub_nodes: f64 = match &body.imported {
+            // A simplex mesh has about as many nodes per dof of coupling as a
+            // brick mesh of the same node count: the brick figures serve.
+            Some(_) => body.primal_dofs() as f64 / dim / count.max(1.0),
+            None => body
+                .mesh
+                .iter()
+                .zip(&body.subdomains)
+                .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
+                .product(),
+        };
+        let n = per_sub_nodes * dim;
+        let factor_nonzeros = if dim == 2.0 {
+            6.0 * n * n.max(2.0).log2()
+        } else {
+            20.0 * n.powf(4.0 / 3.0)
+        };
+        Subdomains {
+            dim,
+            count,
+            dofs: n,
+            factor_nonzeros,
+        }
+    }
+}
+
 /// The estimate of one body.
 pub fn estimate_body(body: &Body) -> MemoryEstimate {
-    let d = body.extent.len() as f64;
-    let subs: f64 = body.subdomain_count() as f64;
-    let per_sub_nodes: f64 = match &body.imported {
-        // A simplex mesh has about as many nodes per dof of coupling as a
-        // brick mesh of the same node count: the brick figures serve.
-        Some(_) => body.primal_dofs() as f64 / d / subs.max(1.0),
-        None => body
-            .mesh
-            .iter()
-            .zip(&body.subdomains)
-            .map(|(&m, &s)| m as f64 / (s.max(1) as f64) + 1.0)
-            .product(),
-    };
-    let n = per_sub_nodes * d;
+    let Subdomains {
+        dim,
+        count: subs,
+        dofs: n,
+        factor_nonzeros: nnz_l,
+    } = Subdomains::of(body);
     // Rows of Q1/hex8 stiffness couple 9 or 27 nodes; 12 bytes per entry (value + index).
-    let row = if d == 2.0 { 18.0 } else { 81.0 };
-    let nnz_l = if d == 2.0 {
-        6.0 * n * n.max(2.0).log2()
-    } else {
-        20.0 * n.powf(4.0 / 3.0)
-    };
+    let row = if dim == 2.0 { 18.0 } else { 81.0 };
     MemoryEstimate {
         dofs: n * subs,
         stiffness: subs * n * row * 12.0,
         factors: subs * nnz_l * 12.0,
         vectors: subs * n * 8.0 * 30.0,
+    }
+}
+
+/// Roughly how long a state solve takes, on one thread, and over how many
+/// subdomains the work spreads.
+///
+/// A state solve lowers the scene and assembles the subdomains' stiffness,
+/// factorizes each subdomain (the set-up), then runs the dual solve, whose
+/// cost is its Hessian applications: each one a forward and a backward solve
+/// with every subdomain's factor. How many a scene takes cannot be told from
+/// its mesh (the examples' contact solves took 280 to 2,000, more where
+/// subdomains are finer relative to their elements, H/h); the total assumes
+/// [`APPLICATIONS`].
+///
+/// Rates, calibrated on this project's 2-core build machine (one thread, `cso
+/// solve --threads 1`, release build) from `report.json`'s `times`,
+/// `factor_nonzeros` and `hessian_applications` of hertz2d at 80 x 80 to
+/// 1000 x 1000 elements over 4 x 4 to 10 x 10 subdomains (14 k to 2.0 M
+/// unknowns) and hertz3d at 24 x 24 x 16 to 48 x 48 x 32 over 4 to 64
+/// subdomains (37 k to 290 k): lowering and assembly 1e-7 to 1.5e-7 s per
+/// unknown ([`LOWER_S_PER_DOF`]); factorization 2.1e-8 to 3.0e-8 s per factor
+/// nonzero ([`FACTOR_S_PER_NONZERO`]); a Hessian application 1.1e-9 to 2.9e-9
+/// s per factor nonzero ([`APPLY_S_PER_NONZERO`]). The factor nonzeros are
+/// [`estimate`]'s, within 25% of the factors' on these scenes. Where the subdomains are small
+/// enough for their local `F` to be held dense (`solver { local_f }`), an
+/// application is cheaper than that (hertz2d over 8 x 8 subdomains: 6 times),
+/// so the estimate errs long.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TimeEstimate {
+    /// Seconds to lower, assemble and factorize.
+    pub setup: f64,
+    /// Seconds per Hessian application.
+    pub per_application: f64,
+    /// Subdomains: the most threads the work spreads over.
+    pub subdomains: f64,
+}
+
+/// Lowering and assembly, seconds per unknown (one thread).
+pub const LOWER_S_PER_DOF: f64 = 1.5e-7;
+/// Factorization, seconds per factor nonzero (one thread).
+pub const FACTOR_S_PER_NONZERO: f64 = 2.5e-8;
+/// One Hessian application, seconds per factor nonzero (one thread).
+pub const APPLY_S_PER_NONZERO: f64 = 2.5e-9;
+/// Hessian applications assumed for a total.
+pub const APPLICATIONS: f64 = 500.0;
+
+impl TimeEstimate {
+    /// The same on `threads` threads: the work spread over as many as there
+    /// are subdomains for.
+    pub fn on(&self, threads: usize) -> TimeEstimate {
+        let t = (threads.max(1) as f64).min(self.subdomains.max(1.0));
+        TimeEstimate {
+            setup: self.setup / t,
+            per_application: self.per_application / t,
+            subdomains: self.subdomains,
+        }
+    }
+
+    /// Set-up and [`APPLICATIONS`] Hessian applications, seconds.
+    pub fn total(&self) -> f64 {
+        self.setup + APPLICATIONS * self.per_application
+    }
+}
+
+/// The time a state solve of the scene takes on one thread (see
+/// [`TimeEstimate`]).
+pub fn time_estimate(scene: &Scene) -> TimeEstimate {
+    scene
+        .bodies
+        .iter()
+        .map(Subdomains::of)
+        .fold(TimeEstimate::default(), |t, s| {
+            let nonzeros = s.count * s.factor_nonzeros;
+            TimeEstimate {
+                setup: t.setup
+                    + LOWER_S_PER_DOF * s.count * s.dofs
+                    + FACTOR_S_PER_NONZERO * nonzeros,
+                per_application: t.per_application + APPLY_S_PER_NONZERO * nonzeros,
+                subdomains: t.subdomains + s.count,
+            }
+        })
+}
+
+/// Seconds as a person reads a duration: `40 s`, `12 min`, `3.5 h`.
+pub fn seconds(s: f64) -> String {
+    if s < 1.0 {
+        format!("{s:.2} s")
+    } else if s < 100.0 {
+        format!("{s:.0} s")
+    } else if s < 100.0 * 60.0 {
+        format!("{:.0} min", s / 60.0)
+    } else {
+        format!("{:.1} h", s / 3600.0)
     }
 }
 
@@ -104,6 +225,70 @@ pub fn count(n: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A hertz2d-like scene (a roller on a floor) of `mesh` elements over
+    /// `subs` subdomains a side, or its 3D column over `subs` a side.
+    fn scene(dim: usize, mesh: usize, subs: usize) -> Scene {
+        let src = if dim == 2 {
+            format!(
+                "scene s {{ dim = 2 }}
+material steel {{ E = 210 GPa, nu = 0.3 }}
+body b {{ material = steel, x = 0 .. 10 mm, y = 0 .. 20 mm, mesh = {mesh} x {mesh}, subdomains = {subs} x {subs} }}
+obstacle floor {{ point = (0, 0), normal = (0, 1) }}
+contact c {{ primary = floor, secondary = b.bottom }}
+traction b.top = (0, -1 MPa)"
+            )
+        } else {
+            format!(
+                "scene s {{ dim = 3 }}
+material steel {{ E = 210 GPa, nu = 0.3 }}
+body b {{ material = steel, x = 0 .. 5 mm, y = 0 .. 5 mm, z = 0 .. 10 mm, mesh = {mesh} x {mesh} x {}, subdomains = {subs} x {subs} x {subs} }}
+obstacle floor {{ point = (0, 0, 0), normal = (0, 0, 1) }}
+contact c {{ primary = floor, secondary = b.bottom }}
+pressure b.top = 1 MPa",
+                2 * mesh / 3
+            )
+        };
+        crate::lang::compile(&src, &crate::lang::CheckOptions::default()).expect("checks")
+    }
+
+    #[test]
+    fn the_time_estimate_matches_its_calibration() {
+        // Measured (one thread): hertz2d at 640 x 640 over 8 x 8 subdomains
+        // set up in 1.46 s, 0.167 s per Hessian application, at 1000 x 1000
+        // over 10 x 10 in 4.99 s, 0.39 s; hertz3d at 48 x 48 x 32 over
+        // 4 x 4 x 4 in 2.20 s, 0.142 s per application.
+        for (s, setup, apply) in [
+            (scene(2, 640, 8), 1.46, 0.167),
+            (scene(2, 1000, 10), 4.99, 0.39),
+            (scene(3, 48, 4), 2.20, 0.142),
+        ] {
+            let t = time_estimate(&s);
+            assert!((0.5..2.0).contains(&(t.setup / setup)), "{t:?}");
+            assert!((0.5..2.0).contains(&(t.per_application / apply)), "{t:?}");
+            assert!((t.total() - t.setup - 500.0 * t.per_application).abs() < 1e-12);
+        }
+    }
+
+    #[test]
+    fn threads_share_the_work_up_to_one_per_subdomain() {
+        let t = time_estimate(&scene(2, 80, 2));
+        assert_eq!(t.subdomains, 4.0);
+        let two = t.on(2);
+        assert!((two.setup * 2.0 - t.setup).abs() < 1e-15);
+        assert!((two.per_application * 2.0 - t.per_application).abs() < 1e-15);
+        // 16 threads, 4 subdomains: 4 at work.
+        assert!((t.on(16).setup * 4.0 - t.setup).abs() < 1e-15);
+        assert_eq!(t.on(0), t.on(1));
+    }
+
+    #[test]
+    fn durations_read_well() {
+        assert_eq!(seconds(0.123), "0.12 s");
+        assert_eq!(seconds(40.4), "40 s");
+        assert_eq!(seconds(720.0), "12 min");
+        assert_eq!(seconds(12_600.0), "3.5 h");
+    }
 
     #[test]
     fn byte_sizes_read_well() {

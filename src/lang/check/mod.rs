@@ -14,7 +14,10 @@ mod names;
 mod values;
 
 pub use super::suggest::{did_you_mean, distance, suggest};
-pub use budget::{bytes, estimate, parse_bytes, MemoryEstimate};
+pub use budget::{
+    bytes, estimate, parse_bytes, seconds, time_estimate, MemoryEstimate, TimeEstimate,
+    APPLICATIONS,
+};
 
 use super::ast::{File, Ident, Item, ItemKind, Span};
 use super::diag::{self, Diagnostic};
