@@ -151,6 +151,27 @@ fn reference_curve(
     (xs, ys)
 }
 
+/// The axis a curved face of an imported body faces most: the largest
+/// component of its facets' summed area vectors (a structured side has its
+/// own axis).
+fn facing_axis(pieces: &[crate::model::FacePatch], coords: &[[f64; 3]]) -> Option<usize> {
+    use crate::fem::Facet;
+    let pos = [coords.to_vec()];
+    let mut sum = [0.0; 3];
+    for piece in pieces {
+        let facet = crate::model::geometry::Piece::facet(&crate::model::FacePatch { body: 0, ..*piece }, &pos);
+        let x = facet.nodes();
+        let centre: [f64; 3] = std::array::from_fn(|a| x.iter().map(|p| p[a]).sum::<f64>() / 4.0);
+        let (n, area) = (facet.normal(facet.project(&centre)), facet.measure());
+        for a in 0..3 {
+            sum[a] += n[a] * area;
+        }
+    }
+    (0..3)
+        .max_by(|&a, &b| sum[a].abs().total_cmp(&sum[b].abs()))
+        .filter(|&a| sum[a] != 0.0)
+}
+
 /// In 3D, a map of contact `ci`'s pressure over its secondary face, seen
 /// along the face's axis: the nodal pressures (force over tributary area,
 /// as the report computes them), so the colour bar's top is the peak the
@@ -163,7 +184,10 @@ pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<O
     // still tile it.
     let quads: Vec<crate::model::FacePatch> =
         crate::model::geometry::selected_pieces(p, sel, &scene.design_init());
-    let Some(axis) = body.face_axis(sel.face) else {
+    let Some(axis) = body
+        .face_axis(sel.face)
+        .or_else(|| facing_axis(&quads, &body.coords))
+    else {
         return Ok(None);
     };
     if quads.is_empty() {
