@@ -159,7 +159,10 @@ fn facing_axis(pieces: &[crate::model::FacePatch], coords: &[[f64; 3]]) -> Optio
     let pos = [coords.to_vec()];
     let mut sum = [0.0; 3];
     for piece in pieces {
-        let facet = crate::model::geometry::Piece::facet(&crate::model::FacePatch { body: 0, ..*piece }, &pos);
+        let facet = crate::model::geometry::Piece::facet(
+            &crate::model::FacePatch { body: 0, ..*piece },
+            &pos,
+        );
         let x = facet.nodes();
         let centre: [f64; 3] = std::array::from_fn(|a| x.iter().map(|p| p[a]).sum::<f64>() / 4.0);
         let (n, area) = (facet.normal(facet.project(&centre)), facet.measure());

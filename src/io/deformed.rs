@@ -66,6 +66,51 @@ fn outline_of(body: &crate::model::BodyMesh) -> Vec<Vec<[f64; 2]>> {
     vec![ring]
 }
 
+/// A rigid obstacle as the polylines of its line or circle inside `frame`
+/// (lower and upper corners): at rest, as the bodies' outlines are.
+fn obstacle_lines(
+    shape: &crate::model::geometry::ObstacleShape<f64, 2>,
+    (lo, hi): ([f64; 2], [f64; 2]),
+) -> Vec<Vec<[f64; 2]>> {
+    use crate::model::geometry::ObstacleShape;
+    let inside = |p: &[f64; 2]| (0..2).all(|a| p[a] >= lo[a] && p[a] <= hi[a]);
+    let points: Vec<[f64; 2]> = match *shape {
+        ObstacleShape::Plane { point, normal } => {
+            // Along the line, from where it enters the frame to where it leaves.
+            let t = [-normal[1], normal[0]];
+            let corners = [lo, [hi[0], lo[1]], hi, [lo[0], hi[1]]];
+            let along = corners.map(|c| (c[0] - point[0]) * t[0] + (c[1] - point[1]) * t[1]);
+            let (a, b) = along
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+                    (l.min(v), h.max(v))
+                });
+            (0..=256)
+                .map(|k| a + (b - a) * k as f64 / 256.0)
+                .map(|s| [point[0] + s * t[0], point[1] + s * t[1]])
+                .collect()
+        }
+        ObstacleShape::Sphere { center, radius } => (0..=512)
+            .map(|k| std::f64::consts::TAU * k as f64 / 512.0)
+            .map(|a| [center[0] + radius * a.cos(), center[1] + radius * a.sin()])
+            .collect(),
+    };
+    // Runs of points inside the frame.
+    let mut runs: Vec<Vec<[f64; 2]>> = vec![Vec::new()];
+    for p in points
+        .into_iter()
+        .filter(|p| p.iter().all(|v| v.is_finite()))
+    {
+        match (inside(&p), runs.last_mut()) {
+            (true, Some(run)) => run.push(p),
+            (false, Some(run)) if !run.is_empty() => runs.push(Vec::new()),
+            _ => {}
+        }
+    }
+    runs.retain(|r| r.len() > 1);
+    runs
+}
+
 /// The 2D deformed mesh coloured by von Mises stress, magnified so the largest
 /// displacement is 5% of the scene.
 pub fn deformed_plot(
@@ -106,6 +151,15 @@ pub fn deformed_plot(
         all_vm.extend_from_slice(&f.von_mises);
         outline.extend(outline_of(body));
     }
+    // The obstacles where they cross the bodies' box, widened by a tenth.
+    let pad = 0.1 * size;
+    let frame = ([lo[0] - pad, lo[1] - pad], [hi[0] + pad, hi[1] + pad]);
+    for o in &scene.obstacles {
+        outline.extend(obstacle_lines(
+            &crate::model::geometry::ObstacleShape::at(o, &scene.design_init()),
+            frame,
+        ));
+    }
     let title = deformed_title(&scene.name, magnify);
     MeshPlot {
         title: &title,
@@ -124,6 +178,37 @@ pub fn deformed_plot(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn obstacles_are_drawn_inside_the_frame_only() {
+        use crate::model::geometry::ObstacleShape;
+        let frame = ([0.0, 0.0], [2.0, 1.0]);
+        let floor = ObstacleShape::Plane {
+            point: [0.0, 0.5],
+            normal: [0.0, 1.0],
+        };
+        let lines = obstacle_lines(&floor, frame);
+        assert_eq!(lines.len(), 1);
+        let xs: Vec<f64> = lines[0].iter().map(|p| p[0]).collect();
+        assert!(lines[0].iter().all(|p| (p[1] - 0.5).abs() < 1e-12));
+        assert!(xs.iter().all(|x| (0.0..=2.0).contains(x)) && xs.len() > 100);
+        // A circle crossing the frame's left edge: the arc inside.
+        let pin = ObstacleShape::Sphere {
+            center: [0.0, 0.5],
+            radius: 0.3,
+        };
+        let arcs = obstacle_lines(&pin, frame);
+        assert!(!arcs.is_empty());
+        for p in arcs.iter().flatten() {
+            assert!(p[0] >= 0.0 && ((p[0]).hypot(p[1] - 0.5) - 0.3).abs() < 1e-12);
+        }
+        // Far away: nothing.
+        let far = ObstacleShape::Sphere {
+            center: [10.0, 10.0],
+            radius: 1.0,
+        };
+        assert!(obstacle_lines(&far, frame).is_empty());
+    }
 
     #[test]
     fn the_deformed_plot_says_how_much_it_magnifies() {
