@@ -349,3 +349,98 @@ fn the_convergence_study_refines_imported_bodies_and_says_what_geometry_it_has()
     let err = cso::studies::refine::coarsen(&scene, 1).expect_err("cannot coarsen");
     assert!(err.to_string().contains("refined but not coarsened"));
 }
+
+#[test]
+fn gradients_agree_across_methods_with_an_imported_body_in_contact() {
+    // A structured base whose designed, curved top is the primary side of a
+    // contact with an imported punch of triangles (whose nodes stay put).
+    let src = "scene sens { dim = 2 }
+material steel { E = 200 GPa, nu = 0.3 }
+design h { init = 0.02 mm, lower = 0, upper = 0.1 mm }
+body base { material = steel, x = -10 mm .. 50 mm, y = -10 mm .. 0 mm,
+            top = -h * ((x - 20 mm) / (30 mm))^2, mesh = 24 x 4, subdomains = 2 x 1 }
+body punch { material = steel, mesh = \"block_tris.msh\", unit = mm, subdomains = 2 }
+fix base.bottom
+displace punch.top { ux = 0, uy = -0.01 mm }
+contact seat { primary = base.top, secondary = punch.bottom }
+minimize energy
+subject to contact_force(seat) <= 1e9
+";
+    let mut s = compile_scene(src);
+    s.solver.tolerance = 1e-10;
+    let semi = crate::fixture::semi_analytic(&s, 1e-10).expect("semi-analytic");
+    let adjoint = crate::fixture::adjoint(&s, 1e-10).expect("adjoint");
+    let h = 1e-9;
+    let fd = crate::fixture::finite_difference(&s, h, cso::lang::scene::Scheme::Central)
+        .expect("finite differences");
+    assert!(
+        fd.active_set_changed.is_empty(),
+        "the step changes the active set"
+    );
+    for f in 0..semi.gradient.len() {
+        let (a, b, c) = (
+            semi.gradient[f][0],
+            adjoint.gradient[f][0],
+            fd.gradient[f][0],
+        );
+        assert!(
+            a != 0.0,
+            "{}: a zero gradient tests nothing",
+            semi.functionals[f]
+        );
+        assert!(
+            (a - b).abs() <= 1e-6 * a.abs(),
+            "{}: semi {a}, adjoint {b}",
+            semi.functionals[f]
+        );
+        assert!(
+            (a - c).abs() <= 1e-4 * a.abs(),
+            "{}: semi {a}, FD {c}",
+            semi.functionals[f]
+        );
+    }
+}
+
+#[test]
+fn nodes_no_element_uses_are_ignored_and_counted_in_a_note() {
+    let scene = compile_scene(&loaded_block(
+        "mesh = \"block_tris_stray.msh\", unit = mm, subdomains = 2",
+    ));
+    assert_eq!(
+        scene.bodies[0].nodes(),
+        45,
+        "the 2 stray nodes are not the body's"
+    );
+    let summary = cso::io::summary::summarize(&scene).to_string();
+    assert!(
+        summary.contains("note: 2 nodes of the file belong to no element and are ignored"),
+        "{summary}"
+    );
+}
+
+#[test]
+fn imported_faces_tie_and_carry_loads_as_the_reference_does() {
+    // Tetrahedra glued onto a structured base (node-to-triangle ties the other
+    // way round too), with traction, pressure and gravity on imported faces.
+    for (primary, secondary) in [("base.top", "brick.bottom"), ("brick.bottom", "base.top")] {
+        let src = format!(
+            "scene glued {{ dim = 3 }}
+material steel {{ E = 200 GPa, nu = 0.3, rho = 7800 kg/m^3 }}
+body base {{ material = steel, x = 0 .. 20 mm, y = 0 .. 20 mm, z = -6 mm .. 0 mm, mesh = 6 x 5 x 2, subdomains = 2 x 1 x 1 }}
+body brick {{ material = steel, mesh = \"brick_tets.msh\", unit = mm, subdomains = 3 }}
+fix base.bottom
+glue joint {{ primary = {primary}, secondary = {secondary} }}
+traction brick.right = (0, 5 MPa, -2 MPa)
+pressure brick.top[x < 10 mm] = 20 MPa
+gravity = (0, 0, -9.81)
+"
+        );
+        check_method(
+            &format!("glued, primary {primary}"),
+            &src,
+            SolverMethod::Tfeti,
+            1e-6,
+            1e-5,
+        );
+    }
+}

@@ -99,6 +99,20 @@ fn a_3d_scene_with_the_dirichlet_preconditioner_on_3_ranks_matches_serial() {
 }
 
 #[test]
+fn bodies_from_mesh_files_on_2_and_3_ranks_give_the_serial_report_bitwise() {
+    // A ring of triangles (METIS subdomains) between structured plates.
+    let scene = "examples/ring.cso";
+    let serial = solve(None, scene, &[], &scratch("ring-serial"));
+    for n in [2, 3] {
+        let dist = solve(Some(n), scene, &[], &scratch(&format!("ring-{n}")));
+        assert_same(&serial, &dist, &format!("ring on {n} ranks"));
+    }
+    let a = std::fs::read(scratch("ring-serial").join("ring.vtu")).expect("serial VTU");
+    let b = std::fs::read(scratch("ring-2").join("ring.vtu")).expect("distributed VTU");
+    assert!(a == b, "ring.vtu differs on 2 ranks");
+}
+
+#[test]
 fn more_ranks_than_subdomains_stops_every_rank_with_one_message() {
     let env = [("CSO_MPI_ALL_RANKS", "1")];
     let (code, _, err) = run(Some(9), &env, &["solve", "examples/semicoercive2d.cso"]);

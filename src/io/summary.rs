@@ -84,6 +84,8 @@ pub struct ImportedSummary {
     pub faces: Vec<String>,
     /// Pieces of subdomains METIS left disconnected, moved to a neighbour.
     pub moved_pieces: usize,
+    /// Nodes of the file no element uses (ignored).
+    pub unused_nodes: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -211,6 +213,7 @@ fn body_summaries(scene: &Scene) -> Vec<BodySummary> {
                     .chain(["boundary".to_string()])
                     .collect(),
                 moved_pieces: m.moved_pieces,
+                unused_nodes: m.mesh.unused_nodes,
             }),
         })
         .collect()
@@ -499,6 +502,20 @@ impl Summary {
                     b.primal_dofs,
                 );
                 let _ = writeln!(o, "  {:<10} faces {}", "", m.faces.join(", "));
+                if m.unused_nodes > 0 {
+                    let _ = writeln!(
+                        o,
+                        "  {:<10} note: {} nodes of the file belong to no element and are ignored",
+                        "", m.unused_nodes
+                    );
+                }
+                if m.moved_pieces > 0 {
+                    let _ = writeln!(
+                        o,
+                        "  {:<10} note: METIS left {} pieces of subdomains apart; each was moved to the neighbour it shares most facets with",
+                        "", m.moved_pieces
+                    );
+                }
                 continue;
             }
             let per: Vec<usize> = b

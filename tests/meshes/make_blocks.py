@@ -9,3 +9,9 @@ for name, tri in [("block_quads.msh", False), ("block_tris.msh", True)]:
     nodes, cells, sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=tri)
     groups = [(s, 1, 1, lines) for s, lines in sides.items()]
     write(name, 2, nodes, cells, groups, region="block")
+
+# The triangles with two nodes that no element uses (cso ignores them and
+# says so in the summary).
+nodes, cells, sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=True)
+nodes += [(100.0, 100.0, 0.0), (-50.0, 7.0, 0.0)]
+write("block_tris_stray.msh", 2, nodes, cells, [(s, 1, 1, l) for s, l in sides.items()], region="block")
