@@ -324,23 +324,7 @@ impl Tape {
             .enumerate()
             .filter(|(_, motion)| !matches!(motion, RowMotion::Still))
             .collect();
-        // Each body's measure and its gradient (kept where the body moves).
-        let (measure_values, measures) = scene
-            .bodies
-            .iter()
-            .enumerate()
-            .map(|(b, body)| {
-                let (value, g) = if let Some(m) = &body.imported {
-                    // Its nodes do not move: the measure is a constant.
-                    (m.measure(), Vec::new())
-                } else if DIM == 2 {
-                    area_gradient(body, &pos[b])
-                } else {
-                    volume_gradient(body, &pos[b])
-                };
-                (value, if moves[b] { g } else { Vec::new() })
-            })
-            .unzip();
+        let (measure_values, measures) = body_measures(scene, &pos, &moves);
         Tape {
             dim: DIM,
             velocities,
@@ -712,6 +696,31 @@ where
         size,
         contact,
     })
+}
+
+/// Each body's measure and its gradient with respect to its node coordinates
+/// (kept where the body moves).
+fn body_measures<const DIM: usize>(
+    scene: &Scene,
+    pos: &[Vec<[f64; DIM]>],
+    moves: &[bool],
+) -> (Vec<f64>, Vec<Vec<f64>>) {
+    scene
+        .bodies
+        .iter()
+        .enumerate()
+        .map(|(b, body)| {
+            let (value, g) = if let Some(m) = &body.imported {
+                // Its nodes do not move: the measure is a constant.
+                (m.measure(), Vec::new())
+            } else if DIM == 2 {
+                area_gradient(body, &pos[b])
+            } else {
+                volume_gradient(body, &pos[b])
+            };
+            (value, if moves[b] { g } else { Vec::new() })
+        })
+        .unzip()
 }
 
 /// Gradient of a 2D body's area (the shoelace over its boundary ring, as
