@@ -329,3 +329,62 @@ fn best_neighbour(
 
 #[cfg(test)]
 mod tests;
+
+/// METIS's nested dissection of a mesh's node graph (nodes adjacent where
+/// they share an element; `per` nodes per element): the order in which to
+/// eliminate the nodes, for a subdomain factor that no brick lattice orders.
+/// None where METIS fails or the mesh is too small or too large for its
+/// indices. Its random choices are seeded, so an order repeats.
+pub fn node_dissection(elements: &[usize], per: usize, nodes: usize) -> Option<Vec<usize>> {
+    if nodes < 3 || per == 0 {
+        return None;
+    }
+    let mut adj: Vec<Vec<usize>> = vec![Vec::new(); nodes];
+    for e in elements.chunks_exact(per) {
+        for &a in e {
+            for &b in e {
+                if a != b {
+                    adj.get_mut(a)?.push(b);
+                }
+            }
+        }
+    }
+    let mut xadj: Vec<Idx> = Vec::with_capacity(nodes + 1);
+    let mut adjncy: Vec<Idx> = Vec::new();
+    xadj.push(0);
+    for a in &mut adj {
+        a.sort_unstable();
+        a.dedup();
+        for &b in a.iter() {
+            adjncy.push(Idx::try_from(b).ok()?);
+        }
+        xadj.push(Idx::try_from(adjncy.len()).ok()?);
+    }
+    let mut n = Idx::try_from(nodes).ok()?;
+    let mut options = [0 as Idx; metis_sys::METIS_NOPTIONS as usize];
+    let (mut perm, mut iperm) = (vec![0 as Idx; nodes], vec![0 as Idx; nodes]);
+    let _lock = METIS_LOCK.lock().unwrap_or_else(|e| e.into_inner());
+    // SAFETY: the arrays have the lengths METIS_NodeND reads and writes
+    // (xadj: nodes + 1; adjncy: xadj[nodes]; options: METIS_NOPTIONS; perm
+    // and iperm: nodes), a null vwgt means unit weights, and the lock keeps
+    // METIS's globals to one caller.
+    let status = unsafe {
+        metis_sys::METIS_SetDefaultOptions(options.as_mut_ptr());
+        options[metis_sys::moptions_et_METIS_OPTION_SEED as usize] = SEED;
+        options[metis_sys::moptions_et_METIS_OPTION_NUMBERING as usize] = 0;
+        metis_sys::METIS_NodeND(
+            &mut n,
+            xadj.as_mut_ptr(),
+            adjncy.as_mut_ptr(),
+            std::ptr::null_mut(),
+            options.as_mut_ptr(),
+            perm.as_mut_ptr(),
+            iperm.as_mut_ptr(),
+        )
+    };
+    if status != metis_sys::rstatus_et_METIS_OK {
+        return None;
+    }
+    // perm[k]: the node eliminated k-th.
+    perm.into_iter().map(|v| usize::try_from(v).ok()).collect()
+}

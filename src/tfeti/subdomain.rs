@@ -163,10 +163,24 @@ fn fixed_symbolic(
 ) -> Result<Arc<SymbolicCholesky<usize>>, SubdomainError> {
     let dim = mesh.element.dim();
     let n = reduced.len();
+    let nodes = n / dim;
+    // A brick's own planes; else (tetrahedra, a METIS-cut part of an
+    // imported mesh) METIS's nested dissection of the node graph.
+    let node_order = || {
+        let lattice = (mesh.element == crate::fem::Element::Hex8)
+            .then(|| ordering::lattice(mesh.elements, nodes))
+            .flatten();
+        match lattice {
+            Some(at) => Some(ordering::nested_dissection(&at)),
+            None => {
+                crate::model::partition::node_dissection(mesh.elements, mesh.element.nodes(), nodes)
+            }
+        }
+    };
     let order = (dim == 3 && order_by == FactorOrdering::Dissection)
-        .then(|| ordering::lattice(mesh.elements, n / dim))
+        .then(node_order)
         .flatten()
-        .map(|at| ordering::dof_order(&ordering::nested_dissection(&at), dim, reduced));
+        .map(|o| ordering::dof_order(&o, dim, reduced));
     let key = SymbolicKey {
         col_ptr: krr.symbolic().col_ptr(),
         row_idx: krr.symbolic().row_idx(),

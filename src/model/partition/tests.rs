@@ -157,3 +157,21 @@ fn a_part_of_a_mesh_in_pieces_cannot_be_joined() {
     let p = partition(CellKind::Quad4, &cells, 2).unwrap();
     assert_ne!(p.part_of_cell[0], p.part_of_cell[1]);
 }
+
+/// METIS's nested dissection of a tetrahedral cube's nodes: every node once,
+/// the same order every time (the seed is fixed); no order for a graph too
+/// small to cut or elements of no nodes.
+#[test]
+fn node_dissection_orders_every_node_once_and_repeats() {
+    let n = 6;
+    let cells = tet_cube(n);
+    let nodes = (n + 1).pow(3);
+    let flat: Vec<usize> = cells.concat();
+    let order = node_dissection(&flat, 4, nodes).expect("METIS orders the nodes");
+    let mut seen = order.clone();
+    seen.sort_unstable();
+    assert_eq!(seen, (0..nodes).collect::<Vec<_>>());
+    assert_eq!(node_dissection(&flat, 4, nodes), Some(order));
+    assert_eq!(node_dissection(&flat, 4, 2), None, "too small to dissect");
+    assert_eq!(node_dissection(&flat, 0, nodes), None);
+}
