@@ -444,3 +444,41 @@ gravity = (0, 0, -9.81)
         );
     }
 }
+
+#[test]
+fn a_mesh_in_pieces_is_refused_unless_they_float_apart() {
+    let scene = |fields: &str| {
+        format!(
+            "scene pieces {{ dim = 2 }}
+material steel {{ E = 200 GPa, nu = 0.3 }}
+body base {{ material = steel, x = -10 mm .. 100 mm, y = -10 mm .. 0 mm, mesh = 22 x 2, subdomains = 2 x 1 }}
+body pair {{ material = steel, mesh = \"two_pieces.msh\", unit = mm{fields} }}
+fix base.bottom
+displace pair.top {{ ux = 0.001 mm, uy = -0.01 mm }}
+contact seat {{ primary = base.top, secondary = pair.bottom }}
+"
+        )
+    };
+    let e = errors(&scene(", subdomains = 3"));
+    assert!(
+        e.contains("falls into 2 pieces") && e.contains("pieces = separate"),
+        "{e}"
+    );
+    let e = errors(&scene(", pieces = separate, subdomains = 1"));
+    assert!(
+        e.contains("each piece needs its own; ask for at least 2"),
+        "{e}"
+    );
+    let e = errors(&scene(", pieces = apart, subdomains = 2"));
+    assert!(e.contains("`pieces` takes one value, `separate`"), "{e}");
+    // Each piece on its own subdomains; both pressed into the base.
+    let src = scene(", pieces = separate, subdomains = 5");
+    let s = compile_scene(&src);
+    let m = s.bodies[1].imported.as_ref().expect("imported");
+    let (left, right) = m.part_of_cell.split_at(m.part_of_cell.len() / 2);
+    assert!(
+        left.iter().all(|p| !right.contains(p)),
+        "a subdomain spans both pieces"
+    );
+    check("two pieces on a base", &src, 1e-6, 1e-5);
+}

@@ -288,7 +288,8 @@ impl fmt::Display for MeshError {
             MeshError::Disconnected { pieces } => write!(
                 f,
                 "the body falls into {pieces} pieces that share no face (or edge in 2D): mesh it \
-                 as one piece, or give each piece its own body"
+                 as one piece, give each piece its own body, or write `pieces = separate` to \
+                 let each float on its own"
             ),
         }
     }

@@ -311,7 +311,8 @@ pub struct Imported {
 }
 
 impl Imported {
-    /// The mesh cut into `parts` subdomains by METIS (fixed seed).
+    /// The mesh cut into `parts` subdomains by METIS (fixed seed), each piece
+    /// of a mesh in pieces on its own.
     ///
     /// # Errors
     /// More parts than cells, or METIS failing.
@@ -321,7 +322,12 @@ impl Imported {
         mesh: crate::io::msh::ImportedMesh,
         parts: usize,
     ) -> Result<Imported, crate::model::partition::PartitionError> {
-        let p = crate::model::partition::partition(mesh.kind, &mesh.cells, parts)?;
+        // A mesh in pieces (`pieces = separate`) is cut piece by piece.
+        let p = if mesh.pieces > 1 {
+            crate::model::partition::partition_pieces(mesh.kind, &mesh.cells, parts)?
+        } else {
+            crate::model::partition::partition(mesh.kind, &mesh.cells, parts)?
+        };
         Ok(Imported {
             file,
             sha256,

@@ -144,6 +144,8 @@ pub enum PartitionError {
     NoParts,
     /// More subdomains than cells.
     TooManyParts { parts: usize, cells: usize },
+    /// A mesh whose pieces float apart needs a subdomain per piece at least.
+    TooFewParts { parts: usize, pieces: usize },
     /// METIS failed (its message), or the mesh is too large for its indices.
     Metis(String),
     /// METIS left a subdomain without cells.
@@ -163,6 +165,11 @@ impl fmt::Display for PartitionError {
                 f,
                 "{parts} subdomains for {cells} elements: a subdomain needs at least one \
                  element; ask for at most {cells}"
+            ),
+            PartitionError::TooFewParts { parts, pieces } => write!(
+                f,
+                "{parts} subdomains for a mesh of {pieces} separate pieces: each piece needs \
+                 its own; ask for at least {pieces}"
             ),
             PartitionError::Metis(m) => write!(f, "METIS could not cut the mesh: {m}"),
             PartitionError::EmptyPart { part, parts } => write!(
@@ -203,6 +210,72 @@ pub fn partition(
         return Err(PartitionError::EmptyPart { part, parts: n });
     }
     let moved_pieces = connect_parts(&graph, &mut part_of_cell)?;
+    Ok(Partition {
+        part_of_cell,
+        moved_pieces,
+    })
+}
+
+/// A mesh in pieces (each floats on its own) cut into `n` subdomains: each
+/// piece gets a share of them in proportion to its cells (at least one), and
+/// is cut on its own by [`partition`], so no subdomain spans two pieces.
+/// Parts are numbered piece after piece, in the order of the pieces' first
+/// cells.
+///
+/// # Errors
+/// Fewer subdomains than pieces ([`PartitionError::TooFewParts`]), and what
+/// [`partition`] refuses for a piece.
+pub fn partition_pieces(
+    kind: CellKind,
+    cells: &[Vec<usize>],
+    n: usize,
+) -> Result<Partition, PartitionError> {
+    let graph = DualGraph::new(kind, cells);
+    let (_, pieces) = graph.pieces(|_, _| true);
+    if pieces.len() <= 1 {
+        return partition(kind, cells, n);
+    }
+    if n < pieces.len() {
+        return Err(PartitionError::TooFewParts {
+            parts: n,
+            pieces: pieces.len(),
+        });
+    }
+    // Largest remainders: one each, the rest by cell count.
+    let total = cells.len() as f64;
+    let extra = (n - pieces.len()) as f64;
+    let ideal: Vec<f64> = pieces
+        .iter()
+        .map(|p| extra * p.len() as f64 / total)
+        .collect();
+    let mut share: Vec<usize> = ideal.iter().map(|v| 1 + v.floor() as usize).collect();
+    let mut order: Vec<usize> = (0..pieces.len()).collect();
+    order.sort_by(|&a, &b| (ideal[b] - ideal[b].floor()).total_cmp(&(ideal[a] - ideal[a].floor())));
+    let mut left = n - share.iter().sum::<usize>();
+    for &p in order.iter().cycle() {
+        if left == 0 {
+            break;
+        }
+        share[p] += 1;
+        left -= 1;
+    }
+    let mut part_of_cell = vec![0; cells.len()];
+    let (mut first, mut moved_pieces) = (0, 0);
+    for (piece, &parts) in pieces.iter().zip(&share) {
+        let sub: Vec<Vec<usize>> = piece.iter().map(|&c| cells[c].clone()).collect();
+        let cut = partition(kind, &sub, parts.min(sub.len()))?;
+        for (&c, &p) in piece.iter().zip(&cut.part_of_cell) {
+            part_of_cell[c] = first + p;
+        }
+        first += parts.min(sub.len());
+        moved_pieces += cut.moved_pieces;
+    }
+    if first != n {
+        return Err(PartitionError::TooManyParts {
+            parts: n,
+            cells: cells.len(),
+        });
+    }
     Ok(Partition {
         part_of_cell,
         moved_pieces,

@@ -15,3 +15,12 @@ for name, tri in [("block_quads.msh", False), ("block_tris.msh", True)]:
 nodes, cells, sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=True)
 nodes += [(100.0, 100.0, 0.0), (-50.0, 7.0, 0.0)]
 write("block_tris_stray.msh", 2, nodes, cells, [(s, 1, 1, l) for s, l in sides.items()], region="block")
+
+# Two blocks of triangles side by side, 10 mm apart, in one file and one
+# region: a mesh in two pieces (`pieces = separate` takes it).
+nodes, (kind, tris), sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=True)
+k = len(nodes)
+nodes2 = nodes + [(x + 50.0, y, z) for x, y, z in nodes]
+tris2 = tris + [tuple(v + k for v in t) for t in tris]
+groups = [(s, 1, 1, l + [tuple(v + k for v in e) for e in l]) for s, l in sides.items()]
+write("two_pieces.msh", 2, nodes2, (kind, tris2), groups, region="pieces")

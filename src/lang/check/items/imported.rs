@@ -41,6 +41,7 @@ impl<'a> Checker<'a> {
         }
         let unit = f.get("unit").map_or(Some(1.0), |fl| self.length_unit(fl));
         let region = f.get("region").and_then(|fl| self.region_name(fl));
+        let separate = f.get("pieces").is_some_and(|fl| self.pieces_apart(fl));
         let parts = f.get("subdomains").map_or(Some(1), |fl| {
             let e = self.expr_of(fl, "a subdomain count")?;
             self.integer(e, 1, "`subdomains`")
@@ -48,7 +49,7 @@ impl<'a> Checker<'a> {
         let spans = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
         let (region_span, parts_span) = (spans("region"), spans("subdomains"));
         if let (Some(unit), Some(parts)) = (unit, parts) {
-            let read = self.read_mesh(file, unit, region.as_deref());
+            let read = self.read_mesh(file, unit, region.as_deref(), separate);
             match read {
                 Ok((mesh, sha256)) => {
                     self.keep_mesh_path(file, file_span);
@@ -83,6 +84,7 @@ impl<'a> Checker<'a> {
             opt("unit", "unit = mm"),
             opt("region", "region = \"NAME\""),
             opt("subdomains", "subdomains = 8"),
+            opt("pieces", "pieces = separate"),
         ];
         let hint = |n: &str| match n {
             "x" | "y" | "z" | "bottom" | "top" => Some(format!(
@@ -139,6 +141,26 @@ impl<'a> Checker<'a> {
         }
     }
 
+    /// `pieces = separate`: a mesh in several pieces is taken as they are,
+    /// each floating on its own (held by its own supports and contacts).
+    fn pieces_apart(&mut self, fl: &'a Field) -> bool {
+        let Some(e) = self.expr_of(fl, "`separate`") else {
+            return false;
+        };
+        if matches!(&e.kind, ExprKind::Name(n) if n == "separate") {
+            return true;
+        }
+        self.error(
+            Diagnostic::new("cso::wrong-value", "`pieces` takes one value, `separate`")
+                .label(e.span, "expected `separate`")
+                .help(
+                    "write `pieces = separate` to take a mesh in several pieces, each \
+                     floating on its own; leave it out for a mesh in one piece",
+                ),
+        );
+        false
+    }
+
     /// `region = "NAME"`.
     fn region_name(&mut self, fl: &'a Field) -> Option<String> {
         let e = self.expr_of(fl, "a physical group's name")?;
@@ -186,6 +208,7 @@ impl<'a> Checker<'a> {
         file: &str,
         unit: f64,
         region: Option<&str>,
+        separate: bool,
     ) -> Result<(crate::io::msh::ImportedMesh, String), MeshError> {
         let path = self.mesh_path(file);
         let bytes = std::fs::read(&path).map_err(|e| MeshError::Unreadable {
@@ -196,7 +219,7 @@ impl<'a> Checker<'a> {
             dim: self.dim.n(),
             unit,
             region,
-            allow_disconnected: false,
+            allow_disconnected: separate,
         };
         let mesh = crate::io::msh::parse_msh(&bytes, &opts)?;
         Ok((mesh, super::super::sha256_hex(&bytes)))
