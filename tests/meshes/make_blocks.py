@@ -3,6 +3,10 @@ block_quads.msh, the block [0, 40] x [0, 20] mm of 8 x 4 quadrangles, node
 for node the structured body `x = 0 .. 40 mm, y = 0 .. 20 mm, mesh = 8 x 4`;
 block_tris.msh, the same grid with each quadrangle cut into two triangles.
 Coordinates in mm; faces `bottom`, `right`, `top`, `left`."""
+import os
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples", "meshes"))
 from msh41 import write, grid_2d
 
 for name, tri in [("block_quads.msh", False), ("block_tris.msh", True)]:

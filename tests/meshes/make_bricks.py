@@ -4,6 +4,10 @@ hexahedra, node for node the structured body `x = 0 .. 20 mm, y = 0 .. 20 mm,
 z = 0 .. 10 mm, mesh = 4 x 4 x 2`; brick_tets.msh, the same grid with each
 hexahedron cut into six tetrahedra. Coordinates in mm; faces `left`,
 `right`, `front`, `back`, `bottom`, `top`."""
+import os
+import sys
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "examples", "meshes"))
 from msh41 import write, grid_3d
 
 for name, tets in [("brick_hexes.msh", False), ("brick_tets.msh", True)]:
