@@ -172,6 +172,8 @@ fn bad_imported_bodies_are_errors_that_say_what_to_change() {
     );
     let e = errors(&press_2d("mesh = \"block_tris.msh\", subdomains = 1000"));
     assert!(e.contains("1000 subdomains for 64 elements"), "{e}");
+    let e = errors(&press_2d("mesh = \"named_boundary.msh\", unit = mm"));
+    assert!(e.contains("a physical group named `boundary`"), "{e}");
     let e = errors(&press_2d("mesh = \"brick_tets.msh\""));
     assert!(e.contains("is it a 3D mesh in a 2D scene?"), "{e}");
     let e = errors(

@@ -170,9 +170,20 @@ fn facing_axis(pieces: &[crate::model::FacePatch], coords: &[[f64; 3]]) -> Optio
             sum[a] += n[a] * area;
         }
     }
+    // A closed face's area vectors cancel: no axis to look along then.
+    let total: f64 = pieces
+        .iter()
+        .map(|piece| {
+            crate::model::geometry::Piece::facet(
+                &crate::model::FacePatch { body: 0, ..*piece },
+                &pos,
+            )
+            .measure()
+        })
+        .sum();
     (0..3)
         .max_by(|&a, &b| sum[a].abs().total_cmp(&sum[b].abs()))
-        .filter(|&a| sum[a] != 0.0)
+        .filter(|&a| sum[a].abs() > 0.1 * total)
 }
 
 /// In 3D, a map of contact `ci`'s pressure over its secondary face, seen
@@ -292,12 +303,12 @@ fn onto_symmetry(scene: &Scene, state: &State, ci: usize, mut o: [f64; 3]) -> ([
         else {
             continue;
         };
-        let Some(axis) = body.face_axis(sel.face) else {
+        let design = scene.design_init();
+        let Some(axis) = body.selection_axis(sel, &design) else {
             continue;
         };
         // A plane only where the face is one (a curved face has no axis).
-        let along: Vec<f64> = body
-            .face_nodes(sel.face)
+        let along: Vec<f64> = crate::model::geometry::selected_nodes(p, sel, &design)
             .iter()
             .map(|&n| body.coords[n][axis])
             .collect();

@@ -146,6 +146,9 @@ pub enum PartitionError {
     TooManyParts { parts: usize, cells: usize },
     /// A mesh whose pieces float apart needs a subdomain per piece at least.
     TooFewParts { parts: usize, pieces: usize },
+    /// Pieces that share no facet but touch at a node (or an edge): they can
+    /// neither float apart nor hold each other. `node` indexes the body's nodes.
+    TouchingPieces { node: usize },
     /// METIS failed (its message), or the mesh is too large for its indices.
     Metis(String),
     /// METIS left a subdomain without cells.
@@ -170,6 +173,12 @@ impl fmt::Display for PartitionError {
                 f,
                 "{parts} subdomains for a mesh of {pieces} separate pieces: each piece needs \
                  its own; ask for at least {pieces}"
+            ),
+            PartitionError::TouchingPieces { node } => write!(
+                f,
+                "the mesh's pieces touch at a node (the body's node {node}) without sharing a \
+                 face: they can neither float apart nor hold each other; mesh them apart or \
+                 as one piece"
             ),
             PartitionError::Metis(m) => write!(f, "METIS could not cut the mesh: {m}"),
             PartitionError::EmptyPart { part, parts } => write!(
@@ -241,45 +250,59 @@ pub fn partition_pieces(
             pieces: pieces.len(),
         });
     }
-    // Largest remainders: one each, the rest by cell count.
-    let total = cells.len() as f64;
-    let extra = (n - pieces.len()) as f64;
-    let ideal: Vec<f64> = pieces
-        .iter()
-        .map(|p| extra * p.len() as f64 / total)
-        .collect();
-    let mut share: Vec<usize> = ideal.iter().map(|v| 1 + v.floor() as usize).collect();
-    let mut order: Vec<usize> = (0..pieces.len()).collect();
-    order.sort_by(|&a, &b| (ideal[b] - ideal[b].floor()).total_cmp(&(ideal[a] - ideal[a].floor())));
-    let mut left = n - share.iter().sum::<usize>();
-    for &p in order.iter().cycle() {
-        if left == 0 {
-            break;
-        }
+    if let Some(node) = shared_node(cells, &pieces) {
+        return Err(PartitionError::TouchingPieces { node });
+    }
+    // One each, then each next one to the piece with the most cells per
+    // subdomain that can still take one (no more subdomains than cells).
+    let mut share = vec![1usize; pieces.len()];
+    for _ in pieces.len()..n {
+        let next = (0..pieces.len())
+            .filter(|&p| share[p] < pieces[p].len())
+            .max_by(|&a, &b| {
+                let per = |p: usize| pieces[p].len() as f64 / share[p] as f64;
+                per(a).total_cmp(&per(b)).then(b.cmp(&a))
+            });
+        let Some(p) = next else {
+            return Err(PartitionError::TooManyParts {
+                parts: n,
+                cells: cells.len(),
+            });
+        };
         share[p] += 1;
-        left -= 1;
     }
     let mut part_of_cell = vec![0; cells.len()];
     let (mut first, mut moved_pieces) = (0, 0);
     for (piece, &parts) in pieces.iter().zip(&share) {
         let sub: Vec<Vec<usize>> = piece.iter().map(|&c| cells[c].clone()).collect();
-        let cut = partition(kind, &sub, parts.min(sub.len()))?;
+        let cut = partition(kind, &sub, parts)?;
         for (&c, &p) in piece.iter().zip(&cut.part_of_cell) {
             part_of_cell[c] = first + p;
         }
-        first += parts.min(sub.len());
+        first += parts;
         moved_pieces += cut.moved_pieces;
-    }
-    if first != n {
-        return Err(PartitionError::TooManyParts {
-            parts: n,
-            cells: cells.len(),
-        });
     }
     Ok(Partition {
         part_of_cell,
         moved_pieces,
     })
+}
+
+/// A node that cells of two pieces use (pieces that share no facet but touch
+/// at a node or an edge), if any.
+fn shared_node(cells: &[Vec<usize>], pieces: &[Vec<usize>]) -> Option<usize> {
+    let mut piece_of_node: std::collections::HashMap<usize, usize> =
+        std::collections::HashMap::new();
+    for (p, piece) in pieces.iter().enumerate() {
+        for &c in piece {
+            for &n in &cells[c] {
+                if *piece_of_node.entry(n).or_insert(p) != p {
+                    return Some(n);
+                }
+            }
+        }
+    }
+    None
 }
 
 /// METIS_PartGraphKway with a fixed seed and default balance (`ufactor` 30:

@@ -93,7 +93,7 @@ pub(super) fn hexahedra(n: [usize; 3]) -> impl Iterator<Item = [usize; 8]> {
 
 /// The measure of a body: its area in 2D, its volume in 3D.
 pub fn body_measure<T: Scalar>(body: &Body, design: &[T]) -> T {
-    if body.mesh.len() == 3 {
+    if body.extent.len() == 3 {
         body_volume(body, design)
     } else {
         body_area(body, design)

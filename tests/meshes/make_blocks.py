@@ -28,3 +28,7 @@ nodes2 = nodes + [(x + 50.0, y, z) for x, y, z in nodes]
 tris2 = tris + [tuple(v + k for v in t) for t in tris]
 groups = [(s, 1, 1, l + [tuple(v + k for v in e) for e in l]) for s, l in sides.items()]
 write("two_pieces.msh", 2, nodes2, (kind, tris2), groups, region="pieces")
+
+# A face group named `boundary`, the name cso gives the whole boundary.
+nodes, cells, sides = grid_2d(0.0, 40.0, 0.0, 20.0, 8, 4, triangles=True)
+write("named_boundary.msh", 2, nodes, cells, [("boundary", 1, 1, sides["bottom"])], region="block")

@@ -175,3 +175,37 @@ fn node_dissection_orders_every_node_once_and_repeats() {
     assert_eq!(node_dissection(&flat, 4, 2), None, "too small to dissect");
     assert_eq!(node_dissection(&flat, 0, nodes), None);
 }
+
+/// Pieces apart: each gets subdomains by its size but never more than its
+/// cells (pieces of 1 and 3 cells into 4: 1 + 3, the tie notwithstanding);
+/// pieces that touch at a node are refused.
+#[test]
+fn pieces_share_the_subdomains_by_size_and_must_not_touch() {
+    // One quad at x = 0..1, a strip of three at x = 5..8 (no shared node).
+    let cells = vec![
+        vec![0, 1, 2, 3],
+        vec![4, 5, 6, 7],
+        vec![5, 8, 9, 6],
+        vec![8, 10, 11, 9],
+    ];
+    let p = partition_pieces(CellKind::Quad4, &cells, 4).expect("1 + 3");
+    let mut parts = p.part_of_cell.clone();
+    parts.sort_unstable();
+    assert_eq!(parts, [0, 1, 2, 3]);
+    assert_eq!(p.part_of_cell[0], 0, "the first piece first");
+    assert_eq!(
+        partition_pieces(CellKind::Quad4, &cells, 1),
+        Err(PartitionError::TooFewParts {
+            parts: 1,
+            pieces: 2
+        })
+    );
+    let p = partition_pieces(CellKind::Quad4, &cells, 2).expect("1 + 1");
+    assert_ne!(p.part_of_cell[0], p.part_of_cell[1]);
+    // Two quads sharing corner 2 only: pieces that touch.
+    let touching = vec![vec![0, 1, 2, 3], vec![2, 4, 5, 6]];
+    assert_eq!(
+        partition_pieces(CellKind::Quad4, &touching, 2),
+        Err(PartitionError::TouchingPieces { node: 2 })
+    );
+}

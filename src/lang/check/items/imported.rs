@@ -51,6 +51,17 @@ impl<'a> Checker<'a> {
         if let (Some(unit), Some(parts)) = (unit, parts) {
             let read = self.read_mesh(file, unit, region.as_deref(), separate);
             match read {
+                Ok((mesh, _)) if mesh.faces.iter().any(|g| g.name == "boundary") => {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::mesh-file",
+                            "the mesh file has a physical group named `boundary`, the name of \
+                             the whole boundary",
+                        )
+                        .label(file_span, "read from here")
+                        .help("rename the group in the mesh file (Physical Surface or Curve)"),
+                    );
+                }
                 Ok((mesh, sha256)) => {
                     self.keep_mesh_path(file, file_span);
                     if let Some(imported) = self.cut(mesh, parts, parts_span.unwrap_or(file_span)) {
