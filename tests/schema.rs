@@ -161,18 +161,20 @@ fn errors_of(report: &Value, schema: &Value) -> Vec<String> {
     errors
 }
 
-#[test]
-fn report_json_matches_its_documented_schema() {
-    let schema: Value = serde_json::from_str(
+/// docs/report.schema.json.
+fn schema() -> Value {
+    serde_json::from_str(
         &std::fs::read_to_string(root().join("docs/report.schema.json")).expect("schema"),
     )
-    .expect("the schema is JSON");
-    known_keywords(&schema, "").expect("the validator knows every keyword");
+    .expect("the schema is JSON")
+}
 
-    let dir = std::env::temp_dir().join(format!("cso-schema-{}", std::process::id()));
+/// The report.json of `cso solve SCENE` (a path from the repository root).
+fn solved_report(scene: &str, tag: &str) -> Value {
+    let dir = std::env::temp_dir().join(format!("cso-schema-{tag}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let out = Command::new(env!("CARGO_BIN_EXE_cso"))
-        .args(["--quiet", "solve", "examples/scont2d.cso", "-o"])
+        .args(["--quiet", "solve", scene, "-o"])
         .arg(&dir)
         .current_dir(root())
         .output()
@@ -184,7 +186,15 @@ fn report_json_matches_its_documented_schema() {
     );
     let text = std::fs::read_to_string(dir.join("report.json")).expect("report");
     let _ = std::fs::remove_dir_all(&dir);
-    let report: Value = serde_json::from_str(&text).expect("JSON");
+    serde_json::from_str(&text).expect("JSON")
+}
+
+#[test]
+fn report_json_matches_its_documented_schema() {
+    let schema = schema();
+    known_keywords(&schema, "").expect("the validator knows every keyword");
+
+    let report = solved_report("examples/scont2d.cso", "scont2d");
     let errors = errors_of(&report, &schema);
     assert!(errors.is_empty(), "{errors:#?}");
 
@@ -217,27 +227,8 @@ fn report_json_matches_its_documented_schema() {
 /// A scene with a body from a mesh file: its report names the file and its hash.
 #[test]
 fn a_report_names_the_mesh_files_it_read() {
-    let schema: Value = serde_json::from_str(
-        &std::fs::read_to_string(root().join("docs/report.schema.json")).expect("schema"),
-    )
-    .expect("the schema is JSON");
-    let dir = std::env::temp_dir().join(format!("cso-schema-ring-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    let out = Command::new(env!("CARGO_BIN_EXE_cso"))
-        .args(["--quiet", "solve", "examples/ring.cso", "-o"])
-        .arg(&dir)
-        .current_dir(root())
-        .output()
-        .expect("cso runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let text = std::fs::read_to_string(dir.join("report.json")).expect("report");
-    let _ = std::fs::remove_dir_all(&dir);
-    let report: Value = serde_json::from_str(&text).expect("JSON");
-    let errors = errors_of(&report, &schema);
+    let report = solved_report("examples/ring.cso", "ring");
+    let errors = errors_of(&report, &schema());
     assert!(errors.is_empty(), "{errors:#?}");
     let msh = std::fs::read(root().join("examples/ring.msh")).expect("mesh");
     assert_eq!(report["meshes"][0]["file"], "ring.msh");

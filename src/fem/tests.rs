@@ -236,6 +236,12 @@ fn bbar_passes_the_patch_test_at_nu_0_4999() {
 
 /// Eigenvalues of a dense symmetric `n x n` matrix: (near zero, negative).
 fn zero_and_negative(k: &[f64], n: usize) -> (usize, usize) {
+    eigen_signs(k, n, 1e-10)
+}
+
+/// Eigenvalues of a dense symmetric `n x n` matrix (row-major): how many are
+/// within `tol` of the largest's size from zero, and how many below that.
+pub(super) fn eigen_signs(k: &[f64], n: usize, tol: f64) -> (usize, usize) {
     let m = Mat::<f64>::from_fn(n, n, |i, j| k[i * n + j]);
     let s = m
         .self_adjoint_eigen(Side::Lower)
@@ -244,8 +250,8 @@ fn zero_and_negative(k: &[f64], n: usize) -> (usize, usize) {
         .column_vector()
         .to_owned();
     let max = (0..n).map(|i| s[i].abs()).fold(0.0, f64::max);
-    let zero = (0..n).filter(|&i| s[i].abs() < 1e-10 * max).count();
-    let negative = (0..n).filter(|&i| s[i] < -1e-10 * max).count();
+    let zero = (0..n).filter(|&i| s[i].abs() < tol * max).count();
+    let negative = (0..n).filter(|&i| s[i] < -tol * max).count();
     (zero, negative)
 }
 

@@ -133,8 +133,8 @@ pub fn tet_gauss<T: Scalar>(x: &Tet<T>) -> Vec<([f64; 4], T)> {
 #[cfg(test)]
 mod tests {
     use super::super::hex::isotropic;
+    use super::super::tests::eigen_signs;
     use super::*;
-    use faer::{Mat, Side};
     use num_dual::Dual64;
 
     /// A tetrahedron with no face along a coordinate plane, positive volume.
@@ -182,16 +182,7 @@ mod tests {
             }
         }
         // Rank 12 - 6: six zero eigenvalues, none negative.
-        let s = Mat::<f64>::from_fn(12, 12, |i, j| k[i * 12 + j])
-            .self_adjoint_eigen(Side::Lower)
-            .expect("eigen")
-            .S()
-            .column_vector()
-            .to_owned();
-        let max = (0..12).map(|i| s[i].abs()).fold(0.0, f64::max);
-        let zero = (0..12).filter(|&i| s[i].abs() < 1e-12 * max).count();
-        let negative = (0..12).filter(|&i| s[i] < -1e-12 * max).count();
-        assert_eq!((zero, negative), (6, 0), "{s:?}");
+        assert_eq!(eigen_signs(&k, 12, 1e-12), (6, 0));
     }
 
     #[test]

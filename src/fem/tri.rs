@@ -107,8 +107,8 @@ pub fn tri_gauss<T: Scalar>(x: &Tri<T>) -> Vec<([f64; 3], T)> {
 #[cfg(test)]
 mod tests {
     use super::super::quad::plane_strain;
+    use super::super::tests::eigen_signs;
     use super::*;
-    use faer::{Mat, Side};
     use num_dual::Dual64;
 
     /// A scalene, counter-clockwise triangle with no edge along an axis.
@@ -122,10 +122,6 @@ mod tests {
             let (n, a) = (i / 2, i % 2);
             grad[a][0] * x[n][0] + grad[a][1] * x[n][1]
         })
-    }
-
-    fn flat(k: &[[f64; 6]; 6]) -> Mat<f64> {
-        Mat::from_fn(6, 6, |i, j| k[i][j])
     }
 
     #[test]
@@ -151,16 +147,7 @@ mod tests {
             }
         }
         // Rank 6 - 3: three zero eigenvalues, none negative.
-        let s = flat(&k)
-            .self_adjoint_eigen(Side::Lower)
-            .expect("eigen")
-            .S()
-            .column_vector()
-            .to_owned();
-        let max = (0..6).map(|i| s[i].abs()).fold(0.0, f64::max);
-        let zero = (0..6).filter(|&i| s[i].abs() < 1e-12 * max).count();
-        let negative = (0..6).filter(|&i| s[i] < -1e-12 * max).count();
-        assert_eq!((zero, negative), (3, 0), "{s:?}");
+        assert_eq!(eigen_signs(&k.concat(), 6, 1e-12), (3, 0));
     }
 
     #[test]
