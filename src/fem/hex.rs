@@ -129,8 +129,9 @@ fn gradients<T: Scalar>(x: &Hex<T>, xi: [f64; 3]) -> ([[T; 3]; 8], T) {
     (g, det)
 }
 
-/// The strain-displacement rows of node `n`'s gradient `g`: 6 x 3.
-fn b_node<T: Scalar>(g: [T; 3]) -> [[T; 3]; 6] {
+/// The strain-displacement rows of node `n`'s gradient `g`: 6 x 3 (xx, yy,
+/// zz, engineering yz, xz, xy); the tetrahedron's too.
+pub(super) fn b_node<T: Scalar>(g: [T; 3]) -> [[T; 3]; 6] {
     let z = T::from(0.0);
     [
         [g[0], z, z],

@@ -9,6 +9,7 @@
 //! interleaved: `[ux0, uy0, uz0, ux1, ...]`. Its faces are linear triangles
 //! ([`super::triface::TriFacet`]).
 
+use super::hex::b_node;
 use super::vec3::{cross, dot};
 use crate::num::Scalar;
 
@@ -53,20 +54,6 @@ pub fn tet_volume_gradient<T: Scalar>(x: &Tet<T>) -> (T, [[T; 3]; 4]) {
     let d: [[T; 3]; 3] = c.map(|r| r.map(|v| v / 6.0));
     let d0 = std::array::from_fn(|a| -(d[0][a] + d[1][a] + d[2][a]));
     (det / 6.0, [d0, d[0], d[1], d[2]])
-}
-
-/// The strain-displacement rows of node gradient `g` (xx, yy, zz, engineering
-/// yz, xz, xy): 6 x 3, as the hexahedron's.
-fn b_node<T: Scalar>(g: [T; 3]) -> [[T; 3]; 6] {
-    let z = T::from(0.0);
-    [
-        [g[0], z, z],
-        [z, g[1], z],
-        [z, z, g[2]],
-        [z, g[2], g[1]],
-        [g[2], z, g[0]],
-        [g[1], g[0], z],
-    ]
 }
 
 /// Element stiffness `V B^T D B` (12 x 12, row-major, symmetric, exact: `B`
