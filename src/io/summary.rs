@@ -195,12 +195,7 @@ fn body_summaries(scene: &Scene) -> Vec<BodySummary> {
             elements: b.elements(),
             nodes: b.nodes(),
             primal_dofs: b.primal_dofs(),
-            designed: b
-                .extent
-                .iter()
-                .any(|(l, h)| l.uses_design() || h.uses_design())
-                || b.bottom.as_ref().is_some_and(Formula::uses_design)
-                || b.top.as_ref().is_some_and(Formula::uses_design),
+            designed: b.uses_design(),
             imported: b.imported.as_ref().map(|m| ImportedSummary {
                 file: m.file.clone(),
                 sha256: m.sha256.clone(),

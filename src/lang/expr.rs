@@ -111,6 +111,10 @@ pub enum Formula {
     /// control net of `n x n` points, row-major with `u` along a row (point
     /// `(i, j)` at `j * n + i`).
     Bezier2(Vec<Formula>, Box<Formula>, Box<Formula>),
+    /// `bezier3(net, u, v, w)`: trivariate tensor-product Bernstein volume over
+    /// a cubic net of `n x n x n` points, `u` fastest, then `v`, then `w`
+    /// (point `(i, j, k)` at `(k * n + j) * n + i`).
+    Bezier3(Vec<Formula>, Box<Formula>, Box<Formula>, Box<Formula>),
 }
 
 /// Where a formula is evaluated: coordinates and design values of one number type.
@@ -150,6 +154,9 @@ impl Formula {
                 t.eval(at),
             ),
             Formula::Bezier2(net, u, v) => bezier2(net, u.eval(at), v.eval(at), at),
+            Formula::Bezier3(net, u, v, w) => {
+                bezier3(net, [u.eval(at), v.eval(at), w.eval(at)], at)
+            }
         }
     }
 
@@ -187,6 +194,9 @@ impl Formula {
             Formula::Bezier(c, t) => t.any(pred) || c.iter().any(|c| c.any(pred)),
             Formula::Bezier2(c, u, v) => {
                 u.any(pred) || v.any(pred) || c.iter().any(|c| c.any(pred))
+            }
+            Formula::Bezier3(c, u, v, w) => {
+                u.any(pred) || v.any(pred) || w.any(pred) || c.iter().any(|c| c.any(pred))
             }
         }
     }
@@ -254,6 +264,29 @@ fn bezier2<T: Scalar>(net: &[Formula], u: T, v: T, at: &Point<'_, T>) -> T {
         .map(|row| bernstein(&row.iter().map(|c| c.eval(at)).collect::<Vec<_>>(), u))
         .collect();
     bernstein(&column, v)
+}
+
+/// The side `n` of a cubic control net of `len` points, if it is a cube.
+pub fn net_cube_side(len: usize) -> Option<usize> {
+    let n = (len as f64).cbrt().round() as usize;
+    (n > 0 && n * n * n == len).then_some(n)
+}
+
+/// A trivariate tensor-product Bezier volume: each row along `u`, each
+/// column of those along `v`, then the stack along `w`.
+fn bezier3<T: Scalar>(net: &[Formula], [u, v, w]: [T; 3], at: &Point<'_, T>) -> T {
+    let n = net_cube_side(net.len()).unwrap_or(1);
+    let layers: Vec<T> = net
+        .chunks(n * n)
+        .map(|layer| {
+            let column: Vec<T> = layer
+                .chunks(n)
+                .map(|row| bernstein(&row.iter().map(|c| c.eval(at)).collect::<Vec<_>>(), u))
+                .collect();
+            bernstein(&column, v)
+        })
+        .collect();
+    bernstein(&layers, w)
 }
 
 /// A checked condition on node coordinates (a selection filter).
@@ -416,6 +449,47 @@ mod tests {
         assert_eq!(net_side(9), Some(3));
         assert_eq!(net_side(6), None);
         assert_eq!(net_side(0), None);
+    }
+
+    #[test]
+    fn bezier3_matches_the_trivariate_bernstein_form() {
+        // 3 x 3 x 3 net: sum_ijk B_i(u) B_j(v) B_k(w) a_((k*3+j)*3+i).
+        let a: Vec<f64> = (0..27)
+            .map(|i| ((i * 7) % 11) as f64 / 11.0 - 0.3)
+            .collect();
+        let f = Formula::Bezier3(
+            a.iter().map(|v| Formula::Const(*v)).collect(),
+            Box::new(Formula::Coord(0)),
+            Box::new(Formula::Coord(1)),
+            Box::new(Formula::Coord(2)),
+        );
+        let b = |t: f64| [(1.0 - t) * (1.0 - t), 2.0 * t * (1.0 - t), t * t];
+        for (u, v, w) in [
+            (0.0, 0.0, 0.0),
+            (0.3, 0.8, 0.1),
+            (1.0, 0.5, 0.7),
+            (0.2, 1.0, 1.0),
+        ] {
+            let (bu, bv, bw) = (b(u), b(v), b(w));
+            let mut want = 0.0;
+            for k in 0..3 {
+                for j in 0..3 {
+                    for i in 0..3 {
+                        want += bu[i] * bv[j] * bw[k] * a[(k * 3 + j) * 3 + i];
+                    }
+                }
+            }
+            assert!((f.eval_f64([u, v, w], &[]) - want).abs() < 1e-15);
+        }
+        // Corners interpolate the net's corners.
+        assert_eq!(f.eval_f64([1.0, 0.0, 0.0], &[]), a[2]);
+        assert_eq!(f.eval_f64([0.0, 1.0, 0.0], &[]), a[6]);
+        assert_eq!(f.eval_f64([0.0, 0.0, 1.0], &[]), a[18]);
+        assert_eq!(f.eval_f64([1.0, 1.0, 1.0], &[]), a[26]);
+        assert_eq!(net_cube_side(27), Some(3));
+        assert_eq!(net_cube_side(64), Some(4));
+        assert_eq!(net_cube_side(9), None);
+        assert_eq!(net_cube_side(0), None);
     }
 
     #[test]

@@ -32,6 +32,7 @@ pub const ITEM_KEYWORDS: &[&str] = &[
     "glue",
     "contact",
     "probe",
+    "morph",
     "minimize",
     "subject",
     "solver",

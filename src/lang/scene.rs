@@ -290,6 +290,51 @@ pub struct Body {
     /// `extent` is then its bounding box, `mesh` empty, `subdomains` the one
     /// count, and no face is curved.
     pub imported: Option<std::sync::Arc<Imported>>,
+    /// Free-form deformations of parts of the body (`morph BODY { .. }`),
+    /// applied after the curved faces; their displacements add up.
+    pub morphs: Vec<Morph>,
+}
+
+/// `morph BODY { x = a .. b, .., ux = EXPR, .. }`: every node of the body
+/// inside the box moves by the field, whose formulas see the box's own
+/// coordinates `u`, `v`, `w` in [0, 1] as coordinates 0, 1, 2 (and the
+/// design); nodes outside stay.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Morph {
+    /// The box's lower and upper corners (m; unused axes 0).
+    pub lo: [f64; 3],
+    pub hi: [f64; 3],
+    /// The displacement per axis (m); None: zero.
+    pub field: [Option<Formula>; 3],
+}
+
+impl Morph {
+    /// The displacement of a node at `p` (its position before any morph):
+    /// None outside the box. A node on the box's faces is inside (the field
+    /// is zero there where the box cuts through the body).
+    pub fn displacement<T: Scalar>(&self, p: &[T; 3], dim: usize, design: &[T]) -> Option<[T; 3]> {
+        let mut at = [T::from(0.0); 3];
+        for a in 0..dim {
+            let (lo, hi) = (self.lo[a], self.hi[a]);
+            let tol = 1e-12 * (hi - lo).abs().max(hi.abs()).max(lo.abs());
+            let x = p[a].re();
+            if !(x >= lo - tol && x <= hi + tol) {
+                return None;
+            }
+            at[a] = (p[a] - lo) / (hi - lo);
+        }
+        let point = Point { coords: at, design };
+        Some(std::array::from_fn(|a| {
+            self.field[a]
+                .as_ref()
+                .map_or(T::from(0.0), |f| f.eval(&point))
+        }))
+    }
+
+    /// Does the field depend on the design?
+    pub fn uses_design(&self) -> bool {
+        self.field.iter().flatten().any(Formula::uses_design)
+    }
 }
 
 /// A body read from a Gmsh file, in metres, with its METIS cut.
@@ -461,11 +506,15 @@ impl Body {
     /// structured side, node order for an imported face).
     pub fn face_points(&self, face: FaceRef, design: &[f64]) -> Vec<[f64; 3]> {
         match (&self.imported, face) {
-            (Some(m), _) => m
+            (Some(m), _) if self.morphs.is_empty() => m
                 .face_nodes(face)
                 .into_iter()
                 .map(|n| m.mesh.nodes[n])
                 .collect(),
+            (Some(m), _) => {
+                let at = self.positions(design);
+                m.face_nodes(face).into_iter().map(|n| at[n]).collect()
+            }
             (None, FaceRef::Side(f)) => self
                 .face_indices(f)
                 .into_iter()
@@ -502,10 +551,75 @@ impl Body {
         saturating_product([per, self.subdomain_count(), self.extent.len()])
     }
 
+    /// Does the body's shape depend on the design (its extents, curved faces
+    /// or morphs)?
+    pub fn uses_design(&self) -> bool {
+        self.extent
+            .iter()
+            .any(|(lo, hi)| lo.uses_design() || hi.uses_design())
+            || self.bottom.as_ref().is_some_and(Formula::uses_design)
+            || self.top.as_ref().is_some_and(Formula::uses_design)
+            || self.morphs.iter().any(Morph::uses_design)
+    }
+
+    /// A node at `p` (faces applied) moved by every morph of the body: the
+    /// displacements of the morphs whose box holds `p` add up.
+    pub fn morphed<T: Scalar>(&self, p: [T; 3], design: &[T]) -> [T; 3] {
+        let dim = self.extent.len();
+        let mut out = p;
+        for m in &self.morphs {
+            if let Some(d) = m.displacement(&p, dim, design) {
+                for a in 0..dim {
+                    out[a] += d[a];
+                }
+            }
+        }
+        out
+    }
+
+    /// Every node's position at a design, morphs applied: grid order
+    /// (`(k * (ny + 1) + j) * (nx + 1) + i`) for a structured body, the
+    /// file's order for an imported one.
+    pub fn positions<T: Scalar>(&self, design: &[T]) -> Vec<[T; 3]> {
+        let mut out = self.unmorphed_positions(design);
+        if !self.morphs.is_empty() {
+            for p in &mut out {
+                *p = self.morphed(*p, design);
+            }
+        }
+        out
+    }
+
+    /// [`Body::positions`] before the morphs: the structured grid with its
+    /// curved faces, or the file's nodes.
+    pub fn unmorphed_positions<T: Scalar>(&self, design: &[T]) -> Vec<[T; 3]> {
+        if let Some(m) = &self.imported {
+            return m.mesh.nodes.iter().map(|p| p.map(T::from)).collect();
+        }
+        let d = self.extent.len();
+        let n: [usize; 3] = std::array::from_fn(|a| if a < d { self.mesh[a] } else { 0 });
+        // The curved faces once per column, not once per node.
+        let v = d - 1;
+        let columns: Vec<_> = (0..=n[1] * usize::from(v == 2))
+            .flat_map(|j| (0..=n[0]).map(move |i| [i, j, 0]))
+            .map(|idx| self.column_t(idx, design))
+            .collect();
+        let mut out = Vec::with_capacity((n[0] + 1) * (n[1] + 1) * (n[2] + 1));
+        for k in 0..=n[2] {
+            for j in 0..=n[1] {
+                for i in 0..=n[0] {
+                    let column = if v == 2 { j * (n[0] + 1) + i } else { i };
+                    out.push(self.in_column(&columns[column], [i, j, k][v]));
+                }
+            }
+        }
+        out
+    }
+
     /// Position of grid node `(i, j[, k])` at the given design, by the
     /// column-morphing rule: the horizontal coordinates are uniform over the
     /// extents, the vertical one interpolates linearly between the bottom and top
-    /// faces of its column.
+    /// faces of its column; then the morphs.
     pub fn node(&self, idx: [usize; 3], design: &[f64]) -> [f64; 3] {
         self.node_t(idx, design)
     }
@@ -514,7 +628,7 @@ impl Body {
     /// direction, the dual parts are the exact node velocities of that direction.
     pub fn node_t<T: Scalar>(&self, idx: [usize; 3], design: &[T]) -> [T; 3] {
         let v = self.extent.len() - 1;
-        self.in_column(&self.column_t(idx, design), idx[v])
+        self.morphed(self.in_column(&self.column_t(idx, design), idx[v]), design)
     }
 
     /// The column of nodes through grid index `idx` (its index along the

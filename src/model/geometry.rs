@@ -173,36 +173,13 @@ pub fn node_positions<T: Scalar, const D: usize>(scene: &Scene, design: &[T]) ->
         .collect()
 }
 
-/// One body's grid node positions ([`node_positions`]).
+/// One body's node positions ([`node_positions`]; [`Body::positions`] in
+/// `D` coordinates).
 pub fn body_positions<T: Scalar, const D: usize>(b: &Body, design: &[T]) -> Vec<[T; D]> {
-    if let Some(m) = &b.imported {
-        // An imported body's nodes do not move with the design.
-        return m
-            .mesh
-            .nodes
-            .iter()
-            .map(|p| std::array::from_fn(|a| T::from(p[a])))
-            .collect();
-    }
-    let n: [usize; 3] = std::array::from_fn(|a| if a < D { b.mesh[a] } else { 0 });
-    // The curved faces once per column, not once per node.
-    let v = D - 1;
-    let columns: Vec<_> = (0..=n[1] * usize::from(v == 2))
-        .flat_map(|j| (0..=n[0]).map(move |i| [i, j, 0]))
-        .map(|idx| b.column_t(idx, design))
-        .collect();
-    let mut out = Vec::with_capacity((n[0] + 1) * (n[1] + 1) * (n[2] + 1));
-    for k in 0..=n[2] {
-        for j in 0..=n[1] {
-            for i in 0..=n[0] {
-                let idx = [i, j, k];
-                let column = if v == 2 { j * (n[0] + 1) + i } else { i };
-                let c = b.in_column(&columns[column], idx[v]);
-                out.push(std::array::from_fn(|a| c[a]));
-            }
-        }
-    }
-    out
+    b.positions(design)
+        .into_iter()
+        .map(|c| std::array::from_fn(|a| c[a]))
+        .collect()
 }
 
 /// The lowered node positions of every body in `D` coordinates (2D drops `z`).

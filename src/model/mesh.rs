@@ -211,7 +211,13 @@ pub fn build(
         let mesh = match &body.imported {
             Some(imported) => {
                 let section = material.section(imported.mesh.kind, scene.thickness);
-                let (mesh, cut) = imported_mesh(&body.name, imported, (b, subs.len()), section);
+                let coords = if body.morphs.is_empty() {
+                    imported.mesh.nodes.clone()
+                } else {
+                    morphed_nodes(body, design)?
+                };
+                let (mesh, cut) =
+                    imported_mesh(&body.name, imported, coords, (b, subs.len()), section);
                 subs.extend(cut);
                 mesh
             }
@@ -229,6 +235,22 @@ pub fn build(
         bodies.push(mesh);
     }
     Ok((bodies, subs))
+}
+
+/// An imported body's nodes moved by its morphs at a design, each finite.
+fn morphed_nodes(
+    body: &crate::lang::scene::Body,
+    design: &[f64],
+) -> Result<Vec<[f64; 3]>, LowerError> {
+    let nodes = body.positions(design);
+    if let Some(n) = nodes.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
+        return Err(LowerError::Geometry(format!(
+            "node {} of body `{}` has no finite position at this design (its morph's field is not finite there)",
+            n + 1,
+            body.name
+        )));
+    }
+    Ok(nodes)
 }
 
 /// A structured body's grid nodes at a design.
@@ -302,10 +324,12 @@ fn grid_subdomains(
 fn imported_mesh(
     name: &str,
     imported: &Arc<Imported>,
+    nodes: Vec<[f64; 3]>,
     (body, first_subdomain): (usize, usize),
     section: Section,
 ) -> (BodyMesh, Vec<SubdomainMesh>) {
     let m = &imported.mesh;
+    let positions = nodes;
     let dim = m.dim;
     let parts = imported.subdomains;
     let mut cells_of: Vec<Vec<usize>> = vec![Vec::new(); parts];
@@ -332,7 +356,7 @@ fn imported_mesh(
             .collect();
         let coords: Vec<f64> = nodes
             .iter()
-            .flat_map(|&n| m.nodes[n][..dim].to_vec())
+            .flat_map(|&n| positions[n][..dim].to_vec())
             .collect();
         subs.push(SubdomainMesh {
             body,
@@ -354,7 +378,7 @@ fn imported_mesh(
             imported: imported.clone(),
             copies,
         })),
-        coords: m.nodes.clone(),
+        coords: positions,
     };
     (mesh, subs)
 }

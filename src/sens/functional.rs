@@ -30,8 +30,8 @@ pub(crate) fn ring(body: &Body) -> Vec<[usize; 3]> {
 /// Area of a 2D body's mesh (shoelace over its boundary nodes) in any number
 /// type: with dual numbers, the exact derivative of the discrete area.
 pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
-    if let Some(m) = &body.imported {
-        return T::from(m.measure());
+    if body.imported.is_some() {
+        return imported_measure(body, design);
     }
     let pts: Vec<[T; 3]> = ring(body).iter().map(|&i| body.node_t(i, design)).collect();
     let mut twice = T::from(0.0);
@@ -45,8 +45,8 @@ pub fn body_area<T: Scalar>(body: &Body, design: &[T]) -> T {
 /// Volume of a 3D body's mesh: the sum of its hexahedra's volumes (2x2x2
 /// Gauss integrates a trilinear map's det J exactly), in any number type.
 pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
-    if let Some(m) = &body.imported {
-        return T::from(m.measure());
+    if body.imported.is_some() {
+        return imported_measure(body, design);
     }
     let n = [body.mesh[0], body.mesh[1], body.mesh[2]];
     // Every node once (a node is shared by up to eight hexahedra).
@@ -66,6 +66,27 @@ pub fn body_volume<T: Scalar>(body: &Body, design: &[T]) -> T {
         }
     }
     volume
+}
+
+/// The area or volume of an imported body at a design: the sum of its
+/// cells' at the morphed node positions (exact in dual numbers); a body
+/// without morphs keeps the file's measure. NaN where a cell is inverted
+/// (the state solve refuses that design).
+fn imported_measure<T: Scalar>(body: &Body, design: &[T]) -> T {
+    let Some(m) = &body.imported else {
+        return T::from(f64::NAN);
+    };
+    if body.morphs.is_empty() {
+        return T::from(m.measure());
+    }
+    let pos = body.positions(design);
+    let d = m.mesh.dim;
+    let mut sum = T::from(0.0);
+    for cell in &m.mesh.cells {
+        let x: Vec<T> = cell.iter().flat_map(|&n| pos[n][..d].to_vec()).collect();
+        sum += m.mesh.kind.measure(&x).unwrap_or(T::from(f64::NAN));
+    }
+    sum
 }
 
 /// The node indices of a body's hexahedra (`n` elements each way, nodes

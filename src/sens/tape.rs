@@ -592,13 +592,7 @@ fn velocities<const DIM: usize>(scene: &Scene, design: &[f64]) -> Vec<Vec<Vec<f6
     let m = design.len();
     let mut out = vec![vec![Vec::new(); scene.bodies.len()]; m];
     for (b, body) in scene.bodies.iter().enumerate() {
-        let formulas = body.extent.iter().flat_map(|(lo, hi)| [lo, hi]);
-        if body.imported.is_some()
-            || !formulas
-                .chain(&body.bottom)
-                .chain(&body.top)
-                .any(|f| f.uses_design())
-        {
+        if !body.uses_design() {
             continue;
         }
         for c0 in (0..m).step_by(CHUNK) {
@@ -711,8 +705,11 @@ fn body_measures<const DIM: usize>(
         .enumerate()
         .map(|(b, body)| {
             let (value, g) = if let Some(m) = &body.imported {
-                // Its nodes do not move: the measure is a constant.
-                (m.measure(), Vec::new())
+                if moves[b] {
+                    imported_measure_gradient(m, &pos[b])
+                } else {
+                    (m.measure(), Vec::new())
+                }
             } else if DIM == 2 {
                 area_gradient(body, &pos[b])
             } else {
@@ -721,6 +718,38 @@ fn body_measures<const DIM: usize>(
             (value, if moves[b] { g } else { Vec::new() })
         })
         .unzip()
+}
+
+/// An imported body's measure (the sum of its cells', as
+/// [`super::functional::body_measure`]) and its gradient with respect to its
+/// node coordinates, each cell's by dual numbers over its coordinates.
+fn imported_measure_gradient<const DIM: usize>(
+    m: &crate::lang::scene::Imported,
+    pos: &[[f64; DIM]],
+) -> (f64, Vec<f64>) {
+    /// The most coordinates of a cell (a hexahedron's 8 x 3).
+    const MAX: usize = 24;
+    let mut g = vec![0.0; DIM * pos.len()];
+    let mut measure = 0.0;
+    for cell in &m.mesh.cells {
+        let x: Vec<DualSVec64<MAX>> = cell
+            .iter()
+            .flat_map(|&n| pos[n])
+            .enumerate()
+            .map(|(k, v)| DualSVec64::from_re(v).derivative(k))
+            .collect();
+        let Some(value) = m.mesh.kind.measure(&x) else {
+            return (f64::NAN, g);
+        };
+        measure += value.re;
+        let t = tangents(&value);
+        for (c, &node) in cell.iter().enumerate() {
+            for a in 0..DIM {
+                g[DIM * node + a] += t[DIM * c + a];
+            }
+        }
+    }
+    (measure, g)
 }
 
 /// Gradient of a 2D body's area (the shoelace over its boundary ring, as

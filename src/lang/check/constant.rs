@@ -109,17 +109,7 @@ impl Facts {
         for s in selections {
             filters |= s.filter.as_ref().is_some_and(|f| f.uses_design());
         }
-        let fixed_body: Vec<bool> = scene
-            .bodies
-            .iter()
-            .map(|b| {
-                !(b.extent
-                    .iter()
-                    .any(|(lo, hi)| lo.uses_design() || hi.uses_design())
-                    || b.bottom.as_ref().is_some_and(Formula::uses_design)
-                    || b.top.as_ref().is_some_and(Formula::uses_design))
-            })
-            .collect();
+        let fixed_body: Vec<bool> = scene.bodies.iter().map(|b| !b.uses_design()).collect();
         let obstacle_moves = scene.obstacles.iter().any(|o| match o {
             Obstacle::Plane { point, normal, .. } => {
                 point.iter().chain(normal).any(Formula::uses_design)

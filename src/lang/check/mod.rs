@@ -205,6 +205,9 @@ pub(crate) struct Checker<'a> {
     constraint_at: Vec<Span>,
     /// Places of the text to rewrite for another design (see [`Source`]).
     edits: Vec<Edit>,
+    /// Checking a morph's field: `u`, `v`, `w` are the box's coordinates
+    /// (dimensionless), and `x`, `y`, `z` are not known.
+    box_coords: bool,
 }
 
 impl<'a> Checker<'a> {
@@ -233,6 +236,7 @@ impl<'a> Checker<'a> {
             objective_at: None,
             constraint_at: Vec::new(),
             edits: Vec::new(),
+            box_coords: false,
         }
     }
 
@@ -458,8 +462,8 @@ impl<'a> Checker<'a> {
         }
     }
 
-    /// Pass 3: bodies and obstacles (their geometry may use the design); a size
-    /// `[N]` is reported on any item but `design`.
+    /// Pass 3: bodies and obstacles (their geometry may use the design), then
+    /// the bodies' morphs; a size `[N]` is reported on any item but `design`.
     fn bodies_and_obstacles(&mut self) {
         let file = self.file;
         for item in &file.items {
@@ -498,6 +502,21 @@ impl<'a> Checker<'a> {
                         self.places.obstacles.resize(self.obstacles.len(), at);
                     }
                     _ => {}
+                }
+            }
+        }
+        // Morphs move bodies that are all known now, before anything reads
+        // their nodes (probes, contacts, faces that cross).
+        for item in &file.items {
+            if let ItemKind::Block {
+                keyword,
+                name,
+                body,
+                ..
+            } = &item.kind
+            {
+                if keyword.name == "morph" {
+                    self.morph(keyword, name.as_ref(), body);
                 }
             }
         }
@@ -662,6 +681,7 @@ fn reserved(name: &str) -> Option<&'static str> {
             | "max"
             | "bezier"
             | "bezier2"
+            | "bezier3"
     ) || values::FUNCTIONALS.contains(&name)
     {
         return Some("this is a built-in name");

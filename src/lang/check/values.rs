@@ -22,6 +22,9 @@ pub(crate) const FUNCTIONALS: &[&str] = &[
 
 const COORDS: [&str; 3] = ["x", "y", "z"];
 
+/// A morph box's own coordinates, each from 0 to 1 across the box.
+const BOX_COORDS: [&str; 3] = ["u", "v", "w"];
+
 /// A `let` may use another that uses another ... this many levels deep.
 const MAX_LET_DEPTH: usize = 64;
 
@@ -175,6 +178,11 @@ impl<'a> Checker<'a> {
     }
 
     fn name_value(&mut self, name: &str, span: Span) -> Option<(Formula, Quantity)> {
+        if self.box_coords {
+            if let Some(v) = self.box_name(name, span) {
+                return v;
+            }
+        }
         if let Some(i) = self.table(Kind::Let).get(name) {
             // None: the let's own error was reported where it is defined.
             return self.let_value(i);
@@ -261,6 +269,66 @@ impl<'a> Checker<'a> {
         }
         self.error(d);
         None
+    }
+
+    /// A name in a morph's field: the box's coordinates `u`, `v`, `w`
+    /// (dimensionless, before any `let` of that name); `x`, `y`, `z` refused;
+    /// a `let` resolved outside the morph and refused where it uses the
+    /// coordinates. None: not one of these, look further.
+    fn box_name(&mut self, name: &str, span: Span) -> Option<Option<(Formula, Quantity)>> {
+        let d = self.dim.n();
+        if let Some(axis) = BOX_COORDS.iter().position(|c| *c == name) {
+            if axis >= d {
+                self.error(
+                    Diagnostic::new(
+                        "cso::dimension",
+                        format!("`{name}` is not a box coordinate in 2D"),
+                    )
+                    .label(span, "a 2D morph's box has `u` and `v`"),
+                );
+                return Some(None);
+            }
+            return Some(Some((Formula::Coord(axis), Quantity::Bare)));
+        }
+        let allowed = super::quote_list(&BOX_COORDS[..d]);
+        if let Some(axis) = COORDS.iter().position(|c| *c == name) {
+            self.error(
+                Diagnostic::new(
+                    "cso::morph",
+                    format!("a morph's field cannot use `{name}`"),
+                )
+                .label(span, "a coordinate of the scene")
+                .help(format!(
+                    "the field is written over the box's own coordinates {allowed}, each from 0 to 1:                      `{}` instead of `{name}`",
+                    BOX_COORDS[axis.min(d - 1)]
+                )),
+            );
+            return Some(None);
+        }
+        let i = self.table(Kind::Let).get(name)?;
+        self.box_coords = false;
+        let v = self.let_value(i);
+        self.box_coords = true;
+        if let Some(axis) = v
+            .as_ref()
+            .and_then(|(f, _)| (0..3).find(|a| f.uses_coord(*a)))
+        {
+            self.error(
+                Diagnostic::new(
+                    "cso::morph",
+                    format!(
+                        "`{name}` depends on `{}`, which a morph's field cannot use",
+                        COORDS[axis]
+                    ),
+                )
+                .label(span, "uses a coordinate of the scene")
+                .help(format!(
+                    "write the field over the box's coordinates {allowed}"
+                )),
+            );
+            return Some(None);
+        }
+        Some(v)
     }
 
     /// The value of `let` number `i`, resolved on first use.
@@ -561,11 +629,12 @@ impl<'a> Checker<'a> {
         let arity = match name {
             "min" | "max" | "bezier" => 2,
             "bezier2" => 3,
+            "bezier3" => 4,
             _ if Func::from_name(name).is_some() => 1,
             _ => {
                 let known = [
                     "sqrt", "abs", "exp", "ln", "sin", "cos", "tan", "min", "max", "bezier",
-                    "bezier2",
+                    "bezier2", "bezier3",
                 ];
                 let help = crate::lang::suggest::did_you_mean(name, known)
                     .unwrap_or_else(|| format!("the functions are {}", super::quote_list(&known)));
@@ -596,6 +665,9 @@ impl<'a> Checker<'a> {
         }
         if name == "bezier2" {
             return self.bezier2(&args[0], &args[1], &args[2]);
+        }
+        if name == "bezier3" {
+            return self.bezier3(&args[0], [&args[1], &args[2], &args[3]]);
         }
         if arity == 2 {
             let (fa, qa) = self.formula(&args[0])?;
@@ -652,7 +724,7 @@ impl<'a> Checker<'a> {
         Some((fold(Formula::Func(f, Box::new(a))), q))
     }
 
-    /// The control points of `func` (`bezier`, `bezier2`): a design array or a
+    /// The control points of `func` (`bezier`, `bezier2`, `bezier3`): a design array or a
     /// list, with their common quantity.
     fn control_points(&mut self, func: &str, coeffs: &Expr) -> Option<(Vec<Formula>, Quantity)> {
         let (list, q): (Vec<Formula>, Quantity) = match &coeffs.kind {
@@ -780,6 +852,46 @@ impl<'a> Checker<'a> {
         let fu = self.parameter("bezier2", u)?;
         let fv = self.parameter("bezier2", v)?;
         Some((Formula::Bezier2(list, Box::new(fu), Box::new(fv)), q))
+    }
+
+    /// `bezier3(A, u, v, w)`: `A` a cubic control net of `n x n x n` points
+    /// (a design array or a list, `u` fastest, then `v`, then `w`).
+    fn bezier3(&mut self, net: &Expr, [u, v, w]: [&Expr; 3]) -> Option<(Formula, Quantity)> {
+        let (list, q) = self.control_points("bezier3", net)?;
+        if crate::lang::expr::net_cube_side(list.len()).is_none() {
+            let n = list.len();
+            let below = (n as f64).cbrt().floor() as usize;
+            let above = below + 1;
+            let cube = |k: usize| k * k * k;
+            let help = if below == 0 {
+                format!(
+                    "use {} (1 x 1 x 1) or 8 (2 x 2 x 2) control points",
+                    cube(1)
+                )
+            } else {
+                format!(
+                    "use {} ({below} x {below} x {below}) or {} ({above} x {above} x {above}) control points, u fastest, then v, then w",
+                    cube(below),
+                    cube(above)
+                )
+            };
+            self.error(
+                Diagnostic::new(
+                    "cso::call",
+                    format!("`bezier3` needs a cubic control net (n x n x n points), found {n}"),
+                )
+                .label(net.span, format!("{n} is not a cube"))
+                .help(help),
+            );
+            return None;
+        }
+        let fu = self.parameter("bezier3", u)?;
+        let fv = self.parameter("bezier3", v)?;
+        let fw = self.parameter("bezier3", w)?;
+        Some((
+            Formula::Bezier3(list, Box::new(fu), Box::new(fv), Box::new(fw)),
+            q,
+        ))
     }
 
     /// `a[i]`: one entry of a design array.

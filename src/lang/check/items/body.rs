@@ -30,6 +30,7 @@ impl<'a> Checker<'a> {
             mesh: vec![1; d],
             subdomains: vec![1; d],
             imported: None,
+            morphs: Vec::new(),
         };
         if let Some(file) = super::imported::mesh_file(block) {
             self.imported_body(body, block, file, (&label, at));

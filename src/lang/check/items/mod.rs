@@ -8,6 +8,7 @@ mod design;
 mod imported;
 mod loads;
 mod material;
+mod morph;
 mod probe;
 mod scene;
 mod selection;
