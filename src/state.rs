@@ -405,7 +405,7 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
         SolveError::Lower(crate::model::LowerError::Inverted { body, .. }) => Some(
             Diagnostic::new("cso::inverted", message)
                 .label(body_at(body)?, "this body's mesh folds over at this design")
-                .help("check the body's faces and extents: `bottom` must stay below `top`"),
+                .help("its morph moves nodes past their neighbours there: narrow the design's bounds, or give the field room (a larger box, a smaller amplitude)"),
         ),
         _ => None,
     }

@@ -11,6 +11,7 @@ pub mod hex;
 pub mod patch;
 pub mod quad;
 pub mod quadface;
+pub mod quality;
 pub mod shape_gradient;
 pub mod tet;
 pub mod tri;

@@ -154,8 +154,11 @@ pub fn termination(scene: &Scene, t: &Termination) -> String {
 /// state + gradient, subdomains refactored, seconds (state, then state +
 /// gradient), and how the state was solved: `cold`, `warm` (SMALBE from the
 /// previous design's multipliers and SMALBE state) or `set` (on the previous
-/// design's active set, kept by its KKT check).
+/// design's active set, kept by its KKT check); with morphs, the smallest
+/// scaled Jacobian of the morphed bodies (`min SJ`).
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
+    // The worst element of the morphed bodies, where the scene has morphs.
+    let morphed = run.history.iter().any(|it| !it.mesh_quality.is_empty());
     let mut o = format!(
         "{:>4} {:>14} {:>12} {:>10} {:>10} {:>7} {:>7} {:>6} {:>8} {:>8} {:>5}",
         "iter",
@@ -170,6 +173,9 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
         "s all",
         "start"
     );
+    if morphed {
+        let _ = write!(o, " {:>7}", "min SJ");
+    }
     for it in &run.history {
         let _ = write!(
             o,
@@ -190,6 +196,14 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
                 (false, false) => "cold",
             }
         );
+        if morphed {
+            let worst = it
+                .mesh_quality
+                .iter()
+                .map(|q| q.min_scaled_jacobian)
+                .fold(f64::INFINITY, f64::min);
+            let _ = write!(o, " {worst:>7.3}");
+        }
     }
     let _ = write!(o, "\nstopped: {}", termination(scene, &run.termination));
     match run.best.and_then(|b| run.history.get(b)) {

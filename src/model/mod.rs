@@ -20,6 +20,7 @@ pub use mesh::{BodyMesh, Layout, MeshLayout, SubdomainMesh};
 pub use rows::{ContactPrimary, Named, Row, RowKind};
 pub use search::{unheld, SearchFindings, Unheld};
 
+use crate::lang::diag::num;
 use crate::lang::scene::{Dimension, Scene};
 use std::fmt;
 
@@ -150,10 +151,15 @@ impl RowCounts {
 pub enum LowerError {
     /// Not implemented yet for this dimension.
     Unsupported(String),
-    /// An element with non-positive Jacobian.
+    /// A morphed body's element folded over (its scaled Jacobian not
+    /// positive) at this design.
     Inverted {
         body: String,
-        element: (usize, usize),
+        /// The element's centroid (m, one value per axis) and its scaled
+        /// Jacobian.
+        centroid: Vec<f64>,
+        scaled_jacobian: f64,
+        design: Vec<f64>,
     },
     /// A selection keeps no node (at this design).
     EmptySelection(String),
@@ -168,11 +174,25 @@ impl fmt::Display for LowerError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             LowerError::Unsupported(s) => write!(f, "{s}"),
-            LowerError::Inverted { body, element } => write!(
-                f,
-                "element ({}, {}) of body `{body}` is inverted or degenerate (its Jacobian is not positive)",
-                element.0, element.1
-            ),
+            LowerError::Inverted {
+                body,
+                centroid,
+                scaled_jacobian,
+                design,
+            } => {
+                let at: Vec<String> = centroid.iter().map(|v| num(*v)).collect();
+                let mut x: Vec<String> = design.iter().take(8).map(|v| num(*v)).collect();
+                if design.len() > 8 {
+                    x.push(format!("... ({} values)", design.len()));
+                }
+                write!(
+                    f,
+                    "the element of body `{body}` at ({}) m is inverted at the design [{}] (scaled Jacobian {})",
+                    at.join(", "),
+                    x.join(", "),
+                    num(*scaled_jacobian)
+                )
+            }
             LowerError::EmptySelection(s) => write!(f, "the selection `{s}` is empty"),
             LowerError::Geometry(s) => write!(f, "{s}"),
             LowerError::NotFinite(e) => write!(f, "{e}"),

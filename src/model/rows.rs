@@ -631,6 +631,7 @@ mod tests {
             first_subdomain: 0,
             layout: crate::model::Layout::Grid(grid),
             coords: Vec::new(),
+            quality: None,
         };
         let pieces = FacePatch::of_face(0, crate::lang::scene::FaceRef::Side(Face::Top), &mesh);
         let counts = side_counts(&pieces);

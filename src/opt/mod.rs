@@ -72,6 +72,32 @@ pub struct Iterate {
     /// The state is the solution on the previous design's active set (not
     /// SMALBE's).
     pub on_active_set: bool,
+    /// The smallest scaled Jacobian of each morphed body at this design
+    /// (1: undistorted corners; a design at 0 or below is refused).
+    pub mesh_quality: Vec<MeshQuality>,
+}
+
+/// A morphed body's mesh quality at one design.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeshQuality {
+    pub body: String,
+    /// The smallest scaled Jacobian of its elements ([`crate::fem::quality`]).
+    pub min_scaled_jacobian: f64,
+}
+
+/// The mesh quality of every morphed body of a solved state.
+pub fn mesh_quality(state: &State) -> Vec<MeshQuality> {
+    state
+        .problem
+        .bodies
+        .iter()
+        .filter_map(|b| {
+            b.quality.map(|q| MeshQuality {
+                body: b.name.clone(),
+                min_scaled_jacobian: q,
+            })
+        })
+        .collect()
 }
 
 /// The run: every iterate, the best feasible design, why it stopped.
@@ -408,5 +434,6 @@ fn iterate(
         step: moved.size,
         hessian_applications: g.hessian_applications,
         seconds,
+        mesh_quality: mesh_quality(state),
     }
 }
