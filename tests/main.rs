@@ -13,6 +13,7 @@ mod fuzz;
 mod hard;
 mod imported;
 mod locking;
+mod morph;
 #[cfg(feature = "mpi")]
 mod mpi;
 mod optimize;

@@ -326,8 +326,14 @@ fn frozen_at_start(scene: &Scene) -> Result<Scene, GradientError> {
     Ok(frozen)
 }
 
+/// Halvings of a step that lands on a design that cannot be solved.
+const STEP_BACKS: usize = 12;
+
 /// A design that cannot be solved: step back halfway towards the last good
-/// design, up to four times, each solved cold; the first that solves.
+/// design, up to [`STEP_BACKS`] times, each solved cold; the first that
+/// solves. A trial whose mesh folds over (a morph pushed past an element's
+/// neighbour) is refused by lowering alone, without a solve, so a step that
+/// overshoots the meshes' limit costs a few lowerings and one solve.
 fn step_back(
     frozen: &Scene,
     x: &[f64],
@@ -335,13 +341,18 @@ fn step_back(
     reuse: Reuse,
 ) -> Option<(Vec<f64>, State, Gradient)> {
     let mut trial = x.to_vec();
-    for _ in 0..4 {
+    for _ in 0..STEP_BACKS {
         trial = trial
             .iter()
             .zip(last_good)
             .map(|(a, b)| 0.5 * (a + b))
             .collect();
-        if let Ok((state, g)) = state_and_gradient(&with_design(frozen, &trial), None, &[], reuse) {
+        let scene = with_design(frozen, &trial);
+        if let Err(crate::model::LowerError::Inverted { .. }) = crate::model::lower(&scene, &trial)
+        {
+            continue;
+        }
+        if let Ok((state, g)) = state_and_gradient(&scene, None, &[], reuse) {
             return Some((trial, state, g));
         }
     }
