@@ -250,3 +250,18 @@ fn sha256_is_the_standard_digest() {
         "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
     );
 }
+
+/// A morphed body's report carries its mesh quality, which the schema
+/// documents; a body without morphs has none.
+#[test]
+fn a_morphed_body_reports_its_mesh_quality() {
+    let report = solved_report("examples/stamp2d.cso", "stamp2d");
+    let errors = errors_of(&report, &schema());
+    assert!(errors.is_empty(), "{errors:#?}");
+    let bodies = report["bodies"].as_array().expect("bodies");
+    assert_eq!(bodies[0]["name"], "block");
+    assert!(bodies[0].get("min_scaled_jacobian").is_none());
+    assert_eq!(bodies[1]["name"], "stamp");
+    let q = bodies[1]["min_scaled_jacobian"].as_f64().expect("a number");
+    assert!(q > 0.0 && q <= 1.0, "{q}");
+}

@@ -15,8 +15,9 @@
 //! - `times`: seconds per phase; `kkt`: relative primal KKT residuals;
 //! - `energy` (1/2 u^T K u), `compliance` (f^T u), in J for the whole model;
 //!   in 2D that is a slice of `thickness` (m), which the report carries (null in 3D);
-//! - `bodies`: per body `max_abs_u` (largest displacement magnitude), and
-//!   `formulation: "bbar"` where its elements are B-bar;
+//! - `bodies`: per body `max_abs_u` (largest displacement magnitude),
+//!   `formulation: "bbar"` where its elements are B-bar, and
+//!   `min_scaled_jacobian` where morphs move it;
 //! - `contacts`: per contact the `resultant` of its nodal forces on the
 //!   secondary body (components, N), its magnitude `total_force`, the sum of
 //!   the nodal normal forces `normal_force_sum` (the same on a flat primary),
@@ -117,6 +118,10 @@ pub struct BodyReport {
     /// absent for the standard element.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub formulation: Option<&'static str>,
+    /// The smallest scaled Jacobian of its elements where morphs move it
+    /// (1: undistorted corners); absent for a body without morphs.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub min_scaled_jacobian: Option<f64>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -207,6 +212,7 @@ impl Report {
                     .get(body.first_subdomain)
                     .filter(|m| m.section.formulation == Formulation::Bbar)
                     .map(|_| "bbar"),
+                min_scaled_jacobian: body.quality,
                 max_abs_u: (0..body.coords.len())
                     .map(|n| {
                         let u = state.node_displacement(b, n);
@@ -394,9 +400,12 @@ impl Report {
             } else {
                 ""
             };
+            let quality = b.min_scaled_jacobian.map_or(String::new(), |q| {
+                format!(", morphed: smallest scaled Jacobian {q:.3}")
+            });
             let _ = writeln!(
                 o,
-                "  body {:<10} max |u| {} m{bbar}",
+                "  body {:<10} max |u| {} m{bbar}{quality}",
                 b.name,
                 n.num(b.max_abs_u)
             );

@@ -70,6 +70,35 @@ pub struct BodySummary {
     /// Read from a mesh file (`mesh = "FILE"`): the file and what it holds.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub imported: Option<ImportedSummary>,
+    /// Its morphs: each box and the fields as written.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub morphs: Vec<MorphSummary>,
+}
+
+/// A body's morphs, a line each: the box and the fields as written.
+fn write_morphs(o: &mut String, b: &BodySummary) {
+    for m in &b.morphs {
+        let boxed: Vec<String> = m
+            .extent
+            .iter()
+            .zip(["x", "y", "z"])
+            .map(|(e, a)| format!("{a} = {} .. {}", num(e[0]), num(e[1])))
+            .collect();
+        let fields = if m.fields.is_empty() {
+            "no field".to_string()
+        } else {
+            m.fields.join(", ")
+        };
+        let _ = writeln!(o, "  {:<10} morph {} m: {fields}", "", boxed.join(", "));
+    }
+}
+
+/// A morph of a body: its box and fields.
+#[derive(Debug, Clone, Serialize)]
+pub struct MorphSummary {
+    /// The box along each axis (m).
+    pub extent: Vec<[f64; 2]>,
+    pub fields: Vec<String>,
 }
 
 /// What an imported body is made of.
@@ -196,6 +225,14 @@ fn body_summaries(scene: &Scene) -> Vec<BodySummary> {
             nodes: b.nodes(),
             primal_dofs: b.primal_dofs(),
             designed: b.uses_design(),
+            morphs: b
+                .morphs
+                .iter()
+                .map(|m| MorphSummary {
+                    extent: (0..b.extent.len()).map(|a| [m.lo[a], m.hi[a]]).collect(),
+                    fields: m.text.clone(),
+                })
+                .collect(),
             imported: b.imported.as_ref().map(|m| ImportedSummary {
                 file: m.file.clone(),
                 sha256: m.sha256.clone(),
@@ -511,6 +548,7 @@ impl Summary {
                         "", m.moved_pieces
                     );
                 }
+                write_morphs(o, b);
                 continue;
             }
             let per: Vec<usize> = b
@@ -531,6 +569,7 @@ impl Summary {
                 b.primal_dofs,
                 if b.designed { ", moves with the design" } else { "" }
             );
+            write_morphs(o, b);
         }
     }
 

@@ -306,6 +306,8 @@ pub struct Morph {
     pub hi: [f64; 3],
     /// The displacement per axis (m); None: zero.
     pub field: [Option<Formula>; 3],
+    /// The fields as written (`uy = bezier(c, u) * (1 - v)`), for reports.
+    pub text: Vec<String>,
 }
 
 impl Morph {

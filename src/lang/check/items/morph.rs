@@ -43,6 +43,7 @@ impl<'a> Checker<'a> {
             lo: [0.0; 3],
             hi: [0.0; 3],
             field: [None, None, None],
+            text: Vec::new(),
         };
         let mut ok = true;
         for (a, key) in AXES.iter().enumerate().take(d) {
@@ -62,6 +63,7 @@ impl<'a> Checker<'a> {
             match g {
                 Some(g) => {
                     morph.field[a] = Some(g);
+                    morph.text.push(format!("{key} = {}", self.text(e.span)));
                     written.push((a, e.span));
                 }
                 None => ok = false,
