@@ -247,6 +247,15 @@ pub enum BenchCommand {
         #[command(flatten)]
         run: Run,
     },
+    /// The gradient's cost through a morph of scont3d's punch (m = 9 as a
+    /// bezier2 net, 27 and 64 as bezier3 nets) beside its Bezier face (m = 9,
+    /// 64).
+    SensitivityMorph {
+        #[command(flatten)]
+        local_f: LocalFs,
+        #[command(flatten)]
+        run: Run,
+    },
     /// Reuse between design iterations (factorizations, warm starts) on
     /// scont2d and on a 248-subdomain scont2d.
     Optimize {

@@ -59,6 +59,10 @@ impl Bench {
                 table.local_f(local_f).run(run);
                 Benchmark::Sensitivity3d
             }
+            B::SensitivityMorph { local_f, run } => {
+                table.local_f(local_f).run(run);
+                Benchmark::SensitivityMorph
+            }
             B::Optimize { local_f, threads } => {
                 table.local_f(local_f).threads = *threads;
                 Benchmark::Optimize

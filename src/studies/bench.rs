@@ -29,6 +29,9 @@ pub enum Benchmark {
     Hard,
     Sensitivity,
     Sensitivity3d,
+    // Gradient cost through a morph on scont3d's punch (m = 9, 27, 64) beside
+    // its Bezier face (m = 9, 64).
+    SensitivityMorph,
     Optimize,
     // The coarse problem dense against sparse on the 2D scaling scene.
     Coarse,
@@ -48,6 +51,10 @@ pub const GRADIENT_COST_SIZES: [usize; 5] = [2, 6, 16, 36, 96];
 /// The design sizes `m` of the 3D gradient-cost benchmark: control nets of
 /// 2 x 2, 4 x 4 and 6 x 6 heights.
 pub const GRADIENT_COST_SIZES_3D: [usize; 3] = [4, 16, 36];
+
+/// The design sizes `m` of the gradient cost through a morph: a 3 x 3 net
+/// of `bezier2` (the face's own), 3 x 3 x 3 and 4 x 4 x 4 nets of `bezier3`.
+pub const GRADIENT_COST_SIZES_MORPH: [usize; 3] = [9, 27, 64];
 
 /// The memory limit a generated scene is checked with.
 #[derive(Clone, Copy)]
@@ -350,6 +357,49 @@ minimize compliance
 subject to volume(punch) <= initial(volume(punch))
 "
     )
+}
+
+/// scont3d's punch with a flat bottom, shaped by a morph of `m` design
+/// variables: `m = n^2` a `bezier2` net over the whole punch fading to zero
+/// at its top (the curved face of [`scont3d_with`] node for node), `m = n^3`
+/// a `bezier3` net over its lower half fading to zero at the box's top. The
+/// initial face is the same flat face 0.01 above the base.
+pub fn scont3d_morph(m: usize) -> Option<String> {
+    use crate::lang::expr::{net_cube_side, net_side};
+    let (top, field) = match (net_side(m), net_cube_side(m)) {
+        (Some(_), _) if m == 9 => ("2", "bezier2(a, u, v) * (1 - w)"),
+        (_, Some(_)) => ("1.5", "bezier3(a, u, v, w) * (1 - w)"),
+        _ => return None,
+    };
+    Some(format!(
+        "scene scont3d_morph_m{m} {{ dim = 3 }}
+material soft {{ E = 1000, nu = 0.3 }}
+design a[{m}] {{ init = 0.01, lower = 0, upper = 0.1 }}
+body base {{ material = soft, x = 0 .. 3, y = 0 .. 3, z = 0 .. 1, mesh = 12 x 12 x 4, subdomains = 2 x 2 x 1 }}
+body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, z = 1 .. 2, mesh = 8 x 8 x 4, subdomains = 2 x 2 x 1 }}
+morph punch {{ x = 1 .. 2, y = 1 .. 2, z = 1 .. {top}, uz = {field} }}
+fix base.bottom
+fix punch.top {{ ux, uy }}
+traction punch.top = (0, 0, -5)
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+minimize compliance
+subject to volume(punch) <= initial(volume(punch))
+"
+    ))
+}
+
+/// [`gradient_costs`] through a morph of scont3d's punch ([`scont3d_morph`]).
+pub fn gradient_costs_morph(
+    m: usize,
+    tolerance: f64,
+    local_f: LocalF,
+) -> Result<Vec<GradientCost>, GradientError> {
+    let src = scont3d_morph(m).ok_or_else(|| {
+        SolveError::Unsupported(format!(
+            "{m} control points are neither a 3 x 3 net nor a cube"
+        ))
+    })?;
+    gradient_costs_of(&src, m, tolerance, local_f)
 }
 
 /// One row of the gradient-cost table.

@@ -79,6 +79,7 @@ pub fn run(which: Benchmark, s: &TableSettings, emit: &mut dyn FnMut(Line)) -> R
         ),
         Benchmark::Coarse3d => coarse_3d(s, emit),
         Benchmark::Sensitivity | Benchmark::Sensitivity3d => gradient_costs(which, s, emit),
+        Benchmark::SensitivityMorph => morph_gradient_costs(s, emit),
         Benchmark::Optimize => optimization(s, emit),
         Benchmark::Hard | Benchmark::Scene => {
             Err(format!("`cso bench {which:?}` is not a table of rows"))
@@ -231,6 +232,44 @@ fn gradient_costs(
             }
         }
         emit(Line::Out(String::new()));
+    }
+    Ok(())
+}
+
+/// The gradient's cost through a morph of scont3d's punch (m = 9, 27, 64)
+/// after the cost through its Bezier face (m = 9, 64), one pair per local `F`.
+fn morph_gradient_costs(s: &TableSettings, emit: &mut dyn FnMut(Line)) -> Result<(), String> {
+    type Rows = fn(usize, f64, LocalF) -> Result<Vec<bench::GradientCost>, GradientError>;
+    let tables: [(&str, &[usize], Rows); 2] = [
+        (
+            "through the face: `bottom = 1 + bezier2(a, x - 1, y - 1)`",
+            &[9, 64],
+            bench::gradient_costs_3d,
+        ),
+        (
+            "through a morph: the flat punch, `uz = bezier2(a, u, v) * (1 - w)` over it (m = 9), \
+             `uz = bezier3(a, u, v, w) * (1 - w)` over its lower half (m = 27, 64)",
+            &bench::GRADIENT_COST_SIZES_MORPH,
+            bench::gradient_costs_morph,
+        ),
+    ];
+    for &local_f in &s.local_f {
+        for (title, sizes, costs) in &tables {
+            emit(Line::Out(format!("local F: {}; {title}\n", local_f.name())));
+            emit(Line::Out(output::gradient_costs_header(
+                s.threads,
+                s.tolerance,
+            )));
+            for &m in *sizes {
+                match costs(m, s.tolerance, local_f) {
+                    Ok(rows) => rows
+                        .iter()
+                        .for_each(|r| emit(Line::Out(output::gradient_cost_row(r)))),
+                    Err(e) => emit(Line::Error(format!("error at m = {m}: {e}"))),
+                }
+            }
+            emit(Line::Out(String::new()));
+        }
     }
     Ok(())
 }
