@@ -276,3 +276,30 @@ optimize { max_iterations = 6 }
         last.design[0]
     );
 }
+
+/// A design change refactors only the subdomains whose nodes moved: a morph
+/// over the lower half of a block cut 2 x 2 moves its two lower subdomains
+/// (the nodes on the box's top face stay: the field vanishes there), so
+/// every iterate after the first reuses the two upper ones and the base.
+#[test]
+fn a_morph_refactors_only_the_subdomains_it_moves() {
+    let src = "scene half { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design a[3] { init = 0, lower = -0.02, upper = 0.02 }
+body base { material = soft, x = 0 .. 1, y = -1 .. 0, mesh = 4 x 4 }
+body block { material = soft, x = 0 .. 1, y = 0 .. 1, mesh = 4 x 4, subdomains = 2 x 2 }
+morph block { x = 0 .. 1, y = 0 .. 0.5, ux = bezier(a, u) * v * (1 - v) }
+fix base.bottom
+displace block.top { uy = -0.01 }
+glue g { primary = base.top, secondary = block.bottom }
+minimize energy
+optimize { max_iterations = 3 }
+";
+    let run = cso::opt::optimize(&scene(src), &mut |_, _| true).expect("optimizes");
+    assert!(run.history.len() >= 2, "{} iterates", run.history.len());
+    for it in &run.history[1..] {
+        assert!(it.design.iter().any(|v| *v != 0.0), "the design moved");
+        assert_eq!(it.reused_factorizations, 3, "iterate {}", it.iteration);
+        assert_eq!(it.numeric_factorizations, 2, "iterate {}", it.iteration);
+    }
+}
