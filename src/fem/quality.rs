@@ -56,6 +56,42 @@ pub fn scaled_jacobian(element: Element, x: &[f64]) -> f64 {
     }
 }
 
+/// An element folded over (or flat): where it is and how badly.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Folded {
+    /// The element's centroid, one value per axis.
+    pub centroid: Vec<f64>,
+    pub scaled_jacobian: f64,
+}
+
+/// The smallest scaled Jacobian of a mesh's elements (`cells`, node indices
+/// into `nodes`, each `element`), or the first element at 0 or below.
+pub fn worst<'a>(
+    element: Element,
+    cells: impl Iterator<Item = &'a [usize]>,
+    nodes: &[[f64; 3]],
+) -> Result<f64, Folded> {
+    let dim = element.dim();
+    let mut smallest = f64::INFINITY;
+    let mut x = Vec::with_capacity(dim * element.nodes());
+    for cell in cells {
+        x.clear();
+        x.extend(cell.iter().flat_map(|&n| nodes[n][..dim].iter().copied()));
+        let q = scaled_jacobian(element, &x);
+        if q.is_nan() || q <= 0.0 {
+            let centroid = (0..dim)
+                .map(|a| cell.iter().map(|&n| nodes[n][a]).sum::<f64>() / cell.len() as f64)
+                .collect();
+            return Err(Folded {
+                centroid,
+                scaled_jacobian: q,
+            });
+        }
+        smallest = smallest.min(q);
+    }
+    Ok(smallest)
+}
+
 /// The smaller of two values, NaN if either is.
 fn min_nan(a: f64, b: f64) -> f64 {
     if a.is_nan() || b.is_nan() {

@@ -579,6 +579,41 @@ impl Body {
         out
     }
 
+    /// The smallest scaled Jacobian of the body's elements at node positions
+    /// `nodes` (in [`Body::positions`]' order), or the first element folded
+    /// over ([`crate::fem::quality`]).
+    pub fn quality(&self, nodes: &[[f64; 3]]) -> Result<f64, crate::fem::quality::Folded> {
+        use crate::fem::quality::worst;
+        let element = self.element(self.extent.len());
+        if let Some(m) = &self.imported {
+            return worst(element, m.mesh.cells.iter().map(Vec::as_slice), nodes);
+        }
+        // The grid's cells, corners counter-clockwise (the bottom's, then the
+        // top's in 3D), as the structured subdomains number them.
+        let n: [usize; 3] = std::array::from_fn(|a| self.mesh.get(a).copied().unwrap_or(0));
+        let at = |i: usize, j: usize, k: usize| (k * (n[1] + 1) + j) * (n[0] + 1) + i;
+        let layers = if self.extent.len() == 3 { n[2] } else { 1 };
+        let cells = (0..layers).flat_map(|k| {
+            (0..n[1]).flat_map(move |j| {
+                (0..n[0]).map(move |i| {
+                    let bottom = [
+                        at(i, j, k),
+                        at(i + 1, j, k),
+                        at(i + 1, j + 1, k),
+                        at(i, j + 1, k),
+                    ];
+                    let mut c = bottom.to_vec();
+                    if n[2] > 0 {
+                        c.extend(bottom.map(|v| v + (n[0] + 1) * (n[1] + 1)));
+                    }
+                    c
+                })
+            })
+        });
+        let cells: Vec<Vec<usize>> = cells.collect();
+        worst(element, cells.iter().map(Vec::as_slice), nodes)
+    }
+
     /// Every node's position at a design, morphs applied: grid order
     /// (`(k * (ny + 1) + j) * (nx + 1) + i`) for a structured body, the
     /// file's order for an imported one.

@@ -237,41 +237,19 @@ pub fn build(
         };
         let mut mesh = mesh;
         if !body.morphs.is_empty() {
-            mesh.quality = Some(quality(&body.name, &subs[mesh.first_subdomain..], design)?);
+            let q = body
+                .quality(&mesh.coords)
+                .map_err(|f| LowerError::Inverted {
+                    body: body.name.clone(),
+                    centroid: f.centroid,
+                    scaled_jacobian: f.scaled_jacobian,
+                    design: design.to_vec(),
+                })?;
+            mesh.quality = Some(q);
         }
         bodies.push(mesh);
     }
     Ok((bodies, subs))
-}
-
-/// The smallest scaled Jacobian of the elements of a body's subdomains; an
-/// element at 0 or below (folded over by a morph) is an error naming it.
-fn quality(body: &str, subs: &[SubdomainMesh], design: &[f64]) -> Result<f64, LowerError> {
-    let mut worst = f64::INFINITY;
-    for s in subs {
-        let (dim, per) = (s.element.dim(), s.element.nodes());
-        for e in s.elements.chunks_exact(per) {
-            let x: Vec<f64> = e
-                .iter()
-                .flat_map(|&n| s.coords[dim * n..dim * (n + 1)].to_vec())
-                .collect();
-            let q = crate::fem::quality::scaled_jacobian(s.element, &x);
-            if q.is_nan() || q <= 0.0 {
-                let mut centroid = vec![0.0; dim];
-                for (k, v) in x.iter().enumerate() {
-                    centroid[k % dim] += v / per as f64;
-                }
-                return Err(LowerError::Inverted {
-                    body: body.to_string(),
-                    centroid,
-                    scaled_jacobian: q,
-                    design: design.to_vec(),
-                });
-            }
-            worst = worst.min(q);
-        }
-    }
-    Ok(worst)
 }
 
 /// An imported body's nodes moved by its morphs at a design, each finite.

@@ -73,7 +73,9 @@ pub struct Iterate {
     /// SMALBE's).
     pub on_active_set: bool,
     /// The smallest scaled Jacobian of each morphed body at this design
-    /// (1: undistorted corners; a design at 0 or below is refused).
+    /// (1: undistorted corners; a design at 0 or below is refused). Absent
+    /// from history.json where no body is morphed.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
     pub mesh_quality: Vec<MeshQuality>,
 }
 

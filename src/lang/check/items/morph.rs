@@ -98,7 +98,36 @@ impl<'a> Checker<'a> {
         if self.box_holds_nodes(b, &morph, name.span) {
             self.shearing_faces(b, &morph, &written);
             self.bodies[b].morphs.push(morph);
+            self.folds_at_start(b, name.span);
         }
+    }
+
+    /// The body's mesh at the initial design, its morphs so far applied:
+    /// an element folded over is an error on the morph that folded it (the
+    /// state solve would refuse that design).
+    fn folds_at_start(&mut self, b: usize, at: Span) {
+        let body = &self.bodies[b];
+        let nodes = body.positions(&self.design_init());
+        let Err(f) = body.quality(&nodes) else {
+            return;
+        };
+        let place: Vec<String> = f.centroid.iter().map(|v| num(*v)).collect();
+        let name = body.name.clone();
+        self.error(
+            Diagnostic::new(
+                "cso::inverted",
+                format!("at the initial design the morph folds an element of body `{name}` over"),
+            )
+            .label(
+                at,
+                format!(
+                    "the element at ({}) m: scaled Jacobian {}",
+                    place.join(", "),
+                    num(f.scaled_jacobian)
+                ),
+            )
+            .help("a node moves past its neighbour: make the initial displacement smaller, or the box larger so that the field varies more gently"),
+        );
     }
 
     /// `x = a .. b`: a box range of constant lengths, not empty.
