@@ -113,6 +113,16 @@ fn bodies_from_mesh_files_on_2_and_3_ranks_give_the_serial_report_bitwise() {
 }
 
 #[test]
+fn a_morphed_imported_body_on_2_ranks_gives_the_serial_report_bitwise() {
+    // stamp3d: tetrahedra moved by a morph, their mesh quality in the report.
+    let scene = "examples/stamp3d.cso";
+    let serial = solve(None, scene, &[], &scratch("stamp-serial"));
+    let dist = solve(Some(2), scene, &[], &scratch("stamp-2"));
+    assert_same(&serial, &dist, "stamp3d on 2 ranks");
+    assert!(dist["bodies"][1]["min_scaled_jacobian"].as_f64().is_some());
+}
+
+#[test]
 fn more_ranks_than_subdomains_stops_every_rank_with_one_message() {
     let env = [("CSO_MPI_ALL_RANKS", "1")];
     let (code, _, err) = run(Some(9), &env, &["solve", "examples/semicoercive2d.cso"]);
