@@ -303,3 +303,45 @@ optimize { max_iterations = 3 }
         assert_eq!(it.numeric_factorizations, 2, "iterate {}", it.iteration);
     }
 }
+
+/// Faces first, then the morphs, whose displacements add up: each node of a
+/// body with a curved bottom and two overlapping morphs sits where the
+/// column rule puts it, moved by the sum of the fields of the boxes that
+/// hold it (each evaluated where the faces put the node).
+#[test]
+fn morphs_compose_with_a_curved_face_and_add_up() {
+    let src = "scene both { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design h { init = 0.05, lower = 0, upper = 0.1 }
+body block { material = soft, x = 0 .. 2, y = 0 .. 1, bottom = h * x * (2 - x), mesh = 4 x 4 }
+morph block { x = 0 .. 2, y = 0 .. 1, ux = 0.1 * h * v * (1 - v) * 1 m / 0.05 }
+morph block { x = 1 .. 2, y = 0 .. 2, uy = 0.02 * (u - 1) * 1 m }
+fix block.bottom
+traction block.top = (0, -1)
+";
+    let s = scene(src);
+    let h = 0.07;
+    let p = cso::model::lower(&s, &[h]).expect("lowers");
+    let coords = &p.bodies[0].coords;
+    for j in 0..=4 {
+        for i in 0..=4 {
+            let x = 0.5 * i as f64;
+            let bottom = h * x * (2.0 - x);
+            let y = bottom + (1.0 - bottom) * j as f64 / 4.0;
+            let v1 = y;
+            let mut want = [x + 0.1 * h * v1 * (1.0 - v1) / 0.05, y];
+            if x >= 1.0 {
+                want[1] += 0.02 * ((x - 1.0) - 1.0);
+            }
+            let got = coords[j * 5 + i];
+            for a in 0..2 {
+                assert!(
+                    (got[a] - want[a]).abs() < 1e-15,
+                    "node ({i}, {j}) axis {a}: {} against {}",
+                    got[a],
+                    want[a]
+                );
+            }
+        }
+    }
+}
