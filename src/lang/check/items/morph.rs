@@ -80,12 +80,18 @@ impl<'a> Checker<'a> {
                 Diagnostic::warning("cso::morph", format!("{label} moves nothing"))
                     .label(name.span, "no field")
                     .help(format!(
-                        "give the displacement, e.g. `{} = bezier2(c, u, v) * (1 - v)`",
-                        FIELDS[d - 1]
+                        "give the displacement, e.g. `{}`",
+                        if d == 2 {
+                            "uy = bezier(c, u) * (1 - v)"
+                        } else {
+                            "uz = bezier2(c, u, v) * (1 - w)"
+                        }
                     )),
             );
-        } else if !morph.uses_design() {
-            let span = written[0].1.to(written[written.len() - 1].1);
+        } else if let (false, Some(first), Some(last)) =
+            (morph.uses_design(), written.first(), written.last())
+        {
+            let span = first.1.to(last.1);
             self.error(
                 Diagnostic::warning(
                     "cso::morph",
@@ -189,6 +195,10 @@ impl<'a> Checker<'a> {
     /// warning per face, with the largest displacement found on it at the
     /// initial design, the bounds and two mixed designs.
     fn shearing_faces(&mut self, b: usize, morph: &Morph, written: &[(usize, Span)]) {
+        let (Some(first), Some(last)) = (written.first(), written.last()) else {
+            return;
+        };
+        let span = first.1.to(last.1);
         let body = &self.bodies[b];
         let d = body.extent.len();
         let nodes = body.unmorphed_positions(&self.design_init());
@@ -209,7 +219,6 @@ impl<'a> Checker<'a> {
                 }
             }
         }
-        let span = written[0].1.to(written[written.len() - 1].1);
         for (a, side, c, largest) in found {
             self.error(
                 Diagnostic::warning(
