@@ -33,6 +33,7 @@ fn main() -> ExitCode {
         Command::Study(StudyCommand::Tolerance(c)) => c.run(&opts),
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
+        Command::Fmt(c) => c.run(),
     };
     let listed = cli::job::close_outputs();
     // `_universe` (MPI's) lives to the end of `main`: dropping it finalizes MPI.

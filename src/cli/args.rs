@@ -70,6 +70,20 @@ pub enum Command {
     /// Write the compiled contact problem (the primal QP: K, f, B_E, c_E, B_I, c_I,
     /// the kernel basis R and a manifest) for other solvers.
     Export(Export),
+    /// Format scenes in place in the one canonical layout (whitespace only;
+    /// comments kept): `--check` lists the files that would change, `-` reads
+    /// stdin and writes stdout.
+    Fmt(Fmt),
+}
+
+#[derive(Args, Debug)]
+pub struct Fmt {
+    /// `.cso` files to format in place; `-` for stdin to stdout.
+    #[arg(required = true)]
+    pub files: Vec<PathBuf>,
+    /// Change nothing: list the files that are not formatted and exit 1 if any is.
+    #[arg(long)]
+    pub check: bool,
 }
 
 #[derive(Args, Debug)]

@@ -1,9 +1,9 @@
 //! The commands that read a scene and answer without solving it: `check`,
-//! `compile` and `export`.
+//! `compile`, `export` and `fmt`.
 
-use super::args::{Check, Compile, Export};
+use super::args::{Check, Compile, Export, Fmt};
 use super::job::{load, load_as, prepare};
-use super::print::{fail, fail_solve, Outcome, EXIT_IO};
+use super::print::{fail, fail_solve, Outcome, EXIT_IO, EXIT_SCENE};
 use cso::lang::{diag, CheckOptions};
 
 impl Check {
@@ -81,5 +81,59 @@ impl Export {
         cso::io::export::write_dir(&self.out, &files, self.force).map_err(cannot)?;
         outln!("{} files written to {}", files.len(), self.out.display());
         Ok(())
+    }
+}
+
+impl Fmt {
+    /// Each file formatted in place (or checked); `-`: stdin to stdout. A
+    /// file with syntax errors is left as it is, its errors printed.
+    pub fn run(&self) -> Outcome {
+        let mut worst = 0;
+        for file in &self.files {
+            let stdin = file.as_os_str() == "-";
+            let name = file.display().to_string();
+            let src = if stdin {
+                let mut s = String::new();
+                std::io::Read::read_to_string(&mut std::io::stdin(), &mut s)
+                    .map(|_| s)
+                    .map_err(|e| format!("cannot read stdin: {e}"))
+            } else {
+                std::fs::read_to_string(file).map_err(|e| format!("cannot read {name}: {e}"))
+            };
+            let src = match src {
+                Ok(s) => s,
+                Err(e) => {
+                    worst = worst.max(fail(EXIT_IO, e));
+                    continue;
+                }
+            };
+            let formatted = match cso::lang::fmt::format(&src) {
+                Ok(f) => f,
+                Err(diags) => {
+                    err!("{}", diag::render(&diags, &name, &src));
+                    worst = worst.max(fail(
+                        EXIT_SCENE,
+                        format!("{name} has syntax errors; not formatted"),
+                    ));
+                    continue;
+                }
+            };
+            if stdin {
+                out!("{formatted}");
+            } else if self.check {
+                if formatted != src {
+                    outln!("{name}");
+                    worst = worst.max(EXIT_SCENE);
+                }
+            } else if formatted != src {
+                if let Err(e) = cso::io::atomic::write_atomic(file, formatted.as_bytes()) {
+                    worst = worst.max(fail(EXIT_IO, format!("cannot write {name}: {e}")));
+                }
+            }
+        }
+        match worst {
+            0 => Ok(()),
+            w => Err(w),
+        }
     }
 }

@@ -9,6 +9,7 @@ pub mod ast;
 pub mod check;
 pub mod diag;
 pub mod expr;
+pub mod fmt;
 pub mod functional;
 pub mod parse;
 pub mod scene;

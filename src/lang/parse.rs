@@ -13,7 +13,7 @@ use pest::Parser;
 
 #[derive(pest_derive::Parser)]
 #[grammar = "../grammar/cso.pest"]
-struct CsoParser;
+pub(crate) struct CsoParser;
 
 /// The words that start a top-level item.
 pub const ITEM_KEYWORDS: &[&str] = &[
