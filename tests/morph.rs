@@ -240,6 +240,38 @@ traction block.right = (1, 0)
         text.contains("body `block`") && text.contains("inverted") && text.contains("[1.5]"),
         "{text}"
     );
+    // The element folded first: at x = 3/8, between the row at y = 1/4 and
+    // the row from y = 1/2, which moved down past it.
+    let cso::state::SolveError::Lower(cso::model::LowerError::Inverted { centroid, .. }) = e else {
+        panic!("not an inverted element: {text}");
+    };
+    assert!(centroid[0] > 0.0 && centroid[0] < 1.0 && centroid[1] > 0.0 && centroid[1] < 0.5);
+}
+
+/// An element pressed flat between square corners scores well by its
+/// corners, so lowering also compares its area with its area before the
+/// morphs: below 1e-3 of it, the design is refused as squeezed.
+#[test]
+fn an_element_squeezed_flat_is_refused_though_its_corners_are_square() {
+    let src = "scene squeeze { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+design d { init = 0, lower = 0, upper = 1 }
+body block { material = soft, x = 0 .. 1, y = 0 .. 1, mesh = 2 x 4 }
+morph block { x = 0 .. 1, y = 0.4 .. 1, uy = -d * 0.25 m }
+fix block.left
+traction block.right = (1, 0)
+";
+    let s = scene(src);
+    // The rows from y = 1/2 move down uniformly: the row of elements below
+    // keeps square corners and is 0.25 (1 - d) high.
+    let ok = cso::model::lower(&s, &[0.99]).expect("1 % of its height is fine");
+    assert!((ok.bodies[0].quality.expect("morphed") - 1.0).abs() < 1e-12);
+    let Err(cso::model::LowerError::Inverted { squeezed, .. }) = cso::model::lower(&s, &[0.9995])
+    else {
+        panic!("squeezed to 5e-4 of its height");
+    };
+    let r = squeezed.expect("squeezed, not inverted");
+    assert!((r - 5e-4).abs() < 1e-9, "{r}");
 }
 
 /// MMA's step onto a design that folds an element is shortened (by halves
@@ -267,6 +299,10 @@ optimize { max_iterations = 6 }
     );
     let last = run.history.last().expect("iterates");
     assert!(run.history.len() == 6, "{} iterates", run.history.len());
+    assert!(
+        run.history.iter().any(|it| it.step_backs > 0),
+        "a step was shortened"
+    );
     for it in &run.history {
         assert!(it.design[0] < 1.0 && it.mesh_quality[0].min_scaled_jacobian > 0.0);
     }
@@ -344,4 +380,41 @@ traction block.top = (0, -1)
             }
         }
     }
+}
+
+/// The quality of morphed triangles, against the angles of the right
+/// triangles of block_tris.msh (legs of 5 mm, each square cut along its
+/// diagonal) stretched along x by `s`: the smallest corner's sine is
+/// `1 / sqrt(1 + s^2)`, scaled by `2 / sqrt(3)`; hexahedra stretched stay
+/// boxes (1).
+#[test]
+fn the_quality_of_stretched_triangles_and_hexahedra_is_that_of_their_corners() {
+    let src = |mesh: &str, dim: usize| {
+        let (scene, zbox) = if dim == 2 {
+            ("scene s { dim = 2 }", "")
+        } else {
+            ("scene s { dim = 3 }", ", z = 0 .. 10 mm")
+        };
+        let extent = if dim == 2 { "40 mm" } else { "20 mm" };
+        format!(
+            "{scene}
+material soft {{ E = 1000, nu = 0.3 }}
+design stretch {{ init = 0, lower = 0, upper = 2 }}
+body b {{ material = soft, mesh = \"{mesh}\", unit = mm, subdomains = 2 }}
+morph b {{ x = 0 .. {extent}, y = 0 .. 20 mm{zbox}, ux = stretch * u * {extent} }}
+fix b.left
+"
+        )
+    };
+    let tris = scene(&src("block_tris.msh", 2));
+    for stretch in [0.0, 1.0] {
+        let s: f64 = 1.0 + stretch;
+        let want = 2.0 / 3f64.sqrt() / (1.0 + s * s).sqrt();
+        let p = cso::model::lower(&tris, &[stretch]).expect("lowers");
+        let q = p.bodies[0].quality.expect("morphed");
+        assert!((q - want).abs() < 1e-12, "s = {s}: {q} against {want}");
+    }
+    let hexes = scene(&src("brick_hexes.msh", 3));
+    let p = cso::model::lower(&hexes, &[1.0]).expect("lowers");
+    assert!((p.bodies[0].quality.expect("morphed") - 1.0).abs() < 1e-12);
 }

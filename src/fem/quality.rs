@@ -56,35 +56,57 @@ pub fn scaled_jacobian(element: Element, x: &[f64]) -> f64 {
     }
 }
 
-/// An element folded over (or flat): where it is and how badly.
+/// An element folded over, flat, or squeezed to almost nothing: where it is
+/// and how badly.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Folded {
     /// The element's centroid, one value per axis.
     pub centroid: Vec<f64>,
     pub scaled_jacobian: f64,
+    /// Its area (volume) over its area before the morphs, where that is below
+    /// [`SQUEEZED`] (its corners may still be square).
+    pub squeezed: Option<f64>,
 }
 
+/// An element whose area (volume) falls below this share of what it was
+/// before the morphs counts as collapsed: the scaled Jacobian measures
+/// corners, so an element pressed flat between square corners still scores
+/// well, while its stiffness degenerates.
+pub const SQUEEZED: f64 = 1e-3;
+
 /// The smallest scaled Jacobian of a mesh's elements (`cells`, node indices
-/// into `nodes`, each `element`), or the first element at 0 or below.
+/// into `nodes`, each `element`), or the first element at 0 or below, or (with
+/// the node positions before the morphs, `before`) squeezed below
+/// [`SQUEEZED`] of its size.
 pub fn worst<'a>(
     element: Element,
     cells: impl Iterator<Item = &'a [usize]>,
     nodes: &[[f64; 3]],
+    before: Option<&[[f64; 3]]>,
 ) -> Result<f64, Folded> {
     let dim = element.dim();
     let mut smallest = f64::INFINITY;
     let mut x = Vec::with_capacity(dim * element.nodes());
+    let mut x0 = Vec::with_capacity(dim * element.nodes());
     for cell in cells {
         x.clear();
         x.extend(cell.iter().flat_map(|&n| nodes[n][..dim].iter().copied()));
         let q = scaled_jacobian(element, &x);
-        if q.is_nan() || q <= 0.0 {
+        let squeezed = before.and_then(|b| {
+            x0.clear();
+            x0.extend(cell.iter().flat_map(|&n| b[n][..dim].iter().copied()));
+            let (now, was) = (element.measure(&x)?, element.measure(&x0)?);
+            let ratio = now / was;
+            (ratio < SQUEEZED).then_some(ratio)
+        });
+        if q.is_nan() || q <= 0.0 || squeezed.is_some() {
             let centroid = (0..dim)
                 .map(|a| cell.iter().map(|&n| nodes[n][a]).sum::<f64>() / cell.len() as f64)
                 .collect();
             return Err(Folded {
                 centroid,
                 scaled_jacobian: q,
+                squeezed,
             });
         }
         smallest = smallest.min(q);

@@ -154,7 +154,8 @@ pub fn termination(scene: &Scene, t: &Termination) -> String {
 /// state + gradient, subdomains refactored, seconds (state, then state +
 /// gradient), and how the state was solved: `cold`, `warm` (SMALBE from the
 /// previous design's multipliers and SMALBE state) or `set` (on the previous
-/// design's active set, kept by its KKT check); with morphs, the smallest
+/// design's active set, kept by its KKT check), or `backN` (MMA's step could
+/// not be solved and was halved N times, then solved cold); with morphs, the smallest
 /// scaled Jacobian of the morphed bodies (`min SJ`).
 pub fn optimization(scene: &Scene, run: &Optimization) -> String {
     // The worst element of the morphed bodies, where the scene has morphs.
@@ -190,10 +191,11 @@ pub fn optimization(scene: &Scene, run: &Optimization) -> String {
             it.numeric_factorizations,
             it.state_seconds,
             it.seconds,
-            match (it.warm_started, it.on_active_set) {
-                (_, true) => "set",
-                (true, false) => "warm",
-                (false, false) => "cold",
+            match (it.step_backs, it.warm_started, it.on_active_set) {
+                (0, _, true) => "set".to_string(),
+                (0, true, false) => "warm".to_string(),
+                (0, false, false) => "cold".to_string(),
+                (n, ..) => format!("back{n}"),
             }
         );
         if morphed {

@@ -581,12 +581,22 @@ impl Body {
 
     /// The smallest scaled Jacobian of the body's elements at node positions
     /// `nodes` (in [`Body::positions`]' order), or the first element folded
-    /// over ([`crate::fem::quality`]).
-    pub fn quality(&self, nodes: &[[f64; 3]]) -> Result<f64, crate::fem::quality::Folded> {
+    /// over or squeezed against its size at `before`, the positions before the
+    /// morphs ([`crate::fem::quality`]).
+    pub fn quality(
+        &self,
+        nodes: &[[f64; 3]],
+        before: &[[f64; 3]],
+    ) -> Result<f64, crate::fem::quality::Folded> {
         use crate::fem::quality::worst;
         let element = self.element(self.extent.len());
         if let Some(m) = &self.imported {
-            return worst(element, m.mesh.cells.iter().map(Vec::as_slice), nodes);
+            return worst(
+                element,
+                m.mesh.cells.iter().map(Vec::as_slice),
+                nodes,
+                Some(before),
+            );
         }
         // The grid's cells, corners counter-clockwise (the bottom's, then the
         // top's in 3D), as the structured subdomains number them.
@@ -611,7 +621,12 @@ impl Body {
             })
         });
         let cells: Vec<Vec<usize>> = cells.collect();
-        worst(element, cells.iter().map(Vec::as_slice), nodes)
+        worst(
+            element,
+            cells.iter().map(Vec::as_slice),
+            nodes,
+            Some(before),
+        )
     }
 
     /// Every node's position at a design, morphs applied: grid order

@@ -237,12 +237,14 @@ pub fn build(
         };
         let mut mesh = mesh;
         if !body.morphs.is_empty() {
+            let before = body.unmorphed_positions(design);
             let q = body
-                .quality(&mesh.coords)
+                .quality(&mesh.coords, &before)
                 .map_err(|f| LowerError::Inverted {
                     body: body.name.clone(),
                     centroid: f.centroid,
                     scaled_jacobian: f.scaled_jacobian,
+                    squeezed: f.squeezed,
                     design: design.to_vec(),
                 })?;
             mesh.quality = Some(q);
@@ -282,8 +284,13 @@ fn grid_mesh(
         let c = body.node(ijk, design);
         if !c[..dim].iter().all(|v| v.is_finite()) {
             let at: Vec<String> = ijk[..dim].iter().map(|v| v.to_string()).collect();
+            let why = if body.morphs.is_empty() {
+                ""
+            } else {
+                " (a curved face or a morph's field is not finite there)"
+            };
             return Err(LowerError::Geometry(format!(
-                "node ({}) of body `{}` has no finite position at this design",
+                "node ({}) of body `{}` has no finite position at this design{why}",
                 at.join(", "),
                 body.name
             )));

@@ -159,6 +159,9 @@ pub enum LowerError {
         /// Jacobian.
         centroid: Vec<f64>,
         scaled_jacobian: f64,
+        /// Its size over its size before the morphs, where it is squeezed
+        /// almost flat (its corners may be fine).
+        squeezed: Option<f64>,
         design: Vec<f64>,
     },
     /// A selection keeps no node (at this design).
@@ -178,6 +181,7 @@ impl fmt::Display for LowerError {
                 body,
                 centroid,
                 scaled_jacobian,
+                squeezed,
                 design,
             } => {
                 let at: Vec<String> = centroid.iter().map(|v| num(*v)).collect();
@@ -185,12 +189,15 @@ impl fmt::Display for LowerError {
                 if design.len() > 8 {
                     x.push(format!("... ({} values)", design.len()));
                 }
+                let how = match squeezed {
+                    Some(r) => format!("squeezed to {} of its size", num(*r)),
+                    None => format!("inverted (scaled Jacobian {})", num(*scaled_jacobian)),
+                };
                 write!(
                     f,
-                    "the element of body `{body}` at ({}) m is inverted at the design [{}] (scaled Jacobian {})",
+                    "the element of body `{body}` at ({}) m is {how} at the design [{}]",
                     at.join(", "),
                     x.join(", "),
-                    num(*scaled_jacobian)
                 )
             }
             LowerError::EmptySelection(s) => write!(f, "the selection `{s}` is empty"),

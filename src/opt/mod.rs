@@ -77,6 +77,9 @@ pub struct Iterate {
     /// from history.json where no body is morphed.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub mesh_quality: Vec<MeshQuality>,
+    /// MMA's step to this design could not be solved and was halved this many
+    /// times towards the previous design (0: taken as proposed).
+    pub step_backs: usize,
 }
 
 /// A morphed body's mesh quality at one design.
@@ -238,13 +241,15 @@ pub fn optimize_with(
     for k in 0..scene.optimize.max_iterations.max(1) {
         let t = Instant::now();
         let current = with_design(&frozen, &x);
+        let mut halvings = 0;
         let (state, mut g) = match state_and_gradient(&current, previous.as_ref(), &warm, reuse) {
             Ok(r) => r,
             Err(e) if k > 0 => {
                 let last_good = history.last().map_or(&x0, |h| &h.design);
                 match step_back(&frozen, &x, last_good, reuse) {
-                    Some((trial, state, g)) => {
+                    Some((trial, halved, state, g)) => {
                         x = trial;
+                        halvings = halved;
                         (state, g)
                     }
                     None => {
@@ -262,7 +267,8 @@ pub fn optimize_with(
         }
         let moved = move_design(&mut mma, &x, &g, f_scale, &last_multipliers, &bounds);
         let feasible = moved.constraints.iter().all(|c| *c <= tol.max(1e-9));
-        let it = iterate(k, &x, &state, &g, &moved, t.elapsed().as_secs_f64());
+        let mut it = iterate(k, &x, &state, &g, &moved, t.elapsed().as_secs_f64());
+        it.step_backs = halvings;
         let keep_going = observer(&it, &state);
         previous = Some(state);
         warm = std::mem::take(&mut g.warm);
@@ -333,7 +339,7 @@ const STEP_BACKS: usize = 12;
 
 /// A design that cannot be solved: step back halfway towards the last good
 /// design, up to [`STEP_BACKS`] times, each solved cold; the first that
-/// solves. A trial whose mesh folds over (a morph pushed past an element's
+/// solves, with the number of halvings it took. A trial whose mesh folds over (a morph pushed past an element's
 /// neighbour) is refused by lowering alone, without a solve, so a step that
 /// overshoots the meshes' limit costs a few lowerings and one solve.
 fn step_back(
@@ -341,9 +347,9 @@ fn step_back(
     x: &[f64],
     last_good: &[f64],
     reuse: Reuse,
-) -> Option<(Vec<f64>, State, Gradient)> {
+) -> Option<(Vec<f64>, usize, State, Gradient)> {
     let mut trial = x.to_vec();
-    for _ in 0..STEP_BACKS {
+    for halvings in 1..=STEP_BACKS {
         trial = trial
             .iter()
             .zip(last_good)
@@ -355,7 +361,7 @@ fn step_back(
             continue;
         }
         if let Ok((state, g)) = state_and_gradient(&scene, None, &[], reuse) {
-            return Some((trial, state, g));
+            return Some((trial, halvings, state, g));
         }
     }
     None
@@ -448,5 +454,6 @@ fn iterate(
         hessian_applications: g.hessian_applications,
         seconds,
         mesh_quality: mesh_quality(state),
+        step_backs: 0,
     }
 }

@@ -278,6 +278,33 @@ impl<'a> Checker<'a> {
     fn box_name(&mut self, name: &str, span: Span) -> Option<Option<(Formula, Quantity)>> {
         let d = self.dim.n();
         if let Some(axis) = BOX_COORDS.iter().position(|c| *c == name) {
+            let other = if self.table(Kind::Let).get(name).is_some() {
+                Some("a `let` constant")
+            } else if self.designs.iter().any(|g| g.name == name) {
+                Some("a design variable")
+            } else {
+                None
+            };
+            match (other, axis < d) {
+                // `w` in 2D is the user's own name.
+                (Some(_), false) => return None,
+                (Some(what), true) => {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::morph",
+                            format!("`{name}` is both a box coordinate and {what}"),
+                        )
+                        .label(span, "in a morph's field this is the box's coordinate")
+                        .help(format!(
+                            "rename the {} (a morph's field reads `u`, `v`{} as the box's coordinates)",
+                            if what.contains("let") { "constant" } else { "design variable" },
+                            if d == 3 { ", `w`" } else { "" }
+                        )),
+                    );
+                    return Some(None);
+                }
+                (None, _) => {}
+            }
             if axis >= d {
                 self.error(
                     Diagnostic::new(

@@ -14,6 +14,10 @@ const AXES: [&str; 3] = ["x", "y", "z"];
 const FIELDS: [&str; 3] = ["ux", "uy", "uz"];
 const BOX: [&str; 3] = ["u", "v", "w"];
 
+/// Bodies with more nodes than this are not checked node by node (the
+/// memory estimate judges them first; the solve checks every element).
+pub(super) const NODE_CHECKS: usize = 2_000_000;
+
 /// Points per axis along which a box face is sampled for a field that does
 /// not vanish there.
 const FACE_SAMPLES: usize = 9;
@@ -54,7 +58,11 @@ impl<'a> Checker<'a> {
         }
         let mut written: Vec<(usize, Span)> = Vec::new();
         for (a, key) in FIELDS.iter().enumerate().take(d) {
-            let Some(e) = f.get(key).and_then(|fl| self.expr_of(fl, "a displacement")) else {
+            let Some(fl) = f.get(key) else {
+                continue;
+            };
+            let Some(e) = self.expr_of(fl, "a displacement") else {
+                ok = false;
                 continue;
             };
             self.box_coords = true;
@@ -101,6 +109,12 @@ impl<'a> Checker<'a> {
                 .help("allowed, but the body could be meshed in that shape; drive it with a `design` to shape it"),
             );
         }
+        if self.bodies[b].nodes() > NODE_CHECKS {
+            // Too large to list its nodes here: the memory estimate that
+            // follows judges it, and the solve checks every element.
+            self.bodies[b].morphs.push(morph);
+            return;
+        }
         if self.box_holds_nodes(b, &morph, name.span) {
             self.shearing_faces(b, &morph, &written);
             self.bodies[b].morphs.push(morph);
@@ -109,31 +123,47 @@ impl<'a> Checker<'a> {
     }
 
     /// The body's mesh at the initial design, its morphs so far applied:
-    /// an element folded over is an error on the morph that folded it (the
-    /// state solve would refuse that design).
+    /// a node without a finite position, or an element folded over or
+    /// squeezed flat, is an error on the morph that did it (the state solve
+    /// would refuse that design); the body is then not checked further.
     fn folds_at_start(&mut self, b: usize, at: Span) {
+        let design = self.design_init();
         let body = &self.bodies[b];
-        let nodes = body.positions(&self.design_init());
-        let Err(f) = body.quality(&nodes) else {
-            return;
-        };
-        let place: Vec<String> = f.centroid.iter().map(|v| num(*v)).collect();
+        let before = body.unmorphed_positions(&design);
+        let nodes = body.positions(&design);
         let name = body.name.clone();
-        self.error(
+        let d = body.extent.len();
+        let problem = if let Some(n) = nodes
+            .iter()
+            .position(|p| !p[..d].iter().all(|v| v.is_finite()))
+        {
+            let place: Vec<String> = before[n][..d].iter().map(|v| num(*v)).collect();
+            Diagnostic::new(
+                "cso::not-finite",
+                format!("at the initial design the morph's field is not finite at a node of body `{name}`"),
+            )
+            .label(at, format!("not finite at ({}) m", place.join(", ")))
+            .help("the field divides by zero or leaves its functions' domains there (`1 / u` at u = 0, `sqrt` of a negative value)")
+        } else {
+            let Err(f) = body.quality(&nodes, &before) else {
+                return;
+            };
+            let place: Vec<String> = f.centroid.iter().map(|v| num(*v)).collect();
+            let how = match f.squeezed {
+                Some(r) => format!("squeezed to {} of its size", num(r)),
+                None => format!("scaled Jacobian {}", num(f.scaled_jacobian)),
+            };
             Diagnostic::new(
                 "cso::inverted",
                 format!("at the initial design the morph folds an element of body `{name}` over"),
             )
-            .label(
-                at,
-                format!(
-                    "the element at ({}) m: scaled Jacobian {}",
-                    place.join(", "),
-                    num(f.scaled_jacobian)
-                ),
-            )
-            .help("a node moves past its neighbour: make the initial displacement smaller, or the box larger so that the field varies more gently"),
-        );
+            .label(at, format!("the element at ({}) m: {how}", place.join(", ")))
+            .help("a node moves past (or onto) its neighbour: make the initial displacement smaller, or the box larger so that the field varies more gently")
+        };
+        self.error(problem);
+        if let Some(s) = self.body_spans.get_mut(b) {
+            s.ok = false;
+        }
     }
 
     /// `x = a .. b`: a box range of constant lengths, not empty.
@@ -245,7 +275,7 @@ impl<'a> Checker<'a> {
     /// bounds, and the two alternations of them (a field linear in the
     /// design that is zero at all of these is zero at every design along the
     /// sampled directions that matter in practice).
-    fn sample_designs(&self) -> Vec<Vec<f64>> {
+    pub(super) fn sample_designs(&self) -> Vec<Vec<f64>> {
         let vars = &self.design_vars;
         let pick = |even_low: bool| -> Vec<f64> {
             vars.iter()

@@ -2,7 +2,7 @@
 
 use crate::lang::ast::{Block, Expr, Ident, Span};
 use crate::lang::check::{quote_or, Checker};
-use crate::lang::diag::Diagnostic;
+use crate::lang::diag::{num, Diagnostic};
 use crate::lang::scene::*;
 use crate::lang::units::Dim;
 
@@ -124,7 +124,66 @@ impl<'a> Checker<'a> {
     ) -> Option<Condition> {
         let sel = selection?;
         self.flat_face(&sel, sel_expr.span)?;
+        self.stays_flat(&sel, sel_expr.span)?;
         Some(Condition::Symmetry { sel })
+    }
+
+    /// A symmetry face of a morphed body stays on its plane: its nodes (the
+    /// filter applied at each design) at the initial design, the bounds and
+    /// two mixed designs keep one coordinate within 1e-9 of the body's size.
+    fn stays_flat(&mut self, sel: &Selection, at: Span) -> Option<()> {
+        let body = self.bodies.get(sel.body)?;
+        if body.morphs.is_empty() || body.nodes() > super::morph::NODE_CHECKS {
+            return Some(());
+        }
+        let d = body.extent.len();
+        let init = self.design_init();
+        let axis = match (&body.imported, sel.face.side()) {
+            (Some(m), _) => match m.flat_axis(sel.face, sel.filter.as_ref(), &init) {
+                Some(a) => a,
+                // Not flat at all: `flat_face` said so.
+                None => return Some(()),
+            },
+            (None, Some(face)) => face.axis(self.dim).0,
+            (None, None) => return Some(()),
+        };
+        let before = body.unmorphed_positions(&init);
+        let (lo, hi) = super::bounding_box(&before, d);
+        let size = (0..d).map(|a| hi[a] - lo[a]).fold(0.0, f64::max);
+        let mut worst: f64 = 0.0;
+        for design in self.sample_designs() {
+            let tol = 1e-9 * size;
+            let pts: Vec<[f64; 3]> = body
+                .face_points(sel.face, &design)
+                .into_iter()
+                .filter(|p| {
+                    sel.filter
+                        .as_ref()
+                        .is_none_or(|f| f.holds(*p, &design, tol))
+                })
+                .collect();
+            let (l, h) = pts
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), p| {
+                    (l.min(p[axis]), h.max(p[axis]))
+                });
+            if h > l {
+                worst = worst.max(h - l);
+            }
+        }
+        if worst <= 1e-9 * size {
+            return Some(());
+        }
+        let name = body.name.clone();
+        self.error(
+            Diagnostic::new(
+                "cso::symmetry",
+                format!("a morph of body `{name}` moves the symmetry face `{}` off its plane", sel.text),
+            )
+            .label(at, format!("its nodes spread over {} m across the plane", num(worst)))
+            .help("make the morph's field normal to the plane zero on this face (a factor `u` or `(1 - u)` across it), or keep the box away from it"),
+        );
+        None
     }
 
     /// Symmetry needs a plane face: not a curved one.
