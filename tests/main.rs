@@ -8,6 +8,7 @@ mod export;
 mod feti;
 mod finite;
 mod fixture;
+mod fmt;
 mod front_end;
 mod fuzz;
 mod hard;

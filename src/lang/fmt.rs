@@ -247,6 +247,8 @@ struct Out<'a> {
     text: String,
     /// A blank line is due before the next line written.
     blank: bool,
+    /// Lines that end in a comment after code: (line number, code length).
+    trailing: Vec<(usize, usize)>,
 }
 
 impl<'a> Out<'a> {
@@ -255,6 +257,7 @@ impl<'a> Out<'a> {
             src,
             text: String::new(),
             blank: false,
+            trailing: Vec::new(),
         }
     }
 
@@ -304,6 +307,9 @@ impl<'a> Out<'a> {
         if self.text.ends_with('\n') {
             self.text.pop();
         }
+        let line = self.text.matches('\n').count();
+        let code = self.text.len() - self.text.rfind('\n').map_or(0, |i| i + 1);
+        self.trailing.push((line, code));
         self.text.push_str("  ");
         self.text.push_str(comment);
         self.text.push('\n');
@@ -425,11 +431,31 @@ impl<'a> Out<'a> {
         }
     }
 
+    /// The text, with the comments after code aligned over each run of
+    /// consecutive lines that have one (two spaces after the longest code).
     fn finish(mut self) -> String {
         while self.text.ends_with("\n\n") {
             self.text.pop();
         }
-        self.text
+        let mut lines: Vec<String> = self.text.lines().map(str::to_string).collect();
+        let mut i = 0;
+        while i < self.trailing.len() {
+            let mut j = i + 1;
+            while j < self.trailing.len() && self.trailing[j].0 == self.trailing[j - 1].0 + 1 {
+                j += 1;
+            }
+            let width = self.trailing[i..j].iter().map(|t| t.1).max().unwrap_or(0);
+            for &(line, code) in &self.trailing[i..j] {
+                if let Some(l) = lines.get_mut(line) {
+                    // The two spaces after the code become enough to align.
+                    l.insert_str(code, &" ".repeat(width - code));
+                }
+            }
+            i = j;
+        }
+        let mut out = lines.join("\n");
+        out.push('\n');
+        out
     }
 }
 
@@ -476,6 +502,15 @@ mod tests {
             "# head\n\nlet a = 1  # one\n# about b\nlet b = 2\nmaterial m {\n  E = 1  # stiff\n  # soft\n  nu = 0.3\n}\n"
         );
         assert_eq!(fmt(&out), out);
+    }
+
+    #[test]
+    fn comments_after_code_align_over_consecutive_lines() {
+        let src = "let R = 50 mm    # radius\nlet Pmax = 80 kN # force\n\nlet a = 1 # alone\n";
+        assert_eq!(
+            fmt(src),
+            "let R = 50 mm     # radius\nlet Pmax = 80 kN  # force\n\nlet a = 1  # alone\n"
+        );
     }
 
     #[test]
