@@ -11,11 +11,12 @@ pub mod diag;
 pub mod expr;
 pub mod fmt;
 pub mod functional;
+pub mod ide;
 pub mod parse;
 pub mod scene;
 pub mod suggest;
 pub mod units;
 
-pub use check::{compile, CheckOptions};
+pub use check::{analyze, compile, CheckOptions};
 pub use diag::Diagnostic;
 pub use scene::Scene;
