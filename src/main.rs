@@ -34,6 +34,7 @@ fn main() -> ExitCode {
         Command::Compile(c) => c.run(&opts),
         Command::Export(c) => c.run(&opts),
         Command::Fmt(c) => c.run(),
+        Command::Lsp => cli::lsp::run(),
     };
     let listed = cli::job::close_outputs();
     // `_universe` (MPI's) lives to the end of `main`: dropping it finalizes MPI.

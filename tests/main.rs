@@ -14,6 +14,7 @@ mod fuzz;
 mod hard;
 mod imported;
 mod locking;
+mod lsp;
 mod morph;
 #[cfg(feature = "mpi")]
 mod mpi;

@@ -74,6 +74,9 @@ pub enum Command {
     /// comments kept): `--check` lists the files that would change, `-` reads
     /// stdin and writes stdout.
     Fmt(Fmt),
+    /// A language server over stdio (diagnostics, hover, definitions,
+    /// references, completion, formatting, outline) for editors that speak LSP.
+    Lsp,
 }
 
 #[derive(Args, Debug)]

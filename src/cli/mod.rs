@@ -15,6 +15,7 @@ pub mod bench;
 pub mod check;
 pub mod design;
 pub mod job;
+pub mod lsp;
 pub mod ranks;
 pub mod solve;
 pub mod study;
