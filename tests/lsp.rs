@@ -208,3 +208,44 @@ fn an_editor_session_over_stdio() {
     let status = c.child.wait().expect("exits");
     assert!(status.success(), "{status:?}");
 }
+
+/// The VS Code grammar is JSON, and it highlights every item keyword, unit and
+/// function the language has (so a new keyword cannot be forgotten there).
+#[test]
+fn the_editor_grammar_knows_the_language() {
+    let path = crate::root().join("editors/vscode/syntaxes/cso.tmLanguage.json");
+    let text = std::fs::read_to_string(&path).expect("the grammar");
+    let grammar: Value = serde_json::from_str(&text).expect("JSON");
+    let pattern = |rule: &str| {
+        grammar["repository"][rule]["match"]
+            .as_str()
+            .unwrap_or_else(|| panic!("rule {rule}"))
+            .to_string()
+    };
+    let words = |p: &str| -> Vec<String> {
+        p.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .map(str::to_string)
+            .collect()
+    };
+    let items = words(&pattern("item"));
+    for k in cso::lang::parse::ITEM_KEYWORDS {
+        assert!(items.iter().any(|w| w == k), "item keyword `{k}`");
+    }
+    let functions = words(&pattern("function"));
+    for (name, _, _) in cso::lang::ide::docs::FUNCTIONS {
+        assert!(functions.iter().any(|w| w == name), "function `{name}`");
+    }
+    let quantity = words(&pattern("quantity"));
+    for unit in ["GPa", "MPa", "kN", "mm", "um", "kg"] {
+        assert!(quantity.iter().any(|w| w == unit), "unit `{unit}`");
+    }
+    let package: Value = serde_json::from_str(
+        &std::fs::read_to_string(crate::root().join("editors/vscode/package.json"))
+            .expect("package.json"),
+    )
+    .expect("JSON");
+    assert_eq!(
+        package["contributes"]["languages"][0]["extensions"][0],
+        ".cso"
+    );
+}

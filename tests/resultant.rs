@@ -175,7 +175,7 @@ fn the_primary_face_carries_the_contact_pressure_too() {
     // over the same tributary area, so the two pressures agree node by node;
     // away from the punch the base's top carries none (issue 34, item 13).
     let src =
-        crate::fixture::example_src("two_blocks").edit("bottom = 1 + 0.02 * (2 * x - 3)^2\n", "");
+        crate::fixture::example_src("two_blocks").edit("bottom = 1 + 0.02 * (2*x - 3)^2\n", "");
     let s = crate::fixture::scene(&src);
     let design = s.design_init();
     let state = cso::state::solve(&s, &design, &mut |_| {}).expect("solves");

@@ -141,7 +141,7 @@ fn the_speed_accuracy_study_runs_in_3d_and_says_where_differences_break() {
     let src = punch3d()
         .edit("design w { init = 1, lower = 0.9, upper = 1.1 }\n", "")
         .edit("0.5 + w", "1.5")
-        .edit("/ w", "/ 1")
+        .edit("/w", "/1")
         .edit(
             "mesh = 8 x 5 x 2\n  subdomains = 2 x 1 x 1",
             "mesh = 4 x 3 x 1",

@@ -28,7 +28,7 @@ use pest::iterators::Pair;
 use pest::Parser;
 
 /// Blocks longer than this go one field per line.
-pub const WIDTH: usize = 100;
+pub const WIDTH: usize = 120;
 
 /// How a token is spaced against its neighbours.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -41,6 +41,8 @@ enum Kind {
     Binary,
     /// `^`: unspaced.
     Pow,
+    /// `*` or `/` written without spaces (`2*x`): kept so.
+    Tight,
     /// Unary `-` and `!`: attached to what follows.
     Unary,
     Open,
@@ -173,7 +175,19 @@ fn collect(pair: Pair<Rule>, offset: usize, out: &mut Vec<Part>) {
         | Rule::op_add
         | Rule::op_sub
         | Rule::op_mul
-        | Rule::op_div => out.push(token(Kind::Binary, pair.as_str().to_string())),
+        | Rule::op_div => {
+            let input = pair.get_input().as_bytes();
+            let blank = |i: Option<&u8>| i.is_some_and(|b| b.is_ascii_whitespace());
+            let spaced = blank(span.start().checked_sub(1).and_then(|i| input.get(i)))
+                || blank(input.get(span.end()));
+            let is_product = matches!(pair.as_rule(), Rule::op_mul | Rule::op_div);
+            let kind = if is_product && !spaced {
+                Kind::Tight
+            } else {
+                Kind::Binary
+            };
+            out.push(token(kind, pair.as_str().to_string()))
+        }
         Rule::op_pow => out.push(token(Kind::Pow, "^".into())),
         Rule::op_neg | Rule::op_not => out.push(token(Kind::Unary, pair.as_str().to_string())),
         Rule::lparen | Rule::lbracket | Rule::lbrace => {
@@ -230,8 +244,8 @@ fn join(tokens: &[Token]) -> String {
 fn spaced(prev: Kind, t: &Token) -> bool {
     use Kind::*;
     match (prev, t.kind) {
-        (_, Comma) | (_, Close) | (_, Pow) | (_, Dot) => false,
-        (Open | Unary | Pow | Dot, _) => false,
+        (_, Comma) | (_, Close) | (_, Pow) | (_, Dot) | (_, Tight) => false,
+        (Open | Unary | Pow | Dot | Tight, _) => false,
         // A call `f(` or an index `a[`; a block's `{` is spaced.
         (Name, Open) => t.text == "{",
         (Close, Open) => t.text == "{",
@@ -247,8 +261,9 @@ struct Out<'a> {
     text: String,
     /// A blank line is due before the next line written.
     blank: bool,
-    /// Lines that end in a comment after code: (line number, code length).
-    trailing: Vec<(usize, usize)>,
+    /// Lines that end in a comment after code: (line number, code length,
+    /// the comment's column in the source).
+    trailing: Vec<(usize, usize, usize)>,
 }
 
 impl<'a> Out<'a> {
@@ -285,7 +300,8 @@ impl<'a> Out<'a> {
             let end = rest[hash..].find('\n').map_or(rest.len(), |e| hash + e);
             let comment = rest[hash..end].trim_end();
             if after_code && newlines == 0 && !self.text.is_empty() {
-                self.trailing(comment);
+                let at = to - rest.len() + hash;
+                self.trailing(comment, at);
             } else {
                 if newlines >= 2 {
                     self.blank = true;
@@ -303,13 +319,14 @@ impl<'a> Out<'a> {
     }
 
     /// `  # comment` at the end of the last line written.
-    fn trailing(&mut self, comment: &str) {
+    fn trailing(&mut self, comment: &str, at: usize) {
         if self.text.ends_with('\n') {
             self.text.pop();
         }
         let line = self.text.matches('\n').count();
         let code = self.text.len() - self.text.rfind('\n').map_or(0, |i| i + 1);
-        self.trailing.push((line, code));
+        let column = at - self.src[..at].rfind('\n').map_or(0, |i| i + 1);
+        self.trailing.push((line, code, column));
         self.text.push_str("  ");
         self.text.push_str(comment);
         self.text.push('\n');
@@ -375,7 +392,10 @@ impl<'a> Out<'a> {
             .chain(&tail)
             .map(|t| (t.start, t.end))
             .collect();
-        if !self.commented(&spans) && one_line.len() <= WIDTH {
+        // The author's choice: a block written over several lines stays one
+        // field per line.
+        let written_multiline = !fields.is_empty() && self.src[*open..*close].contains('\n');
+        if !self.commented(&spans) && !written_multiline && one_line.len() <= WIDTH {
             self.line(0, &one_line);
             return;
         }
@@ -421,7 +441,8 @@ impl<'a> Out<'a> {
                 let end = rest[hash..].find('\n').map_or(rest.len(), |e| hash + e);
                 let comment = rest[hash..end].trim_end().to_string();
                 if first {
-                    self.trailing(&comment);
+                    let at = w[1].start - rest.len() + hash;
+                    self.trailing(&comment, at);
                     first = false;
                 } else {
                     self.line(2, &comment);
@@ -444,8 +465,16 @@ impl<'a> Out<'a> {
             while j < self.trailing.len() && self.trailing[j].0 == self.trailing[j - 1].0 + 1 {
                 j += 1;
             }
-            let width = self.trailing[i..j].iter().map(|t| t.1).max().unwrap_or(0);
-            for &(line, code) in &self.trailing[i..j] {
+            let longest = self.trailing[i..j].iter().map(|t| t.1).max().unwrap_or(0);
+            // A run aligned in the source at a column wide enough keeps it.
+            let column = self.trailing[i].2;
+            let aligned = self.trailing[i..j].iter().all(|t| t.2 == column);
+            let width = if aligned && column >= longest + 2 {
+                column - 2
+            } else {
+                longest
+            };
+            for &(line, code, _) in &self.trailing[i..j] {
                 if let Some(l) = lines.get_mut(line) {
                     // The two spaces after the code become enough to align.
                     l.insert_str(code, &" ".repeat(width - code));
@@ -469,20 +498,24 @@ mod tests {
 
     #[test]
     fn spacing_is_canonical_and_the_tokens_stay() {
-        let src = "let  w=2*(x-1)^2+ -3 kN / m\nlet h = sqrt( w )/2\n";
+        let src = "let  w=2 *(x-1)^2+ -3 kN / m\nlet h = sqrt( w )/2\n";
+        // `*` and `/` stay spaced or not, as written (`2*x`).
         assert_eq!(
             fmt(src),
-            "let w = 2 * (x - 1)^2 + -3 kN/m\nlet h = sqrt(w) / 2\n"
+            "let w = 2 * (x - 1)^2 + -3 kN/m\nlet h = sqrt(w)/2\n"
         );
     }
 
     #[test]
     fn short_blocks_go_on_one_line_and_long_ones_one_field_per_line() {
-        let src = "material steel {\n  E = 210 GPa\n  nu = 0.3\n}\n";
+        let src = "material steel {E = 210 GPa,nu=0.3}\n";
         assert_eq!(fmt(src), "material steel { E = 210 GPa, nu = 0.3 }\n");
+        // Written over several lines: the author's choice stays.
+        let src = "material steel {\n  E = 210 GPa,nu = 0.3\n}\n";
+        assert_eq!(fmt(src), "material steel {\n  E = 210 GPa\n  nu = 0.3\n}\n");
         let long = format!(
             "body b {{ material = steel, x = 0 .. 1, y = 0 .. 1, bottom = {}, mesh = 4 x 4 }}\n",
-            "0.1 + 0.2 * x".repeat(5).replace("x0.1", "x + 0.1")
+            "0.1 + 0.2 * x".repeat(8).replace("x0.1", "x + 0.1")
         );
         let out = fmt(&long);
         assert!(
@@ -495,7 +528,7 @@ mod tests {
 
     #[test]
     fn comments_stay_where_they_were() {
-        let src = "# head\n\nlet a = 1   # one\n# about b\nlet b = 2\nmaterial m {\n  E = 1  # stiff\n  # soft\n  nu = 0.3,\n}\n";
+        let src = "# head\n\nlet a = 1 # one\n# about b\nlet b = 2\nmaterial m {\n  E = 1  # stiff\n  # soft\n  nu = 0.3,\n}\n";
         let out = fmt(src);
         assert_eq!(
             out,
@@ -506,6 +539,9 @@ mod tests {
 
     #[test]
     fn comments_after_code_align_over_consecutive_lines() {
+        // Aligned in the source far enough: the column stays.
+        let aligned = "let R = 50 mm       # radius\nlet P = 2 MN/m      # load\n";
+        assert_eq!(fmt(aligned), aligned);
         let src = "let R = 50 mm    # radius\nlet Pmax = 80 kN # force\n\nlet a = 1 # alone\n";
         assert_eq!(
             fmt(src),
