@@ -294,8 +294,8 @@ impl Analysis {
         let word_start = line
             .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
             .map_or(0, |i| i + 1);
-        let (head, word) = line.split_at(word_start);
-        let _ = word;
+        // The text before the word being typed.
+        let head = &line[..word_start];
         // `BODY.` and `PROBE.`
         if let Some(base) = head.strip_suffix('.') {
             let start = base
@@ -539,13 +539,14 @@ fn index_item(item: &Item, out: &mut Vec<Occurrence>) {
         } => {
             keyword(k, out);
             if let Some(n) = name {
+                // A named item defines its name; `morph BODY` uses the body
+                // it shapes; the scene's name and the settings' name nothing.
                 let role = match NameKind::of_keyword(&k.name) {
-                    Some(kind) => Role::Definition(kind),
-                    // `morph BODY`: the body it shapes.
-                    None if k.name == "morph" => Role::Use(Some(NameKind::Body)),
-                    None => Role::Keyword,
+                    Some(kind) => Some(Role::Definition(kind)),
+                    None if k.name == "morph" => Some(Role::Use(Some(NameKind::Body))),
+                    None => None,
                 };
-                if role != Role::Keyword {
+                if let Some(role) = role {
                     out.push(Occurrence {
                         name: n.name.clone(),
                         span: n.span,
