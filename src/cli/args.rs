@@ -59,7 +59,7 @@ pub enum Command {
     Compare(Compare),
     /// Benchmarks (not tests), each a Markdown table printed row by row:
     /// scaling, scaling3d, compare, coarse, coarse3d, sensitivity,
-    /// sensitivity3d, optimize, hard; `bench scene` prints a scaling scene.
+    /// sensitivity3d, sensitivity-morph, optimize, hard; `bench scene` prints a scaling scene.
     Bench(Bench),
     /// Accuracy against cost of state solves: `cso study convergence` refines the
     /// mesh, `cso study tolerance` sweeps the solver's tolerance.
