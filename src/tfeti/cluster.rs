@@ -791,6 +791,17 @@ impl Cluster {
         self.gather_primal(mine)
     }
 
+    /// `|K| |u|` per subdomain, gathered like [`Cluster::apply_k`]
+    /// (collective under MPI: every rank calls it).
+    pub fn apply_abs_k(&self, u: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let mine = self.map(|s, sub| {
+            let mut y = vec![0.0; sub.dofs()];
+            sub.apply_abs_k(&u[s], &mut y);
+            y
+        });
+        self.gather_primal(mine)
+    }
+
     /// `B^T l` per subdomain (every subdomain; no communication).
     pub fn apply_bt(&self, lambda: &[f64]) -> Vec<Vec<f64>> {
         (0..self.len())

@@ -66,6 +66,25 @@ pub fn gap_scale(problem: &Problem, cluster: &Cluster, u: &[Vec<f64>]) -> f64 {
     c_norm.max(norm(&terms)).max(f64::MIN_POSITIVE)
 }
 
+/// What the equilibrium residual is relative to: the forces that balance,
+/// `max(||f||, ||B^T l||)`; where those are round-off against the terms of
+/// `K u` (a scene with no load, moved only by prescribed displacements: its
+/// state is a rigid motion and nothing balances), `|| |K| |u| ||`, the size of
+/// those terms, as [`gap_scale`] does for the rows. `forces` is the same on
+/// every rank (gathered vectors), so every rank takes the same branch.
+fn equilibrium_scale(cluster: &Cluster, u: &[Vec<f64>], forces: f64) -> f64 {
+    let at_least = |v: f64| v.max(f64::MIN_POSITIVE);
+    // Below this share of the terms, the forces are round-off.
+    const ROUND_OFF: f64 = 1e-12;
+    let terms = cluster.apply_abs_k(u);
+    let size = terms.iter().flatten().map(|v| v * v).sum::<f64>().sqrt();
+    if forces > ROUND_OFF * size {
+        at_least(forces)
+    } else {
+        at_least(size)
+    }
+}
+
 /// KKT residuals of the primal problem at `(u, l)`.
 pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kkt {
     let cluster = dual.cluster();
@@ -89,7 +108,7 @@ pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kk
         .fold(0.0f64, |a, b| a.max(b.abs()))
         .max(f64::MIN_POSITIVE);
     let mut k = Kkt {
-        equilibrium: eq_res.sqrt() / f2.sqrt().max(bt2.sqrt()).max(f64::MIN_POSITIVE),
+        equilibrium: eq_res.sqrt() / equilibrium_scale(cluster, u, f2.sqrt().max(bt2.sqrt())),
         ..Kkt::default()
     };
     let mut eq2 = 0.0;

@@ -79,6 +79,21 @@ impl UpperCsc {
         }
     }
 
+    /// `y = |A| |x|`, entry by entry: the sizes of the terms whose sums are
+    /// `A x` (what round-off in `A x` is relative to).
+    pub fn abs_mul(&self, x: &[f64], y: &mut [f64]) {
+        y.iter_mut().for_each(|v| *v = 0.0);
+        for c in 0..self.n {
+            for k in self.col_ptr[c]..self.col_ptr[c + 1] {
+                let (r, v) = (self.row_idx[k], self.values[k].abs());
+                y[r] += v * x[c].abs();
+                if r != c {
+                    y[c] += v * x[r].abs();
+                }
+            }
+        }
+    }
+
     /// The diagonal.
     pub fn diagonal(&self) -> Vec<f64> {
         let mut diag = vec![0.0; self.n];

@@ -479,6 +479,11 @@ impl Subdomain {
         self.k.mul(x, y);
     }
 
+    /// `|K_s| |x|` ([`UpperCsc::abs_mul`]).
+    pub fn apply_abs_k(&self, x: &[f64], y: &mut [f64]) {
+        self.k.abs_mul(x, y);
+    }
+
     /// `K_s` itself (upper triangle), for export.
     pub fn stiffness(&self) -> &UpperCsc {
         &self.k
