@@ -19,6 +19,7 @@ fn run(src: &str) {
             overrides: Vec::new(),
             memory_limit: limit,
             base_dir: None,
+            mesh_cache: None,
         };
         if let Err(d) = compile(src, &opts) {
             assert!(!d.is_empty());

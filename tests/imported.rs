@@ -484,3 +484,43 @@ contact seat {{ primary = base.top, secondary = pair.bottom }}
     );
     check("two pieces on a base", &src, 1e-6, 1e-5);
 }
+
+/// With a mesh cache (the language server's), a scene checked again reuses
+/// its imported body instead of reading and cutting the file again; a file
+/// that changed is read again.
+#[test]
+fn a_mesh_cache_reads_a_file_once_until_it_changes() {
+    let dir = std::env::temp_dir().join(format!("cso-mesh-cache-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("scratch folder");
+    let mesh = crate::root().join("tests/meshes/block_tris.msh");
+    std::fs::copy(&mesh, dir.join("punch.msh")).expect("copied");
+    let src = press_2d("mesh = \"punch.msh\", unit = mm, subdomains = 2");
+    let opts = cso::lang::CheckOptions {
+        base_dir: Some(dir.clone()),
+        mesh_cache: Some(Default::default()),
+        ..crate::options()
+    };
+    let imported = |opts: &cso::lang::CheckOptions| {
+        let scene = compile(&src, opts).expect("checks");
+        scene.bodies[1].imported.clone().expect("imported")
+    };
+    let (a, b) = (imported(&opts), imported(&opts));
+    assert!(std::sync::Arc::ptr_eq(&a, &b), "read once");
+    // Another size: a node comment appended is a changed file.
+    let mut text = std::fs::read_to_string(dir.join("punch.msh")).expect("read");
+    text.push_str("$Comments\nchanged\n$EndComments\n");
+    std::fs::write(dir.join("punch.msh"), text).expect("written");
+    let c = imported(&opts);
+    assert!(!std::sync::Arc::ptr_eq(&a, &c), "read again");
+    assert_eq!(a.mesh.cells, c.mesh.cells);
+    // Without a cache every check reads the file.
+    let plain = cso::lang::CheckOptions {
+        mesh_cache: None,
+        ..opts.clone()
+    };
+    assert!(!std::sync::Arc::ptr_eq(
+        &imported(&plain),
+        &imported(&plain)
+    ));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -55,5 +55,6 @@ pub fn options() -> cso::lang::CheckOptions {
         overrides: Vec::new(),
         memory_limit: Some(16 << 30),
         base_dir: Some(std::path::PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/meshes")),
+        mesh_cache: None,
     }
 }

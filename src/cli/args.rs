@@ -529,6 +529,7 @@ impl Cli {
                 None => Some(cso::machine_memory_limit()),
             },
             base_dir: None,
+            mesh_cache: None,
         }
     }
 }

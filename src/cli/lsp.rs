@@ -72,6 +72,9 @@ pub fn run() -> Outcome {
 #[derive(Default)]
 struct Server {
     docs: HashMap<String, Doc>,
+    /// Mesh files read and cut, kept between checks: a scene importing a
+    /// large mesh is not read again on every keystroke.
+    meshes: cso::lang::check::MeshCache,
 }
 
 struct Doc {
@@ -262,9 +265,11 @@ impl Server {
             }
             _ => return Vec::new(),
         };
+        let meshes = self.meshes.clone();
         let analysed = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             let opts = CheckOptions {
                 base_dir: folder_of(&uri),
+                mesh_cache: Some(meshes),
                 ..CheckOptions::default()
             };
             Analysis::new(&text, &opts)

@@ -38,6 +38,47 @@ pub struct CheckOptions {
     /// The scene file's folder: `mesh = "FILE"` paths are relative to it
     /// (None: the current folder).
     pub base_dir: Option<std::path::PathBuf>,
+    /// Imported bodies kept between checks (an editor checks the same scene
+    /// on every keystroke): a mesh file already read and cut, unchanged
+    /// since (same size and modification time) and asked for with the same
+    /// unit, region, pieces and subdomains, is not read again.
+    pub mesh_cache: Option<MeshCache>,
+}
+
+/// Imported bodies by what they were read with; see [`CheckOptions::mesh_cache`].
+#[derive(Debug, Clone, Default)]
+pub struct MeshCache(std::sync::Arc<std::sync::Mutex<HashMap<MeshKey, std::sync::Arc<Imported>>>>);
+
+/// What an imported body was read and cut with.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub struct MeshKey {
+    pub path: std::path::PathBuf,
+    pub len: u64,
+    pub modified: Option<std::time::SystemTime>,
+    pub dim: usize,
+    /// The unit's bits (an f64 is no hash key).
+    pub unit: u64,
+    pub region: Option<String>,
+    pub separate: bool,
+    pub parts: usize,
+}
+
+impl MeshCache {
+    /// Files kept at most (the oldest are dropped together past it).
+    const ENTRIES: usize = 8;
+
+    pub fn get(&self, key: &MeshKey) -> Option<std::sync::Arc<Imported>> {
+        self.0.lock().ok()?.get(key).cloned()
+    }
+
+    pub fn put(&self, key: MeshKey, imported: std::sync::Arc<Imported>) {
+        if let Ok(mut map) = self.0.lock() {
+            if map.len() >= Self::ENTRIES {
+                map.clear();
+            }
+            map.insert(key, imported);
+        }
+    }
 }
 
 /// Parses and checks a source text. Every error of the file is reported, sorted by

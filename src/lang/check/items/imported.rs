@@ -48,7 +48,32 @@ impl<'a> Checker<'a> {
         });
         let spans = |key: &str| f.get(key).and_then(|fl| fl.value.as_ref()).map(Value::span);
         let (region_span, parts_span) = (spans("region"), spans("subdomains"));
-        if let (Some(unit), Some(parts)) = (unit, parts) {
+        let key = match (unit, parts) {
+            (Some(unit), Some(parts)) => {
+                self.mesh_key(file, unit, region.as_deref(), separate, parts)
+            }
+            _ => None,
+        };
+        let cached = key
+            .as_ref()
+            .zip(self.opts.mesh_cache.as_ref())
+            .and_then(|(k, c)| c.get(k));
+        if let (Some(imported), Some(parts)) = (cached, parts) {
+            self.keep_mesh_path(file, file_span);
+            // The same file written another way: reports name it as written.
+            let imported = if imported.file == file {
+                imported
+            } else {
+                Arc::new(Imported {
+                    file: file.to_string(),
+                    ..(*imported).clone()
+                })
+            };
+            body.extent = bounding_extent(&imported.mesh);
+            body.subdomains = vec![parts];
+            body.mesh = Vec::new();
+            body.imported = Some(imported);
+        } else if let (Some(unit), Some(parts)) = (unit, parts) {
             let read = self.read_mesh(file, unit, region.as_deref(), separate);
             match read {
                 Ok((mesh, _)) if mesh.faces.iter().any(|g| g.name == "boundary") => {
@@ -73,7 +98,11 @@ impl<'a> Checker<'a> {
                         body.extent = bounding_extent(&imported.mesh);
                         body.subdomains = vec![parts];
                         body.mesh = Vec::new();
-                        body.imported = Some(Arc::new(imported));
+                        let imported = Arc::new(imported);
+                        if let (Some(k), Some(c)) = (key, self.opts.mesh_cache.as_ref()) {
+                            c.put(k, imported.clone());
+                        }
+                        body.imported = Some(imported);
                     }
                 }
                 Err(e) => self.mesh_error(&e, file, file_span, region_span),
@@ -211,6 +240,31 @@ impl<'a> Checker<'a> {
                 path,
             });
         }
+    }
+
+    /// The cache key of a mesh file as asked for; None where the file
+    /// cannot be looked at (reading it says why).
+    fn mesh_key(
+        &self,
+        file: &str,
+        unit: f64,
+        region: Option<&str>,
+        separate: bool,
+        parts: usize,
+    ) -> Option<crate::lang::check::MeshKey> {
+        self.opts.mesh_cache.as_ref()?;
+        let path = std::fs::canonicalize(self.mesh_path(file)).ok()?;
+        let meta = std::fs::metadata(&path).ok()?;
+        Some(crate::lang::check::MeshKey {
+            path,
+            len: meta.len(),
+            modified: meta.modified().ok(),
+            dim: self.dim.n(),
+            unit: unit.to_bits(),
+            region: region.map(str::to_string),
+            separate,
+            parts,
+        })
     }
 
     /// Reads the file, relative to the scene's folder; its bytes' SHA-256.
