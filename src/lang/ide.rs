@@ -179,12 +179,26 @@ impl Analysis {
     fn hover_name(&self, kind: NameKind, name: &str) -> String {
         let s = &self.scene;
         let detail = match kind {
-            NameKind::Let => s.params.iter().find(|p| p.name == name).map(|p| {
-                let unit = p.unit.as_deref().unwrap_or("");
-                format!("= {} {unit} (SI)", num(p.value))
-                    .trim_end()
-                    .to_string()
-            }),
+            NameKind::Let => s
+                .params
+                .iter()
+                .find(|p| p.name == name)
+                .map(|p| {
+                    let unit = p.unit.as_deref().unwrap_or("");
+                    format!("= {} {unit} (SI)", num(p.value))
+                        .trim_end()
+                        .to_string()
+                })
+                // Not a constant (it uses the design or a coordinate): as written.
+                .or_else(|| {
+                    self.file.items.iter().find_map(|item| match &item.kind {
+                        ItemKind::Let { name: n, value } if n.name == name => self
+                            .src
+                            .get(value.span.start..value.span.end)
+                            .map(|t| format!("= {t} (depends on the design or a coordinate)")),
+                        _ => None,
+                    })
+                }),
             NameKind::Material => s.materials.iter().find(|m| m.name == name).map(|m| {
                 let rho = m
                     .density
@@ -1139,6 +1153,18 @@ minimize p.uy
         // After a number: units.
         let units = labels(offset("GPa", 0));
         assert!(units.contains(&"MPa".into()), "{units:?}");
+    }
+
+    #[test]
+    fn a_let_that_uses_the_design_hovers_as_written() {
+        let src = "scene s { dim = 2 }\ndesign h { init = 1, lower = 0, upper = 2 }\nlet d = 2 * h\nlet e = d\n";
+        let a = Analysis::new(src, &CheckOptions::default());
+        let at = src.rfind("= d").map(|i| i + 2).unwrap_or(0);
+        let hover = a.hover(at).expect("hover on d");
+        assert!(
+            hover.contains("= 2 * h") && hover.contains("design"),
+            "{hover}"
+        );
     }
 
     #[test]
