@@ -12,8 +12,9 @@
 use super::Element;
 
 /// The corners' edges of a hexahedron (bottom face counter-clockwise, then
-/// the top): for each node, its three neighbours in right-handed order.
-const HEX_CORNERS: [[usize; 4]; 8] = [
+/// the top): for each node, its three neighbours in right-handed order, so
+/// that `det[pa - p, pb - p, pc - p] > 0` at every corner of a valid one.
+pub const HEX_CORNERS: [[usize; 4]; 8] = [
     [0, 1, 3, 4],
     [1, 2, 0, 5],
     [2, 3, 1, 6],

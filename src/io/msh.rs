@@ -13,6 +13,7 @@
 //! gets an error), and `$PhysicalNames`, which mshio skips, is read by
 //! [`physical_names`] (a few ASCII lines, ASCII in binary files too).
 
+use crate::fem::quality::HEX_CORNERS;
 use crate::lang::suggest::distance;
 use mshio::{ElementType, MshFile};
 use std::collections::HashMap;
@@ -824,19 +825,6 @@ fn compact(
     };
     Ok((mesh, node_of))
 }
-
-/// Corners of a hexahedron with their three edge neighbours in right-handed
-/// order: `det[pa - p, pb - p, pc - p] > 0` at every corner of a valid one.
-const HEX_CORNERS: [[usize; 4]; 8] = [
-    [0, 1, 3, 4],
-    [1, 2, 0, 5],
-    [2, 3, 1, 6],
-    [3, 0, 2, 7],
-    [4, 7, 5, 0],
-    [5, 4, 6, 1],
-    [6, 5, 7, 2],
-    [7, 6, 4, 3],
-];
 
 fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
     [a[0] - b[0], a[1] - b[1], a[2] - b[2]]

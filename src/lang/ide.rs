@@ -9,7 +9,6 @@
 use super::ast::{Block, Expr, ExprKind, File, Ident, Item, ItemKind, Span, Value};
 use super::check::{analyze, CheckOptions};
 use super::diag::{num, Diagnostic};
-use super::parse::parse_file;
 use super::scene::{FaceRef, Scene};
 
 /// What a name is.
@@ -89,8 +88,7 @@ pub struct Analysis {
 
 impl Analysis {
     pub fn new(src: &str, opts: &CheckOptions) -> Analysis {
-        let (scene, diagnostics) = analyze(src, opts);
-        let (file, _) = parse_file(src);
+        let (file, scene, diagnostics) = analyze(src, opts);
         let mut occurrences = Vec::new();
         for item in &file.items {
             index_item(item, &mut occurrences);

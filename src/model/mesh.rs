@@ -211,21 +211,29 @@ pub fn build(
     let mut subs = Vec::new();
     for (b, body) in scene.bodies.iter().enumerate() {
         let material = &scene.materials[body.material];
+        // Every node once: the faces' and file's positions, then the morphs.
+        let before = body.unmorphed_positions(design);
+        let morphed = (!body.morphs.is_empty()).then(|| {
+            before
+                .iter()
+                .map(|p| body.morphed(*p, design))
+                .collect::<Vec<_>>()
+        });
+        let (coords, before) = match morphed {
+            Some(m) => (m, Some(before)),
+            None => (before, None),
+        };
         let mesh = match &body.imported {
             Some(imported) => {
+                finite(body, &coords, |n| (n + 1).to_string())?;
                 let section = material.section(imported.mesh.kind, scene.thickness);
-                let coords = if body.morphs.is_empty() {
-                    imported.mesh.nodes.clone()
-                } else {
-                    morphed_nodes(body, design)?
-                };
                 let (mesh, cut) =
                     imported_mesh(&body.name, imported, coords, (b, subs.len()), section);
                 subs.extend(cut);
                 mesh
             }
             None => {
-                let mesh = grid_mesh(body, design, subs.len())?;
+                let mesh = grid_mesh(body, coords, subs.len())?;
                 let Layout::Grid(grid) = mesh.layout else {
                     unreachable!("a structured body's layout is its grid")
                 };
@@ -236,8 +244,7 @@ pub fn build(
             }
         };
         let mut mesh = mesh;
-        if !body.morphs.is_empty() {
-            let before = body.unmorphed_positions(design);
+        if let Some(before) = before {
             let q = body
                 .quality(&mesh.coords, &before)
                 .map_err(|f| LowerError::Inverted {
@@ -254,49 +261,44 @@ pub fn build(
     Ok((bodies, subs))
 }
 
-/// An imported body's nodes moved by its morphs at a design, each finite.
-fn morphed_nodes(
+/// Every node of a body at a finite position, else an error naming the first
+/// other one (`name` says which node it is: grid indices, or its number).
+fn finite(
     body: &crate::lang::scene::Body,
-    design: &[f64],
-) -> Result<Vec<[f64; 3]>, LowerError> {
-    let nodes = body.positions(design);
-    if let Some(n) = nodes.iter().position(|p| !p.iter().all(|v| v.is_finite())) {
-        return Err(LowerError::Geometry(format!(
-            "node {} of body `{}` has no finite position at this design (its morph's field is not finite there)",
-            n + 1,
-            body.name
-        )));
-    }
-    Ok(nodes)
+    coords: &[[f64; 3]],
+    name: impl Fn(usize) -> String,
+) -> Result<(), LowerError> {
+    let dim = body.extent.len();
+    let Some(n) = coords
+        .iter()
+        .position(|p| !p[..dim].iter().all(|v| v.is_finite()))
+    else {
+        return Ok(());
+    };
+    let why = if body.morphs.is_empty() {
+        ""
+    } else {
+        " (a curved face or a morph's field is not finite there)"
+    };
+    Err(LowerError::Geometry(format!(
+        "node {} of body `{}` has no finite position at this design{why}",
+        name(n),
+        body.name
+    )))
 }
 
-/// A structured body's grid nodes at a design.
+/// A structured body's grid nodes (`coords`, grid order) at a design.
 fn grid_mesh(
     body: &crate::lang::scene::Body,
-    design: &[f64],
+    coords: Vec<[f64; 3]>,
     first_subdomain: usize,
 ) -> Result<BodyMesh, LowerError> {
     let grid = Grid::new(&body.mesh, &body.subdomains);
-    let dim = grid.dim;
-    let mut coords = Vec::with_capacity(grid.nodes());
-    for node in 0..grid.nodes() {
-        let ijk = grid.ijk(node);
-        let c = body.node(ijk, design);
-        if !c[..dim].iter().all(|v| v.is_finite()) {
-            let at: Vec<String> = ijk[..dim].iter().map(|v| v.to_string()).collect();
-            let why = if body.morphs.is_empty() {
-                ""
-            } else {
-                " (a curved face or a morph's field is not finite there)"
-            };
-            return Err(LowerError::Geometry(format!(
-                "node ({}) of body `{}` has no finite position at this design{why}",
-                at.join(", "),
-                body.name
-            )));
-        }
-        coords.push(if dim == 2 { [c[0], c[1], 0.0] } else { c });
-    }
+    finite(body, &coords, |n| {
+        let ijk = grid.ijk(n);
+        let at: Vec<String> = ijk[..grid.dim].iter().map(|v| v.to_string()).collect();
+        format!("({})", at.join(", "))
+    })?;
     Ok(BodyMesh {
         name: body.name.clone(),
         first_subdomain,

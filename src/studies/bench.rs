@@ -343,13 +343,41 @@ subject to area(punch) <= initial(area(punch))
 /// (initial shape: a flat face 0.01 above the base, the same for every n).
 pub fn scont3d_with(n: usize) -> String {
     let m = n * n;
+    scont3d_scene(
+        &format!("scont3d_m{m}"),
+        m,
+        "bottom = 1 + bezier2(a, x - 1, y - 1), ",
+        "",
+    )
+}
+
+/// scont3d's punch with a flat bottom, shaped by a morph of `m` design
+/// variables: `m = 9` a `bezier2` net over the whole punch fading to zero at
+/// its top (the curved face of [`scont3d_with`] node for node), `m = n^3` a
+/// `bezier3` net over its lower half fading to zero at the box's top. The
+/// initial face is the same flat face 0.01 above the base.
+pub fn scont3d_morph(m: usize) -> Option<String> {
+    let (top, field) = match m {
+        9 => ("2", "bezier2(a, u, v) * (1 - w)"),
+        _ if crate::lang::expr::net_cube_side(m).is_some() => {
+            ("1.5", "bezier3(a, u, v, w) * (1 - w)")
+        }
+        _ => return None,
+    };
+    let morph = format!("morph punch {{ x = 1 .. 2, y = 1 .. 2, z = 1 .. {top}, uz = {field} }}\n");
+    Some(scont3d_scene(&format!("scont3d_morph_m{m}"), m, "", &morph))
+}
+
+/// The scont3d family's text: `m` design heights, the punch's curved
+/// `bottom` field (with its trailing comma) and a morph line, either empty.
+fn scont3d_scene(name: &str, m: usize, bottom: &str, morph: &str) -> String {
     format!(
-        "scene scont3d_m{m} {{ dim = 3 }}
+        "scene {name} {{ dim = 3 }}
 material soft {{ E = 1000, nu = 0.3 }}
 design a[{m}] {{ init = 0.01, lower = 0, upper = 0.1 }}
 body base {{ material = soft, x = 0 .. 3, y = 0 .. 3, z = 0 .. 1, mesh = 12 x 12 x 4, subdomains = 2 x 2 x 1 }}
-body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, z = 1 .. 2, bottom = 1 + bezier2(a, x - 1, y - 1), mesh = 8 x 8 x 4, subdomains = 2 x 2 x 1 }}
-fix base.bottom
+body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, z = 1 .. 2, {bottom}mesh = 8 x 8 x 4, subdomains = 2 x 2 x 1 }}
+{morph}fix base.bottom
 fix punch.top {{ ux, uy }}
 traction punch.top = (0, 0, -5)
 contact seat {{ primary = base.top, secondary = punch.bottom }}
@@ -357,35 +385,6 @@ minimize compliance
 subject to volume(punch) <= initial(volume(punch))
 "
     )
-}
-
-/// scont3d's punch with a flat bottom, shaped by a morph of `m` design
-/// variables: `m = n^2` a `bezier2` net over the whole punch fading to zero
-/// at its top (the curved face of [`scont3d_with`] node for node), `m = n^3`
-/// a `bezier3` net over its lower half fading to zero at the box's top. The
-/// initial face is the same flat face 0.01 above the base.
-pub fn scont3d_morph(m: usize) -> Option<String> {
-    use crate::lang::expr::{net_cube_side, net_side};
-    let (top, field) = match (net_side(m), net_cube_side(m)) {
-        (Some(_), _) if m == 9 => ("2", "bezier2(a, u, v) * (1 - w)"),
-        (_, Some(_)) => ("1.5", "bezier3(a, u, v, w) * (1 - w)"),
-        _ => return None,
-    };
-    Some(format!(
-        "scene scont3d_morph_m{m} {{ dim = 3 }}
-material soft {{ E = 1000, nu = 0.3 }}
-design a[{m}] {{ init = 0.01, lower = 0, upper = 0.1 }}
-body base {{ material = soft, x = 0 .. 3, y = 0 .. 3, z = 0 .. 1, mesh = 12 x 12 x 4, subdomains = 2 x 2 x 1 }}
-body punch {{ material = soft, x = 1 .. 2, y = 1 .. 2, z = 1 .. 2, mesh = 8 x 8 x 4, subdomains = 2 x 2 x 1 }}
-morph punch {{ x = 1 .. 2, y = 1 .. 2, z = 1 .. {top}, uz = {field} }}
-fix base.bottom
-fix punch.top {{ ux, uy }}
-traction punch.top = (0, 0, -5)
-contact seat {{ primary = base.top, secondary = punch.bottom }}
-minimize compliance
-subject to volume(punch) <= initial(volume(punch))
-"
-    ))
 }
 
 /// [`gradient_costs`] through a morph of scont3d's punch ([`scont3d_morph`]).

@@ -218,29 +218,42 @@ fn gradient_costs(
         )
     };
     for &local_f in &s.local_f {
-        emit(Line::Out(format!("local F: {}\n", local_f.name())));
-        emit(Line::Out(output::gradient_costs_header(
-            s.threads,
-            s.tolerance,
-        )));
-        for &m in sizes {
-            match costs(m, s.tolerance, local_f) {
-                Ok(rows) => rows
-                    .iter()
-                    .for_each(|r| emit(Line::Out(output::gradient_cost_row(r)))),
-                Err(e) => emit(Line::Error(format!("error at m = {m}: {e}"))),
-            }
-        }
-        emit(Line::Out(String::new()));
+        cost_table(s, local_f, None, sizes, costs, emit);
     }
     Ok(())
+}
+
+/// One table of gradient costs over `sizes` with one local `F`, under a
+/// title line; a size that fails is reported and the table goes on.
+fn cost_table(
+    s: &TableSettings,
+    local_f: LocalF,
+    title: Option<&str>,
+    sizes: &[usize],
+    costs: CostsOf,
+    emit: &mut dyn FnMut(Line),
+) {
+    let title = title.map_or(String::new(), |t| format!("; {t}"));
+    emit(Line::Out(format!("local F: {}{title}\n", local_f.name())));
+    emit(Line::Out(output::gradient_costs_header(
+        s.threads,
+        s.tolerance,
+    )));
+    for &m in sizes {
+        match costs(m, s.tolerance, local_f) {
+            Ok(rows) => rows
+                .iter()
+                .for_each(|r| emit(Line::Out(output::gradient_cost_row(r)))),
+            Err(e) => emit(Line::Error(format!("error at m = {m}: {e}"))),
+        }
+    }
+    emit(Line::Out(String::new()));
 }
 
 /// The gradient's cost through a morph of scont3d's punch (m = 9, 27, 64)
 /// after the cost through its Bezier face (m = 9, 64), one pair per local `F`.
 fn morph_gradient_costs(s: &TableSettings, emit: &mut dyn FnMut(Line)) -> Result<(), String> {
-    type Rows = fn(usize, f64, LocalF) -> Result<Vec<bench::GradientCost>, GradientError>;
-    let tables: [(&str, &[usize], Rows); 2] = [
+    let tables: [(&str, &[usize], CostsOf); 2] = [
         (
             "through the face: `bottom = 1 + bezier2(a, x - 1, y - 1)`",
             &[9, 64],
@@ -254,21 +267,8 @@ fn morph_gradient_costs(s: &TableSettings, emit: &mut dyn FnMut(Line)) -> Result
         ),
     ];
     for &local_f in &s.local_f {
-        for (title, sizes, costs) in &tables {
-            emit(Line::Out(format!("local F: {}; {title}\n", local_f.name())));
-            emit(Line::Out(output::gradient_costs_header(
-                s.threads,
-                s.tolerance,
-            )));
-            for &m in *sizes {
-                match costs(m, s.tolerance, local_f) {
-                    Ok(rows) => rows
-                        .iter()
-                        .for_each(|r| emit(Line::Out(output::gradient_cost_row(r)))),
-                    Err(e) => emit(Line::Error(format!("error at m = {m}: {e}"))),
-                }
-            }
-            emit(Line::Out(String::new()));
+        for (title, sizes, costs) in tables {
+            cost_table(s, local_f, Some(title), sizes, costs, emit);
         }
     }
     Ok(())

@@ -85,19 +85,20 @@ impl MeshCache {
 /// position, with the warnings among them; a scene with warnings only checks and
 /// carries them in [`Scene::warnings`].
 pub fn compile(src: &str, opts: &CheckOptions) -> Result<Scene, Vec<Diagnostic>> {
-    let (scene, diags) = analyze(src, opts);
+    let (_, mut scene, diags) = analyze(src, opts);
     if diags.iter().any(Diagnostic::is_error) {
         Err(diags)
     } else {
+        scene.warnings = diags;
         Ok(scene)
     }
 }
 
-/// [`compile`] for editors: the scene as far as it checked (items with
-/// errors hold placeholders, so read it with care) and every diagnostic,
-/// errors and warnings, sorted by position. A scene without errors carries its
-/// warnings in [`Scene::warnings`] as `compile` returns it.
-pub fn analyze(src: &str, opts: &CheckOptions) -> (Scene, Vec<Diagnostic>) {
+/// [`compile`] for editors: the syntax tree, the scene as far as it checked
+/// (items with errors hold placeholders, so read it with care; its
+/// `warnings` are left empty) and every diagnostic, errors and warnings,
+/// sorted by position.
+pub fn analyze(src: &str, opts: &CheckOptions) -> (File, Scene, Vec<Diagnostic>) {
     let (file, mut diags) = parse_file(src);
     let mut checker = Checker::new(src, &file, opts);
     checker.syntax_errors = !diags.is_empty();
@@ -120,10 +121,7 @@ pub fn analyze(src: &str, opts: &CheckOptions) -> (Scene, Vec<Diagnostic>) {
         places: std::mem::take(&mut checker.places),
     };
     diag::sort(&mut diags);
-    if !diags.iter().any(Diagnostic::is_error) {
-        scene.warnings = diags.clone();
-    }
-    (scene, diags)
+    (file, scene, diags)
 }
 
 /// Elements far from cubes: the sides of the element in the middle column of
