@@ -48,6 +48,40 @@ pub enum Breakdown {
     },
     /// A lower bound is NaN or `+inf`.
     LowerBound { index: usize, value: f64 },
+    /// The upper bounds do not match the operator's dimension.
+    UpperDimension { operator: usize, upper: usize },
+    /// An upper bound is NaN, `-inf` or below its lower bound.
+    UpperBound {
+        index: usize,
+        value: f64,
+        lower: f64,
+    },
+    /// A disc names an entry out of range, or the same entry twice.
+    DiscEntries {
+        disc: usize,
+        entries: [usize; 2],
+        /// The number of entries.
+        dim: usize,
+    },
+    /// An entry is in two discs.
+    DiscOverlap {
+        entry: usize,
+        first: usize,
+        second: usize,
+    },
+    /// A disc's entry has a finite scalar bound.
+    DiscScalarBound {
+        disc: usize,
+        entry: usize,
+        lower: f64,
+        upper: f64,
+    },
+    /// A disc's radius is negative or NaN, or its center not finite.
+    DiscShape {
+        disc: usize,
+        center: [f64; 2],
+        radius: f64,
+    },
     /// Projected CG (equalities only): `p^T A p` is not positive and finite.
     ProjectedCgCurvature { curvature: f64 },
     /// Block CG: `P^T A P` over the search block is not positive definite.
@@ -110,6 +144,49 @@ impl fmt::Display for Breakdown {
             Breakdown::LowerBound { index, value } => {
                 write!(f, "lower bound {index} is {value}")
             }
+            Breakdown::UpperDimension { operator, upper } => {
+                write!(f, "dimension mismatch: operator {operator}, upper {upper}")
+            }
+            Breakdown::UpperBound {
+                index,
+                value,
+                lower,
+            } => write!(
+                f,
+                "upper bound {index} is {value} with lower bound {lower}: no value fits"
+            ),
+            Breakdown::DiscEntries {
+                disc,
+                entries: [a, b],
+                dim,
+            } => write!(
+                f,
+                "disc {disc} is on entries {a} and {b}, not two different entries of {dim}"
+            ),
+            Breakdown::DiscOverlap {
+                entry,
+                first,
+                second,
+            } => write!(f, "entry {entry} is in disc {first} and disc {second}"),
+            Breakdown::DiscScalarBound {
+                disc,
+                entry,
+                lower,
+                upper,
+            } => write!(
+                f,
+                "entry {entry} of disc {disc} has bounds {lower} and {upper}: \
+                 a disc's entries take none"
+            ),
+            Breakdown::DiscShape {
+                disc,
+                center: [c0, c1],
+                radius,
+            } => write!(
+                f,
+                "disc {disc} has center ({c0}, {c1}) and radius {radius}: \
+                 the radius must be at least 0 and the center finite"
+            ),
             Breakdown::ProjectedCgCurvature { curvature } => {
                 write!(f, "p^T A p = {curvature:e} in projected CG")
             }
@@ -223,6 +300,64 @@ mod tests {
                     rho: 1.0,
                 },
                 "projected gradient is NaN after 0 MPRGP steps (SMALBE outer iteration 2, rho = 1e0)",
+            ),
+        ];
+        for (cause, text) in cases {
+            assert_eq!(cause.to_string(), text);
+        }
+    }
+
+    #[test]
+    fn bound_and_disc_causes_read_with_their_numbers() {
+        let cases = [
+            (
+                Breakdown::UpperDimension {
+                    operator: 4,
+                    upper: 3,
+                },
+                "dimension mismatch: operator 4, upper 3",
+            ),
+            (
+                Breakdown::UpperBound {
+                    index: 2,
+                    value: -1.0,
+                    lower: 0.5,
+                },
+                "upper bound 2 is -1 with lower bound 0.5: no value fits",
+            ),
+            (
+                Breakdown::DiscEntries {
+                    disc: 1,
+                    entries: [3, 3],
+                    dim: 6,
+                },
+                "disc 1 is on entries 3 and 3, not two different entries of 6",
+            ),
+            (
+                Breakdown::DiscOverlap {
+                    entry: 4,
+                    first: 0,
+                    second: 2,
+                },
+                "entry 4 is in disc 0 and disc 2",
+            ),
+            (
+                Breakdown::DiscScalarBound {
+                    disc: 0,
+                    entry: 5,
+                    lower: 0.0,
+                    upper: f64::INFINITY,
+                },
+                "entry 5 of disc 0 has bounds 0 and inf: a disc's entries take none",
+            ),
+            (
+                Breakdown::DiscShape {
+                    disc: 3,
+                    center: [0.0, 1.5],
+                    radius: f64::NAN,
+                },
+                "disc 3 has center (0, 1.5) and radius NaN: the radius must be at least 0 \
+                 and the center finite",
             ),
         ];
         for (cause, text) in cases {

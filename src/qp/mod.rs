@@ -1,16 +1,20 @@
 //! Quadratic programming for the TFETI dual: MPRGP for bound constraints and
-//! SMALBE for bounds plus linear equalities, over matrix-free operators.
+//! SMALBE for bounds plus linear equalities, over matrix-free operators; for
+//! friction their generalization MPGP to boxes and discs.
 //!
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009:
-//! MPRGP (ch. 5), SMALBE/SMALE (ch. 6).
+//! MPRGP (ch. 5), SMALBE/SMALE (ch. 6). Z. Dostál, T. Kozubek, Math. Program.
+//! 135 (2012): MPGP.
 
+mod bounds;
 mod breakdown;
 mod mprgp;
 pub mod smalbe;
 
+pub use bounds::Disc;
 pub use breakdown::{Breakdown, MprgpStep};
-pub use mprgp::{estimate_norm, mprgp, MprgpSettings};
+pub use mprgp::{estimate_norm, mpgp, mprgp, MprgpSettings};
 pub use smalbe::{FeasibilityTest, SmalbeOverrides, SmalbeSettings, SmalbeWarm};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.

@@ -1,5 +1,6 @@
 //! MPRGP: modified proportioning with reduced gradient projections, for
-//! `min 1/2 x^T A x - b^T x` subject to `x_i >= l_i`.
+//! `min 1/2 x^T A x - b^T x` subject to `x_i >= l_i`; and its generalization
+//! MPGP to products of boxes and discs (friction).
 //!
 //! The iterate is split by the free set `F = {i : x_i > l_i}` and the active set.
 //! The free gradient `phi` (the gradient on `F`) drives conjugate gradients inside
@@ -12,9 +13,19 @@
 //! `beta`. With `a_bar <= 2 / ||A||` the method converges R-linearly with a rate
 //! that depends on the spectrum of `A` only, which makes it scalable for TFETI.
 //!
+//! The iteration sees its feasible set only through the blockwise operations of
+//! [`Set`] (projection, free/active split, feasible step). [`Lower`] holds the
+//! lower-bound loops as they always were, so that contact without friction
+//! gives the same bits; [`Blocks`](super::bounds::Blocks) adds upper bounds and
+//! discs (MPGP, where `beta` becomes the reduced chopped gradient).
+//!
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 5 (MPRGP).
+//! Z. Dostál, T. Kozubek, *An optimal algorithm and superrelaxation for
+//! minimization of a quadratic function subject to separable convex
+//! constraints with applications*, Math. Program. 135 (2012) (MPGP).
 
+use super::bounds::{Blocks, Disc};
 use super::{Breakdown, MprgpStep, Operator, QpInfo, Status};
 
 /// Parameters of [`mprgp`].
@@ -77,7 +88,6 @@ pub fn mprgp(
     settings: &MprgpSettings,
     norm_a: Option<f64>,
 ) -> QpInfo {
-    let n = a.dim();
     let mut info = QpInfo {
         status: Status::Converged,
         outer_iterations: 0,
@@ -88,10 +98,65 @@ pub fn mprgp(
         history: Vec::new(),
         norm_estimate: f64::NAN,
     };
-    if let Some(why) = check_dimensions(n, b, lower, x) {
+    if let Some(why) = check_dimensions(a.dim(), b, lower, x) {
         info.status = Status::Breakdown(why);
         return info;
     }
+    minimize(a, b, &Lower(lower), x, settings, norm_a, info)
+}
+
+/// Minimizes `1/2 x^T A x - b^T x` over boxes `lower_i <= x_i <= upper_i`
+/// (`upper` None: no upper bounds) and discs by MPGP, the generalization of
+/// [`mprgp`] to separable convex sets; otherwise as [`mprgp`]. A disc's
+/// entries have no scalar bounds (`lower = -inf`, `upper = +inf`).
+///
+/// # Reference
+/// Z. Dostál, T. Kozubek, Math. Program. 135 (2012) (MPGP).
+#[allow(clippy::too_many_arguments)]
+pub fn mpgp(
+    a: &dyn Operator,
+    b: &[f64],
+    lower: &[f64],
+    upper: Option<&[f64]>,
+    discs: &[Disc],
+    x: &mut [f64],
+    settings: &MprgpSettings,
+    norm_a: Option<f64>,
+) -> QpInfo {
+    let mut info = QpInfo {
+        status: Status::Converged,
+        outer_iterations: 0,
+        inner_iterations: 0,
+        hessian_applications: 0,
+        projected_gradient: f64::NAN,
+        feasibility: 0.0,
+        history: Vec::new(),
+        norm_estimate: f64::NAN,
+    };
+    let n = a.dim();
+    let set = match check_dimensions(n, b, lower, x)
+        .map_or_else(|| Blocks::new(n, lower, upper, discs), Err)
+    {
+        Ok(set) => set,
+        Err(why) => {
+            info.status = Status::Breakdown(why);
+            return info;
+        }
+    };
+    minimize(a, b, &set, x, settings, norm_a, info)
+}
+
+/// [`mprgp`] and [`mpgp`] on checked input.
+fn minimize<S: Set>(
+    a: &dyn Operator,
+    b: &[f64],
+    set: &S,
+    x: &mut [f64],
+    settings: &MprgpSettings,
+    norm_a: Option<f64>,
+    mut info: QpInfo,
+) -> QpInfo {
+    let n = a.dim();
     let mut ws = Workspace::new(n);
     let norm = match norm_a {
         Some(v) => v,
@@ -124,7 +189,7 @@ pub fn mprgp(
     let run = run(
         a,
         b,
-        lower,
+        set,
         x,
         &params,
         &mut ws,
@@ -209,13 +274,126 @@ pub(super) struct Run {
 }
 
 /// Projected-gradient statistics of the current iterate, in one pass.
-struct Split {
-    /// `||beta||^2`, the chopped gradient on the active set.
-    beta2: f64,
+pub(super) struct Split {
+    /// `||beta||^2`, the (reduced) chopped gradient on the active set.
+    pub(super) beta2: f64,
     /// `phi~^T phi`, the reduced free gradient against the free gradient.
-    phit_phi: f64,
+    pub(super) phit_phi: f64,
     /// `||g^P||`.
-    gp_norm: f64,
+    pub(super) gp_norm: f64,
+}
+
+/// The feasible set of MPRGP, a product of blocks (entries, pairs), through
+/// the blockwise operations the iteration needs. A block is free when `x` is
+/// strictly inside it, active otherwise; `phi` is `g` on the free blocks.
+/// Implementations allocate nothing here.
+pub(super) trait Set {
+    /// `x = P(x)`, the projection onto the set.
+    fn project(&self, x: &mut [f64]);
+    /// `||beta~||^2`, `phi~^T phi` and `||g^P||` at `x` (see [`Split`]).
+    fn split(&self, x: &[f64], g: &[f64], a_bar: f64) -> Split;
+    /// `p = phi(x)`.
+    fn free_gradient(&self, x: &[f64], g: &[f64], p: &mut [f64]);
+    /// `z = 0` on the active blocks.
+    fn chop(&self, x: &[f64], z: &mut [f64]);
+    /// `p = phi(x) - (phi(x)^T A p / pap) p` with `ap = A p`: the next CG
+    /// direction without a preconditioner.
+    fn conjugate(&self, x: &[f64], g: &[f64], ap: &[f64], pap: f64, p: &mut [f64]);
+    /// The largest `t` with `x - t p` feasible, and an entry of the block
+    /// that blocks it (`usize::MAX` if none).
+    fn feasible_step(&self, x: &[f64], p: &[f64]) -> (f64, usize);
+    /// Puts the block that `feasible_step(x, p)` named exactly on its
+    /// boundary, so that it counts as active (nothing for `usize::MAX`).
+    fn bind(&self, x: &mut [f64], p: &[f64], blocking: usize);
+    /// `x = P(x - a_bar g)` on the free blocks: the expansion's projected
+    /// gradient step along `phi`.
+    fn expand(&self, x: &mut [f64], g: &[f64], a_bar: f64);
+    /// `d = beta~(x)`, the proportioning direction (zero on the free blocks),
+    /// and `g^T d`, which is at least `beta2 = ||beta~||^2` (from
+    /// [`Set::split`]) in exact arithmetic; an implementation whose rounding
+    /// could break that returns `beta2` instead, to keep the step positive.
+    fn chopped(&self, x: &[f64], g: &[f64], a_bar: f64, beta2: f64, d: &mut [f64]) -> f64;
+    /// The proportioning step along `-d = -beta~`: `step`, or where that is
+    /// longer the feasible step and its blocking entry. The feasible step
+    /// along `-beta~` is at least `a_bar` (`x - a_bar beta~` is
+    /// `P(x - a_bar g)` on the active blocks), which stands in for a
+    /// computed one that is shorter by round-off: on a disc's circle the
+    /// chord to `P(x - a_bar g)` is short and its computed end cancels.
+    fn cap(&self, x: &[f64], d: &[f64], step: f64, a_bar: f64) -> (f64, usize);
+    /// Whether `x = 0` is feasible.
+    fn contains_origin(&self) -> bool;
+    /// `||P(0)||`.
+    fn origin_distance(&self) -> f64;
+}
+
+/// Lower bounds `x_i >= lower_i` only: MPRGP's own loops, unchanged (the
+/// chopped gradient `min(g, 0)` is its reduced form, and moving along it
+/// never leaves the set).
+pub(super) struct Lower<'a>(pub(super) &'a [f64]);
+
+impl Set for Lower<'_> {
+    fn project(&self, x: &mut [f64]) {
+        project(x, self.0);
+    }
+    fn split(&self, x: &[f64], g: &[f64], a_bar: f64) -> Split {
+        split(x, self.0, g, a_bar)
+    }
+    fn free_gradient(&self, x: &[f64], g: &[f64], p: &mut [f64]) {
+        free_gradient(x, self.0, g, p);
+    }
+    fn chop(&self, x: &[f64], z: &mut [f64]) {
+        for ((zi, &xi), &li) in z.iter_mut().zip(x).zip(self.0) {
+            if xi <= li {
+                *zi = 0.0;
+            }
+        }
+    }
+    fn conjugate(&self, x: &[f64], g: &[f64], ap: &[f64], pap: f64, p: &mut [f64]) {
+        let lower = self.0;
+        let mut phi_ap = 0.0;
+        for (((&xi, &li), &gi), &api) in x.iter().zip(lower).zip(g.iter()).zip(ap.iter()) {
+            if xi > li {
+                phi_ap += gi * api;
+            }
+        }
+        let c = phi_ap / pap;
+        for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
+            let phi = if xi > li { gi } else { 0.0 };
+            *pi = phi - c * *pi;
+        }
+    }
+    fn feasible_step(&self, x: &[f64], p: &[f64]) -> (f64, usize) {
+        feasible_step(x, self.0, p)
+    }
+    fn bind(&self, x: &mut [f64], _p: &[f64], blocking: usize) {
+        if blocking < x.len() {
+            x[blocking] = self.0[blocking];
+        }
+    }
+    fn expand(&self, x: &mut [f64], g: &[f64], a_bar: f64) {
+        for ((xi, &li), &gi) in x.iter_mut().zip(self.0).zip(g.iter()) {
+            if *xi > li {
+                *xi = (*xi - a_bar * gi).max(li);
+            }
+        }
+    }
+    fn chopped(&self, x: &[f64], g: &[f64], _a_bar: f64, beta2: f64, d: &mut [f64]) -> f64 {
+        for (((pi, &xi), &li), &gi) in d.iter_mut().zip(x.iter()).zip(self.0).zip(g.iter()) {
+            *pi = if xi > li { 0.0 } else { gi.min(0.0) };
+        }
+        // g^T d = ||min(g, 0)||^2 on the active set.
+        beta2
+    }
+    fn cap(&self, _x: &[f64], _d: &[f64], step: f64, _a_bar: f64) -> (f64, usize) {
+        (step, usize::MAX)
+    }
+    fn contains_origin(&self) -> bool {
+        self.0.iter().all(|&l| l <= 0.0)
+    }
+    fn origin_distance(&self) -> f64 {
+        let p0: f64 = self.0.iter().map(|&l| l.max(0.0).powi(2)).sum();
+        p0.sqrt()
+    }
 }
 
 fn split(x: &[f64], lower: &[f64], g: &[f64], a_bar: f64) -> Split {
@@ -255,21 +433,17 @@ fn free_gradient(x: &[f64], lower: &[f64], g: &[f64], p: &mut [f64]) {
 /// stays in the current face (`M_F` is the free block of `M`, SPD when `M` is).
 /// Should round-off or a semidefinite `M` give no descent (`phi^T z <= 0`), the
 /// free gradient itself is used.
-fn precondition(
+fn precondition<S: Set>(
     m: &dyn Operator,
     x: &[f64],
-    lower: &[f64],
+    set: &S,
     g: &[f64],
     r: &mut [f64],
     z: &mut [f64],
 ) {
-    free_gradient(x, lower, g, r);
+    set.free_gradient(x, g, r);
     m.apply(r, z);
-    for ((zi, &xi), &li) in z.iter_mut().zip(x).zip(lower) {
-        if xi <= li {
-            *zi = 0.0;
-        }
-    }
+    set.chop(x, z);
     let descent = dot(r, z);
     if !(descent > 0.0 && descent.is_finite()) {
         z.copy_from_slice(r);
@@ -277,21 +451,21 @@ fn precondition(
 }
 
 /// The first direction of a face: `phi(x)`, or `M_F phi(x)` with a preconditioner.
-fn face_direction(
+fn face_direction<S: Set>(
     m: Option<&dyn Operator>,
     x: &[f64],
-    lower: &[f64],
+    set: &S,
     g: &[f64],
     r: &mut [f64],
     p: &mut [f64],
 ) {
     match m {
-        None => free_gradient(x, lower, g, p),
-        Some(m) => precondition(m, x, lower, g, r, p),
+        None => set.free_gradient(x, g, p),
+        Some(m) => precondition(m, x, set, g, r, p),
     }
 }
 
-/// The MPRGP iteration on a prepared workspace.
+/// The MPRGP iteration on a prepared workspace, over the feasible set `set`.
 ///
 /// With a preconditioner `precond` (an approximate inverse of `A`), the
 /// conjugate gradient steps are preconditioned in face (Dostál 2009, sec. 5.10:
@@ -301,7 +475,7 @@ fn face_direction(
 /// the meaning of the tolerance do not change. `ws` must then come from
 /// [`Workspace::preconditioned`].
 ///
-/// `x` is projected onto the bounds first. If `g_ready`, `ws.g` already holds
+/// `x` is projected onto the set first. If `g_ready`, `ws.g` already holds
 /// `A x - b` for the projected `x` (SMALBE keeps it between outer iterations
 /// and saves one application each time). `stop(x, ||g^P||)` decides
 /// convergence; `trace(iteration, ||g^P||)` sees every iterate. No allocation
@@ -311,10 +485,10 @@ fn face_direction(
 /// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
 /// ch. 5 (MPRGP).
 #[allow(clippy::too_many_arguments)]
-pub(super) fn run(
+pub(super) fn run<S: Set>(
     a: &dyn Operator,
     b: &[f64],
-    lower: &[f64],
+    set: &S,
     x: &mut [f64],
     params: &Params,
     ws: &mut Workspace,
@@ -326,7 +500,7 @@ pub(super) fn run(
     let q = Fixed {
         a,
         b,
-        lower,
+        set,
         precond,
         a_bar: params.a_bar,
     };
@@ -337,7 +511,7 @@ pub(super) fn run(
         applications: 0,
         gp_norm: f64::NAN,
     };
-    project(x, lower);
+    set.project(x);
     if !g_ready {
         if params.max_applications == 0 {
             out.status = Status::MaxIterations;
@@ -346,9 +520,9 @@ pub(super) fn run(
         gradient(a, b, x, &mut ws.g);
         out.applications += 1;
     }
-    face_direction(precond, x, lower, &ws.g, &mut ws.r, &mut ws.p);
+    face_direction(precond, x, set, &ws.g, &mut ws.r, &mut ws.p);
     loop {
-        let s = split(x, lower, &ws.g, q.a_bar);
+        let s = set.split(x, &ws.g, q.a_bar);
         out.gp_norm = s.gp_norm;
         trace(out.iterations, s.gp_norm);
         if let Some(status) = verdict(x, &s, params, &out, stop) {
@@ -371,10 +545,10 @@ pub(super) fn run(
 
 /// What one run iterates on: the problem, the preconditioner and the
 /// expansion's step length.
-struct Fixed<'a> {
+struct Fixed<'a, S> {
     a: &'a dyn Operator,
     b: &'a [f64],
-    lower: &'a [f64],
+    set: &'a S,
     precond: Option<&'a dyn Operator>,
     a_bar: f64,
 }
@@ -409,7 +583,12 @@ fn verdict(
 
 /// A step in a proportional iterate along the CG direction `p`: the CG step
 /// when it stays feasible, else the expansion.
-fn cg_step(q: &Fixed, x: &mut [f64], ws: &mut Workspace, out: &mut Run) -> Result<(), Breakdown> {
+fn cg_step<S: Set>(
+    q: &Fixed<S>,
+    x: &mut [f64],
+    ws: &mut Workspace,
+    out: &mut Run,
+) -> Result<(), Breakdown> {
     q.a.apply(&ws.p, &mut ws.ap);
     out.applications += 1;
     let pap = dot(&ws.p, &ws.ap);
@@ -422,11 +601,11 @@ fn cg_step(q: &Fixed, x: &mut [f64], ws: &mut Workspace, out: &mut Run) -> Resul
         });
     }
     let a_cg = dot(&ws.g, &ws.p) / pap;
-    let (a_f, blocking) = feasible_step(x, q.lower, &ws.p);
+    let (a_f, blocking) = q.set.feasible_step(x, &ws.p);
     if a_cg <= a_f {
         axpy(-a_cg, &ws.p, x);
         axpy(-a_cg, &ws.ap, &mut ws.g);
-        project(x, q.lower);
+        q.set.project(x);
         conjugate_direction(q, x, pap, ws);
     } else {
         expansion_step(q, x, a_f, blocking, ws);
@@ -455,67 +634,57 @@ fn feasible_step(x: &[f64], lower: &[f64], p: &[f64]) -> (f64, usize) {
 /// The next CG direction after a CG step, `A`-conjugate to `p` (`ws.ap`
 /// holds `A p`, `pap` is `p^T A p`): `p = z - (z^T A p / p^T A p) p` with
 /// `z = M_F phi(x)`, or `phi(x)` itself without a preconditioner.
-fn conjugate_direction(q: &Fixed, x: &[f64], pap: f64, ws: &mut Workspace) {
+fn conjugate_direction<S: Set>(q: &Fixed<S>, x: &[f64], pap: f64, ws: &mut Workspace) {
     let Workspace { g, p, ap, z, r } = ws;
-    let lower = q.lower;
     if let Some(m) = q.precond {
-        precondition(m, x, lower, g, r, z);
+        precondition(m, x, q.set, g, r, z);
         let c = dot(z, ap) / pap;
         for (pi, &zi) in p.iter_mut().zip(z.iter()) {
             *pi = zi - c * *pi;
         }
     } else {
-        let mut phi_ap = 0.0;
-        for (((&xi, &li), &gi), &api) in x.iter().zip(lower).zip(g.iter()).zip(ap.iter()) {
-            if xi > li {
-                phi_ap += gi * api;
-            }
-        }
-        let c = phi_ap / pap;
-        for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
-            let phi = if xi > li { gi } else { 0.0 };
-            *pi = phi - c * *pi;
-        }
+        q.set.conjugate(x, g, ap, pap, p);
     }
 }
 
 /// Expansion: the feasible step `a_f` along `-p` to the face's boundary
-/// (`blocking` put on its bound), then a projected gradient step of fixed
-/// length `a_bar` along `phi`; the gradient anew (one application) and the
-/// new face's first direction.
-fn expansion_step(q: &Fixed, x: &mut [f64], a_f: f64, blocking: usize, ws: &mut Workspace) {
+/// (`blocking`'s block put on its boundary), then a projected gradient step
+/// of fixed length `a_bar` along `phi`; the gradient anew (one application)
+/// and the new face's first direction.
+fn expansion_step<S: Set>(
+    q: &Fixed<S>,
+    x: &mut [f64],
+    a_f: f64,
+    blocking: usize,
+    ws: &mut Workspace,
+) {
     let Workspace { g, p, ap, r, .. } = ws;
-    let lower = q.lower;
     axpy(-a_f, p, x);
     axpy(-a_f, ap, g);
-    project(x, lower);
-    if blocking < x.len() {
-        x[blocking] = lower[blocking];
-    }
-    for ((xi, &li), &gi) in x.iter_mut().zip(lower).zip(g.iter()) {
-        if *xi > li {
-            *xi = (*xi - q.a_bar * gi).max(li);
-        }
-    }
+    q.set.project(x);
+    q.set.bind(x, p, blocking);
+    q.set.expand(x, g, q.a_bar);
     gradient(q.a, q.b, x, g);
-    face_direction(q.precond, x, lower, g, r, p);
+    face_direction(q.precond, x, q.set, g, r, p);
 }
 
-/// Proportioning: release constraints along the chopped gradient `d = beta`
-/// with the exact line-search step `||beta||^2 / d^T A d` (it only moves `x`
-/// up, off the bounds, so it stays feasible).
-fn proportioning_step(
-    q: &Fixed,
+/// Proportioning: release constraints along the (reduced) chopped gradient
+/// `d = beta~` with the exact line-search step `g^T d / d^T A d`. With lower
+/// bounds only, `g^T d = ||beta||^2` and the step only moves `x` up, off the
+/// bounds, so it stays feasible. With upper bounds or discs it could cross
+/// the far side of a block, so it is cut at the feasible step (at least
+/// `a_bar` along `beta~`, whose step `a_bar` lands in the set by its
+/// definition): `f` still decreases, by no less than a step of
+/// `min(a_cg, a_bar)` (a projected gradient step on the active blocks).
+fn proportioning_step<S: Set>(
+    q: &Fixed<S>,
     x: &mut [f64],
     beta2: f64,
     ws: &mut Workspace,
     out: &mut Run,
 ) -> Result<(), Breakdown> {
     let Workspace { g, p, ap, r, .. } = ws;
-    let lower = q.lower;
-    for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
-        *pi = if xi > li { 0.0 } else { gi.min(0.0) };
-    }
+    let gd = q.set.chopped(x, g, q.a_bar, beta2, p);
     q.a.apply(p, ap);
     out.applications += 1;
     let pap = dot(p, ap);
@@ -527,11 +696,12 @@ fn proportioning_step(
             mprgp_step: out.iterations,
         });
     }
-    let step = beta2 / pap;
+    let (step, blocking) = q.set.cap(x, p, gd / pap, q.a_bar);
     axpy(-step, p, x);
     axpy(-step, ap, g);
-    project(x, lower);
-    face_direction(q.precond, x, lower, g, r, p);
+    q.set.project(x);
+    q.set.bind(x, p, blocking);
+    face_direction(q.precond, x, q.set, g, r, p);
     Ok(())
 }
 
@@ -544,7 +714,7 @@ fn gradient(a: &dyn Operator, b: &[f64], x: &[f64], g: &mut [f64]) {
 }
 
 /// `x = max(x, lower)` componentwise: the projection onto the feasible set.
-pub(super) fn project(x: &mut [f64], lower: &[f64]) {
+fn project(x: &mut [f64], lower: &[f64]) {
     for (xi, &li) in x.iter_mut().zip(lower) {
         if *xi < li {
             *xi = li;
@@ -1019,5 +1189,206 @@ pub(super) mod tests {
         );
         assert_eq!(info.status, Status::Converged);
         assert!((x[0] - 1.0).abs() < 1e-12 && x[1] == 0.0, "{x:?}");
+    }
+
+    /// `x = P(x)` over boxes and discs, written out independently of the
+    /// solver's set.
+    fn project_reference(x: &mut [f64], lower: &[f64], upper: &[f64], discs: &[Disc]) {
+        for ((xi, &l), &u) in x.iter_mut().zip(lower).zip(upper) {
+            *xi = xi.max(l).min(u);
+        }
+        for d in discs {
+            let [a, b] = d.entries;
+            let y = [x[a] - d.center[0], x[b] - d.center[1]];
+            let dist = y[0].hypot(y[1]);
+            if dist > d.radius {
+                x[a] = d.center[0] + y[0] * d.radius / dist;
+                x[b] = d.center[1] + y[1] * d.radius / dist;
+            }
+        }
+    }
+
+    #[test]
+    fn mpgp_matches_projected_gradient_on_boxes_and_discs() {
+        // The reference: plain projected gradient with step 1 / ||A||_F, run
+        // until it is a fixed point to round-off.
+        let mut rng = Lcg::new(83);
+        let (mut on_circle, mut at_upper, mut inside) = (0, 0, 0);
+        for trial in 0..24 {
+            let n = 6 + trial % 4;
+            let a = random_spd(n, 0.5, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| 3.0 * rng.symmetric()).collect();
+            let mut lower = vec![f64::NEG_INFINITY; n];
+            let mut upper = vec![f64::INFINITY; n];
+            let discs = [
+                Disc {
+                    entries: [0, n - 1],
+                    center: [0.3 * rng.symmetric(), 0.3 * rng.symmetric()],
+                    radius: 0.2 + 0.5 * rng.uniform(),
+                },
+                Disc {
+                    entries: [4, 2],
+                    center: [0.3 * rng.symmetric(), 0.3 * rng.symmetric()],
+                    radius: if trial % 5 == 0 {
+                        0.0
+                    } else {
+                        1.5 * rng.uniform()
+                    },
+                },
+            ];
+            (lower[1], upper[1]) = (-0.3 * rng.uniform(), 0.1 + 0.3 * rng.uniform());
+            lower[3] = 0.2 * rng.symmetric();
+            upper[3] = lower[3];
+            for i in 5..n - 1 {
+                match i % 3 {
+                    0 => lower[i] = -0.2 * rng.uniform(),
+                    1 => upper[i] = 0.2 * rng.uniform(),
+                    _ => {}
+                }
+            }
+            let step = 1.0 / a.a.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let mut r = vec![0.0; n];
+            project_reference(&mut r, &lower, &upper, &discs);
+            let mut fixed_point = f64::INFINITY;
+            for _ in 0..20_000 {
+                let g = a.mul(&r);
+                let before = r.clone();
+                for i in 0..n {
+                    r[i] -= step * (g[i] - b[i]);
+                }
+                project_reference(&mut r, &lower, &upper, &discs);
+                fixed_point = max_diff(&r, &before) / step;
+            }
+            assert!(
+                fixed_point <= 1e-12,
+                "trial {trial}: reference {fixed_point:e}"
+            );
+            let mut x: Vec<f64> = (0..n).map(|_| 2.0 * rng.symmetric()).collect();
+            let settings = MprgpSettings {
+                tolerance: 1e-12 * norm2(&b),
+                ..MprgpSettings::default()
+            };
+            let info = mpgp(
+                &a,
+                &b,
+                &lower,
+                Some(&upper),
+                &discs,
+                &mut x,
+                &settings,
+                None,
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            assert_eq!(info.hessian_applications, a.count.get(), "trial {trial}");
+            let scale = r.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            assert!(
+                max_diff(&x, &r) <= 1e-9 * scale,
+                "trial {trial}: {x:?} vs {r:?}"
+            );
+            for d in &discs {
+                let dist = (x[d.entries[0]] - d.center[0]).hypot(x[d.entries[1]] - d.center[1]);
+                assert!(
+                    dist <= d.radius * (1.0 + 1e-14),
+                    "trial {trial}: {dist} > {}",
+                    d.radius
+                );
+                if d.radius > 0.0 && dist > d.radius * (1.0 - 1e-9) {
+                    on_circle += 1;
+                } else if d.radius > 0.0 {
+                    inside += 1;
+                }
+            }
+            at_upper += (0..n)
+                .filter(|&i| lower[i] < upper[i] && x[i] == upper[i])
+                .count();
+            assert_eq!(x[3], lower[3], "trial {trial}: the pinned entry moved");
+        }
+        assert!(
+            on_circle >= 10 && inside >= 5 && at_upper >= 10,
+            "too little to test: {on_circle} discs on the circle, {inside} inside, {at_upper} \
+             entries at an upper bound"
+        );
+    }
+
+    #[test]
+    fn mpgp_on_lower_bounds_gives_the_bits_of_mprgp() {
+        // The general set without upper bounds or discs is the same
+        // iteration: same iterates, same counts.
+        let mut rng = Lcg::new(89);
+        for trial in 0..20 {
+            let n = 3 + trial % 11;
+            let a = random_spd(n, 0.05, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower: Vec<f64> = (0..n)
+                .map(|i| {
+                    if i % 3 == 2 {
+                        f64::NEG_INFINITY
+                    } else {
+                        -0.3 * rng.uniform()
+                    }
+                })
+                .collect();
+            let start: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let settings = MprgpSettings {
+                tolerance: 1e-11,
+                ..MprgpSettings::default()
+            };
+            let mut x = start.clone();
+            let plain = mprgp(&a, &b, &lower, &mut x, &settings, None);
+            assert_eq!(plain.status, Status::Converged, "trial {trial}: {plain:?}");
+            let upper = vec![f64::INFINITY; n];
+            for upper in [None, Some(&upper[..])] {
+                let mut y = start.clone();
+                let general = mpgp(&a, &b, &lower, upper, &[], &mut y, &settings, None);
+                assert_eq!(plain, general, "trial {trial}");
+                assert_eq!(x, y, "trial {trial}");
+            }
+            // A disc of infinite radius constrains nothing.
+            if n >= 6 {
+                let everything = [Disc {
+                    entries: [5, 2],
+                    center: [1.0, -2.0],
+                    radius: f64::INFINITY,
+                }];
+                let mut y = start.clone();
+                let info = mpgp(&a, &b, &lower, None, &everything, &mut y, &settings, None);
+                assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+                let scale = x.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+                assert!(
+                    max_diff(&x, &y) <= 1e-9 * scale,
+                    "trial {trial}: {x:?} vs {y:?}"
+                );
+            }
+        }
+        // Bad discs are breakdowns, as in SMALBE.
+        let a = Dense::new(2, vec![1.0, 0.0, 0.0, 1.0]);
+        let bad = [Disc {
+            entries: [0, 2],
+            center: [0.0, 0.0],
+            radius: 1.0,
+        }];
+        let mut x = [0.0; 2];
+        let lower = [f64::NEG_INFINITY; 2];
+        let info = mpgp(
+            &a,
+            &[1.0, 1.0],
+            &lower,
+            None,
+            &bad,
+            &mut x,
+            &MprgpSettings::default(),
+            None,
+        );
+        assert!(
+            matches!(
+                info.status,
+                Status::Breakdown(Breakdown::DiscEntries {
+                    disc: 0,
+                    dim: 2,
+                    ..
+                })
+            ),
+            "{info:?}"
+        );
     }
 }

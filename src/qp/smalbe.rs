@@ -1,6 +1,8 @@
 //! SMALBE: semi-monotonic augmented Lagrangian for bound and equality
 //! constraints, `min 1/2 x^T A x - b^T x` subject to `x_i >= l_i` and `G x = 0`
-//! with orthonormal rows of `G`.
+//! with orthonormal rows of `G`; for friction also upper bounds and discs on
+//! pairs of entries ([`Problem::upper`], [`Problem::discs`]), minimized over
+//! by MPGP inside.
 //!
 //! The equalities go into the augmented Lagrangian
 //! `L(x, mu, rho) = f(x) + mu^T G x + rho/2 ||G x||^2`, whose Hessian
@@ -39,9 +41,10 @@
 
 use std::cell::Cell;
 
+use super::bounds::{Blocks, Disc};
 use super::mprgp::{
-    self, axpy, check_dimensions, dot, estimate_norm, norm2, project, start_vector, step_length,
-    MprgpSettings, Params, Workspace,
+    self, axpy, check_dimensions, dot, estimate_norm, norm2, start_vector, step_length, Lower,
+    MprgpSettings, Params, Set, Workspace,
 };
 use super::{Breakdown, Equality, Operator, QpInfo, Status};
 
@@ -328,12 +331,21 @@ pub struct SmalbeWarm {
 /// of the forces (see `tfeti::solve`).
 pub type FeasibilityTest<'a> = &'a (dyn Fn(&[f64]) -> bool + Sync);
 
-/// A problem for SMALBE: `min 1/2 x^T A x - b^T x` subject to `x >= lower`
-/// and `G x = 0` (orthonormal rows), with what the caller knows besides.
+/// A problem for SMALBE: `min 1/2 x^T A x - b^T x` subject to
+/// `lower <= x <= upper`, `x` in the discs and `G x = 0` (orthonormal rows),
+/// with what the caller knows besides.
 pub struct Problem<'a> {
     pub a: &'a dyn Operator,
     pub b: &'a [f64],
     pub lower: &'a [f64],
+    /// Upper bounds, one per entry (`f64::INFINITY`: none; `lower == upper`
+    /// pins the entry). None: no upper bounds.
+    pub upper: Option<&'a [f64]>,
+    /// Discs `||(x_a, x_b) - center|| <= radius` on pairs of entries that
+    /// have no scalar bounds (`lower = -inf`, `upper` none or `+inf`).
+    /// With `upper` or discs the inner solver is MPGP; without, MPRGP as it
+    /// always was, to the bit.
+    pub discs: &'a [Disc],
     pub g: &'a dyn Equality,
     /// An approximate inverse of `A` on `ker G` (e.g. `||PFP|| P M P` for the
     /// scaled TFETI dual) that preconditions MPRGP in face; the augmented
@@ -356,6 +368,8 @@ impl<'a> Problem<'a> {
             a,
             b,
             lower,
+            upper: None,
+            discs: &[],
             g,
             precond: None,
             also_feasible: None,
@@ -363,8 +377,9 @@ impl<'a> Problem<'a> {
     }
 }
 
-/// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` and `G x = 0`
-/// by SMALBE with MPRGP inside.
+/// Minimizes `1/2 x^T A x - b^T x` subject to `x_i >= lower_i` (and the
+/// upper bounds and discs of `problem`) and `G x = 0` by SMALBE with MPRGP
+/// (MPGP) inside.
 ///
 /// `x` is the initial guess (projected onto the bounds) and the result.
 /// `G` must have orthonormal rows; `A` must be positive definite on `ker G`
@@ -372,8 +387,8 @@ impl<'a> Problem<'a> {
 /// `||g^P(x, mu, rho)|| <= eps ||b||` and `||G x|| <= eps ||b||`, where `g^P`
 /// is the projected gradient of the augmented Lagrangian at the current
 /// multipliers, which at a solution is the KKT residual. If `b = 0` and
-/// `lower <= 0`, the solution `x = 0` is returned at once; with `b = 0` and a
-/// positive bound the scale `||A|| ||P(0)||` replaces `||b||`.
+/// `x = 0` is feasible, the solution `x = 0` is returned at once; otherwise
+/// with `b = 0` the scale `||A|| ||P(0)||` replaces `||b||`.
 ///
 /// `observer` sees the [`QpInfo`] after every outer iteration (its status
 /// reads `MaxIterations` until the run ends). Applications of the augmented
@@ -414,25 +429,53 @@ pub fn solve(
         info.status = Status::Breakdown(why);
         return (info, end);
     }
+    if problem.upper.is_none() && problem.discs.is_empty() {
+        let set = Lower(problem.lower);
+        solve_over(
+            problem, &set, x, settings, start, observer, &mut info, &mut end,
+        );
+    } else {
+        match Blocks::new(n, problem.lower, problem.upper, problem.discs) {
+            Ok(set) => solve_over(
+                problem, &set, x, settings, start, observer, &mut info, &mut end,
+            ),
+            Err(why) => info.status = Status::Breakdown(why),
+        }
+    }
+    (info, end)
+}
+
+/// [`solve`] on checked input over the feasible set `set`.
+#[allow(clippy::too_many_arguments)]
+fn solve_over<S: Set>(
+    problem: &Problem,
+    set: &S,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    observer: &mut dyn FnMut(&QpInfo),
+    info: &mut QpInfo,
+    end: &mut SmalbeWarm,
+) {
+    let n = problem.a.dim();
     let b_norm = norm2(problem.b);
-    if b_norm == 0.0 && problem.lower.iter().all(|&l| l <= 0.0) {
+    if b_norm == 0.0 && set.contains_origin() {
         x.fill(0.0);
         info.status = Status::Converged;
         info.projected_gradient = 0.0;
         info.feasibility = 0.0;
-        return (info, end);
+        return;
     }
     let mut ws = match problem.precond {
         None => Workspace::new(n),
         Some(_) => Workspace::preconditioned(n),
     };
-    let Some(setup) = Setup::new(problem, settings, start, &mut ws, &mut info, &mut end) else {
-        return (info, end);
+    let Some(setup) = Setup::new(problem, set, settings, start, &mut ws, info, end) else {
+        return;
     };
     outer_loop(
-        problem, &setup, x, settings, start, &mut ws, &mut info, &mut end, observer,
+        problem, set, &setup, x, settings, start, &mut ws, info, end, observer,
     );
-    (info, end)
 }
 
 /// What SMALBE fixes before its outer iterations: `||A||`, the penalty
@@ -451,8 +494,9 @@ struct Setup<'a> {
 impl<'a> Setup<'a> {
     /// `||A||`, then `rho`, then `||A + rho G^T G||` (power iterations, warm-
     /// started; or both from `start`) for `a_bar`. None: a breakdown, in `info`.
-    fn new(
+    fn new<S: Set>(
         problem: &Problem<'a>,
+        set: &S,
         settings: &SmalbeSettings,
         start: Option<&SmalbeWarm>,
         ws: &mut Workspace,
@@ -500,8 +544,7 @@ impl<'a> Setup<'a> {
         let scale = if b_norm > 0.0 {
             b_norm
         } else {
-            let p0: f64 = problem.lower.iter().map(|&l| l.max(0.0).powi(2)).sum();
-            norm_a * p0.sqrt()
+            norm_a * set.origin_distance()
         };
         Some(Setup {
             norm_a,
@@ -601,8 +644,9 @@ impl Multipliers {
 /// where the projected gradient and `G x` meet the tolerance, else updates
 /// the multipliers ([`Multipliers::update`]).
 #[allow(clippy::too_many_arguments)]
-fn outer_loop(
+fn outer_loop<S: Set>(
     problem: &Problem,
+    set: &S,
     setup: &Setup,
     x: &mut [f64],
     settings: &SmalbeSettings,
@@ -626,7 +670,7 @@ fn outer_loop(
     };
     let mut own = Multipliers::new(problem, setup, settings, start);
     let mut g_ready = false;
-    project(x, problem.lower);
+    set.project(x);
 
     for k in 0..settings.max_outer {
         let params = Params {
@@ -650,7 +694,7 @@ fn outer_loop(
             mprgp::run(
                 &setup.hessian,
                 &own.b_tilde,
-                problem.lower,
+                set,
                 x,
                 &params,
                 ws,
@@ -793,16 +837,65 @@ mod tests {
     /// sets: for each, solve the KKT system of the face and keep the point
     /// that is feasible with non-negative bound multipliers.
     fn enumerate(a: &Dense, b: &[f64], lower: &[f64], geq: &DenseEq) -> Vec<f64> {
+        enumerate_box(a, b, lower, &vec![f64::INFINITY; a.n], geq)
+    }
+
+    /// Where an entry is in a face of a box.
+    #[derive(Clone, Copy, PartialEq)]
+    enum At {
+        Free,
+        Lower,
+        Upper,
+    }
+
+    /// The minimizer over `lower <= x <= upper`, `G x = 0` by enumeration of
+    /// faces: each bounded entry at its lower bound, at its upper bound or
+    /// free (a pinned entry at its value); for each face solve its KKT system
+    /// and keep the point that is feasible with multipliers of the right sign.
+    fn enumerate_box(
+        a: &Dense,
+        b: &[f64],
+        lower: &[f64],
+        upper: &[f64],
+        geq: &DenseEq,
+    ) -> Vec<f64> {
         let n = a.n;
         let m = geq.m;
-        let bounded: Vec<usize> = (0..n).filter(|&i| lower[i].is_finite()).collect();
+        let choices: Vec<Vec<At>> = (0..n)
+            .map(|i| {
+                let (l, u) = (lower[i], upper[i]);
+                if l == u {
+                    return vec![At::Lower];
+                }
+                let mut c = vec![At::Free];
+                if l.is_finite() {
+                    c.push(At::Lower);
+                }
+                if u.is_finite() {
+                    c.push(At::Upper);
+                }
+                c
+            })
+            .collect();
+        let faces: usize = choices.iter().map(Vec::len).product();
         let mut found: Option<Vec<f64>> = None;
-        for mask in 0u32..(1 << bounded.len()) {
-            let mut active = vec![false; n];
-            for (k, &i) in bounded.iter().enumerate() {
-                active[i] = mask & (1 << k) != 0;
-            }
-            let free: Vec<usize> = (0..n).filter(|&i| !active[i]).collect();
+        for face in 0..faces {
+            let mut rest = face;
+            let at: Vec<At> = choices
+                .iter()
+                .map(|c| {
+                    let k = rest % c.len();
+                    rest /= c.len();
+                    c[k]
+                })
+                .collect();
+            let value = |i: usize| match at[i] {
+                At::Lower => lower[i],
+                At::Upper => upper[i],
+                At::Free => 0.0,
+            };
+            let free: Vec<usize> = (0..n).filter(|&i| at[i] == At::Free).collect();
+            let fixed: Vec<usize> = (0..n).filter(|&i| at[i] != At::Free).collect();
             let nf = free.len();
             let size = nf + m;
             let mut kkt = vec![0.0; size * size];
@@ -815,24 +908,15 @@ mod tests {
                     kkt[r * size + nf + k] = geq.at(k, i);
                     kkt[(nf + k) * size + r] = geq.at(k, i);
                 }
-                rhs[r] = b[i]
-                    - (0..n)
-                        .filter(|&j| active[j])
-                        .map(|j| a.at(i, j) * lower[j])
-                        .sum::<f64>();
+                rhs[r] = b[i] - fixed.iter().map(|&j| a.at(i, j) * value(j)).sum::<f64>();
             }
             for k in 0..m {
-                rhs[nf + k] = -(0..n)
-                    .filter(|&j| active[j])
-                    .map(|j| geq.at(k, j) * lower[j])
-                    .sum::<f64>();
+                rhs[nf + k] = -fixed.iter().map(|&j| geq.at(k, j) * value(j)).sum::<f64>();
             }
             let Some(z) = solve_dense(size, &kkt, &rhs) else {
                 continue;
             };
-            let mut x: Vec<f64> = (0..n)
-                .map(|i| if active[i] { lower[i] } else { 0.0 })
-                .collect();
+            let mut x: Vec<f64> = (0..n).map(value).collect();
             for (r, &i) in free.iter().enumerate() {
                 x[i] = z[r];
             }
@@ -841,8 +925,15 @@ mod tests {
             for (j, gj) in grad.iter_mut().enumerate() {
                 *gj += (0..m).map(|k| geq.at(k, j) * mu[k]).sum::<f64>();
             }
-            let feasible = free.iter().all(|&i| x[i] >= lower[i] - 1e-12);
-            let signs = (0..n).filter(|&i| active[i]).all(|i| grad[i] >= -1e-12);
+            let feasible = free
+                .iter()
+                .all(|&i| x[i] >= lower[i] - 1e-12 && x[i] <= upper[i] + 1e-12);
+            let signs = (0..n).all(|i| match at[i] {
+                At::Free => true,
+                _ if lower[i] == upper[i] => true,
+                At::Lower => grad[i] >= -1e-12,
+                At::Upper => grad[i] <= 1e-12,
+            });
             if feasible && signs {
                 if let Some(prev) = &found {
                     let d = prev
@@ -1515,5 +1606,833 @@ mod tests {
         );
         assert_eq!(info.status, Status::Converged, "{info:?}");
         assert!(max_diff(&x, &[1.5, 1.5, 0.0]) < 1e-9, "{x:?}");
+    }
+
+    /// KKT residuals of `x` over boxes and discs, absolute and independent of
+    /// the solver: `x` must be feasible; the equality multiplier is the
+    /// least-squares fit of stationarity along the directions in which `x`
+    /// may move both ways (free entries, free discs, the tangents of active
+    /// discs); then the projected gradient of the Lagrangian (free: `g`; at a
+    /// lower / upper bound `min(g, 0)` / `max(g, 0)`; on a disc's circle
+    /// `g - min(g.n, 0) n`; pinned: 0) and `||G x||`.
+    fn kkt_blocks(
+        a: &Dense,
+        b: &[f64],
+        lower: &[f64],
+        upper: &[f64],
+        discs: &[Disc],
+        geq: &DenseEq,
+        x: &[f64],
+    ) -> (f64, f64) {
+        let (n, m) = (a.n, geq.m);
+        let in_disc: Vec<bool> = (0..n)
+            .map(|i| discs.iter().any(|d| d.entries.contains(&i)))
+            .collect();
+        for i in 0..n {
+            assert!(
+                lower[i] <= x[i] && x[i] <= upper[i],
+                "x[{i}] = {} outside [{}, {}]",
+                x[i],
+                lower[i],
+                upper[i]
+            );
+        }
+        let offset = |d: &Disc| [x[d.entries[0]] - d.center[0], x[d.entries[1]] - d.center[1]];
+        let length = |y: [f64; 2]| (y[0] * y[0] + y[1] * y[1]).sqrt();
+        for d in discs {
+            let dist = length(offset(d));
+            assert!(
+                dist <= d.radius * (1.0 + 1e-12) + 1e-14,
+                "{d:?}: x at distance {dist}"
+            );
+        }
+        let r: Vec<f64> = a.mul(x).iter().zip(b).map(|(ax, bi)| ax - bi).collect();
+        let mut rows: Vec<Vec<f64>> = Vec::new();
+        let unit = |i: usize| (0..n).map(|j| f64::from(u8::from(i == j))).collect();
+        for i in (0..n).filter(|&i| !in_disc[i]) {
+            if lower[i] < x[i] && x[i] < upper[i] {
+                rows.push(unit(i));
+            }
+        }
+        let disc_free = |d: &Disc| length(offset(d)) < d.radius * (1.0 - 1e-9);
+        for d in discs {
+            let y = offset(d);
+            let dist = length(y);
+            if disc_free(d) {
+                rows.push(unit(d.entries[0]));
+                rows.push(unit(d.entries[1]));
+            } else if d.radius > 0.0 {
+                let mut t = vec![0.0; n];
+                t[d.entries[0]] = -y[1] / dist;
+                t[d.entries[1]] = y[0] / dist;
+                rows.push(t);
+            }
+        }
+        let wg: Vec<Vec<f64>> = rows
+            .iter()
+            .map(|w| {
+                (0..m)
+                    .map(|k| (0..n).map(|j| w[j] * geq.at(k, j)).sum())
+                    .collect()
+            })
+            .collect();
+        let wr: Vec<f64> = rows.iter().map(|w| dot(w, &r)).collect();
+        let mut normal = vec![0.0; m * m];
+        let mut rhs = vec![0.0; m];
+        for (row, &wri) in wg.iter().zip(&wr) {
+            for k in 0..m {
+                for l in 0..m {
+                    normal[k * m + l] += row[k] * row[l];
+                }
+                rhs[k] -= row[k] * wri;
+            }
+        }
+        let mu = solve_dense(m, &normal, &rhs).expect("the free directions see all of G");
+        let g: Vec<f64> = (0..n)
+            .map(|i| r[i] + (0..m).map(|k| geq.at(k, i) * mu[k]).sum::<f64>())
+            .collect();
+        let mut gp2 = 0.0;
+        for i in (0..n).filter(|&i| !in_disc[i]) {
+            let (l, u) = (lower[i], upper[i]);
+            gp2 += if l < x[i] && x[i] < u {
+                g[i] * g[i]
+            } else if l == u {
+                0.0
+            } else if x[i] <= l {
+                g[i].min(0.0).powi(2)
+            } else {
+                g[i].max(0.0).powi(2)
+            };
+        }
+        for d in discs {
+            let y = offset(d);
+            let dist = length(y);
+            let gd = [g[d.entries[0]], g[d.entries[1]]];
+            gp2 += if disc_free(d) {
+                gd[0] * gd[0] + gd[1] * gd[1]
+            } else if d.radius > 0.0 {
+                let nrm = [y[0] / dist, y[1] / dist];
+                let gn = (gd[0] * nrm[0] + gd[1] * nrm[1]).min(0.0);
+                (gd[0] - gn * nrm[0]).powi(2) + (gd[1] - gn * nrm[1]).powi(2)
+            } else {
+                0.0
+            };
+        }
+        let mut gx = vec![0.0; m];
+        geq.apply(x, &mut gx);
+        (gp2.sqrt(), norm2(&gx))
+    }
+
+    /// [`solve`] over boxes and discs.
+    #[allow(clippy::too_many_arguments)]
+    fn solve_blocks(
+        a: &dyn Operator,
+        b: &[f64],
+        lower: &[f64],
+        upper: &[f64],
+        discs: &[Disc],
+        geq: &dyn Equality,
+        precond: Option<&dyn Operator>,
+        x: &mut [f64],
+        settings: &SmalbeSettings,
+        start: Option<&SmalbeWarm>,
+    ) -> (QpInfo, SmalbeWarm) {
+        let problem = Problem {
+            upper: Some(upper),
+            discs,
+            precond,
+            ..Problem::new(a, b, lower, geq)
+        };
+        solve(&problem, x, settings, start, &mut |_| {})
+    }
+
+    /// Boxes with `0` inside (so that `G x = 0` is feasible): two-sided,
+    /// upper only, lower only, pinned at 0, unbounded, by turns.
+    fn boxes(n: usize, rng: &mut Lcg) -> (Vec<f64>, Vec<f64>) {
+        let inf = f64::INFINITY;
+        (0..n)
+            .map(|i| match i % 5 {
+                0 => (-0.2 * rng.uniform(), 0.05 + 0.2 * rng.uniform()),
+                1 => (-inf, 0.05 + 0.2 * rng.uniform()),
+                2 => (-inf, inf),
+                3 => (0.0, 0.0),
+                _ => (-0.2 * rng.uniform(), inf),
+            })
+            .unzip()
+    }
+
+    #[test]
+    fn boxes_match_enumeration_and_kkt() {
+        // SPD and singular P S P Hessians, with and without a preconditioner.
+        let mut rng = Lcg::new(53);
+        let (mut at_upper, mut at_lower) = (0, 0);
+        for trial in 0..32 {
+            // Few free entries against many rows leave SMALBE pushing the
+            // multipliers past large bound multipliers for long: keep
+            // `ker G` large.
+            let n = 5 + trial % 5;
+            let m = if n >= 7 { 2 } else { 1 };
+            let geq = DenseEq::random(m, n, &mut rng);
+            let s = random_spd(n, 0.2, &mut rng);
+            let a = if trial % 2 == 0 {
+                s
+            } else {
+                projected(&s, &geq)
+            };
+            let precond = random_spd(n, 0.5, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| 2.0 * rng.symmetric()).collect();
+            let (lower, upper) = boxes(n, &mut rng);
+            let exact = enumerate_box(&a, &b, &lower, &upper, &geq);
+            let bounded = |i: usize| lower[i] < upper[i];
+            at_upper += (0..n)
+                .filter(|&i| bounded(i) && exact[i] == upper[i])
+                .count();
+            at_lower += (0..n)
+                .filter(|&i| bounded(i) && exact[i] == lower[i])
+                .count();
+            let with = (trial / 2) % 2 == 1;
+            let mut x: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let (info, _) = solve_blocks(
+                &a,
+                &b,
+                &lower,
+                &upper,
+                &[],
+                &geq,
+                with.then_some(&precond as &dyn Operator),
+                &mut x,
+                &tight(),
+                None,
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            assert_eq!(info.hessian_applications, a.count.get(), "trial {trial}");
+            assert_eq!(with, precond.count.get() > 0, "trial {trial}");
+            let (res, feas) = kkt_blocks(&a, &b, &lower, &upper, &[], &geq, &x);
+            let bn = norm2(&b);
+            assert!(
+                res <= 1e-8 * bn && feas <= 1e-8 * bn,
+                "trial {trial}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = exact.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-7 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+        assert!(
+            at_upper >= 15 && at_lower >= 15,
+            "too few active bounds to test: {at_upper} upper, {at_lower} lower"
+        );
+    }
+
+    /// A problem over boxes and discs whose solution is known by
+    /// construction: `x*` in `ker G` is put on the circle of the active
+    /// discs, at the bounds of the active entries, strictly inside the free
+    /// ones and at the center of the pinned ones; then
+    /// `b = A x* + G^T mu + q` with `q = nu n` on an active disc (outward
+    /// normal `n`, `nu > 0`), `-lambda` / `+lambda` at an active lower /
+    /// upper bound (`lambda > 0`) and anything on pinned blocks makes `x*`
+    /// a KKT point, the unique minimizer as `A` is definite on `ker G`.
+    struct Constructed {
+        a: Dense,
+        geq: DenseEq,
+        b: Vec<f64>,
+        lower: Vec<f64>,
+        upper: Vec<f64>,
+        discs: Vec<Disc>,
+        solution: Vec<f64>,
+    }
+
+    impl Constructed {
+        /// `discs` discs on entries `(k, n - 1 - k)` (active, free, pinned
+        /// by turns from `kind`), `scalars` entries between them (at the
+        /// lower bound, free in a box, at the upper bound, free, pinned,
+        /// free, at an upper bound without lower bound, free in a box).
+        fn new(
+            discs: usize,
+            scalars: usize,
+            m: usize,
+            singular: bool,
+            kind: usize,
+            rng: &mut Lcg,
+        ) -> Self {
+            let inf = f64::INFINITY;
+            let n = 2 * discs + scalars;
+            let geq = DenseEq::random(m, n, rng);
+            let s = random_spd(n, 0.1, rng);
+            let a = if singular { projected(&s, &geq) } else { s };
+            let v: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let mut gv = vec![0.0; m];
+            geq.apply(&v, &mut gv);
+            let mut gtgv = vec![0.0; n];
+            geq.apply_t(&gv, &mut gtgv);
+            let solution: Vec<f64> = v.iter().zip(&gtgv).map(|(v, q)| v - q).collect();
+            let mut q = vec![0.0; n];
+            let mut lower = vec![f64::NEG_INFINITY; n];
+            let mut upper = vec![inf; n];
+            let mut list = Vec::new();
+            for k in 0..discs {
+                let entries = [k, n - 1 - k];
+                let xs = [solution[entries[0]], solution[entries[1]]];
+                let angle = 7.0 * rng.uniform();
+                let dir = [angle.cos(), angle.sin()];
+                let (center, radius) = match (k + kind) % 3 {
+                    0 => {
+                        let r = 0.2 + rng.uniform();
+                        let nu = 0.5 + rng.uniform();
+                        q[entries[0]] = nu * dir[0];
+                        q[entries[1]] = nu * dir[1];
+                        ([xs[0] - r * dir[0], xs[1] - r * dir[1]], r)
+                    }
+                    1 => {
+                        let r = 0.5 + rng.uniform();
+                        ([xs[0] + 0.4 * r * dir[0], xs[1] + 0.4 * r * dir[1]], r)
+                    }
+                    _ => {
+                        q[entries[0]] = rng.symmetric();
+                        q[entries[1]] = rng.symmetric();
+                        (xs, 0.0)
+                    }
+                };
+                list.push(Disc {
+                    entries,
+                    center,
+                    radius,
+                });
+            }
+            for (j, i) in (discs..discs + scalars).enumerate() {
+                let xi = solution[i];
+                let lambda = 0.5 + rng.uniform();
+                match (j + kind) % 8 {
+                    0 => {
+                        (lower[i], upper[i]) = (xi, xi + 0.3 + rng.uniform());
+                        q[i] = -lambda;
+                    }
+                    1 | 7 => (lower[i], upper[i]) = (xi - 0.3 - rng.uniform(), xi + 0.3),
+                    2 => {
+                        (lower[i], upper[i]) = (xi - 0.5, xi);
+                        q[i] = lambda;
+                    }
+                    4 => {
+                        (lower[i], upper[i]) = (xi, xi);
+                        q[i] = rng.symmetric();
+                    }
+                    6 => {
+                        upper[i] = xi;
+                        q[i] = lambda;
+                    }
+                    _ => {}
+                }
+            }
+            let mu: Vec<f64> = (0..m).map(|_| rng.symmetric()).collect();
+            let mut gtmu = vec![0.0; n];
+            geq.apply_t(&mu, &mut gtmu);
+            let ax = a.mul(&solution);
+            let b = (0..n).map(|i| ax[i] + gtmu[i] + q[i]).collect();
+            a.count.set(0);
+            Constructed {
+                a,
+                geq,
+                b,
+                lower,
+                upper,
+                discs: list,
+                solution,
+            }
+        }
+
+        fn solve(
+            &self,
+            precond: Option<&dyn Operator>,
+            x: &mut [f64],
+            settings: &SmalbeSettings,
+            start: Option<&SmalbeWarm>,
+        ) -> (QpInfo, SmalbeWarm) {
+            solve_blocks(
+                &self.a,
+                &self.b,
+                &self.lower,
+                &self.upper,
+                &self.discs,
+                &self.geq,
+                precond,
+                x,
+                settings,
+                start,
+            )
+        }
+
+        /// Asserts that `x` is the constructed solution and meets the KKT
+        /// conditions.
+        fn check(&self, x: &[f64], what: &str) {
+            let (res, feas) = kkt_blocks(
+                &self.a,
+                &self.b,
+                &self.lower,
+                &self.upper,
+                &self.discs,
+                &self.geq,
+                x,
+            );
+            let bn = norm2(&self.b);
+            assert!(
+                res <= 1e-8 * bn && feas <= 1e-8 * bn,
+                "{what}: KKT {res:e}, G x {feas:e}"
+            );
+            let scale = self.solution.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(x, &self.solution) <= 1e-7 * scale,
+                "{what}: {x:?} vs {:?}",
+                self.solution
+            );
+        }
+    }
+
+    #[test]
+    fn discs_and_boxes_reach_the_constructed_solution() {
+        let mut rng = Lcg::new(59);
+        for trial in 0..36 {
+            let p = Constructed::new(
+                2 + trial % 3,
+                8 + trial % 5,
+                1 + trial % 2,
+                trial % 2 == 1,
+                trial,
+                &mut rng,
+            );
+            let n = p.a.n;
+            let precond = random_spd(n, 0.5, &mut rng);
+            let with = (trial / 2) % 2 == 1;
+            let mut x: Vec<f64> = (0..n).map(|_| 2.0 * rng.symmetric()).collect();
+            let (info, end) = p.solve(
+                with.then_some(&precond as &dyn Operator),
+                &mut x,
+                &tight(),
+                None,
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            assert_eq!(info.hessian_applications, p.a.count.get(), "trial {trial}");
+            assert!(info.projected_gradient <= 1e-10 * norm2(&p.b));
+            p.check(&x, &format!("trial {trial}"));
+            // Pinned blocks sit exactly where they are pinned.
+            for d in p.discs.iter().filter(|d| d.radius == 0.0) {
+                assert_eq!([x[d.entries[0]], x[d.entries[1]]], d.center);
+            }
+            for i in (0..n).filter(|&i| p.lower[i] == p.upper[i]) {
+                assert_eq!(x[i], p.lower[i]);
+            }
+            // Restarting at the solution from its end state converges at once.
+            let (again, _) = p.solve(
+                with.then_some(&precond as &dyn Operator),
+                &mut x,
+                &tight(),
+                Some(&end),
+            );
+            assert_eq!(again.status, Status::Converged, "trial {trial}: {again:?}");
+            assert!(again.hessian_applications <= 2, "trial {trial}: {again:?}");
+        }
+    }
+
+    #[test]
+    fn mpgp_is_cut_at_the_far_side_of_a_box_in_proportioning() {
+        // One entry at its lower bound 0 of a narrow box [0, 0.1], pulled
+        // hard upward: the exact proportioning step would cross the upper
+        // bound by far. The step is cut there and the solution is the upper
+        // bound; the equality couples nothing (G acts on the free entry).
+        let a = Dense::new(2, vec![1.0, 0.0, 0.0, 1.0]);
+        let geq = DenseEq {
+            m: 1,
+            n: 2,
+            g: vec![0.0, 1.0],
+        };
+        let mut x = [0.0, 0.0];
+        let (info, _) = solve_blocks(
+            &a,
+            &[10.0, 0.0],
+            &[0.0, f64::NEG_INFINITY],
+            &[0.1, f64::INFINITY],
+            &[],
+            &geq,
+            None,
+            &mut x,
+            &tight(),
+            None,
+        );
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        assert_eq!(x, [0.1, 0.0]);
+    }
+
+    #[test]
+    fn pinned_entries_and_point_discs_stay_put() {
+        // Everything pinned but one free entry coupled by A: the free entry
+        // solves its own equation with the others fixed.
+        let a = Dense::new(
+            5,
+            vec![
+                2.0, 0.5, 0.0, 0.0, 0.3, //
+                0.5, 2.0, 0.0, 0.0, 0.0, //
+                0.0, 0.0, 2.0, 0.4, 0.0, //
+                0.0, 0.0, 0.4, 2.0, 0.0, //
+                0.3, 0.0, 0.0, 0.0, 1.0,
+            ],
+        );
+        let geq = DenseEq {
+            m: 1,
+            n: 5,
+            g: vec![0.0, 0.0, 0.0, 0.0, 1.0],
+        };
+        let inf = f64::INFINITY;
+        let lower = [
+            0.7,
+            0.0,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        let upper = [0.7, 0.0, inf, inf, inf];
+        let discs = [Disc {
+            entries: [3, 2],
+            center: [-0.25, 0.5],
+            radius: 0.0,
+        }];
+        let b = [1.0, -3.0, 2.0, 5.0, 4.0];
+        let mut x = [9.0; 5];
+        let (info, _) = solve_blocks(
+            &a,
+            &b,
+            &lower,
+            &upper,
+            &discs,
+            &geq,
+            None,
+            &mut x,
+            &tight(),
+            None,
+        );
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        // G x = 0 pins x_4 = 0 as well.
+        assert_eq!(&x[..4], &[0.7, 0.0, 0.5, -0.25]);
+        assert!(x[4].abs() < 1e-9, "{x:?}");
+    }
+
+    #[test]
+    fn a_warm_start_with_discs_reaches_the_same_point() {
+        // Nearby friction problems (b drifting): cold and warm solves meet
+        // at the same KKT point, the warm ones for less.
+        let mut rng = Lcg::new(61);
+        let p = Constructed::new(6, 14, 3, true, 0, &mut rng);
+        let n = p.a.n;
+        let settings = SmalbeSettings {
+            tolerance: 1e-9,
+            ..SmalbeSettings::default()
+        };
+        let mut x_warm = vec![0.0; n];
+        let (first, mut end) = p.solve(None, &mut x_warm, &settings, None);
+        assert_eq!(first.status, Status::Converged, "{first:?}");
+        let mut b = p.b.clone();
+        let (mut cold_total, mut warm_total) = (0, 0);
+        for step in 0..4 {
+            b.iter_mut().for_each(|bi| *bi += 0.02 * rng.symmetric());
+            let run = |x: &mut [f64], start: Option<&SmalbeWarm>| {
+                solve_blocks(
+                    &p.a, &b, &p.lower, &p.upper, &p.discs, &p.geq, None, x, &settings, start,
+                )
+            };
+            let mut x_cold = vec![0.0; n];
+            let (cold, _) = run(&mut x_cold, None);
+            let start = SmalbeWarm {
+                m_factor: None,
+                gradient: None,
+                ..end.clone()
+            };
+            let (warm, next) = run(&mut x_warm, Some(&start));
+            end = next;
+            assert_eq!(cold.status, Status::Converged, "step {step}: {cold:?}");
+            assert_eq!(warm.status, Status::Converged, "step {step}: {warm:?}");
+            for x in [&x_cold, &x_warm] {
+                let (res, feas) = kkt_blocks(&p.a, &b, &p.lower, &p.upper, &p.discs, &p.geq, x);
+                assert!(
+                    res <= 1e-7 * norm2(&b) && feas <= 1e-8 * norm2(&b),
+                    "step {step}: KKT {res:e}, G x {feas:e}"
+                );
+            }
+            let scale = x_cold.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x_cold, &x_warm) <= 1e-6 * scale,
+                "step {step}: {x_cold:?} vs {x_warm:?}"
+            );
+            cold_total += cold.hessian_applications;
+            warm_total += warm.hessian_applications;
+        }
+        assert!(
+            warm_total < cold_total,
+            "warm {warm_total} vs cold {cold_total} Hessian applications"
+        );
+    }
+
+    #[test]
+    fn zero_load_over_discs() {
+        let a = Dense::new(
+            4,
+            vec![
+                2.0, 0.1, 0.0, 0.0, //
+                0.1, 1.0, 0.0, 0.2, //
+                0.0, 0.0, 1.5, 0.0, //
+                0.0, 0.2, 0.0, 1.0,
+            ],
+        );
+        let geq = DenseEq {
+            m: 1,
+            n: 4,
+            g: vec![0.0, 0.0, 1.0, 0.0],
+        };
+        let lower = [
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            -1.0,
+        ];
+        let upper = [f64::INFINITY, f64::INFINITY, f64::INFINITY, 2.0];
+        let zero = [0.0; 4];
+        // 0 is feasible: returned at once.
+        let inside = [Disc {
+            entries: [0, 1],
+            center: [0.3, -0.4],
+            radius: 0.5,
+        }];
+        let mut x = [1.0, 2.0, 3.0, 4.0];
+        let (info, _) = solve_blocks(
+            &a,
+            &zero,
+            &lower,
+            &upper,
+            &inside,
+            &geq,
+            None,
+            &mut x,
+            &tight(),
+            None,
+        );
+        assert_eq!(info.status, Status::Converged);
+        assert_eq!(x, [0.0; 4]);
+        assert_eq!(info.hessian_applications, 0);
+        // The disc misses 0: solved on the scale ||A|| ||P(0)||, and the
+        // solution is on the circle.
+        let outside = [Disc {
+            entries: [0, 1],
+            center: [0.6, -0.8],
+            radius: 0.5,
+        }];
+        let mut x = [0.0; 4];
+        let (info, _) = solve_blocks(
+            &a,
+            &zero,
+            &lower,
+            &upper,
+            &outside,
+            &geq,
+            None,
+            &mut x,
+            &tight(),
+            None,
+        );
+        assert_eq!(info.status, Status::Converged, "{info:?}");
+        let dist = ((x[0] - 0.6).powi(2) + (x[1] + 0.8).powi(2)).sqrt();
+        assert!((dist - 0.5).abs() < 1e-12, "{x:?}");
+        let (res, feas) = kkt_blocks(&a, &zero, &lower, &upper, &outside, &geq, &x);
+        // ||P(0)|| = 0.5 and ||A|| is about 2.
+        assert!(res <= 1e-9 && feas <= 1e-9, "KKT {res:e}, G x {feas:e}");
+    }
+
+    #[test]
+    fn bad_bounds_and_discs_are_breakdowns() {
+        let a = Dense::new(3, vec![1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        let geq = DenseEq {
+            m: 1,
+            n: 3,
+            g: vec![1.0, 0.0, 0.0],
+        };
+        let lower = [0.0, f64::NEG_INFINITY, f64::NEG_INFINITY];
+        let inf = f64::INFINITY;
+        let b = [1.0, 1.0, 1.0];
+        let disc = |entries, radius| Disc {
+            entries,
+            center: [0.0, 0.0],
+            radius,
+        };
+        type Case = (Option<Vec<f64>>, Vec<Disc>, &'static str);
+        let cases: [Case; 6] = [
+            (
+                Some(vec![inf, inf]),
+                vec![],
+                "dimension mismatch: operator 3, upper 2",
+            ),
+            (
+                Some(vec![-0.5, inf, inf]),
+                vec![],
+                "upper bound 0 is -0.5 with lower bound 0: no value fits",
+            ),
+            (
+                None,
+                vec![disc([1, 3], 1.0)],
+                "disc 0 is on entries 1 and 3, not two different entries of 3",
+            ),
+            (
+                None,
+                vec![disc([1, 2], 1.0), disc([2, 1], 1.0)],
+                "entry 2 is in disc 0 and disc 1",
+            ),
+            (
+                None,
+                vec![disc([0, 1], 1.0)],
+                "entry 0 of disc 0 has bounds 0 and inf: a disc's entries take none",
+            ),
+            (
+                None,
+                vec![disc([1, 2], -1.0)],
+                "disc 0 has center (0, 0) and radius -1: the radius must be at least 0 \
+                 and the center finite",
+            ),
+        ];
+        for (upper, discs, says) in cases {
+            let problem = Problem {
+                upper: upper.as_deref(),
+                discs: &discs,
+                ..Problem::new(&a, &b, &lower, &geq)
+            };
+            let mut x = [0.0; 3];
+            let (info, _) = solve(&problem, &mut x, &tight(), None, &mut |_| {});
+            match info.status {
+                Status::Breakdown(why) => assert_eq!(why.to_string(), says),
+                other => panic!("{says}: {other:?}"),
+            }
+            assert_eq!(a.count.get(), 0);
+        }
+    }
+
+    #[test]
+    fn lower_bounds_through_the_general_set_agree() {
+        // Infinite upper bounds take the general path and give the same bits
+        // (every blockwise operation reduces to the lower-bound loop); a disc
+        // too large to touch, on two unbounded entries, changes only the
+        // order of sums: the same point to round-off.
+        let mut rng = Lcg::new(67);
+        for trial in 0..12 {
+            let n = 6 + trial % 5;
+            let m = 1 + trial % 2;
+            let geq = DenseEq::random(m, n, &mut rng);
+            let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
+            let precond = random_spd(n, 0.5, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = bounds(n, &mut rng);
+            let pre = (trial % 2 == 1).then_some(&precond as &dyn Operator);
+            let settings = tight();
+            let mut x = vec![0.0; n];
+            let (info, end) = solve(
+                &Problem {
+                    precond: pre,
+                    ..Problem::new(&a, &b, &lower, &geq)
+                },
+                &mut x,
+                &settings,
+                None,
+                &mut |_| {},
+            );
+            assert_eq!(info.status, Status::Converged, "trial {trial}: {info:?}");
+            let upper = vec![f64::INFINITY; n];
+            let mut y = vec![0.0; n];
+            let (same, same_end) = solve_blocks(
+                &a,
+                &b,
+                &lower,
+                &upper,
+                &[],
+                &geq,
+                pre,
+                &mut y,
+                &settings,
+                None,
+            );
+            assert_eq!((&info, &end), (&same, &same_end), "trial {trial}");
+            assert_eq!(x, y, "trial {trial}");
+            // Entries 2 and 5 have no bound (bounds(): every third).
+            let far = [Disc {
+                entries: [5, 2],
+                center: [0.5, -0.5],
+                radius: 1e3,
+            }];
+            let mut z = vec![0.0; n];
+            let (near, _) = solve_blocks(
+                &a, &b, &lower, &upper, &far, &geq, pre, &mut z, &settings, None,
+            );
+            assert_eq!(near.status, Status::Converged, "trial {trial}: {near:?}");
+            let scale = x.iter().fold(1.0f64, |s, v| s.max(v.abs()));
+            assert!(
+                max_diff(&x, &z) <= 1e-8 * scale,
+                "trial {trial}: {x:?} vs {z:?}"
+            );
+        }
+    }
+
+    /// The cost of friction on a contact-like problem: `k` nodes with a
+    /// normal multiplier `>= 0` and two tangential ones in a disc of radius
+    /// `0.3` (Tresca), against the same problem with free tangential
+    /// multipliers. Prints both counts (`--nocapture`).
+    #[test]
+    fn friction_costs_a_few_times_frictionless() {
+        let mut rng = Lcg::new(71);
+        let k = 20;
+        let n = 3 * k;
+        let geq = DenseEq::random(6, n, &mut rng);
+        let a = projected(&random_spd(n, 0.02, &mut rng), &geq);
+        let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+        let lower: Vec<f64> = (0..n)
+            .map(|i| if i % 3 == 0 { 0.0 } else { f64::NEG_INFINITY })
+            .collect();
+        let upper = vec![f64::INFINITY; n];
+        let discs: Vec<Disc> = (0..k)
+            .map(|j| Disc {
+                entries: [3 * j + 1, 3 * j + 2],
+                center: [0.0, 0.0],
+                radius: 0.3,
+            })
+            .collect();
+        let settings = SmalbeSettings::default();
+        let mut x = vec![0.0; n];
+        let frictionless = solve(
+            &Problem::new(&a, &b, &lower, &geq),
+            &mut x,
+            &settings,
+            None,
+            &mut |_| {},
+        )
+        .0;
+        let mut y = vec![0.0; n];
+        let friction = solve_blocks(
+            &a, &b, &lower, &upper, &discs, &geq, None, &mut y, &settings, None,
+        )
+        .0;
+        assert_eq!(frictionless.status, Status::Converged, "{frictionless:?}");
+        assert_eq!(friction.status, Status::Converged, "{friction:?}");
+        let on_circle = discs
+            .iter()
+            .filter(|d| (y[d.entries[0]].powi(2) + y[d.entries[1]].powi(2)).sqrt() > 0.3 - 1e-9)
+            .count();
+        println!(
+            "Hessian applications: frictionless {} ({} outer), friction {} ({} outer, {on_circle} of {k} discs on the circle)",
+            frictionless.hessian_applications,
+            frictionless.outer_iterations,
+            friction.hessian_applications,
+            friction.outer_iterations,
+        );
+        assert!(
+            on_circle > 0 && on_circle < k,
+            "{on_circle} discs on the circle"
+        );
+        let (res, feas) = kkt_blocks(&a, &b, &lower, &upper, &discs, &geq, &y);
+        assert!(
+            res <= 2e-6 * norm2(&b) && feas <= 1e-6 * norm2(&b),
+            "KKT {res:e}, G x {feas:e}"
+        );
     }
 }
