@@ -11,13 +11,15 @@ use crate::tfeti::cluster::Cluster;
 use crate::tfeti::comm::{agree, partition, serial, Comm, Op};
 use crate::tfeti::dual::Dual;
 pub use crate::tfeti::error::{CoarseError, SolveError};
-use crate::tfeti::kkt::kkt;
 pub use crate::tfeti::kkt::Kkt;
+use crate::tfeti::kkt::{friction_kkt, kkt};
 use crate::tfeti::rows::LocalRows;
-use crate::tfeti::solve::{DualSolution, DualStart};
+use crate::tfeti::solve::{DualSolution, DualStart, SlipBounds};
 use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, SymbolicCache};
 pub use active_set::KeptDual;
 use active_set::Outcome;
+pub use friction::FrictionSolve;
+use friction::{has_friction, solve_with_friction};
 use rayon::prelude::*;
 use search::solve_searching;
 pub use search::{Search, MAX_ROUNDS as MAX_SEARCH_ROUNDS};
@@ -26,6 +28,7 @@ use std::time::Instant;
 
 mod active_set;
 mod finite;
+pub mod friction;
 mod search;
 
 /// Wall time of each phase, seconds.
@@ -77,6 +80,8 @@ pub struct State {
     /// What the contact search loop did: solves repeated with a wider search,
     /// and the distances it set (the ones used are `problem.searches`).
     pub search: Search,
+    /// With friction: the solves it took and the slip bounds of the last.
+    pub friction: Option<FrictionSolve>,
 }
 
 /// What a state solve takes from the state of the same scene at a nearby
@@ -1026,8 +1031,10 @@ fn solve_on(
     let settings = smalbe_settings(scene);
     let start = warm_start(previous, warm, problem);
     let warm_started = start.is_some();
+    let mut friction = None;
     // On the previous active set first, where asked (TFETI, one process).
-    let mut attempt = match (warm.on_active_set, &start, &ops.system) {
+    let frictionless = !has_friction(problem);
+    let mut attempt = match (warm.on_active_set && frictionless, &start, &ops.system) {
         (true, Some(s), DualSystem::Total(full)) => Attempt::of(
             active_set::solve(scene, problem, full, &s.lambda, &f, &c, &settings),
             previous,
@@ -1046,12 +1053,36 @@ fn solve_on(
                 .check_coarse()
                 .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             times.coarse += t.elapsed().as_secs_f64();
-            ops.solve(&f, &c, &settings, start.as_ref(), observer)?
+            if frictionless {
+                ops.solve(&f, &c, &settings, start.as_ref(), observer)?
+            } else {
+                let (sol, done) = solve_with_friction(
+                    scene,
+                    problem,
+                    settings.tolerance,
+                    start.as_ref(),
+                    &mut |bounds, start| {
+                        ops.solve_bounded(&f, &c, bounds, &settings, start, observer)
+                    },
+                )?;
+                friction = Some(done);
+                sol
+            }
         }
     };
     times.solve = t.elapsed().as_secs_f64();
     same_on_every_rank(&**ops.system.dual().cluster().comm(), &sol)?;
-    let state = ops.into_state(sol, attempt, warm_started, times, t0);
+    let mut state = ops.into_state(sol, attempt, warm_started, times, t0);
+    if let Some(done) = friction {
+        state.kkt.friction = Some(friction_kkt(
+            &state.problem,
+            &state.dual,
+            &state.u,
+            &state.lambda,
+            &done.bounds,
+        ));
+        state.friction = Some(done);
+    }
     finite::check(scene, &state)?;
     Ok(state)
 }
@@ -1226,11 +1257,25 @@ impl Operators {
         start: Option<&DualStart>,
         observer: &mut dyn FnMut(&QpInfo),
     ) -> Result<DualSolution, SolveError> {
+        let none = SlipBounds::default();
+        self.solve_bounded(f, c, &none, settings, start, observer)
+    }
+
+    /// [`Self::solve`] with the tangential rows of `slip` bounded (friction).
+    fn solve_bounded(
+        &self,
+        f: &[&[f64]],
+        c: &[f64],
+        slip: &SlipBounds,
+        settings: &SmalbeSettings,
+        start: Option<&DualStart>,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<DualSolution, SolveError> {
         self.system
             .solve(
                 f,
                 c,
-                self.problem.n_equality,
+                (self.problem.n_equality, slip),
                 crate::tfeti::classical::Held::Prescribed,
                 settings,
                 start,
@@ -1307,6 +1352,7 @@ impl Operators {
             kept_dual,
             end,
             search: Search::default(),
+            friction: None,
         }
     }
 }

@@ -187,6 +187,7 @@ pub fn primal_qp(setup: &Setup) -> Qp {
                 crate::model::RowKind::Symmetry => "symmetry",
                 crate::model::RowKind::Tie { .. } => "tie",
                 crate::model::RowKind::Contact { .. } => "contact",
+                crate::model::RowKind::Friction { .. } => "friction",
             },
             scale: row.scale,
         })

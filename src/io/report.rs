@@ -32,12 +32,13 @@ use crate::fem::quad::{plane_strain, plane_strain_deviatoric};
 use crate::fem::Formulation;
 use crate::io::vtu::{vtu_string, CellType, Encoding, Field, VtuMesh};
 use crate::lang::diag::num;
-use crate::lang::scene::Scene;
+use crate::lang::scene::{Friction, Scene};
 use crate::model::SubdomainMesh;
 use crate::model::{RowCounts, RowKind};
 use crate::num::norm;
 use crate::qp::Status;
 use crate::state::{Kkt, State, Times};
+use crate::tfeti::solve::SlipBounds;
 use serde::Serialize;
 use std::fmt::Write as _;
 
@@ -76,6 +77,10 @@ pub struct SolverReport {
     pub history: Vec<f64>,
     /// Solves repeated with a wider contact search (0: the first settled).
     pub search_rounds: usize,
+    /// With friction: the dual solves (Coulomb's fixed point: one per update
+    /// of the slip bounds) and the bounds' relative change after each.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<crate::state::FrictionSolve>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -88,6 +93,36 @@ pub struct ContactNode {
     pub gap: f64,
     pub multiplier: f64,
     pub pressure: f64,
+    /// With friction: `stick`, `slip` or `open` (no normal force).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub state: Option<&'static str>,
+    /// With friction: the tangential traction on the secondary body (Pa;
+    /// x, y and in 3D z): the node's tangential force over its area.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub shear: Option<Vec<f64>>,
+    /// With friction: the secondary node's tangential displacement relative
+    /// to the primary side (m; x, y and in 3D z), zero where it sticks.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip: Option<Vec<f64>>,
+}
+
+/// What friction did on one contact.
+#[derive(Debug, Clone, Serialize)]
+pub struct FrictionReport {
+    /// `coulomb` or `tresca`.
+    pub law: &'static str,
+    /// Coulomb's coefficient (absent for Tresca).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coefficient: Option<f64>,
+    /// The vector sum of the nodal tangential forces on the secondary body
+    /// (N; x, y and in 3D z), beside `resultant`, the normal forces'.
+    pub tangential_resultant: Vec<f64>,
+    /// Its magnitude (N).
+    pub tangential_force: f64,
+    /// Contact nodes that stick, slip, and carry no normal force.
+    pub stick: usize,
+    pub slip: usize,
+    pub open: usize,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -107,6 +142,9 @@ pub struct ContactReport {
     /// normals tilt and part of each node's force cancels in the resultant.
     pub normal_force_sum: f64,
     pub active: usize,
+    /// With friction: its law, tangential force and stick/slip counts.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<FrictionReport>,
     pub nodes: Vec<ContactNode>,
 }
 
@@ -200,6 +238,7 @@ impl Report {
             feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
             history: state.info.history.clone(),
             search_rounds: state.search.rounds,
+            friction: state.friction.clone(),
         };
         let bodies = p
             .bodies
@@ -292,8 +331,20 @@ impl Report {
         );
         let _ = writeln!(
             o,
-            "  primal/dual unknowns {}/{} (gluing {}, supports {}, symmetry {}, ties {}, contact {}), kernel {}, {} subdomains",
-            s.primal, s.dual, m.gluing, m.dirichlet, m.symmetry, m.ties, m.contact, s.kernel, s.subdomains
+            "  primal/dual unknowns {}/{} (gluing {}, supports {}, symmetry {}, ties {}, contact {}{}), kernel {}, {} subdomains",
+            s.primal,
+            s.dual,
+            m.gluing,
+            m.dirichlet,
+            m.symmetry,
+            m.ties,
+            m.contact,
+            match m.friction {
+                0 => String::new(),
+                n => format!(", friction {n}"),
+            },
+            s.kernel,
+            s.subdomains
         );
         if let Some(k) = &s.kernel_detection {
             let _ = writeln!(o, "  {}", k.line(!n.timings));
@@ -343,6 +394,15 @@ impl Report {
     /// The widened contact searches, if the solve had to widen them.
     fn write_search(&self, o: &mut String, n: &Numbers) {
         let v = &self.solver;
+        if let Some(f) = v.friction.as_ref().filter(|f| f.solves > 1) {
+            let changes: Vec<String> = f.changes.iter().map(|c| format!("{c:.0e}")).collect();
+            let _ = writeln!(
+                o,
+                "  Coulomb friction: {} solves (the first sticking), slip bounds changed by {}",
+                f.solves,
+                changes.join(", ")
+            );
+        }
         if v.search_rounds == 0 {
             return;
         }
@@ -371,6 +431,15 @@ impl Report {
             bucket(k.sign),
             bucket(k.complementarity)
         );
+        if let Some(f) = &k.friction {
+            let _ = writeln!(
+                o,
+                "  friction KKT residuals: bound {}, stick {}, slip direction {}",
+                bucket(f.bound),
+                bucket(f.stick),
+                bucket(f.slip_direction)
+            );
+        }
         let _ = write!(
             o,
             "  energy {} J, compliance {} J",
@@ -449,6 +518,7 @@ fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
                 resultant: resultant[..p.dim].to_vec(),
                 normal_force_sum: p.contact_normal_sum(&state.lambda, k),
                 active: 0,
+                friction: None,
                 nodes: Vec::new(),
             }
         })
@@ -477,13 +547,118 @@ fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
                 gap,
                 multiplier: force,
                 pressure: if area > 0.0 { force / area } else { 0.0 },
+                state: None,
+                shear: None,
+                slip: None,
             });
         }
+    }
+    if let Some(done) = &state.friction {
+        friction_reports(scene, state, &bu, &done.bounds, &mut contacts);
     }
     for c in &mut contacts {
         c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
     }
     contacts
+}
+
+/// The friction of each contact that has it: per node its state, tangential
+/// traction and slip (the nodes in row order, as `contact_reports` pushed
+/// them), and per contact the counts and the tangential resultant.
+fn friction_reports(
+    scene: &Scene,
+    state: &State,
+    bu: &[f64],
+    bounds: &SlipBounds,
+    contacts: &mut [ContactReport],
+) {
+    let p = &state.problem;
+    let d = p.dim;
+    let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    // The position of each contact row among its contact's nodes.
+    let mut slot = vec![usize::MAX; p.rows.len()];
+    let mut seen = vec![0usize; contacts.len()];
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact { contact, .. } = row.kind {
+            slot[i] = seen[contact];
+            seen[contact] += 1;
+        }
+    }
+    for (k, c) in scene.contacts.iter().enumerate() {
+        let Some(law) = &c.friction else { continue };
+        let (law, coefficient) = match law {
+            Friction::Coulomb(mu) => ("coulomb", Some(*mu)),
+            Friction::Tresca(_) => ("tresca", None),
+        };
+        contacts[k].friction = Some(FrictionReport {
+            law,
+            coefficient,
+            tangential_resultant: vec![0.0; d],
+            tangential_force: 0.0,
+            stick: 0,
+            slip: 0,
+            open: 0,
+        });
+    }
+    for g in &bounds.groups {
+        let rows = &g.rows[..g.len];
+        let RowKind::Friction {
+            contact,
+            normal_row,
+            ..
+        } = p.rows[rows[0]].kind
+        else {
+            continue;
+        };
+        let RowKind::Contact { area, .. } = p.rows[normal_row].kind else {
+            continue;
+        };
+        let (mut force, mut slip) = (vec![0.0; d], vec![0.0; d]);
+        for &i in rows {
+            let (row, l) = (&p.rows[i], state.lambda[i]);
+            if let RowKind::Friction { tangent, .. } = row.kind {
+                for a in 0..d {
+                    force[a] += l / row.scale * tangent[a];
+                    // B_t u = t . (u_primary - u_secondary), normalized.
+                    slip[a] -= bu[i] * row.scale * tangent[a];
+                }
+            }
+        }
+        let open = state.lambda[normal_row] <= 1e-8 * lmax;
+        let sticks = bounds.sticks(g, &state.lambda, lmax);
+        let name = if open {
+            "open"
+        } else if sticks {
+            "stick"
+        } else {
+            "slip"
+        };
+        let Some(report) = contacts[contact].friction.as_mut() else {
+            continue;
+        };
+        match name {
+            "open" => report.open += 1,
+            "stick" => report.stick += 1,
+            _ => report.slip += 1,
+        }
+        for a in 0..d {
+            report.tangential_resultant[a] += force[a];
+        }
+        let node = &mut contacts[contact].nodes[slot[normal_row]];
+        node.state = Some(name);
+        node.shear = Some(
+            force
+                .iter()
+                .map(|f| if area > 0.0 { f / area } else { 0.0 })
+                .collect(),
+        );
+        node.slip = Some(slip);
+    }
+    for c in contacts.iter_mut() {
+        if let Some(r) = c.friction.as_mut() {
+            r.tangential_force = crate::num::vector::norm(&r.tangential_resultant);
+        }
+    }
 }
 
 /// How [`Report::summary`] writes numbers. For snapshots (timings off): 4
@@ -540,8 +715,30 @@ fn contact_line(c: &ContactReport, num: &dyn Fn(f64) -> String) -> String {
             v.join(", ")
         )
     };
+    let friction = match &c.friction {
+        None => String::new(),
+        Some(f) => {
+            let law = match f.coefficient {
+                Some(mu) => format!("Coulomb {}", num(mu)),
+                None => "Tresca".to_string(),
+            };
+            let peak_shear = c
+                .nodes
+                .iter()
+                .filter_map(|n| n.shear.as_deref().map(crate::num::vector::norm))
+                .fold(0.0, f64::max);
+            format!(
+                "\n    friction ({law}): tangential force {} N, {} stick, {} slip, {} open, peak shear {} Pa",
+                num(f.tangential_force),
+                f.stick,
+                f.slip,
+                f.open,
+                num(peak_shear)
+            )
+        }
+    };
     format!(
-        "  contact {:<8} force {force} N{resultant}, {} of {} nodes active, peak pressure {} Pa",
+        "  contact {:<8} force {force} N{resultant}, {} of {} nodes active, peak pressure {} Pa{friction}",
         c.name,
         c.active,
         c.nodes.len(),

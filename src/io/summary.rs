@@ -142,6 +142,10 @@ pub struct PairSummary {
     pub primary: String,
     pub secondary: String,
     pub search: Option<f64>,
+    /// The friction law (`Coulomb 0.3`, `Tresca 2e7 Pa`); absent where
+    /// frictionless.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -334,6 +338,7 @@ fn glue_summaries(scene: &Scene) -> Vec<PairSummary> {
             primary: g.primary.text.clone(),
             secondary: g.secondary.text.clone(),
             search: None,
+            friction: None,
         })
         .collect()
 }
@@ -353,6 +358,13 @@ fn contact_summaries(scene: &Scene) -> Vec<PairSummary> {
             },
             secondary: c.secondary.text.clone(),
             search: c.search.map(round6),
+            friction: c.friction.as_ref().map(|f| match f {
+                Friction::Coulomb(mu) => format!("Coulomb {}", num(*mu)),
+                Friction::Tresca(g) => match g.as_const() {
+                    Some(v) => format!("Tresca {} Pa", num(v)),
+                    None => "Tresca, varying over the face".to_string(),
+                },
+            }),
         })
         .collect()
 }
@@ -622,9 +634,13 @@ impl Summary {
                 let search = p
                     .search
                     .map_or("automatic".to_string(), |s| format!("{} m", num(s)));
+                let friction = p
+                    .friction
+                    .as_ref()
+                    .map_or(String::new(), |f| format!(", friction {f}"));
                 let _ = writeln!(
                     o,
-                    "  {:<10} primary {}, secondary {}, search {search}",
+                    "  {:<10} primary {}, secondary {}, search {search}{friction}",
                     p.name, p.primary, p.secondary
                 );
             }
@@ -680,8 +696,18 @@ impl Summary {
             section(o, operators);
             let _ = writeln!(
                 o,
-                "  primal unknowns {}, multipliers {} (gluing {}, supports {}, symmetry {}, ties {}, contact {})",
-                t.primal, t.multipliers, k.gluing, k.dirichlet, k.symmetry, k.ties, k.contact
+                "  primal unknowns {}, multipliers {} (gluing {}, supports {}, symmetry {}, ties {}, contact {}{})",
+                t.primal,
+                t.multipliers,
+                k.gluing,
+                k.dirichlet,
+                k.symmetry,
+                k.ties,
+                k.contact,
+                match k.friction {
+                    0 => String::new(),
+                    n => format!(", friction {n}"),
+                }
             );
             let _ = writeln!(
                 o,

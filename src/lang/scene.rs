@@ -976,6 +976,19 @@ pub struct Contact {
     /// secondary body's diagonal. The state solve widens either where the
     /// displacements carry a node without a row into the primary side.
     pub search: Option<f64>,
+    /// Friction between the sides; `None`: frictionless.
+    pub friction: Option<Friction>,
+}
+
+/// The friction law of a contact: what bounds the tangential traction.
+#[derive(Debug, Clone)]
+pub enum Friction {
+    /// Coulomb: the tangential traction at most `mu` times the normal one
+    /// (`friction = 0.3`).
+    Coulomb(f64),
+    /// Tresca: a given bound on the tangential traction (Pa), a formula over
+    /// the secondary face's coordinates and the design (`slip_bound = 20 MPa`).
+    Tresca(Formula),
 }
 
 #[derive(Debug, Clone, PartialEq)]

@@ -10,7 +10,8 @@
 //! equations (force x, force y, moment / body size), solved exactly by the
 //! active-set method of Lawson and Hanson (1974).
 
-use super::{Problem, RowKind};
+use super::{Problem, RowKind, SlipLaw};
+use std::borrow::Cow;
 
 /// The wrench of a body's load that its rows cannot balance, if any: the body,
 /// the load's resultant and moment about the body's centre (one component in
@@ -70,10 +71,10 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
     }
     // Columns per body: equalities both ways, contacts one way.
     let mut columns: Vec<Vec<Vec<f64>>> = vec![Vec::new(); nb];
-    for (i, row) in problem.rows.iter().enumerate() {
+    for (entries, equality) in generators(problem) {
         let mut per = vec![vec![0.0f64; w]; nb];
         let mut touched = vec![false; nb];
-        for &(s, d, v) in &row.entries {
+        for &(s, d, v) in entries.iter() {
             let m = &problem.subdomains[s];
             let wr = wrench(m.body, m.point(d / dim), d, v);
             for a in 0..w {
@@ -81,7 +82,6 @@ pub fn unbalanced_wrench(problem: &Problem) -> Option<Unbalanced> {
             }
             touched[m.body] = true;
         }
-        let equality = i < problem.n_equality || !matches!(row.kind, RowKind::Contact { .. });
         for b in (0..nb).filter(|&b| touched[b]) {
             let col = &per[b];
             if col.iter().all(|x| x.abs() <= 1e-14) {
@@ -198,6 +198,66 @@ fn least_squares(columns: &[Vec<f64>], set: &[usize], b: &[f64]) -> Vec<f64> {
     }
 }
 
+/// The forces the rows can exert, each with whether it acts both ways (an
+/// equality) or pushes only: the rows themselves, except with Coulomb
+/// friction, where a node's normal and tangential rows together push within
+/// its friction cone `|l_t| <= mu l_n`: its edges `n +- mu t` in 2D, and in 3D
+/// 8 generators `n + mu' (cos a t1 + sin a t2)` with `mu' = mu / cos(pi/8)`,
+/// the polygon around the cone (never refusing a load the cone carries). A
+/// Tresca row acts both ways (its bound is not modelled here: a load above it
+/// is named by the solve). Rows are normalized and a node's normal and
+/// tangential rows share their scale, so the sums are forces.
+fn generators(problem: &Problem) -> Vec<Generator<'_>> {
+    let rows = &problem.rows;
+    let mut out = Vec::with_capacity(rows.len());
+    for (i, row) in rows.iter().enumerate() {
+        let RowKind::Friction {
+            normal_row,
+            axis,
+            law,
+            ..
+        } = row.kind
+        else {
+            let equality = i < problem.n_equality || !matches!(row.kind, RowKind::Contact { .. });
+            out.push((Cow::Borrowed(row.entries.as_slice()), equality));
+            continue;
+        };
+        let SlipLaw::Coulomb(mu) = law else {
+            out.push((Cow::Borrowed(row.entries.as_slice()), true));
+            continue;
+        };
+        if axis > 0 {
+            continue;
+        }
+        let normal = &rows[normal_row].entries;
+        let second = rows
+            .get(i + 1)
+            .filter(|r| matches!(r.kind, RowKind::Friction { axis: 1, .. }));
+        let tangential: Vec<(f64, f64)> = match second {
+            None => vec![(1.0, 0.0), (-1.0, 0.0)],
+            Some(_) => (0..8)
+                .map(|k| {
+                    let a = k as f64 * std::f64::consts::FRAC_PI_4;
+                    let scale = 1.0 / std::f64::consts::FRAC_PI_8.cos();
+                    (scale * a.cos(), scale * a.sin())
+                })
+                .collect(),
+        };
+        for (c1, c2) in tangential {
+            let mut e: Vec<(usize, usize, f64)> = normal.clone();
+            e.extend(row.entries.iter().map(|&(s, d, v)| (s, d, mu * c1 * v)));
+            if let Some(r) = second {
+                e.extend(r.entries.iter().map(|&(s, d, v)| (s, d, mu * c2 * v)));
+            }
+            out.push((Cow::Owned(e), false));
+        }
+    }
+    out
+}
+
+/// A force rows can exert (its entries) and whether it acts both ways.
+type Generator<'a> = (Cow<'a, [(usize, usize, f64)]>, bool);
+
 /// A body's resultant load that nothing can carry, and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UnbalancedForce {
@@ -227,14 +287,14 @@ pub fn unbalanced_force(problem: &Problem) -> Option<UnbalancedForce> {
     // Net translation direction of each row on each body it touches.
     let mut span: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
     let mut cone: Vec<Vec<[f64; 2]>> = vec![Vec::new(); nb];
-    for (i, row) in problem.rows.iter().enumerate() {
+    for (entries, equality) in generators(problem) {
         let mut per = vec![[0.0f64; 2]; nb];
-        for &(s, d, v) in &row.entries {
+        for &(s, d, v) in entries.iter() {
             per[problem.subdomains[s].body][d % 2] += v;
         }
         for (b, dir) in per.into_iter().enumerate() {
             if dir[0].hypot(dir[1]) > 1e-12 {
-                if i < problem.n_equality {
+                if equality {
                     span[b].push(dir);
                 } else {
                     cone[b].push(dir);

@@ -323,6 +323,51 @@ pub fn contact_entries<T: Scalar, const D: usize>(
     e
 }
 
+/// The tangential rows of a contact row with unit normal `n`: its entries
+/// with `n` replaced by each unit tangent `t` ([`tangents`]), with the tangent
+/// (a contact row holds each of its nodes' `D` components in turn, each `c n`).
+pub fn tangent_entries<const D: usize>(
+    normal_row: &[Entry<f64>],
+    n: &[f64; D],
+) -> Vec<([f64; D], Vec<Entry<f64>>)> {
+    tangents(n)
+        .into_iter()
+        .map(|t| {
+            let e = normal_row
+                .chunks_exact(D)
+                .flat_map(|chunk| {
+                    let c: f64 = chunk.iter().zip(n).map(|(e, na)| e.2 * na).sum();
+                    let (s, first) = (chunk[0].0, chunk[0].1);
+                    (0..D).map(move |a| (s, first + a, c * t[a]))
+                })
+                .collect();
+            (t, e)
+        })
+        .collect()
+}
+
+/// An orthonormal tangent basis of the plane normal to the unit vector `n`:
+/// in 2D `n` turned clockwise (`(1, 0)` for `n = (0, 1)`); in 3D `t1` along
+/// the axis least aligned with `n` (the first of equals), made normal to it,
+/// and `t2 = n x t1` (`(1, 0, 0)`, `(0, 1, 0)` for `n = (0, 0, 1)`).
+pub fn tangents<const D: usize>(n: &[f64; D]) -> Vec<[f64; D]> {
+    if D == 2 {
+        return vec![std::array::from_fn(|a| if a == 0 { n[1] } else { -n[0] })];
+    }
+    let axis = (0..D).fold(
+        0,
+        |best, a| if n[a].abs() < n[best].abs() { a } else { best },
+    );
+    let mut t1: [f64; D] = std::array::from_fn(|a| f64::from(u8::from(a == axis)) - n[axis] * n[a]);
+    let len = t1.iter().map(|v| v * v).sum::<f64>().sqrt();
+    t1.iter_mut().for_each(|v| *v /= len);
+    let t2: [f64; D] = std::array::from_fn(|a| {
+        let (b, c) = ((a + 1) % 3, (a + 2) % 3);
+        n[b] * t1[c] - n[c] * t1[b]
+    });
+    vec![t1, t2]
+}
+
 /// The un-normalized tie row `u_p - sum_k N_k u_k` of component `comp`.
 pub fn tie_entries<T: Scalar, const D: usize>(
     secondary: (usize, usize),

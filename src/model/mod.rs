@@ -17,7 +17,7 @@ mod search;
 
 pub use geometry::{FaceEdge, FacePatch};
 pub use mesh::{BodyMesh, Layout, MeshLayout, SubdomainMesh};
-pub use rows::{ContactPrimary, Named, Row, RowKind};
+pub use rows::{ContactPrimary, Named, Row, RowKind, SlipLaw};
 pub use search::{unheld, SearchFindings, Unheld};
 
 use crate::lang::diag::num;
@@ -131,6 +131,14 @@ pub struct RowCounts {
     pub symmetry: usize,
     pub ties: usize,
     pub contact: usize,
+    /// Tangential rows of contacts with friction (one per contact row in 2D,
+    /// two in 3D); left out of reports where zero.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub friction: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl RowCounts {
@@ -142,6 +150,7 @@ impl RowCounts {
             RowKind::Symmetry => self.symmetry += 1,
             RowKind::Tie { .. } => self.ties += 1,
             RowKind::Contact { .. } => self.contact += 1,
+            RowKind::Friction { .. } => self.friction += 1,
         }
     }
 }

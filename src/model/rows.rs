@@ -5,11 +5,11 @@
 
 use super::geometry::{
     contact_row, coords, normalize, obstacle_row, owner, project, selected_nodes, selected_pieces,
-    tie_row, tributary_areas, FaceEdge, FacePatch, ObstacleShape, Pattern, Piece,
+    tangent_entries, tie_row, tributary_areas, FaceEdge, FacePatch, ObstacleShape, Pattern, Piece,
 };
 use super::{IdleContact, LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
-use crate::lang::scene::{Condition, Primary, Scene, Selection};
+use crate::lang::scene::{Condition, Friction, Primary, Scene, Selection};
 use crate::num::{norm, sub};
 use std::collections::HashMap;
 
@@ -59,6 +59,32 @@ pub enum RowKind {
         /// The primary side: a facet of a face, or an obstacle.
         primary: ContactPrimary,
     },
+    /// A tangential row of a contact node with friction: `t^T (sum_k N_k u_k -
+    /// u_p) = 0` while the node sticks. Its multiplier (the tangential force
+    /// on the secondary node along `t`, times the row's scale) is bounded by
+    /// the slip bound; 2D has one such row per contact row, 3D two (`axis` 0
+    /// and 1, an orthonormal pair sharing one disc bound). They follow every
+    /// other row.
+    Friction {
+        contact: usize,
+        body: usize,
+        node: usize,
+        /// The index of the node's normal (contact) row.
+        normal_row: usize,
+        /// Unit tangent (`z = 0` in 2D).
+        tangent: [f64; 3],
+        axis: usize,
+        law: SlipLaw,
+    },
+}
+
+/// What bounds a friction row's tangential force.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum SlipLaw {
+    /// Tresca: the node's bound in N (the slip bound times its tributary area).
+    Tresca(f64),
+    /// Coulomb: this coefficient times the node's normal force.
+    Coulomb(f64),
 }
 
 /// What a contact row's secondary node touches. The facet keeps its
@@ -494,6 +520,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let mut overlaps = Vec::new();
     let mut idle = Vec::new();
     let mut searches = Vec::new();
+    let friction = &mut Vec::new();
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
@@ -526,6 +553,17 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             }
         };
         let before = rows.len();
+        let law = |node: usize| {
+            contact.friction.as_ref().map(|f| match f {
+                Friction::Coulomb(mu) => SlipLaw::Coulomb(*mu),
+                Friction::Tresca(g) => {
+                    let x = problem.bodies[sec.body].coords[node];
+                    SlipLaw::Tresca(
+                        g.eval_f64(x, design) * areas.get(&node).copied().unwrap_or(0.0),
+                    )
+                }
+            })
+        };
         for node in nodes {
             let p = pos[sec.body][node];
             let area = areas.get(&node).copied().unwrap_or(0.0);
@@ -570,7 +608,23 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                 gap,
                 primary,
             };
+            let normal_row = rows.len();
+            let tangents = law(node).map(|law| (law, tangent_entries(&e, &normal)));
             push(rows, e, gap, kind);
+            if let (Some((law, tangents)), true) = (tangents, rows.len() > normal_row) {
+                for (axis, (t, e)) in tangents.into_iter().enumerate() {
+                    let kind = RowKind::Friction {
+                        contact: ci,
+                        body: sec.body,
+                        node,
+                        normal_row,
+                        tangent: std::array::from_fn(|a| if a < D { t[a] } else { 0.0 }),
+                        axis,
+                        law,
+                    };
+                    push(friction, e, 0.0, kind);
+                }
+            }
         }
         if let Some((gap, at)) = deepest {
             overlaps.push(Penetration {
@@ -587,6 +641,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             });
         }
     }
+    rows.append(friction);
     Ok((overlaps, idle, searches))
 }
 

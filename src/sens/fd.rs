@@ -116,7 +116,14 @@ pub struct Gradient {
 
 fn active_set(state: &State) -> Vec<bool> {
     let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    // Contact rows only: a friction row's multiplier may take either sign.
     (state.problem.n_equality..state.lambda.len())
+        .filter(|&i| {
+            matches!(
+                state.problem.rows[i].kind,
+                crate::model::RowKind::Contact { .. }
+            )
+        })
         .map(|i| state.lambda[i] > 1e-8 * lmax)
         .collect()
 }

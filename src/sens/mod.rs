@@ -62,6 +62,14 @@ pub fn gradient(
     method: SensitivityMethod,
     options: &GradientOptions,
 ) -> Result<Gradient, GradientError> {
+    if method != SensitivityMethod::FiniteDifference && state.friction.is_some() {
+        return Err(crate::tfeti::error::SolveError::Unsupported(
+            "the semi-analytic and adjoint sensitivities are not derived for contact with friction: \
+             use finite differences (`sensitivity { method = finite_difference }`, or `--method finite_difference`)"
+                .to_string(),
+        )
+        .into());
+    }
     match method {
         SensitivityMethod::FiniteDifference => {
             fd::gradient(scene, state, options.step, options.scheme)

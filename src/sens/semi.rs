@@ -574,7 +574,7 @@ impl<'a> Sensitivity<'a> {
         let sol = self.dual.solve(
             &f,
             c,
-            self.n_equality,
+            (self.n_equality, &crate::tfeti::solve::SlipBounds::default()),
             crate::tfeti::classical::Held::Zero,
             &solve_settings(tolerance),
             start.as_ref(),

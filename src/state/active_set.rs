@@ -31,6 +31,7 @@ use crate::tfeti::error::SolveError;
 use crate::tfeti::kkt::{gap_scale, kkt, Kkt};
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
+use crate::tfeti::solve::SlipBounds;
 use crate::tfeti::solve::{DualSolution, DualStart};
 use std::sync::Arc;
 
@@ -177,7 +178,7 @@ fn solve_held(
     let solved = system.solve(
         f,
         &c_kept,
-        kept.len(),
+        (kept.len(), &SlipBounds::default()),
         crate::tfeti::classical::Held::Prescribed,
         settings,
         Some(&from),

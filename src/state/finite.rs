@@ -35,6 +35,12 @@ pub(super) fn check(scene: &Scene, state: &State) -> Result<(), SolveError> {
             RowKind::Contact { contact, .. } => {
                 format!("a force of contact `{}`", scene.contacts[*contact].name)
             }
+            RowKind::Friction { contact, .. } => {
+                format!(
+                    "a friction force of contact `{}`",
+                    scene.contacts[*contact].name
+                )
+            }
             RowKind::Tie { glue, .. } => format!("a force of glue `{}`", scene.glues[*glue].name),
             RowKind::Gluing => "a force between the subdomains of a body".to_string(),
             RowKind::Dirichlet | RowKind::Symmetry => "a support's reaction".to_string(),

@@ -18,7 +18,7 @@ use super::cluster::Cluster;
 use super::dual::Dual;
 use super::error::{CoarseError, SolveError};
 use super::rows::LocalRows;
-use super::solve::{dual_solve_from, DualSolution, DualStart};
+use super::solve::{dual_solve_bounded, dual_solve_from, DualSolution, DualStart, SlipBounds};
 use crate::model::{Problem, Row, RowKind};
 use crate::qp::{QpInfo, SmalbeSettings};
 use std::sync::Arc;
@@ -297,7 +297,7 @@ impl DualSystem {
         &self,
         f: &[&[f64]],
         c: &[f64],
-        n_equality: usize,
+        (n_equality, slip): (usize, &SlipBounds),
         held: Held,
         settings: &SmalbeSettings,
         start: Option<&DualStart>,
@@ -310,8 +310,22 @@ impl DualSystem {
             reduced,
         } = self
         else {
-            return dual_solve_from(self.dual(), f, c, n_equality, settings, start, observer);
+            return dual_solve_bounded(
+                self.dual(),
+                f,
+                c,
+                n_equality,
+                slip,
+                settings,
+                start,
+                observer,
+            );
         };
+        if !slip.is_empty() {
+            return Err(SolveError::Infeasible(
+                "friction is solved by TFETI only: classical FETI (`solver { method = feti }`) keeps contact frictionless; remove `method = feti`".to_string(),
+            ));
+        }
         let g = |s: usize, d: usize| -> Option<f64> {
             elim.held(s, d).map(|v| match held {
                 Held::Prescribed => v,

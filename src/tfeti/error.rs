@@ -91,6 +91,17 @@ pub enum SolveError {
     /// A scene a study generated does not check (a bug of the generator):
     /// the checker's messages.
     Generated(Vec<String>),
+    /// A contact's friction cannot carry the tangential force its body needs:
+    /// `needed` (N) is the tangential resultant of the solve where it sticks
+    /// everywhere it touches, `capacity` (N) the sum of its nodes' slip
+    /// bounds in the solve that failed.
+    FrictionCannotCarry {
+        contact: String,
+        needed: f64,
+        capacity: f64,
+        /// `Coulomb 0.3` or `Tresca`.
+        law: String,
+    },
     /// A load, prescribed displacement or gap that is not finite or too large
     /// to solve with (found when lowering), or a state that came out not
     /// finite (displacements, forces, energy): nothing of it may be reported.
@@ -189,6 +200,17 @@ impl fmt::Display for SolveError {
                 errors.join("; ")
             ),
             SolveError::NotFinite(n) => write!(f, "{n}"),
+            SolveError::FrictionCannotCarry {
+                contact,
+                needed,
+                capacity,
+                law,
+            } => write!(
+                f,
+                "contact `{contact}` must carry a tangential force of {} N (where it sticks everywhere it touches), but its friction ({law}) carries at most {} N: the body would slide; lower the tangential load or raise the friction",
+                crate::lang::diag::num(*needed),
+                crate::lang::diag::num(*capacity)
+            ),
             SolveError::RanksDiverged => write!(
                 f,
                 "the MPI ranks computed different multipliers: the replicated dual iterations must give the same bits on every rank; run the same binary on CPUs of the same type"

@@ -16,6 +16,7 @@
 
 use super::cluster::Cluster;
 use super::dual::Dual;
+use super::solve::SlipBounds;
 use crate::model::{Problem, RowKind};
 
 use crate::num::vector::norm;
@@ -34,6 +35,30 @@ pub struct Kkt {
     /// `max |l_i (B_i u - c_i)|` over contact rows, relative to `max |l|` times
     /// the rows' scale `max(||c||, || |B| |u| ||)`.
     pub complementarity: f64,
+    /// The friction conditions, where the scene has friction.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<FrictionKkt>,
+}
+
+/// The KKT conditions of friction at `(u, l)`, with the slip `s = B_t u` of a
+/// node's tangential rows (the dual's gradient there is `-s`): the tangential
+/// force within its bound; a node inside its bound does not slip (`s = 0`);
+/// a node on its bound slips along its force (`s = k l_t`, `k >= 0`).
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+pub struct FrictionKkt {
+    /// Largest `|l_t| - g` over the nodes, relative to `max |l|`.
+    pub bound: f64,
+    /// Largest `|s|` of a sticking node, relative like `equality`.
+    pub stick: f64,
+    /// Largest part of a slipping node's `s` that is not along `l_t`
+    /// (`|s - max(s . t, 0) t|`, `t = l_t / |l_t|`), relative like `equality`.
+    pub slip_direction: f64,
+}
+
+impl FrictionKkt {
+    fn worst(&self) -> f64 {
+        self.bound.max(self.stick).max(self.slip_direction)
+    }
 }
 
 impl Kkt {
@@ -44,6 +69,7 @@ impl Kkt {
             self.penetration,
             self.sign,
             self.complementarity,
+            self.friction.as_ref().map_or(0.0, FrictionKkt::worst),
         ]
         .into_iter()
         .fold(0.0, f64::max)
@@ -120,10 +146,44 @@ pub fn kkt(problem: &Problem, dual: &Dual, u: &[Vec<f64>], lambda: &[f64]) -> Kk
             k.complementarity = k
                 .complementarity
                 .max((lambda[i] * gap).abs() / (lmax * scale_u));
-        } else {
+        } else if !matches!(row.kind, RowKind::Friction { .. }) {
             eq2 += gap * gap;
         }
     }
     k.equality = eq2.sqrt() / scale_u;
+    k
+}
+
+/// The friction conditions at `(u, l)` for the slip bounds `slip` (see
+/// [`FrictionKkt`]).
+pub fn friction_kkt(
+    problem: &Problem,
+    dual: &Dual,
+    u: &[Vec<f64>],
+    lambda: &[f64],
+    slip: &SlipBounds,
+) -> FrictionKkt {
+    let cluster = dual.cluster();
+    let bu = cluster.apply_b(u);
+    let scale_u = gap_scale(problem, cluster, u);
+    let lmax = lambda
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .max(f64::MIN_POSITIVE);
+    let mut k = FrictionKkt::default();
+    for g in &slip.groups {
+        let rows = &g.rows[..g.len];
+        let force = slip.magnitude(g, lambda);
+        k.bound = k.bound.max((force - g.bound).max(0.0) / lmax);
+        let s2: f64 = rows.iter().map(|&i| bu[i] * bu[i]).sum();
+        if slip.sticks(g, lambda, lmax) {
+            k.stick = k.stick.max(s2.sqrt() / scale_u);
+        } else if force > 0.0 {
+            let along = rows.iter().map(|&i| bu[i] * lambda[i]).sum::<f64>() / force;
+            let off = (s2 - along.max(0.0).powi(2)).max(0.0).sqrt();
+            let off = if along < 0.0 { s2.sqrt() } else { off };
+            k.slip_direction = k.slip_direction.max(off / scale_u);
+        }
+    }
     k
 }

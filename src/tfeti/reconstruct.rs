@@ -6,6 +6,7 @@
 use super::coarse::{CoarseFactor, Gram};
 use super::dual::Dual;
 use super::error::SolveError;
+use super::solve::SlipBounds;
 use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
@@ -17,7 +18,7 @@ use std::time::Instant;
 pub(crate) fn reconstruct(
     dual: &Dual,
     f: &[&[f64]],
-    n_equality: usize,
+    (n_equality, slip): (usize, &SlipBounds),
     lambda: &[f64],
     lhat: (&[f64], Option<Vec<f64>>),
     d: &[f64],
@@ -26,9 +27,16 @@ pub(crate) fn reconstruct(
     let lmax = lambda[n_equality..]
         .iter()
         .fold(0.0f64, |a, b| a.max(b.abs()));
-    let active: Vec<bool> = (0..m)
+    let mut active: Vec<bool> = (0..m)
         .map(|i| i < n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
         .collect();
+    // A tangential row holds (no slip) only where its node sticks.
+    for g in &slip.groups {
+        let sticks = slip.sticks(g, lambda, lmax);
+        for &i in &g.rows[..g.len] {
+            active[i] = sticks;
+        }
+    }
     let (lhat, f_lhat) = lhat;
     let fl = f_lhat.filter(|fl| fl.len() == m).unwrap_or_else(|| {
         let mut fl = vec![0.0; m];

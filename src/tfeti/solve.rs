@@ -13,7 +13,7 @@ use super::dual::{Dual, Orthonormal, ProjectedF};
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
 use crate::qp::{
-    estimate_norm, smalbe, Breakdown, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status,
+    estimate_norm, smalbe, Breakdown, Disc, Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status,
 };
 
 pub(super) use crate::num::vector::{dot, norm};
@@ -63,6 +63,75 @@ pub fn dual_solve_from(
     start: Option<&DualStart>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
+    let none = SlipBounds::default();
+    dual_solve_bounded(dual, f, c, n_equality, &none, settings, start, observer)
+}
+
+/// The tangential rows of contact nodes with friction and their slip bounds
+/// in the dual's units (a row's multiplier, i.e. the force times the row's
+/// scale): each group's multipliers satisfy `|l_t| <= bound`, a box in 2D (one
+/// row) and a disc in 3D (two rows). Every other row from `n_equality` on is
+/// a contact row, `l >= 0`.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SlipBounds {
+    pub groups: Vec<SlipGroup>,
+}
+
+/// One contact node's tangential rows (`rows[..len]`) and their bound.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SlipGroup {
+    pub rows: [usize; 2],
+    pub len: usize,
+    pub bound: f64,
+}
+
+impl SlipBounds {
+    pub fn is_empty(&self) -> bool {
+        self.groups.is_empty()
+    }
+
+    /// Which rows are tangential (`m` rows in all).
+    fn mask(&self, m: usize) -> Vec<bool> {
+        let mut mask = vec![false; m];
+        for g in &self.groups {
+            for &i in &g.rows[..g.len] {
+                mask[i] = true;
+            }
+        }
+        mask
+    }
+
+    /// The tangential force of each group, `|l_t|`.
+    pub fn magnitude(&self, group: &SlipGroup, lambda: &[f64]) -> f64 {
+        group.rows[..group.len]
+            .iter()
+            .map(|&i| lambda[i] * lambda[i])
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Is the group strictly inside its bound (sticking: its rows hold as
+    /// equalities)? Within `1e-8` of the larger of the bound and `scale`
+    /// (the largest multiplier), it is on the bound (slipping).
+    pub fn sticks(&self, group: &SlipGroup, lambda: &[f64], scale: f64) -> bool {
+        group.bound == f64::INFINITY
+            || group.bound - self.magnitude(group, lambda) > 1e-8 * group.bound.max(scale)
+    }
+}
+
+/// [`dual_solve_from`] with friction: the tangential rows of `slip` bounded by
+/// their slip bounds (Tresca), the other rows from `n_equality` on `>= 0`.
+#[allow(clippy::too_many_arguments)]
+pub fn dual_solve_bounded(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    slip: &SlipBounds,
+    settings: &SmalbeSettings,
+    start: Option<&DualStart>,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<DualSolution, SolveError> {
     let m = dual.multipliers();
     let l_tilde = particular(dual, f);
     // d - F l~ with d = B K^+ f - c, one pass over the factors.
@@ -71,15 +140,17 @@ pub fn dual_solve_from(
     if n_equality == m {
         return equality_solve(dual, f, &l_tilde, &d, &b, settings, start);
     }
-    let lower_bounds: Vec<f64> = (0..m)
+    let tangential = slip.mask(m);
+    let mut lower_bounds: Vec<f64> = (0..m)
         .map(|i| {
-            if i < n_equality {
+            if i < n_equality || tangential[i] {
                 f64::NEG_INFINITY
             } else {
                 -l_tilde[i]
             }
         })
         .collect();
+    let (upper, discs) = slip_sets(slip, &l_tilde, &mut lower_bounds);
     // ||P F P|| by power iteration from a deterministic start; the dual problem
     // is solved scaled by it (same minimizer, dimensionless residuals).
     let (pfp, power) = projected_norm(dual, settings, start);
@@ -95,7 +166,14 @@ pub fn dual_solve_from(
         smalbe_start.norms = Some((1.0, settings.rho_factor.max(1.0)));
     }
     let b: Vec<f64> = b.iter().map(|x| x * scale).collect();
-    let mut lhat = inequality_start(dual, start, &l_tilde, &lower_bounds, n_equality);
+    let mut lhat = inequality_start(
+        dual,
+        start,
+        &l_tilde,
+        &lower_bounds,
+        n_equality,
+        &tangential,
+    );
     // The preconditioner approximates the inverse of the scaled Hessian
     // P F P / ||P F P||: ||P F P|| P M P.
     let precond = dual
@@ -107,6 +185,8 @@ pub fn dual_solve_from(
     let problem = smalbe::Problem {
         precond: precond.as_ref().map(|m| m as &dyn Operator),
         also_feasible: Some(&balanced),
+        upper: upper.as_deref(),
+        discs: &discs,
         ..smalbe::Problem::new(&a, &b, &lower_bounds, &g)
     };
     let (mut info, end) =
@@ -115,8 +195,8 @@ pub fn dual_solve_from(
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
-    let (u, alpha) =
-        reconstruct(dual, f, n_equality, &lambda, (&lhat, None), &d).map_err(|e| match e {
+    let (u, alpha) = reconstruct(dual, f, (n_equality, slip), &lambda, (&lhat, None), &d).map_err(
+        |e| match e {
             SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
                 SolveError::Undetermined {
                     modes,
@@ -125,7 +205,8 @@ pub fn dual_solve_from(
                 }
             }
             e => e,
-        })?;
+        },
+    )?;
     Ok(DualSolution {
         lambda,
         u,
@@ -155,7 +236,14 @@ fn equality_solve(
     let (lhat, f_lhat, info) = projected_cg(dual, b, settings, x0);
     let lambda: Vec<f64> = lhat.iter().zip(l_tilde).map(|(a, b)| a + b).collect();
     // Every row is an equality: n_equality = m.
-    let (u, alpha) = reconstruct(dual, f, m, &lambda, (&lhat, f_lhat), d)?;
+    let (u, alpha) = reconstruct(
+        dual,
+        f,
+        (m, &SlipBounds::default()),
+        &lambda,
+        (&lhat, f_lhat),
+        d,
+    )?;
     Ok(DualSolution {
         lambda,
         u,
@@ -164,6 +252,39 @@ fn equality_solve(
         b_norm: norm(b),
         end: None,
     })
+}
+
+/// The tangential rows' sets for the homogenized multipliers `l^ = l - l~`:
+/// in 2D the box `-g - l~ <= l^ <= g - l~` (its lower end written into
+/// `lower`), in 3D the disc of radius `g` about `-l~`. None and no discs
+/// without friction.
+fn slip_sets(
+    slip: &SlipBounds,
+    l_tilde: &[f64],
+    lower: &mut [f64],
+) -> (Option<Vec<f64>>, Vec<Disc>) {
+    if slip.is_empty() {
+        return (None, Vec::new());
+    }
+    let mut upper = vec![f64::INFINITY; lower.len()];
+    let mut discs = Vec::new();
+    // An infinite bound (a Coulomb node before its first normal force)
+    // sticks: its rows stay free.
+    for g in slip.groups.iter().filter(|g| g.bound.is_finite()) {
+        if g.len == 1 {
+            let i = g.rows[0];
+            lower[i] = -g.bound - l_tilde[i];
+            upper[i] = g.bound - l_tilde[i];
+        } else {
+            let [i, j] = g.rows;
+            discs.push(Disc {
+                entries: [i, j],
+                center: [-l_tilde[i], -l_tilde[j]],
+                radius: g.bound,
+            });
+        }
+    }
+    (Some(upper), discs)
 }
 
 /// `||P F P||`: the start's, or by power iteration from a deterministic
@@ -202,6 +323,7 @@ fn inequality_start(
     l_tilde: &[f64],
     lower_bounds: &[f64],
     n_equality: usize,
+    tangential: &[bool],
 ) -> Vec<f64> {
     let m = dual.multipliers();
     match start {
@@ -213,7 +335,7 @@ fn inequality_start(
             }
             if s.active_set {
                 for i in n_equality..m {
-                    if l0[i] <= 0.0 {
+                    if l0[i] <= 0.0 && !tangential[i] {
                         x[i] = lower_bounds[i];
                     }
                 }

@@ -1,9 +1,10 @@
 //! What touches what: `obstacle`, `glue`, `contact`.
 
 use crate::lang::ast::{Block, ExprKind, Ident, Span};
-use crate::lang::check::fields::{opt, req};
+use crate::lang::check::fields::{opt, req, Fields};
 use crate::lang::check::names::Kind;
 use crate::lang::check::Checker;
+use crate::lang::diag::num;
 use crate::lang::diag::Diagnostic;
 use crate::lang::expr::Formula;
 use crate::lang::scene::*;
@@ -108,7 +109,16 @@ impl<'a> Checker<'a> {
             req("primary", "primary = BODY.FACE"),
             req("secondary", "secondary = BODY.FACE"),
         ];
-        let f = self.fields(block, &spec, &label, at, &|_| None);
+        let hint = |k: &str| {
+            match k {
+            "friction" | "slip_bound" => Some(
+                "a glue ties the faces together: they cannot slip; for friction use a `contact` with `friction = 0.3` or `slip_bound = 20 MPa`"
+                    .to_string(),
+            ),
+            _ => None,
+        }
+        };
+        let f = self.fields(block, &spec, &label, at, &hint);
         let p = f
             .get("primary")
             .and_then(|fl| self.expr_of(fl, "a face"))
@@ -151,7 +161,7 @@ impl<'a> Checker<'a> {
         Some(())
     }
 
-    /// `contact NAME { primary, secondary, search }`
+    /// `contact NAME { primary, secondary, search, friction | slip_bound }`
     pub(crate) fn contact(&mut self, name: Option<&'a Ident>, block: &'a Block) -> Option<Contact> {
         let label = name.map_or("contact".to_string(), |n| format!("contact `{}`", n.name));
         let at = name.map_or(block.span, |n| n.span);
@@ -159,11 +169,16 @@ impl<'a> Checker<'a> {
             req("primary", "primary = BODY.FACE"),
             req("secondary", "secondary = BODY.FACE"),
             opt("search", "search = 1 mm"),
+            opt("friction", "friction = 0.3"),
+            opt("slip_bound", "slip_bound = 20 MPa"),
         ];
         let hint = |k: &str| match k {
             "master" => Some("the master side is called `primary`".to_string()),
             "slave" => Some("the slave side is called `secondary`".to_string()),
-            "friction" | "mu" => Some("contact in cso is frictionless".to_string()),
+            "mu" | "coefficient" => Some("Coulomb's coefficient is `friction = 0.3`".to_string()),
+            "tresca" | "slip" | "bound" => Some(
+                "Tresca's bound on the tangential traction is `slip_bound = 20 MPa`".to_string(),
+            ),
             _ => None,
         };
         let f = self.fields(block, &spec, &label, at, &hint);
@@ -212,6 +227,7 @@ impl<'a> Checker<'a> {
             }
             None => None,
         };
+        let friction = self.friction(&f, at)?;
         let (primary, secondary) = (primary?, secondary?);
         if let Primary::Face(p) = &primary {
             self.different_bodies(p, &secondary, at, "contact")?;
@@ -221,6 +237,78 @@ impl<'a> Checker<'a> {
             primary,
             secondary,
             search,
+            friction,
         })
+    }
+
+    /// A contact's `friction = MU` (Coulomb) or `slip_bound = P` (Tresca, may
+    /// depend on the coordinates): `Some(None)` for neither, `None` after an
+    /// error.
+    fn friction(&mut self, f: &Fields<'a>, at: Span) -> Option<Option<Friction>> {
+        let coulomb = f
+            .get("friction")
+            .and_then(|fl| self.expr_of(fl, "a coefficient"));
+        let tresca = f
+            .get("slip_bound")
+            .and_then(|fl| self.expr_of(fl, "a pressure"));
+        match (coulomb, tresca) {
+            (Some(c), Some(t)) => {
+                self.error(
+                    Diagnostic::new(
+                        "cso::friction",
+                        "a contact takes either `friction` (Coulomb) or `slip_bound` (Tresca), not both",
+                    )
+                    .label(c.span, "Coulomb's coefficient")
+                    .label(t.span, "Tresca's bound")
+                    .label(at, "in this contact")
+                    .help("keep `friction = MU` for a bound that grows with the pressure, `slip_bound = P` for a fixed one"),
+                );
+                None
+            }
+            (Some(e), None) => {
+                let mu = self.number(e, Some(Dim::NONE), "`friction`")?;
+                if !(mu >= 0.0 && mu.is_finite()) {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::range",
+                            format!("`friction` must be zero or positive, found {}", num(mu)),
+                        )
+                        .label(e.span, "Coulomb's coefficient, at least 0")
+                        .help("steel on steel is about 0.15 to 0.6; leave `friction` out for frictionless contact"),
+                    );
+                    return None;
+                }
+                if mu > 2.0 {
+                    self.error(
+                        Diagnostic::warning(
+                            "cso::friction",
+                            format!("a friction coefficient of {} is unusual", num(mu)),
+                        )
+                        .label(e.span, "above 2")
+                        .help("dry contacts of engineering materials lie between 0.05 and 1.5; check the value"),
+                    );
+                }
+                Some(Some(Friction::Coulomb(mu)))
+            }
+            (None, Some(e)) => {
+                let g = self.geometry(e, Dim::PRESSURE, 3, "`slip_bound`")?;
+                let v = g.eval_f64([0.0; 3], &self.design_init());
+                if v < 0.0 || v.is_infinite() {
+                    self.error(
+                        Diagnostic::new(
+                            "cso::range",
+                            format!("`slip_bound` must be zero or positive, found {}", num(v)),
+                        )
+                        .label(e.span, "a bound on the tangential traction, at least 0")
+                        .help(
+                            "zero is frictionless; a large bound sticks everywhere the sides touch",
+                        ),
+                    );
+                    return None;
+                }
+                Some(Some(Friction::Tresca(g)))
+            }
+            (None, None) => Some(None),
+        }
     }
 }
