@@ -9,6 +9,7 @@ mod feti;
 mod finite;
 mod fixture;
 mod fmt;
+mod friction;
 mod front_end;
 mod fuzz;
 mod hard;

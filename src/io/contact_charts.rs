@@ -192,6 +192,68 @@ fn facing_axis(pieces: &[crate::model::FacePatch], coords: &[[f64; 3]]) -> Optio
 /// report prints; None where the face has no quadrilaterals.
 pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Option<String>> {
     let p = &state.problem;
+    let mut pressure = HashMap::new();
+    for (i, row) in p.rows.iter().enumerate() {
+        if let RowKind::Contact {
+            contact,
+            node,
+            area,
+            ..
+        } = row.kind
+        {
+            if contact == ci && area > 0.0 {
+                *pressure.entry(node).or_insert(0.0) += state.lambda[i] / row.scale / area;
+            }
+        }
+    }
+    face_map(
+        scene,
+        state,
+        ci,
+        &pressure,
+        ("contact pressure", "pressure", "Pa"),
+    )
+}
+
+/// In 3D, where contact `ci` sticks and slips over its secondary face (the
+/// nodes' states: 1 stick, 2 slip, 3 open); None without friction.
+pub fn stick_slip_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<Option<String>> {
+    let p = &state.problem;
+    let sel = &scene.contacts[ci].secondary;
+    let Some(friction) = crate::io::pressure::nodal_friction(state, sel.body) else {
+        return Ok(None);
+    };
+    if scene.contacts[ci].friction.is_none() {
+        return Ok(None);
+    }
+    let mut states = HashMap::new();
+    for row in &p.rows {
+        if let RowKind::Friction { contact, node, .. } = row.kind {
+            if contact == ci {
+                states.insert(node, friction.state[node] as f64);
+            }
+        }
+    }
+    face_map(
+        scene,
+        state,
+        ci,
+        &states,
+        ("stick (1), slip (2) and open (3) nodes", "state", ""),
+    )
+}
+
+/// A map of nodal `values` over contact `ci`'s secondary face, seen along
+/// the face's axis; `what`: the title's quantity, the colour bar's quantity
+/// and unit. None where the face has no axis or no pieces.
+fn face_map(
+    scene: &Scene,
+    state: &State,
+    ci: usize,
+    values_at: &HashMap<usize, f64>,
+    what: (&str, &str, &str),
+) -> std::io::Result<Option<String>> {
+    let p = &state.problem;
     let sel = &scene.contacts[ci].secondary;
     let body = &p.bodies[sel.body];
     // A triangle is a patch with its last corner twice: its quarter cells
@@ -206,20 +268,6 @@ pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<O
     };
     if quads.is_empty() {
         return Ok(None);
-    }
-    let mut pressure = HashMap::new();
-    for (i, row) in p.rows.iter().enumerate() {
-        if let RowKind::Contact {
-            contact,
-            node,
-            area,
-            ..
-        } = row.kind
-        {
-            if contact == ci && area > 0.0 {
-                *pressure.entry(node).or_insert(0.0) += state.lambda[i] / row.scale / area;
-            }
-        }
     }
     let (a, b) = match axis {
         0 => (1, 2),
@@ -236,7 +284,7 @@ pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<O
                 *index.entry(n).or_insert_with(|| {
                     let x = body.coords[n];
                     points.push([x[a], x[b]]);
-                    values.push(pressure.get(&n).copied().unwrap_or(0.0));
+                    values.push(values_at.get(&n).copied().unwrap_or(0.0));
                     points.len() - 1
                 })
             })
@@ -244,8 +292,8 @@ pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<O
         .collect();
     let names = ["x", "y", "z"];
     let title = format!(
-        "{}: contact pressure on {}, seen along {}",
-        scene.name, sel.text, names[axis]
+        "{}: {} on {}, seen along {}",
+        scene.name, what.0, sel.text, names[axis]
     );
     MeshPlot {
         title: &title,
@@ -254,8 +302,8 @@ pub fn contact_map(scene: &Scene, state: &State, ci: usize) -> std::io::Result<O
         values: Values::Nodes(&values),
         outline: &[],
         axes: [names[a], names[b]],
-        quantity: "pressure",
-        unit: "Pa",
+        quantity: what.1,
+        unit: what.2,
     }
     .svg()
     .map(Some)
@@ -321,6 +369,49 @@ fn onto_symmetry(scene: &Scene, state: &State, ci: usize, mut o: [f64; 3]) -> ([
         }
     }
     (o, planes.iter().filter(|p| **p).count())
+}
+
+/// In 2D, the size of the tangential traction along contact `c` (report)
+/// and, beside it, its bound there: `mu p` (Coulomb) at each node; where
+/// they meet the node slips. None without friction or in 3D.
+pub fn shear_chart(
+    scene: &Scene,
+    c: &ContactReport,
+) -> Option<Result<String, crate::io::plot::PlotError>> {
+    let f = c.friction.as_ref()?;
+    if c.nodes.iter().any(|n| n.z.is_some()) {
+        return None;
+    }
+    let mut x = Vec::new();
+    let mut q = Vec::new();
+    let mut bound = Vec::new();
+    for n in &c.nodes {
+        let s = n.shear.as_ref()?;
+        x.push(n.x);
+        q.push(s.iter().map(|v| v * v).sum::<f64>().sqrt());
+        if let Some(mu) = f.coefficient {
+            bound.push(mu * n.pressure);
+        }
+    }
+    let window = zoom(
+        &x,
+        &c.nodes.iter().map(|n| n.pressure).collect::<Vec<_>>(),
+        None,
+    );
+    let mut series = vec![Series::line("|tangential traction|", &x, &q).styled(Style::LinePoints)];
+    if !bound.is_empty() {
+        series.push(Series::line("friction x pressure", &x, &bound).styled(Style::Dashed));
+    }
+    let mut x_axis = Axis::new("x").unit("m");
+    if let Some((lo, hi)) = window {
+        x_axis = x_axis.range(lo, hi);
+    }
+    Some(chart(
+        &format!("{}: tangential traction along {}", scene.name, c.name),
+        x_axis,
+        Axis::new("traction").unit("Pa"),
+        &series,
+    ))
 }
 
 #[cfg(test)]

@@ -85,3 +85,64 @@ fn add_primary<P: Piece<D, N> + Named, const D: usize, const N: usize>(
         }
     }
 }
+
+/// The friction of body `b`'s secondary contact nodes, for the VTU files:
+/// per node the tangential traction on it (Pa), its slip relative to the
+/// primary side (m; the slip direction), and its state (0 no friction row,
+/// 1 stick, 2 slip, 3 open). None where the state has no friction.
+pub fn nodal_friction(state: &State, b: usize) -> Option<NodalFriction> {
+    let done = state.friction.as_ref()?;
+    let p = &state.problem;
+    let n = p.bodies[b].coords.len();
+    let mut out = NodalFriction {
+        shear: vec![[0.0; 3]; n],
+        slip: vec![[0.0; 3]; n],
+        state: vec![0; n],
+    };
+    let bu = state.row_values();
+    let lmax = state.lambda.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+    for g in &done.bounds.groups {
+        let rows = &g.rows[..g.len];
+        let RowKind::Friction {
+            body,
+            node,
+            normal_row,
+            ..
+        } = p.rows[rows[0]].kind
+        else {
+            continue;
+        };
+        let RowKind::Contact { area, .. } = p.rows[normal_row].kind else {
+            continue;
+        };
+        if body != b {
+            continue;
+        }
+        for &i in rows {
+            let row = &p.rows[i];
+            if let RowKind::Friction { tangent, .. } = row.kind {
+                for a in 0..3 {
+                    if area > 0.0 {
+                        out.shear[node][a] += state.lambda[i] / row.scale / area * tangent[a];
+                    }
+                    out.slip[node][a] -= bu[i] * row.scale * tangent[a];
+                }
+            }
+        }
+        out.state[node] = if state.lambda[normal_row] <= 1e-8 * lmax {
+            3
+        } else if done.bounds.sticks(g, &state.lambda, lmax) {
+            1
+        } else {
+            2
+        };
+    }
+    Some(out)
+}
+
+/// See [`nodal_friction`].
+pub struct NodalFriction {
+    pub shear: Vec<[f64; 3]>,
+    pub slip: Vec<[f64; 3]>,
+    pub state: Vec<i64>,
+}

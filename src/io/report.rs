@@ -892,15 +892,20 @@ pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> Bo
     }
     cell_fields.push(("von Mises", Field::Scalar(&von_mises)));
     cell_fields.push(("subdomain", Field::Int(&subdomain)));
-    let vtu = vtu_string(
-        &mesh,
-        &[
-            ("displacement", Field::Vector(&disp)),
-            ("contact pressure", Field::Scalar(&pressure)),
-        ],
-        &cell_fields,
-        Encoding::Binary,
-    );
+    let friction = crate::io::pressure::nodal_friction(state, b);
+    let mut point_fields = vec![
+        ("displacement", Field::Vector(&disp)),
+        ("contact pressure", Field::Scalar(&pressure)),
+    ];
+    if let Some(f) = &friction {
+        point_fields.push(("contact shear", Field::Vector(&f.shear)));
+        point_fields.push(("slip", Field::Vector(&f.slip)));
+        point_fields.push((
+            "friction state (1 stick, 2 slip, 3 open)",
+            Field::Int(&f.state),
+        ));
+    }
+    let vtu = vtu_string(&mesh, &point_fields, &cell_fields, Encoding::Binary);
     BodyFields {
         disp,
         cells,

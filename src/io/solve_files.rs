@@ -2,7 +2,9 @@
 //! design): `report.json`, one `.vtu` per body and the pictures.
 
 use crate::io::atomic::write_atomic;
-use crate::io::contact_charts::{contact_map, pressure_chart, PressureReference};
+use crate::io::contact_charts::{
+    contact_map, pressure_chart, shear_chart, stick_slip_map, PressureReference,
+};
 use crate::io::deformed::deformed_plot;
 use crate::io::provenance::{self, Header, SOLVE_UNITS};
 use crate::io::report::{body_fields, BodyFields, Report};
@@ -44,11 +46,24 @@ pub fn write_all(
                     svg.as_bytes(),
                 )?;
             }
+            if let Some(svg) = stick_slip_map(scene, state, ci)? {
+                write_atomic(
+                    &dir.join(format!("contact_{}_stick.svg", c.name)),
+                    svg.as_bytes(),
+                )?;
+            }
         }
     }
     for (ci, c) in report.contacts.iter().enumerate() {
         let svg = pressure_chart(scene, state, ci, c, reference).map_err(std::io::Error::other)?;
         write_atomic(&dir.join(format!("contact_{}.svg", c.name)), svg.as_bytes())?;
+        if let Some(svg) = shear_chart(scene, c) {
+            let svg = svg.map_err(std::io::Error::other)?;
+            write_atomic(
+                &dir.join(format!("contact_{}_shear.svg", c.name)),
+                svg.as_bytes(),
+            )?;
+        }
     }
     Ok(())
 }

@@ -329,8 +329,9 @@ pub fn contact_entries<T: Scalar, const D: usize>(
 pub fn tangent_entries<const D: usize>(
     normal_row: &[Entry<f64>],
     n: &[f64; D],
+    held: &[usize],
 ) -> Vec<([f64; D], Vec<Entry<f64>>)> {
-    tangents(n)
+    free_tangents(n, held)
         .into_iter()
         .map(|t| {
             let e = normal_row
@@ -344,6 +345,39 @@ pub fn tangent_entries<const D: usize>(
             (t, e)
         })
         .collect()
+}
+
+/// The tangents along which a secondary node whose components `held` a
+/// support holds (a symmetry plane, a `fix`) can slip: [`tangents`] where
+/// nothing is held; else the tangent plane less each held axis' projection
+/// on it (in 3D the one tangent normal to it; none where that leaves none).
+/// A friction row along a held direction would only repeat the support's
+/// row, and in 3D its share of the node's disc would be taken from the
+/// other direction's bound.
+pub fn free_tangents<const D: usize>(n: &[f64; D], held: &[usize]) -> Vec<[f64; D]> {
+    let mut out = tangents(n);
+    for &a in held.iter().filter(|&&a| a < D) {
+        // e_a in the tangent plane.
+        let v: [f64; D] = std::array::from_fn(|k| f64::from(u8::from(k == a)) - n[a] * n[k]);
+        let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        if len <= 1e-9 {
+            continue;
+        }
+        out = if D == 3 && out.len() == 2 {
+            // The tangent normal to v: n x v / |v|.
+            let t: [f64; D] = std::array::from_fn(|k| {
+                let (b, c) = ((k + 1) % 3, (k + 2) % 3);
+                (n[b] * v[c] - n[c] * v[b]) / len
+            });
+            vec![t]
+        } else {
+            // A single tangent stays where the held axis is normal to it.
+            out.into_iter()
+                .filter(|t| t.iter().zip(&v).map(|(x, y)| x * y).sum::<f64>().abs() <= 1e-9 * len)
+                .collect()
+        };
+    }
+    out
 }
 
 /// An orthonormal tangent basis of the plane normal to the unit vector `n`:
@@ -654,6 +688,42 @@ pub(crate) fn nodal_loads<T: Scalar, P: Piece<D, N>, const D: usize, const N: us
 
 #[cfg(test)]
 mod tests {
+
+    /// Tangent bases are orthonormal and normal to `n`; a held axis leaves
+    /// the tangent normal to it (3D) or none (2D, where it is the tangent).
+    #[test]
+    fn tangents_are_orthonormal_and_leave_held_axes_out() {
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        for n in [
+            [0.0, 0.0, 1.0],
+            [0.6, 0.0, 0.8],
+            [0.48, 0.6, 0.64],
+            [1.0, 0.0, 0.0],
+        ] {
+            let t = tangents(&n);
+            assert_eq!(t.len(), 2);
+            for (i, a) in t.iter().enumerate() {
+                assert!(dot(a, &n).abs() < 1e-14 && (dot(a, a) - 1.0).abs() < 1e-14);
+                for b in &t[i + 1..] {
+                    assert!(dot(a, b).abs() < 1e-14);
+                }
+            }
+        }
+        let up = [0.0, 0.0, 1.0];
+        assert_eq!(tangents(&up), vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        // A symmetry plane y = 0 holds uy: slip along x only.
+        let t = free_tangents(&up, &[1]);
+        assert_eq!(t.len(), 1);
+        assert!((t[0][0].abs() - 1.0).abs() < 1e-14 && t[0][1] == 0.0);
+        // Holding uz (along n) leaves both; holding ux and uy leaves none.
+        assert_eq!(free_tangents(&up, &[2]).len(), 2);
+        assert!(free_tangents(&up, &[0, 1]).is_empty());
+        // 2D: n = (0, 1) slips along x, unless ux is held.
+        assert_eq!(free_tangents(&[0.0, 1.0], &[]), vec![[1.0, 0.0]]);
+        assert_eq!(free_tangents(&[0.0, 1.0], &[1]).len(), 1);
+        assert!(free_tangents(&[0.0, 1.0], &[0]).is_empty());
+    }
+
     use super::*;
     use crate::lang::expr::Formula;
     use crate::lang::{compile, CheckOptions};

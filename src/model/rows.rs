@@ -9,6 +9,7 @@ use super::geometry::{
 };
 use super::{IdleContact, LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
+use crate::lang::diag::num;
 use crate::lang::scene::{Condition, Friction, Primary, Scene, Selection};
 use crate::num::{norm, sub};
 use std::collections::HashMap;
@@ -521,6 +522,12 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let mut idle = Vec::new();
     let mut searches = Vec::new();
     let friction = &mut Vec::new();
+    // The dofs supports hold (their rows come first, one entry each).
+    let held: std::collections::HashSet<(usize, usize)> = rows
+        .iter()
+        .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry))
+        .filter_map(|r| r.entries.first().map(|e| (e.0, e.1)))
+        .collect();
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
@@ -553,14 +560,26 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             }
         };
         let before = rows.len();
-        let law = |node: usize| {
-            contact.friction.as_ref().map(|f| match f {
-                Friction::Coulomb(mu) => SlipLaw::Coulomb(*mu),
-                Friction::Tresca(g) => {
+        let law = |node: usize| -> Result<Option<SlipLaw>, LowerError> {
+            Ok(match &contact.friction {
+                None => None,
+                Some(Friction::Coulomb(mu)) => Some(SlipLaw::Coulomb(*mu)),
+                Some(Friction::Tresca(g)) => {
                     let x = problem.bodies[sec.body].coords[node];
-                    SlipLaw::Tresca(
-                        g.eval_f64(x, design) * areas.get(&node).copied().unwrap_or(0.0),
-                    )
+                    let bound = g.eval_f64(x, design);
+                    if !(bound >= 0.0 && bound.is_finite()) {
+                        let at: Vec<String> = x[..D].iter().map(|v| num(*v)).collect();
+                        return Err(LowerError::Geometry(format!(
+                            "the slip bound of contact `{}` is {} Pa at the node ({}) of `{}`: it must be finite and at least 0 on the whole face",
+                            contact.name,
+                            num(bound),
+                            at.join(", "),
+                            sec.text
+                        )));
+                    }
+                    Some(SlipLaw::Tresca(
+                        bound * areas.get(&node).copied().unwrap_or(0.0),
+                    ))
                 }
             })
         };
@@ -609,7 +628,15 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                 primary,
             };
             let normal_row = rows.len();
-            let tangents = law(node).map(|law| (law, tangent_entries(&e, &normal)));
+            let tangents = match law(node)? {
+                Some(law) => {
+                    let (s, l) = owner(problem, sec.body, node);
+                    let held: Vec<usize> =
+                        (0..D).filter(|a| held.contains(&(s, D * l + a))).collect();
+                    Some((law, tangent_entries(&e, &normal, &held)))
+                }
+                None => None,
+            };
             push(rows, e, gap, kind);
             if let (Some((law, tangents)), true) = (tangents, rows.len() > normal_row) {
                 for (axis, (t, e)) in tangents.into_iter().enumerate() {

@@ -639,6 +639,10 @@ impl Multipliers {
     }
 }
 
+/// MPGP steps without a tenth off the projected gradient that end an inner
+/// solve on a set with discs (see [`outer_loop`]).
+const STAGNATION: usize = 100;
+
 /// The outer iterations: each minimizes the augmented Lagrangian over the
 /// bounds by MPRGP as precisely as the current infeasibility deserves, stops
 /// where the projected gradient and `G x` meet the tolerance, else updates
@@ -659,6 +663,7 @@ fn outer_loop<S: Set>(
     let scale = setup.scale;
     let eps_g = settings.tolerance * scale;
     let eps_f = settings.tolerance * scale;
+    let curved = !problem.discs.is_empty();
     let feasible = |x: &[f64], feasibility: f64| -> bool {
         feasibility <= eps_f && problem.also_feasible.is_none_or(|test| test(x))
     };
@@ -683,9 +688,22 @@ fn outer_loop<S: Set>(
         };
         let run = {
             let (gx, big_m) = (&mut own.gx, own.big_m);
+            let (mut best, mut since) = (f64::INFINITY, 0usize);
             let mut stop = |x: &[f64], gp: f64| -> bool {
+                // With curved sets (discs) MPGP's projected gradient can
+                // level off above `M ||G x||` (rounding on the circles); 100
+                // steps without a tenth less end the inner solve there, so
+                // that the multipliers of `G x = 0` move on.
+                if gp < 0.9 * best {
+                    (best, since) = (gp, 0);
+                } else {
+                    since += 1;
+                }
                 if gp > eta && gp > eps_g {
                     return false;
+                }
+                if curved && since >= STAGNATION {
+                    return true;
                 }
                 problem.g.apply(x, gx);
                 let feasibility = norm2(gx);

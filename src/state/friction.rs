@@ -7,7 +7,7 @@
 
 use crate::lang::scene::{Friction, Scene};
 use crate::model::{Problem, RowKind, SlipLaw};
-use crate::qp::{QpInfo, Status};
+use crate::qp::{QpInfo, SmalbeWarm, Status};
 use crate::tfeti::error::SolveError;
 use crate::tfeti::solve::{DualSolution, DualStart, SlipBounds, SlipGroup};
 
@@ -148,10 +148,17 @@ pub fn solve_with_friction(
             ));
         }
         bounds = next;
+        // The last solve's multipliers, SMALBE's `mu` and the norms; not its
+        // precision control `M` nor its final gradient, which make the next
+        // solve start too precise (as for the designs of an optimization).
         let from = DualStart {
             lambda: sol.lambda.clone(),
             active_set: false,
-            smalbe: sol.end.as_ref().map(|e| e.0.clone()),
+            smalbe: sol.end.as_ref().map(|e| SmalbeWarm {
+                mu: e.0.mu.clone(),
+                norms: e.0.norms,
+                ..SmalbeWarm::default()
+            }),
             pfp: sol.end.as_ref().map(|e| e.1),
         };
         let next_sol = solve(&bounds, Some(&from));

@@ -43,6 +43,41 @@ pub fn contact_extent(c: &ContactReport, dim: Dimension, thickness: f64) -> f64 
     }
 }
 
+/// The stick zone against the contact: in 2D the ratio of the lengths of
+/// the sticking and of the pressed nodes (tributary lengths: `c / a` of a
+/// zone centred in the contact), in 3D the square root of their areas'
+/// ratio (`c / a` of a disc in a disc).
+pub fn stick_ratio(c: &ContactReport, dim: Dimension) -> f64 {
+    let (mut pressed, mut stick) = (0.0, 0.0);
+    for n in &c.nodes {
+        if n.pressure > 0.0 && n.state.is_some_and(|s| s != "open") {
+            let extent = n.multiplier / n.pressure;
+            pressed += extent;
+            if n.state == Some("stick") {
+                stick += extent;
+            }
+        }
+    }
+    let ratio = if pressed > 0.0 { stick / pressed } else { 0.0 };
+    match dim {
+        Dimension::Two => ratio,
+        Dimension::Three => ratio.sqrt(),
+    }
+}
+
+/// The stick zone of equal elastic bodies under a normal force `mu_p / mu`
+/// and a tangential `q` below `mu_p`: Cattaneo's `c / a = sqrt(1 - q / (mu
+/// p))` for a cylinder (2D), Mindlin's `(1 - q / (mu p))^(1/3)` for a sphere
+/// (3D), with the law's name. K. L. Johnson, *Contact Mechanics*, 7.1 and
+/// 7.2.
+pub fn cattaneo_mindlin(dim: Dimension, q: f64, mu_p: f64) -> (&'static str, f64) {
+    let rest = (1.0 - q / mu_p).max(0.0);
+    match dim {
+        Dimension::Two => ("Cattaneo", rest.sqrt()),
+        Dimension::Three => ("Mindlin", rest.cbrt()),
+    }
+}
+
 /// Largest nodal pressure of a contact (Pa).
 pub fn peak_pressure(c: &ContactReport) -> f64 {
     c.nodes.iter().map(|n| n.pressure).fold(0.0, f64::max)
@@ -70,6 +105,20 @@ pub fn quantities(scene: &Scene, state: &State) -> Vec<Quantity> {
             Dimension::Two => q(format!("{} contact length", c.name), "m", extent),
             Dimension::Three => q(format!("{} contact area", c.name), "m^2", extent),
         });
+        if let Some(f) = &c.friction {
+            out.push(q(
+                format!("{} tangential force", c.name),
+                "N",
+                f.tangential_force,
+            ));
+            let ratio = stick_ratio(c, scene.dim);
+            out.push(q(format!("{} stick c/a", c.name), "1", ratio));
+            if let Some(mu) = f.coefficient {
+                let (law, value) =
+                    cattaneo_mindlin(scene.dim, f.tangential_force, mu * c.total_force);
+                out.push(q(format!("{} {law} c/a", c.name), "1", value));
+            }
+        }
     }
     let umax = report
         .bodies
