@@ -327,6 +327,25 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
                 "move the secondary body out of the primary one, or flip the primary face or the obstacle's normal so that it points at the secondary body",
             ))
         }
+        SolveError::FrictionCannotCarry {
+            contact,
+            needed,
+            capacity,
+            ..
+        } => {
+            let c = scene.contacts.iter().position(|c| &c.name == contact)?;
+            let d = Diagnostic::new("cso::friction", message).label(
+                *places.contacts.get(c)?,
+                format!(
+                    "carries at most {} N along its face; {} N are needed",
+                    crate::lang::diag::num(*capacity),
+                    crate::lang::diag::num(*needed)
+                ),
+            );
+            Some(d.help(
+                "lower the tangential load, raise `friction` or `slip_bound`, or hold the body with a support",
+            ))
+        }
         SolveError::SearchUnsettled {
             contact,
             depth,

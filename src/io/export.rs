@@ -92,10 +92,31 @@ impl Csr {
 /// What one row of `B` is, for the manifest.
 #[derive(Debug, Clone, Serialize)]
 pub struct RowInfo {
-    /// `gluing`, `dirichlet`, `symmetry`, `tie` or `contact`.
+    /// `gluing`, `dirichlet`, `symmetry`, `tie`, `contact` or `friction`.
     pub kind: &'static str,
     /// The norm of the row before normalization: force = lambda / scale.
     pub scale: f64,
+    /// A friction row: the index of its node's contact row among the rows
+    /// of `B_I` (the rows of `B_T` of one node follow each other and share it).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub normal_row: Option<usize>,
+    /// A friction row: Tresca's bound on its node's tangential force (N).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub slip_bound: Option<f64>,
+    /// A friction row: Coulomb's coefficient.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<f64>,
+}
+
+/// The friction rows of a QP: `B_T` and per row its node's contact row
+/// (among `B_I`'s), Tresca bound (N, 0 for Coulomb) and Coulomb coefficient
+/// (0 for Tresca).
+#[derive(Debug, Clone)]
+pub struct FrictionRows {
+    pub b_t: Csr,
+    pub normal_row: Vec<f64>,
+    pub slip_bound: Vec<f64>,
+    pub coefficient: Vec<f64>,
 }
 
 /// The primal QP of a scene at a design.
@@ -109,6 +130,8 @@ pub struct Qp {
     pub c_eq: Vec<f64>,
     pub b_in: Csr,
     pub c_in: Vec<f64>,
+    /// With friction: the tangential rows.
+    pub friction: Option<FrictionRows>,
     /// Kernel basis, `n x (sum of kernel dimensions)`.
     pub r: Csr,
     pub rows: Vec<RowInfo>,
@@ -160,8 +183,38 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         (Csr::from_triplets(nrows, n, t), c)
     };
     let ne = problem.n_equality;
+    // Friction rows follow every other row.
+    let nc = problem
+        .rows
+        .iter()
+        .position(|r| matches!(r.kind, crate::model::RowKind::Friction { .. }))
+        .unwrap_or(problem.rows.len());
     let (b_eq, c_eq) = b(0..ne);
-    let (b_in, c_in) = b(ne..problem.rows.len());
+    let (b_in, c_in) = b(ne..nc);
+    let friction = (nc < problem.rows.len()).then(|| {
+        let (b_t, _) = b(nc..problem.rows.len());
+        let mut f = FrictionRows {
+            b_t,
+            normal_row: Vec::new(),
+            slip_bound: Vec::new(),
+            coefficient: Vec::new(),
+        };
+        for row in &problem.rows[nc..] {
+            if let crate::model::RowKind::Friction {
+                normal_row, law, ..
+            } = row.kind
+            {
+                f.normal_row.push((normal_row - ne) as f64);
+                let (g, mu) = match law {
+                    crate::model::SlipLaw::Tresca(g) => (g, 0.0),
+                    crate::model::SlipLaw::Coulomb(mu) => (0.0, mu),
+                };
+                f.slip_bound.push(g);
+                f.coefficient.push(mu);
+            }
+        }
+        f
+    });
     let modes: Vec<usize> = (0..cluster.len())
         .map(|s| cluster.subdomain(s).kernel_dim())
         .collect();
@@ -181,6 +234,24 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         .rows
         .iter()
         .map(|row| RowInfo {
+            normal_row: match row.kind {
+                crate::model::RowKind::Friction { normal_row, .. } => Some(normal_row - ne),
+                _ => None,
+            },
+            slip_bound: match row.kind {
+                crate::model::RowKind::Friction {
+                    law: crate::model::SlipLaw::Tresca(g),
+                    ..
+                } => Some(g),
+                _ => None,
+            },
+            friction: match row.kind {
+                crate::model::RowKind::Friction {
+                    law: crate::model::SlipLaw::Coulomb(mu),
+                    ..
+                } => Some(mu),
+                _ => None,
+            },
             kind: match row.kind {
                 crate::model::RowKind::Gluing => "gluing",
                 crate::model::RowKind::Dirichlet => "dirichlet",
@@ -200,6 +271,7 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         c_eq,
         b_in,
         c_in,
+        friction,
         r,
         rows,
         dim: problem.dim,
@@ -216,12 +288,15 @@ pub struct Manifest {
     pub primal: usize,
     pub equalities: usize,
     pub inequalities: usize,
+    /// With friction: the rows of `B_T`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub friction: Option<usize>,
     pub kernel: usize,
     pub dim: usize,
     pub blocks: Vec<usize>,
     /// Which file holds what: (file, meaning).
     pub files: Vec<(String, &'static str)>,
-    /// Per row of `[B_E; B_I]`: kind and scale.
+    /// Per row of `[B_E; B_I]` (and `B_T` with friction): kind and scale.
     pub rows: Vec<RowInfo>,
     pub design: Vec<(String, f64)>,
 }
@@ -278,6 +353,31 @@ pub fn files(
             mat(&qp.r),
         ),
     ];
+    let mut parts = parts;
+    if let Some(f) = &qp.friction {
+        parts.extend([
+            (
+                "BT",
+                "friction rows (tangential, normalized): B_T u is the slip of each contact node along its tangents (one row in 2D, two in 3D, or one where a support holds the other direction)",
+                mat(&f.b_t),
+            ),
+            (
+                "nT",
+                "per row of B_T: the index of its node's contact row among the rows of B_I",
+                vec(&f.normal_row),
+            ),
+            (
+                "gT",
+                "per row of B_T: Tresca's bound on its node's tangential force (N; 0 for Coulomb rows)",
+                vec(&f.slip_bound),
+            ),
+            (
+                "muT",
+                "per row of B_T: Coulomb's coefficient (0 for Tresca rows)",
+                vec(&f.coefficient),
+            ),
+        ]);
+    }
     let mut out: Vec<(String, Vec<u8>)> = Vec::new();
     let mut listed = Vec::new();
     for (name, what, bytes) in parts {
@@ -291,7 +391,11 @@ pub fn files(
             Format::Petsc => "petsc binary (big-endian, 32-bit indices, AIJ matrices, Vec vectors)",
             Format::Mm => "MatrixMarket (coordinate real general; vectors as array real general)",
         },
-        problem: "min 1/2 u^T K u - f^T u  s.t.  B_E u = c_E,  B_I u <= c_I",
+        problem: if qp.friction.is_some() {
+            "min 1/2 u^T K u - f^T u  s.t.  B_E u = c_E,  B_I u <= c_I, with friction: the multipliers lambda_T of each node's rows of B_T (scaled to forces by scale) within |lambda_T / scale| <= g (Tresca: gT; Coulomb: muT times the node's normal force lambda_I / scale), a box in 2D and a disc in 3D"
+        } else {
+            "min 1/2 u^T K u - f^T u  s.t.  B_E u = c_E,  B_I u <= c_I"
+        },
         conventions: vec![
             "u: displacements, dofs interleaved per node, subdomain blocks in order (each subdomain owns copies of its interface nodes; gluing rows of B_E tie them)",
             "rows of B are normalized (unit Euclidean norm); the physical multiplier (force, N) of row i is lambda_i / scale_i",
@@ -301,6 +405,7 @@ pub fn files(
         primal: qp.k.nrows,
         equalities: qp.b_eq.nrows,
         inequalities: qp.b_in.nrows,
+        friction: qp.friction.as_ref().map(|f| f.b_t.nrows),
         kernel: qp.r.ncols,
         dim: qp.dim,
         blocks: qp.blocks.clone(),
