@@ -245,3 +245,23 @@ fn mindlin_stick_zone_on_a_coarse_ball() {
         "{k:?}"
     );
 }
+
+/// Classical FETI solves friction on its rows too (its Dirichlet dofs
+/// eliminated): the state of Total FETI.
+#[test]
+fn classical_feti_gives_the_friction_state_of_tfeti() {
+    let src = example_src("cattaneo2d").edit("mesh = 320 x 160", "mesh = 80 x 40");
+    let tfeti = scene(&src);
+    let mut feti = scene(&src);
+    feti.solver.method = cso::lang::scene::SolverMethod::Feti;
+    let (a, b) = (solved(&tfeti), solved(&feti));
+    let (ca, cb) = (contact(&tfeti, &a), contact(&feti, &b));
+    let (fa, fb) = (
+        ca.friction.as_ref().expect("a"),
+        cb.friction.as_ref().expect("b"),
+    );
+    assert_eq!((fa.stick, fa.slip, fa.open), (fb.stick, fb.slip, fb.open));
+    assert!((ca.total_force - cb.total_force).abs() < 1e-5 * ca.total_force);
+    assert!((a.energy() - b.energy()).abs() < 1e-5 * a.energy());
+    assert!(b.kkt.friction.expect("residuals").stick < 1e-6);
+}

@@ -68,6 +68,40 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
     }
 }
 
+/// Friction (Coulomb's fixed point over Tresca solves, boxes in 2D, discs in
+/// 3D) on thread ranks: the serial state and report, bit for bit.
+#[test]
+fn friction_on_thread_ranks_gives_the_serial_state_bitwise() {
+    let coarse = |name: &str, from: &str, to: &str| {
+        let src = crate::fixture::example_src(name).replace(from, to);
+        compile(&src, &options()).expect("checks")
+    };
+    for (name, scene, ranks) in [
+        (
+            "cattaneo2d",
+            coarse("cattaneo2d", "mesh = 320 x 160", "mesh = 80 x 40"),
+            vec![2, 3],
+        ),
+        (
+            "mindlin3d",
+            coarse("mindlin3d", "mesh = 36 x 18 x 18", "mesh = 24 x 12 x 12"),
+            vec![2],
+        ),
+    ] {
+        let serial = outcome(&scene, None).expect("serial solve");
+        assert!(
+            serial["solver"]["friction"]["solves"].as_u64() > Some(1),
+            "{name}: Coulomb's fixed point ran"
+        );
+        for p in ranks {
+            for (r, got) in on_ranks(&scene, p).into_iter().enumerate() {
+                let got = got.unwrap_or_else(|e| panic!("{name}, rank {r} of {p}: {e}"));
+                assert!(serial == got, "{name}, rank {r} of {p}: the report differs");
+            }
+        }
+    }
+}
+
 #[test]
 fn more_ranks_than_subdomains_is_refused_on_every_rank() {
     let scene = example("semicoercive2d");

@@ -386,18 +386,23 @@ pub fn shear_chart(
     let mut q = Vec::new();
     let mut bound = Vec::new();
     for n in &c.nodes {
-        let s = n.shear.as_ref()?;
+        // A node without a friction row (a tangent its supports hold).
+        let Some(s) = n.shear.as_ref() else {
+            continue;
+        };
         x.push(n.x);
         q.push(s.iter().map(|v| v * v).sum::<f64>().sqrt());
         if let Some(mu) = f.coefficient {
             bound.push(mu * n.pressure);
         }
     }
-    let window = zoom(
-        &x,
-        &c.nodes.iter().map(|n| n.pressure).collect::<Vec<_>>(),
-        None,
-    );
+    let pressed: Vec<f64> = c
+        .nodes
+        .iter()
+        .filter(|n| n.shear.is_some())
+        .map(|n| n.pressure)
+        .collect();
+    let window = zoom(&x, &pressed, None);
     let mut series = vec![Series::line("|tangential traction|", &x, &q).styled(Style::LinePoints)];
     if !bound.is_empty() {
         series.push(Series::line("friction x pressure", &x, &bound).styled(Style::Dashed));

@@ -396,12 +396,17 @@ pub fn files(
         } else {
             "min 1/2 u^T K u - f^T u  s.t.  B_E u = c_E,  B_I u <= c_I"
         },
-        conventions: vec![
+        conventions: [
             "u: displacements, dofs interleaved per node, subdomain blocks in order (each subdomain owns copies of its interface nodes; gluing rows of B_E tie them)",
             "rows of B are normalized (unit Euclidean norm); the physical multiplier (force, N) of row i is lambda_i / scale_i",
-            "KKT: K u - f + B_E^T lambda_E + B_I^T lambda_I = 0, lambda_I >= 0, lambda_I (B_I u - c_I) = 0",
+            if qp.friction.is_some() {
+                "KKT: K u - f + B_E^T lambda_E + B_I^T lambda_I + B_T^T lambda_T = 0, lambda_I >= 0, lambda_I (B_I u - c_I) = 0; per node, B_T u = 0 where |lambda_T| is inside its bound, B_T u along lambda_T where it is on it"
+            } else {
+                "KKT: K u - f + B_E^T lambda_E + B_I^T lambda_I = 0, lambda_I >= 0, lambda_I (B_I u - c_I) = 0"
+            },
             "R: orthonormal columns spanning the kernel of each diagonal block of K",
-        ],
+        ]
+        .to_vec(),
         primal: qp.k.nrows,
         equalities: qp.b_eq.nrows,
         inequalities: qp.b_in.nrows,

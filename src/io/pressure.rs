@@ -100,7 +100,7 @@ pub fn nodal_friction(state: &State, b: usize) -> Option<NodalFriction> {
         state: vec![0; n],
     };
     let bu = state.row_values();
-    let lmax = state.lambda.iter().fold(0.0f64, |a, l| a.max(l.abs()));
+    let lmax = crate::tfeti::solve::SlipBounds::scale(&state.lambda, p.n_equality);
     for g in &done.bounds.groups {
         let rows = &g.rows[..g.len];
         let RowKind::Friction {

@@ -574,7 +574,7 @@ fn friction_reports(
 ) {
     let p = &state.problem;
     let d = p.dim;
-    let lmax = state.lambda.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    let lmax = SlipBounds::scale(&state.lambda, p.n_equality);
     // The position of each contact row among its contact's nodes.
     let mut slot = vec![usize::MAX; p.rows.len()];
     let mut seen = vec![0usize; contacts.len()];

@@ -324,7 +324,8 @@ pub fn contact_entries<T: Scalar, const D: usize>(
 }
 
 /// The tangential rows of a contact row with unit normal `n`: its entries
-/// with `n` replaced by each unit tangent `t` ([`tangents`]), with the tangent
+/// with `n` replaced by each unit tangent `t` ([`free_tangents`] of the axes
+/// `held` on both sides), with the tangent
 /// (a contact row holds each of its nodes' `D` components in turn, each `c n`).
 pub fn tangent_entries<const D: usize>(
     normal_row: &[Entry<f64>],
@@ -347,34 +348,30 @@ pub fn tangent_entries<const D: usize>(
         .collect()
 }
 
-/// The tangents along which a secondary node whose components `held` a
-/// support holds (a symmetry plane, a `fix`) can slip: [`tangents`] where
-/// nothing is held; else the tangent plane less each held axis' projection
-/// on it (in 3D the one tangent normal to it; none where that leaves none).
-/// A friction row along a held direction would only repeat the support's
-/// row, and in 3D its share of the node's disc would be taken from the
-/// other direction's bound.
+/// The tangents along which a contact node can slip where both sides hold
+/// the axes `held` (a symmetry plane through both bodies; an obstacle's side
+/// cannot move): [`tangents`], less each held axis that lies in the tangent
+/// plane (`n_a = 0`; in 3D the one tangent normal to it is left, in 2D none).
+/// A friction row along such an axis only repeats the supports' rows, and in
+/// 3D its share of the node's disc would be taken from the other direction's
+/// bound. An axis oblique to the face leaves the tangents as they are: the
+/// node still slips by moving along the others.
 pub fn free_tangents<const D: usize>(n: &[f64; D], held: &[usize]) -> Vec<[f64; D]> {
     let mut out = tangents(n);
     for &a in held.iter().filter(|&&a| a < D) {
-        // e_a in the tangent plane.
-        let v: [f64; D] = std::array::from_fn(|k| f64::from(u8::from(k == a)) - n[a] * n[k]);
-        let len = v.iter().map(|x| x * x).sum::<f64>().sqrt();
-        if len <= 1e-9 {
+        if n[a].abs() > 1e-9 {
             continue;
         }
         out = if D == 3 && out.len() == 2 {
-            // The tangent normal to v: n x v / |v|.
+            // The tangent normal to e_a: n x e_a.
             let t: [f64; D] = std::array::from_fn(|k| {
                 let (b, c) = ((k + 1) % 3, (k + 2) % 3);
-                (n[b] * v[c] - n[c] * v[b]) / len
+                n[b] * f64::from(u8::from(c == a)) - n[c] * f64::from(u8::from(b == a))
             });
             vec![t]
         } else {
-            // A single tangent stays where the held axis is normal to it.
-            out.into_iter()
-                .filter(|t| t.iter().zip(&v).map(|(x, y)| x * y).sum::<f64>().abs() <= 1e-9 * len)
-                .collect()
+            // A single tangent stays where it is normal to e_a.
+            out.into_iter().filter(|t| t[a].abs() <= 1e-9).collect()
         };
     }
     out

@@ -131,8 +131,9 @@ pub struct RowCounts {
     pub symmetry: usize,
     pub ties: usize,
     pub contact: usize,
-    /// Tangential rows of contacts with friction (one per contact row in 2D,
-    /// two in 3D); left out of reports where zero.
+    /// Tangential rows of contacts with friction (per contact row one in 2D,
+    /// two in 3D, fewer along axes supports hold); left out of reports where
+    /// zero.
     #[serde(skip_serializing_if = "is_zero")]
     pub friction: usize,
 }

@@ -64,8 +64,9 @@ pub enum RowKind {
     /// u_p) = 0` while the node sticks. Its multiplier (the tangential force
     /// on the secondary node along `t`, times the row's scale) is bounded by
     /// the slip bound; 2D has one such row per contact row, 3D two (`axis` 0
-    /// and 1, an orthonormal pair sharing one disc bound). They follow every
-    /// other row.
+    /// and 1, an orthonormal pair sharing one disc bound), fewer where
+    /// supports on both sides hold a tangent axis ([`super::geometry::free_tangents`]).
+    /// They follow every other row.
     Friction {
         contact: usize,
         body: usize,
@@ -522,10 +523,10 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let mut idle = Vec::new();
     let mut searches = Vec::new();
     let friction = &mut Vec::new();
-    // The dofs supports hold (their rows come first, one entry each).
+    // The dofs supports hold at zero (their rows come first, one entry each).
     let held: std::collections::HashSet<(usize, usize)> = rows
         .iter()
-        .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry))
+        .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry) && r.c == 0.0)
         .filter_map(|r| r.entries.first().map(|e| (e.0, e.1)))
         .collect();
     for (ci, contact) in scene.contacts.iter().enumerate() {
@@ -630,9 +631,14 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             let normal_row = rows.len();
             let tangents = match law(node)? {
                 Some(law) => {
-                    let (s, l) = owner(problem, sec.body, node);
-                    let held: Vec<usize> =
-                        (0..D).filter(|a| held.contains(&(s, D * l + a))).collect();
+                    // Axes held at zero on the secondary node and on every
+                    // primary node the row touches (an obstacle has none).
+                    let held: Vec<usize> = (0..D)
+                        .filter(|a| {
+                            e.chunks_exact(D)
+                                .all(|chunk| held.contains(&(chunk[0].0, chunk[0].1 + a)))
+                        })
+                        .collect();
                     Some((law, tangent_entries(&e, &normal, &held)))
                 }
                 None => None,

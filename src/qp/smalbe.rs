@@ -640,7 +640,9 @@ impl Multipliers {
 }
 
 /// MPGP steps without a tenth off the projected gradient that end an inner
-/// solve on a set with discs (see [`outer_loop`]).
+/// solve on a set with discs (see [`outer_loop`]): a safeguard outside
+/// Dostál's theory, which asks each inner solve for `||g^P|| <= M ||G x||`;
+/// the outer loop's final test is unchanged.
 const STAGNATION: usize = 100;
 
 /// The outer iterations: each minimizes the augmented Lagrangian over the

@@ -64,9 +64,7 @@ pub fn gradient(
 ) -> Result<Gradient, GradientError> {
     if method != SensitivityMethod::FiniteDifference && state.friction.is_some() {
         return Err(crate::tfeti::error::SolveError::Unsupported(
-            "the semi-analytic and adjoint sensitivities are not derived for contact with friction: \
-             use finite differences (`sensitivity { method = finite_difference }`, or `--method finite_difference`)"
-                .to_string(),
+            semi::FRICTION_REFUSED.to_string(),
         )
         .into());
     }

@@ -143,13 +143,22 @@ pub enum Class {
     Inactive,
 }
 
+/// Why the semi-analytic and adjoint methods refuse a state with friction.
+pub const FRICTION_REFUSED: &str = "the semi-analytic and adjoint sensitivities are not derived for contact with friction: \
+     use finite differences (`sensitivity { method = finite_difference }`, or `--method finite_difference`)";
+
 /// Classifies the rows of a solved state.
 pub fn classify(state: &State) -> Vec<Class> {
     let p = &state.problem;
     let m = state.lambda.len();
-    let lmax = state.lambda[p.n_equality..]
-        .iter()
-        .fold(0.0f64, |a, b| a.max(b.abs()));
+    // Contact rows only: a friction row is no contact (its multiplier may
+    // take either sign); it is classed `Inactive` (the semi-analytic and
+    // adjoint methods refuse friction before they classify).
+    let contact = |i: usize| matches!(p.rows[i].kind, RowKind::Contact { .. });
+    let lmax = (p.n_equality..m)
+        .filter(|&i| contact(i))
+        .map(|i| state.lambda[i].abs())
+        .fold(0.0f64, f64::max);
     let bu = state.row_values();
     let cmax = p.rows.iter().map(|r| r.c.abs()).fold(0.0, f64::max);
     let umax = bu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
@@ -158,6 +167,8 @@ pub fn classify(state: &State) -> Vec<Class> {
         .map(|i| {
             if i < p.n_equality {
                 Class::Equality
+            } else if !contact(i) {
+                Class::Inactive
             } else if state.lambda[i] > 1e-8 * lmax {
                 Class::Strong
             } else if (p.rows[i].c - bu[i]).abs() <= gap_tol {
@@ -395,6 +406,9 @@ impl<'a> Sensitivity<'a> {
         kind: Option<Kind>,
         form: SchurForm,
     ) -> Result<Self, SolveError> {
+        if state.friction.is_some() {
+            return Err(SolveError::Unsupported(FRICTION_REFUSED.to_string()));
+        }
         let classes = classify(state);
         let mut kept: Vec<usize> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))

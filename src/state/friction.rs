@@ -1,9 +1,10 @@
 //! Friction in the state solve: the slip bounds of the tangential rows, and
 //! Coulomb's law as a fixed point on Tresca's (Haslinger): solve with the
 //! bounds `g`, set `g = mu l_n` from the normal forces found, solve again
-//! from there, until `g` settles. The first solve of a Coulomb contact sticks
-//! everywhere it touches (`g` infinite), so that the first bounds come from
-//! normal forces that the contact can carry whatever the tangential load.
+//! from there, until `g` settles. In the first solve a Coulomb contact's
+//! nodes stick (`g` infinite: every node with a row is tied along its
+//! tangents, open or not), so that the first bounds come from normal forces
+//! that the contact can carry whatever the tangential load.
 
 use crate::lang::scene::{Friction, Scene};
 use crate::model::{Problem, RowKind, SlipLaw};
@@ -57,12 +58,18 @@ pub fn slip_bounds(problem: &Problem, lambda: Option<&[f64]>) -> SlipBounds {
         else {
             continue;
         };
+        // A node's second tangent follows its first: one disc.
+        let pairs = |g: &SlipGroup| {
+            g.len == 1
+                && matches!(problem.rows[g.rows[0]].kind,
+                    RowKind::Friction { normal_row: n, .. } if n == *normal_row)
+        };
         if *axis > 0 {
-            if let Some(g) = groups.last_mut() {
+            if let Some(g) = groups.last_mut().filter(|g| pairs(g)) {
                 g.rows[1] = i;
                 g.len = 2;
+                continue;
             }
-            continue;
         }
         let bound = match *law {
             SlipLaw::Tresca(g) => g * row.scale,
@@ -131,7 +138,7 @@ pub fn solve_with_friction(
         let change = if k == 1 {
             f64::INFINITY
         } else {
-            largest_change(&bounds, &next)
+            largest_change(problem, &bounds, &next)
         };
         if k > 1 {
             changes.push(change);
@@ -170,7 +177,7 @@ pub fn solve_with_friction(
         sol = next_sol;
     }
     Err(SolveError::Infeasible(format!(
-        "Coulomb friction did not settle in {MAX_COULOMB_SOLVES} solves (the slip bounds last changed by {:.1e} of the largest): the coefficient may be too large for a unique state; try a smaller `friction` or `slip_bound`",
+        "Coulomb friction did not settle in {MAX_COULOMB_SOLVES} solves (the slip bounds last changed by {:.1e} of the largest): the coefficient may be too large for a unique state; try a smaller `friction`",
         changes.last().copied().unwrap_or(f64::NAN)
     )))
 }
@@ -238,10 +245,25 @@ fn cannot_carry(
     Ok(())
 }
 
-/// `||g_new - g_old||_inf / ||g_new||_inf` over the groups.
-fn largest_change(old: &SlipBounds, new: &SlipBounds) -> f64 {
+/// `||g_new - g_old||_inf / ||g_new||_inf` over the Coulomb groups (a
+/// Tresca bound does not change, and a large one would hide the change).
+fn largest_change(problem: &Problem, old: &SlipBounds, new: &SlipBounds) -> f64 {
     let (mut change, mut size) = (0.0f64, 0.0f64);
-    for (a, b) in old.groups.iter().zip(&new.groups) {
+    let coulomb = |g: &SlipGroup| {
+        matches!(
+            problem.rows[g.rows[0]].kind,
+            RowKind::Friction {
+                law: SlipLaw::Coulomb(_),
+                ..
+            }
+        )
+    };
+    for (a, b) in old
+        .groups
+        .iter()
+        .zip(&new.groups)
+        .filter(|(a, _)| coulomb(a))
+    {
         change = change.max((a.bound - b.bound).abs());
         size = size.max(b.bound.abs());
     }

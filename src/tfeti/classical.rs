@@ -18,7 +18,7 @@ use super::cluster::Cluster;
 use super::dual::Dual;
 use super::error::{CoarseError, SolveError};
 use super::rows::LocalRows;
-use super::solve::{dual_solve_bounded, dual_solve_from, DualSolution, DualStart, SlipBounds};
+use super::solve::{dual_solve_bounded, DualSolution, DualStart, SlipBounds, SlipGroup};
 use crate::model::{Problem, Row, RowKind};
 use crate::qp::{QpInfo, SmalbeSettings};
 use std::sync::Arc;
@@ -77,7 +77,8 @@ impl Elimination {
     /// must not violate (no solver could fix that: the scene is infeasible).
     pub fn check_held_contacts(&self, problem: &Problem) -> Result<(), SolveError> {
         for row in &problem.rows[problem.n_equality..] {
-            if self.keeps(row) {
+            // A friction row held on both sides only has no gap to keep.
+            if self.keeps(row) || matches!(row.kind, RowKind::Friction { .. }) {
                 continue;
             }
             let bu: f64 = row
@@ -321,11 +322,30 @@ impl DualSystem {
                 observer,
             );
         };
-        if !slip.is_empty() {
-            return Err(SolveError::Infeasible(
-                "friction is solved by TFETI only: classical FETI (`solver { method = feti }`) keeps contact frictionless; remove `method = feti`".to_string(),
-            ));
-        }
+        // The friction groups on the kept rows (a row that lost every entry
+        // to the eliminated dofs carries nothing; its multiplier is 0).
+        let kept_at = |i: usize| reduced.kept.binary_search(&i).ok();
+        let slip_hat = SlipBounds {
+            groups: slip
+                .groups
+                .iter()
+                .filter_map(|g| {
+                    let rows: Vec<usize> =
+                        g.rows[..g.len].iter().filter_map(|&i| kept_at(i)).collect();
+                    let first = *rows.first()?;
+                    Some(SlipGroup {
+                        rows: [first, *rows.last()?],
+                        len: rows.len(),
+                        bound: g.bound,
+                    })
+                })
+                .collect(),
+        };
+        let tangential: std::collections::HashSet<usize> = slip
+            .groups
+            .iter()
+            .flat_map(|g| g.rows[..g.len].iter().copied())
+            .collect();
         let g = |s: usize, d: usize| -> Option<f64> {
             elim.held(s, d).map(|v| match held {
                 Held::Prescribed => v,
@@ -340,7 +360,7 @@ impl DualSystem {
                 .filter_map(|&(s, d, v)| g(s, d).map(|gv| v * gv))
                 .sum::<f64>()
         };
-        for &i in &reduced.constant {
+        for &i in reduced.constant.iter().filter(|i| !tangential.contains(i)) {
             let room = shifted(i);
             if room < -1e-12 * (c[i].abs() + 1.0) {
                 return Err(SolveError::Infeasible(format!(
@@ -371,11 +391,12 @@ impl DualSystem {
                 .collect(),
             ..s.clone()
         });
-        let sol = dual_solve_from(
+        let sol = dual_solve_bounded(
             dual,
             &f_ref,
             &c_hat,
             reduced.n_equality,
+            &slip_hat,
             settings,
             start_hat.as_ref(),
             observer,

@@ -91,10 +91,11 @@ pub enum SolveError {
     /// A scene a study generated does not check (a bug of the generator):
     /// the checker's messages.
     Generated(Vec<String>),
-    /// A contact's friction cannot carry the tangential force its body needs:
-    /// `needed` (N) is the tangential resultant of the solve where it sticks
-    /// everywhere it touches, `capacity` (N) the sum of its nodes' slip
-    /// bounds in the solve that failed.
+    /// A solve with friction that failed, where a contact's friction cannot
+    /// carry the tangential force it carries when it sticks: `needed` (N) is
+    /// the tangential resultant of the solve where every node with a row
+    /// sticks, `capacity` (N) the sum of its nodes' slip bounds in the solve
+    /// that failed.
     FrictionCannotCarry {
         contact: String,
         needed: f64,
@@ -207,7 +208,7 @@ impl fmt::Display for SolveError {
                 law,
             } => write!(
                 f,
-                "contact `{contact}` must carry a tangential force of {} N (where it sticks everywhere it touches), but its friction ({law}) carries at most {} N: the body would slide; lower the tangential load or raise the friction",
+                "the solve with friction did not converge: contact `{contact}` carries a tangential force of {} N where it sticks at every node, but its friction ({law}) carries at most {} N; the body would slide, unless something else holds it along the face; lower the tangential load or raise the friction",
                 crate::lang::diag::num(*needed),
                 crate::lang::diag::num(*capacity)
             ),

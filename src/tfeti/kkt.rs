@@ -46,7 +46,10 @@ pub struct Kkt {
 /// a node on its bound slips along its force (`s = k l_t`, `k >= 0`).
 #[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
 pub struct FrictionKkt {
-    /// Largest `|l_t| - g` over the nodes, relative to `max |l|`.
+    /// Largest `|l_t| - g` over the nodes, relative to the largest contact
+    /// or friction multiplier; `g` the bounds the last solve had (Coulomb:
+    /// `mu l_n` of the solve before, within the fixed point's tolerance of
+    /// the final normal forces).
     pub bound: f64,
     /// Largest `|s|` of a sticking node, relative like `equality`.
     pub stick: f64,
@@ -166,10 +169,7 @@ pub fn friction_kkt(
     let cluster = dual.cluster();
     let bu = cluster.apply_b(u);
     let scale_u = gap_scale(problem, cluster, u);
-    let lmax = lambda
-        .iter()
-        .fold(0.0f64, |a, b| a.max(b.abs()))
-        .max(f64::MIN_POSITIVE);
+    let lmax = SlipBounds::scale(lambda, problem.n_equality).max(f64::MIN_POSITIVE);
     let mut k = FrictionKkt::default();
     for g in &slip.groups {
         let rows = &g.rows[..g.len];

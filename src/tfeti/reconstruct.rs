@@ -24,9 +24,7 @@ pub(crate) fn reconstruct(
     d: &[f64],
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>), SolveError> {
     let m = lambda.len();
-    let lmax = lambda[n_equality..]
-        .iter()
-        .fold(0.0f64, |a, b| a.max(b.abs()));
+    let lmax = SlipBounds::scale(lambda, n_equality);
     let mut active: Vec<bool> = (0..m)
         .map(|i| i < n_equality || lambda[i] > 1e-8 * lmax.max(f64::MIN_POSITIVE))
         .collect();

@@ -69,8 +69,8 @@ pub fn dual_solve_from(
 
 /// The tangential rows of contact nodes with friction and their slip bounds
 /// in the dual's units (a row's multiplier, i.e. the force times the row's
-/// scale): each group's multipliers satisfy `|l_t| <= bound`, a box in 2D (one
-/// row) and a disc in 3D (two rows). Every other row from `n_equality` on is
+/// scale): each group's multipliers satisfy `|l_t| <= bound`, a box for one
+/// row (2D, or a 3D node with one free tangent) and a disc for two. Every other row from `n_equality` on is
 /// a contact row, `l >= 0`.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct SlipBounds {
@@ -110,9 +110,20 @@ impl SlipBounds {
             .sqrt()
     }
 
+    /// What [`Self::sticks`] is relative to: the largest multiplier of the
+    /// rows from `n_equality` on (contact and friction), as the
+    /// reconstruction, the KKT check and the reports all take it.
+    pub fn scale(lambda: &[f64], n_equality: usize) -> f64 {
+        lambda
+            .get(n_equality..)
+            .unwrap_or(&[])
+            .iter()
+            .fold(0.0f64, |a, b| a.max(b.abs()))
+    }
+
     /// Is the group strictly inside its bound (sticking: its rows hold as
     /// equalities)? Within `1e-8` of the larger of the bound and `scale`
-    /// (the largest multiplier), it is on the bound (slipping).
+    /// ([`Self::scale`]), it is on the bound (slipping).
     pub fn sticks(&self, group: &SlipGroup, lambda: &[f64], scale: f64) -> bool {
         group.bound == f64::INFINITY
             || group.bound - self.magnitude(group, lambda) > 1e-8 * group.bound.max(scale)
@@ -255,8 +266,8 @@ fn equality_solve(
 }
 
 /// The tangential rows' sets for the homogenized multipliers `l^ = l - l~`:
-/// in 2D the box `-g - l~ <= l^ <= g - l~` (its lower end written into
-/// `lower`), in 3D the disc of radius `g` about `-l~`. None and no discs
+/// for one row the box `-g - l~ <= l^ <= g - l~` (its lower end written into
+/// `lower`), for two the disc of radius `g` about `-l~`. None and no discs
 /// without friction.
 fn slip_sets(
     slip: &SlipBounds,
