@@ -300,6 +300,29 @@ fn precheck_held(problem: &Problem, elimination: Option<&Elimination>) -> Result
     }
 }
 
+/// [`SolveError::FrictionCannotCarry`] on its contact's source line.
+fn friction_diagnostic(
+    scene: &Scene,
+    contact: &str,
+    needed: f64,
+    capacity: f64,
+    message: String,
+) -> Option<crate::lang::diag::Diagnostic> {
+    use crate::lang::diag::{num, Diagnostic};
+    let c = scene.contacts.iter().position(|c| c.name == contact)?;
+    let d = Diagnostic::new("cso::friction", message).label(
+        *scene.source.places.contacts.get(c)?,
+        format!(
+            "carries at most {} N along its face; {} N are needed",
+            num(capacity),
+            num(needed)
+        ),
+    );
+    Some(d.help(
+        "lower the tangential load, raise `friction` or `slip_bound`, or hold the body with a support",
+    ))
+}
+
 /// A solve-time error as a diagnostic on the scene's text: the item that causes
 /// it (the contact whose bodies overlap, the loads nothing holds and their body,
 /// the body with an inverted element) gets a label, like the checker's errors.
@@ -332,20 +355,7 @@ pub fn diagnostic(scene: &Scene, error: &SolveError) -> Option<crate::lang::diag
             needed,
             capacity,
             ..
-        } => {
-            let c = scene.contacts.iter().position(|c| &c.name == contact)?;
-            let d = Diagnostic::new("cso::friction", message).label(
-                *places.contacts.get(c)?,
-                format!(
-                    "carries at most {} N along its face; {} N are needed",
-                    crate::lang::diag::num(*capacity),
-                    crate::lang::diag::num(*needed)
-                ),
-            );
-            Some(d.help(
-                "lower the tangential load, raise `friction` or `slip_bound`, or hold the body with a support",
-            ))
-        }
+        } => friction_diagnostic(scene, contact, *needed, *capacity, message),
         SolveError::SearchUnsettled {
             contact,
             depth,

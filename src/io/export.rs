@@ -191,30 +191,8 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         .unwrap_or(problem.rows.len());
     let (b_eq, c_eq) = b(0..ne);
     let (b_in, c_in) = b(ne..nc);
-    let friction = (nc < problem.rows.len()).then(|| {
-        let (b_t, _) = b(nc..problem.rows.len());
-        let mut f = FrictionRows {
-            b_t,
-            normal_row: Vec::new(),
-            slip_bound: Vec::new(),
-            coefficient: Vec::new(),
-        };
-        for row in &problem.rows[nc..] {
-            if let crate::model::RowKind::Friction {
-                normal_row, law, ..
-            } = row.kind
-            {
-                f.normal_row.push((normal_row - ne) as f64);
-                let (g, mu) = match law {
-                    crate::model::SlipLaw::Tresca(g) => (g, 0.0),
-                    crate::model::SlipLaw::Coulomb(mu) => (0.0, mu),
-                };
-                f.slip_bound.push(g);
-                f.coefficient.push(mu);
-            }
-        }
-        f
-    });
+    let friction =
+        (nc < problem.rows.len()).then(|| friction_rows(problem, nc, b(nc..problem.rows.len()).0));
     let modes: Vec<usize> = (0..cluster.len())
         .map(|s| cluster.subdomain(s).kernel_dim())
         .collect();
@@ -230,39 +208,7 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         col0 += modes[s];
     }
     let r = Csr::from_triplets(n, col0, rt);
-    let rows = problem
-        .rows
-        .iter()
-        .map(|row| RowInfo {
-            normal_row: match row.kind {
-                crate::model::RowKind::Friction { normal_row, .. } => Some(normal_row - ne),
-                _ => None,
-            },
-            slip_bound: match row.kind {
-                crate::model::RowKind::Friction {
-                    law: crate::model::SlipLaw::Tresca(g),
-                    ..
-                } => Some(g),
-                _ => None,
-            },
-            friction: match row.kind {
-                crate::model::RowKind::Friction {
-                    law: crate::model::SlipLaw::Coulomb(mu),
-                    ..
-                } => Some(mu),
-                _ => None,
-            },
-            kind: match row.kind {
-                crate::model::RowKind::Gluing => "gluing",
-                crate::model::RowKind::Dirichlet => "dirichlet",
-                crate::model::RowKind::Symmetry => "symmetry",
-                crate::model::RowKind::Tie { .. } => "tie",
-                crate::model::RowKind::Contact { .. } => "contact",
-                crate::model::RowKind::Friction { .. } => "friction",
-            },
-            scale: row.scale,
-        })
-        .collect();
+    let rows = problem.rows.iter().map(|row| row_info(row, ne)).collect();
     Qp {
         blocks,
         k,
@@ -275,6 +221,61 @@ pub fn primal_qp(setup: &Setup) -> Qp {
         r,
         rows,
         dim: problem.dim,
+    }
+}
+
+/// The friction rows `nc..` of `problem` (after every other row), with
+/// `b_t` their matrix: per row its node's contact row among `B_I`'s (`B_I`
+/// starts at `n_equality`), Tresca bound and Coulomb coefficient.
+fn friction_rows(problem: &crate::model::Problem, nc: usize, b_t: Csr) -> FrictionRows {
+    let mut f = FrictionRows {
+        b_t,
+        normal_row: Vec::new(),
+        slip_bound: Vec::new(),
+        coefficient: Vec::new(),
+    };
+    for row in &problem.rows[nc..] {
+        if let crate::model::RowKind::Friction {
+            normal_row, law, ..
+        } = row.kind
+        {
+            f.normal_row.push((normal_row - problem.n_equality) as f64);
+            let (g, mu) = match law {
+                crate::model::SlipLaw::Tresca(g) => (g, 0.0),
+                crate::model::SlipLaw::Coulomb(mu) => (0.0, mu),
+            };
+            f.slip_bound.push(g);
+            f.coefficient.push(mu);
+        }
+    }
+    f
+}
+
+/// What the manifest says of one row (`ne` equality rows come first).
+fn row_info(row: &crate::model::Row, ne: usize) -> RowInfo {
+    use crate::model::{RowKind, SlipLaw};
+    let (normal_row, slip_bound, friction) = match row.kind {
+        RowKind::Friction {
+            normal_row, law, ..
+        } => match law {
+            SlipLaw::Tresca(g) => (Some(normal_row - ne), Some(g), None),
+            SlipLaw::Coulomb(mu) => (Some(normal_row - ne), None, Some(mu)),
+        },
+        _ => (None, None, None),
+    };
+    RowInfo {
+        kind: match row.kind {
+            RowKind::Gluing => "gluing",
+            RowKind::Dirichlet => "dirichlet",
+            RowKind::Symmetry => "symmetry",
+            RowKind::Tie { .. } => "tie",
+            RowKind::Contact { .. } => "contact",
+            RowKind::Friction { .. } => "friction",
+        },
+        scale: row.scale,
+        normal_row,
+        slip_bound,
+        friction,
     }
 }
 
@@ -324,7 +325,7 @@ pub fn files(
         Format::Petsc => petsc_vec(v),
         Format::Mm => mm_vec(v),
     };
-    let parts: Vec<(&str, &'static str, Vec<u8>)> = vec![
+    let mut parts: Vec<(&str, &'static str, Vec<u8>)> = vec![
         (
             "K",
             "stiffness, symmetric, block diagonal by subdomain (blocks)",
@@ -353,7 +354,6 @@ pub fn files(
             mat(&qp.r),
         ),
     ];
-    let mut parts = parts;
     if let Some(f) = &qp.friction {
         parts.extend([
             (

@@ -86,24 +86,40 @@ fn add_primary<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     }
 }
 
-/// The friction of body `b`'s secondary contact nodes, for the VTU files:
-/// per node the tangential traction on it (Pa), its slip relative to the
-/// primary side (m; the slip direction), and its state (0 no friction row,
-/// 1 stick, 2 slip, 3 open). None where the state has no friction.
-pub fn nodal_friction(state: &State, b: usize) -> Option<NodalFriction> {
-    let done = state.friction.as_ref()?;
-    let p = &state.problem;
-    let n = p.bodies[b].coords.len();
-    let mut out = NodalFriction {
-        shear: vec![[0.0; 3]; n],
-        slip: vec![[0.0; 3]; n],
-        state: vec![0; n],
+/// The friction of one contact node with friction rows (a group of the
+/// state's slip bounds).
+#[derive(Debug, Clone, Copy)]
+pub struct NodeFriction {
+    pub contact: usize,
+    pub body: usize,
+    pub node: usize,
+    /// Its contact (normal) row.
+    pub normal_row: usize,
+    /// Its tributary area (m^2; length x thickness in 2D).
+    pub area: f64,
+    /// The tangential force on the secondary node (N; `z = 0` in 2D).
+    pub force: [f64; 3],
+    /// The secondary node's tangential displacement relative to the primary
+    /// side (m): the slip, zero where it sticks.
+    pub slip: [f64; 3],
+    /// `stick`, `slip` or `open` (no normal force).
+    pub state: &'static str,
+}
+
+/// Every contact node with friction rows in `state`, in the order of its
+/// slip bounds (its rows' order); none without friction.
+pub fn node_frictions(state: &State) -> Vec<NodeFriction> {
+    let Some(done) = state.friction.as_ref() else {
+        return Vec::new();
     };
+    let p = &state.problem;
     let bu = state.row_values();
     let lmax = crate::tfeti::solve::SlipBounds::scale(&state.lambda, p.n_equality);
+    let mut out = Vec::with_capacity(done.bounds.groups.len());
     for g in &done.bounds.groups {
         let rows = &g.rows[..g.len];
         let RowKind::Friction {
+            contact,
             body,
             node,
             normal_row,
@@ -115,26 +131,59 @@ pub fn nodal_friction(state: &State, b: usize) -> Option<NodalFriction> {
         let RowKind::Contact { area, .. } = p.rows[normal_row].kind else {
             continue;
         };
-        if body != b {
-            continue;
-        }
+        let (mut force, mut slip) = ([0.0; 3], [0.0; 3]);
         for &i in rows {
             let row = &p.rows[i];
             if let RowKind::Friction { tangent, .. } = row.kind {
                 for a in 0..3 {
-                    if area > 0.0 {
-                        out.shear[node][a] += state.lambda[i] / row.scale / area * tangent[a];
-                    }
-                    out.slip[node][a] -= bu[i] * row.scale * tangent[a];
+                    force[a] += state.lambda[i] / row.scale * tangent[a];
+                    // B_t u = t . (u_primary - u_secondary), normalized.
+                    slip[a] -= bu[i] * row.scale * tangent[a];
                 }
             }
         }
-        out.state[node] = if state.lambda[normal_row] <= 1e-8 * lmax {
-            3
+        let state_name = if state.lambda[normal_row] <= 1e-8 * lmax {
+            "open"
         } else if done.bounds.sticks(g, &state.lambda, lmax) {
-            1
+            "stick"
         } else {
-            2
+            "slip"
+        };
+        out.push(NodeFriction {
+            contact,
+            body,
+            node,
+            normal_row,
+            area,
+            force,
+            slip,
+            state: state_name,
+        });
+    }
+    out
+}
+
+/// The friction of body `b`'s secondary contact nodes, for the VTU files:
+/// per node the tangential traction on it (Pa), its slip relative to the
+/// primary side (m; the slip direction), and its state (0 no friction row,
+/// 1 stick, 2 slip, 3 open). None where the state has no friction.
+pub fn nodal_friction(state: &State, b: usize) -> Option<NodalFriction> {
+    state.friction.as_ref()?;
+    let n = state.problem.bodies[b].coords.len();
+    let mut out = NodalFriction {
+        shear: vec![[0.0; 3]; n],
+        slip: vec![[0.0; 3]; n],
+        state: vec![0; n],
+    };
+    for f in node_frictions(state).into_iter().filter(|f| f.body == b) {
+        if f.area > 0.0 {
+            out.shear[f.node] = f.force.map(|v| v / f.area);
+        }
+        out.slip[f.node] = f.slip;
+        out.state[f.node] = match f.state {
+            "stick" => 1,
+            "slip" => 2,
+            _ => 3,
         };
     }
     Some(out)

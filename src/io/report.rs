@@ -38,7 +38,6 @@ use crate::model::{RowCounts, RowKind};
 use crate::num::norm;
 use crate::qp::Status;
 use crate::state::{Kkt, State, Times};
-use crate::tfeti::solve::SlipBounds;
 use serde::Serialize;
 use std::fmt::Write as _;
 
@@ -553,8 +552,8 @@ fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
             });
         }
     }
-    if let Some(done) = &state.friction {
-        friction_reports(scene, state, &bu, &done.bounds, &mut contacts);
+    if state.friction.is_some() {
+        friction_reports(scene, state, &mut contacts);
     }
     for c in &mut contacts {
         c.nodes.sort_by(|a, b| a.x.total_cmp(&b.x));
@@ -565,16 +564,9 @@ fn contact_reports(scene: &Scene, state: &State) -> Vec<ContactReport> {
 /// The friction of each contact that has it: per node its state, tangential
 /// traction and slip (the nodes in row order, as `contact_reports` pushed
 /// them), and per contact the counts and the tangential resultant.
-fn friction_reports(
-    scene: &Scene,
-    state: &State,
-    bu: &[f64],
-    bounds: &SlipBounds,
-    contacts: &mut [ContactReport],
-) {
+fn friction_reports(scene: &Scene, state: &State, contacts: &mut [ContactReport]) {
     let p = &state.problem;
     let d = p.dim;
-    let lmax = SlipBounds::scale(&state.lambda, p.n_equality);
     // The position of each contact row among its contact's nodes.
     let mut slot = vec![usize::MAX; p.rows.len()];
     let mut seen = vec![0usize; contacts.len()];
@@ -600,59 +592,27 @@ fn friction_reports(
             open: 0,
         });
     }
-    for g in &bounds.groups {
-        let rows = &g.rows[..g.len];
-        let RowKind::Friction {
-            contact,
-            normal_row,
-            ..
-        } = p.rows[rows[0]].kind
-        else {
+    for f in crate::io::pressure::node_frictions(state) {
+        let Some(report) = contacts[f.contact].friction.as_mut() else {
             continue;
         };
-        let RowKind::Contact { area, .. } = p.rows[normal_row].kind else {
-            continue;
-        };
-        let (mut force, mut slip) = (vec![0.0; d], vec![0.0; d]);
-        for &i in rows {
-            let (row, l) = (&p.rows[i], state.lambda[i]);
-            if let RowKind::Friction { tangent, .. } = row.kind {
-                for a in 0..d {
-                    force[a] += l / row.scale * tangent[a];
-                    // B_t u = t . (u_primary - u_secondary), normalized.
-                    slip[a] -= bu[i] * row.scale * tangent[a];
-                }
-            }
-        }
-        let open = state.lambda[normal_row] <= 1e-8 * lmax;
-        let sticks = bounds.sticks(g, &state.lambda, lmax);
-        let name = if open {
-            "open"
-        } else if sticks {
-            "stick"
-        } else {
-            "slip"
-        };
-        let Some(report) = contacts[contact].friction.as_mut() else {
-            continue;
-        };
-        match name {
+        match f.state {
             "open" => report.open += 1,
             "stick" => report.stick += 1,
             _ => report.slip += 1,
         }
         for a in 0..d {
-            report.tangential_resultant[a] += force[a];
+            report.tangential_resultant[a] += f.force[a];
         }
-        let node = &mut contacts[contact].nodes[slot[normal_row]];
-        node.state = Some(name);
+        let node = &mut contacts[f.contact].nodes[slot[f.normal_row]];
+        node.state = Some(f.state);
         node.shear = Some(
-            force
+            f.force[..d]
                 .iter()
-                .map(|f| if area > 0.0 { f / area } else { 0.0 })
+                .map(|v| if f.area > 0.0 { v / f.area } else { 0.0 })
                 .collect(),
         );
-        node.slip = Some(slip);
+        node.slip = Some(f.slip[..d].to_vec());
     }
     for c in contacts.iter_mut() {
         if let Some(r) = c.friction.as_mut() {

@@ -10,9 +10,9 @@ use super::geometry::{
 use super::{IdleContact, LowerError, Penetration, Problem};
 use crate::fem::facet::Facet;
 use crate::lang::diag::num;
-use crate::lang::scene::{Condition, Friction, Primary, Scene, Selection};
+use crate::lang::scene::{Condition, Contact, Friction, Primary, Scene, Selection};
 use crate::num::{norm, sub};
-use std::collections::HashMap;
+use std::collections::{HashMap, HashSet};
 
 /// One row of `B` with its right-hand side.
 #[derive(Debug, Clone, PartialEq)]
@@ -524,7 +524,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let mut searches = Vec::new();
     let friction = &mut Vec::new();
     // The dofs supports hold at zero (their rows come first, one entry each).
-    let held: std::collections::HashSet<(usize, usize)> = rows
+    let held: HashSet<(usize, usize)> = rows
         .iter()
         .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry) && r.c == 0.0)
         .filter_map(|r| r.entries.first().map(|e| (e.0, e.1)))
@@ -561,61 +561,18 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
             }
         };
         let before = rows.len();
-        let law = |node: usize| -> Result<Option<SlipLaw>, LowerError> {
-            Ok(match &contact.friction {
-                None => None,
-                Some(Friction::Coulomb(mu)) => Some(SlipLaw::Coulomb(*mu)),
-                Some(Friction::Tresca(g)) => {
-                    let x = problem.bodies[sec.body].coords[node];
-                    let bound = g.eval_f64(x, design);
-                    if !(bound >= 0.0 && bound.is_finite()) {
-                        let at: Vec<String> = x[..D].iter().map(|v| num(*v)).collect();
-                        return Err(LowerError::Geometry(format!(
-                            "the slip bound of contact `{}` is {} Pa at the node ({}) of `{}`: it must be finite and at least 0 on the whole face",
-                            contact.name,
-                            num(bound),
-                            at.join(", "),
-                            sec.text
-                        )));
-                    }
-                    Some(SlipLaw::Tresca(
-                        bound * areas.get(&node).copied().unwrap_or(0.0),
-                    ))
-                }
-            })
-        };
         for node in nodes {
             let p = pos[sec.body][node];
             let area = areas.get(&node).copied().unwrap_or(0.0);
-            let (e, normal, gap, primary) = match &primary {
-                Side::Facets(pieces, counts, boxes) => {
-                    let Some((piece, gap)) = nearest_piece(pos, pieces, counts, boxes, p) else {
-                        continue;
-                    };
-                    if gap.abs() > search {
+            let (e, normal, gap, primary) =
+                match side_row(&primary, problem, pos, (sec.body, node, p), search) {
+                    Some(Ok(row)) => row,
+                    Some(Err(gap)) => {
                         left_out(gap);
                         continue;
                     }
-                    let (e, pr) =
-                        contact_row(problem, sec.body, node, &piece, pos, Pattern::Sparse);
-                    (e, pr.normal, pr.gap, piece.named())
-                }
-                Side::Obstacle(o, shape) => {
-                    let Some((n, gap)) = shape.normal_gap(&p) else {
-                        continue;
-                    };
-                    if gap.abs() > search {
-                        left_out(gap);
-                        continue;
-                    }
-                    (
-                        obstacle_row(problem, sec.body, node, &n),
-                        n,
-                        gap,
-                        ContactPrimary::Obstacle(*o),
-                    )
-                }
-            };
+                    None => continue,
+                };
             if gap < -tolerance && deepest.is_none_or(|(d, _)| gap < d) {
                 deepest = Some((gap, problem.bodies[sec.body].coords[node]));
             }
@@ -628,21 +585,9 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
                 gap,
                 primary,
             };
+            let law = slip_law::<D>(contact, problem, node, design, &areas)?;
             let normal_row = rows.len();
-            let tangents = match law(node)? {
-                Some(law) => {
-                    // Axes held at zero on the secondary node and on every
-                    // primary node the row touches (an obstacle has none).
-                    let held: Vec<usize> = (0..D)
-                        .filter(|a| {
-                            e.chunks_exact(D)
-                                .all(|chunk| held.contains(&(chunk[0].0, chunk[0].1 + a)))
-                        })
-                        .collect();
-                    Some((law, tangent_entries(&e, &normal, &held)))
-                }
-                None => None,
-            };
+            let tangents = law.map(|law| (law, tangent_rows(&e, &normal, &held)));
             push(rows, e, gap, kind);
             if let (Some((law, tangents)), true) = (tangents, rows.len() > normal_row) {
                 for (axis, (t, e)) in tangents.into_iter().enumerate() {
@@ -678,6 +623,62 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     Ok((overlaps, idle, searches))
 }
 
+/// The slip law of `contact`'s secondary node `node`: Coulomb's
+/// coefficient, or Tresca's bound in N (the slip bound there times the
+/// node's tributary area, refused where it is negative or not finite); None
+/// without friction.
+fn slip_law<const D: usize>(
+    contact: &Contact,
+    problem: &Problem,
+    node: usize,
+    design: &[f64],
+    areas: &HashMap<usize, f64>,
+) -> Result<Option<SlipLaw>, LowerError> {
+    let sec = &contact.secondary;
+    Ok(match &contact.friction {
+        None => None,
+        Some(Friction::Coulomb(mu)) => Some(SlipLaw::Coulomb(*mu)),
+        Some(Friction::Tresca(g)) => {
+            let x = problem.bodies[sec.body].coords[node];
+            let bound = g.eval_f64(x, design);
+            if !(bound >= 0.0 && bound.is_finite()) {
+                let at: Vec<String> = x[..D].iter().map(|v| num(*v)).collect();
+                return Err(LowerError::Geometry(format!(
+                    "the slip bound of contact `{}` is {} Pa at the node ({}) of `{}`: it must be finite and at least 0 on the whole face",
+                    contact.name,
+                    num(bound),
+                    at.join(", "),
+                    sec.text
+                )));
+            }
+            Some(SlipLaw::Tresca(
+                bound * areas.get(&node).copied().unwrap_or(0.0),
+            ))
+        }
+    })
+}
+
+/// A unit tangent with its un-normalized row.
+type Tangent<const D: usize> = ([f64; D], Vec<(usize, usize, f64)>);
+
+/// The tangential rows of a contact row `e` with normal `n` (un-normalized,
+/// with their tangents), less the axes held at zero (`held`: dofs) on its
+/// secondary node and on every primary node it touches (an obstacle has
+/// none): [`tangent_entries`].
+fn tangent_rows<const D: usize>(
+    e: &[(usize, usize, f64)],
+    normal: &[f64; D],
+    held: &HashSet<(usize, usize)>,
+) -> Vec<Tangent<D>> {
+    let axes: Vec<usize> = (0..D)
+        .filter(|a| {
+            e.chunks_exact(D)
+                .all(|chunk| held.contains(&(chunk[0].0, chunk[0].1 + a)))
+        })
+        .collect();
+    tangent_entries(e, normal, &axes)
+}
+
 /// The deepest overlap of each contact that has one, the contacts that got
 /// no row (with their search distance), and each contact's search distance.
 type ContactFindings = (Vec<Penetration>, Vec<IdleContact>, Vec<f64>);
@@ -688,6 +689,40 @@ enum Side<P, const D: usize> {
     /// their boxes.
     Facets(Vec<P>, HashMap<(usize, usize), usize>, Vec<Aabb<D>>),
     Obstacle(usize, ObstacleShape<f64, D>),
+}
+
+/// A secondary node's contact row (un-normalized entries), the primary's
+/// normal there, the initial gap and what it touches.
+type NodeRow<const D: usize> = (Vec<(usize, usize, f64)>, [f64; D], f64, ContactPrimary);
+
+/// The contact row of secondary node `node` of `body` at `p` on `side`:
+/// None where it projects on no piece (or has no normal on the obstacle),
+/// `Err(gap)` where its gap is beyond `search` (no row is formed).
+fn side_row<P: Piece<D, N> + Named, const D: usize, const N: usize>(
+    side: &Side<P, D>,
+    problem: &Problem,
+    pos: &[Vec<[f64; D]>],
+    (body, node, p): (usize, usize, [f64; D]),
+    search: f64,
+) -> Option<Result<NodeRow<D>, f64>> {
+    match side {
+        Side::Facets(pieces, counts, boxes) => {
+            let (piece, gap) = nearest_piece(pos, pieces, counts, boxes, p)?;
+            if gap.abs() > search {
+                return Some(Err(gap));
+            }
+            let (e, pr) = contact_row(problem, body, node, &piece, pos, Pattern::Sparse);
+            Some(Ok((e, pr.normal, pr.gap, piece.named())))
+        }
+        Side::Obstacle(o, shape) => {
+            let (n, gap) = shape.normal_gap(&p)?;
+            if gap.abs() > search {
+                return Some(Err(gap));
+            }
+            let e = obstacle_row(problem, body, node, &n);
+            Some(Ok((e, n, gap, ContactPrimary::Obstacle(*o))))
+        }
+    }
 }
 
 #[cfg(test)]

@@ -16,7 +16,7 @@
 //! minimization of a quadratic function subject to separable convex
 //! constraints with applications*, Math. Program. 135 (2012) (MPGP).
 
-use super::mprgp::{Set, Split};
+use super::set::{Set, Split};
 use super::Breakdown;
 
 /// The constraint `||(x_a, x_b) - center|| <= radius` on the entries

@@ -10,6 +10,7 @@
 mod bounds;
 mod breakdown;
 mod mprgp;
+mod set;
 pub mod smalbe;
 
 pub use bounds::Disc;

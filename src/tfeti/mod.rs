@@ -31,6 +31,7 @@ pub mod reconstruct;
 pub mod rows;
 pub mod schur;
 pub mod settings;
+pub mod slip;
 pub mod solve;
 pub mod sparse;
 pub mod subdomain;

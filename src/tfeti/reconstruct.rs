@@ -6,7 +6,7 @@
 use super::coarse::{CoarseFactor, Gram};
 use super::dual::Dual;
 use super::error::SolveError;
-use super::solve::SlipBounds;
+use super::slip::SlipBounds;
 use std::time::Instant;
 
 /// `alpha` from the rows that hold at the solution (equalities and active
