@@ -113,6 +113,20 @@ fn bodies_from_mesh_files_on_2_and_3_ranks_give_the_serial_report_bitwise() {
 }
 
 #[test]
+fn coulomb_friction_on_2_ranks_gives_the_serial_report_bitwise() {
+    // cattaneo2d: Coulomb's fixed point over three dual solves, the stick and
+    // slip of every contact node in the report and the VTU.
+    let scene = "examples/cattaneo2d.cso";
+    let serial = solve(None, scene, &[], &scratch("cattaneo-serial"));
+    let dist = solve(Some(2), scene, &[], &scratch("cattaneo-2"));
+    assert_same(&serial, &dist, "cattaneo2d on 2 ranks");
+    assert!(dist["solver"]["friction"]["solves"].as_u64() > Some(1));
+    let a = std::fs::read(scratch("cattaneo-serial").join("roller.vtu")).expect("serial VTU");
+    let b = std::fs::read(scratch("cattaneo-2").join("roller.vtu")).expect("distributed VTU");
+    assert!(a == b, "roller.vtu differs on 2 ranks");
+}
+
+#[test]
 fn a_morphed_imported_body_on_2_ranks_gives_the_serial_report_bitwise() {
     // stamp3d: tetrahedra moved by a morph, their mesh quality in the report.
     let scene = "examples/stamp3d.cso";
