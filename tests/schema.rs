@@ -265,3 +265,40 @@ fn a_morphed_body_reports_its_mesh_quality() {
     let q = bodies[1]["min_scaled_jacobian"].as_f64().expect("a number");
     assert!(q > 0.0 && q <= 1.0, "{q}");
 }
+
+/// A report with friction (2D boxes and 3D discs) has exactly the fields
+/// docs/report.schema.json documents; a frictionless one has none of them.
+#[test]
+fn a_report_with_friction_matches_the_schema() {
+    let schema = schema();
+    for (name, from, to) in [
+        ("cattaneo2d", "mesh = 320 x 160", "mesh = 40 x 20"),
+        ("mindlin3d", "mesh = 36 x 18 x 18", "mesh = 12 x 6 x 6"),
+    ] {
+        let src = std::fs::read_to_string(root().join(format!("examples/{name}.cso")))
+            .expect("example")
+            .replace(from, to);
+        let path =
+            std::env::temp_dir().join(format!("cso-schema-{name}-{}.cso", std::process::id()));
+        std::fs::write(&path, src).expect("writes");
+        let report = solved_report(path.to_str().expect("utf-8"), name);
+        let _ = std::fs::remove_file(&path);
+        let errors = errors_of(&report, &schema);
+        assert!(errors.is_empty(), "{name}: {errors:#?}");
+        let contact = &report["contacts"][0];
+        assert!(contact["friction"]["stick"].as_u64() > Some(0), "{name}");
+        assert!(
+            report["solver"]["friction"]["solves"].as_u64() > Some(1),
+            "{name}"
+        );
+        assert!(
+            report["kkt"]["friction"]["stick"].as_f64().is_some(),
+            "{name}"
+        );
+        assert!(contact["nodes"][0]["state"].as_str().is_some(), "{name}");
+    }
+    let plain = solved_report("examples/scont2d.cso", "scont2d-plain");
+    assert!(plain["contacts"][0].get("friction").is_none());
+    assert!(plain["solver"].get("friction").is_none());
+    assert!(plain["kkt"].get("friction").is_none());
+}
