@@ -327,18 +327,18 @@ pub fn contact_entries<T: Scalar, const D: usize>(
 /// with `n` replaced by each unit tangent `t` ([`free_tangents`] of the axes
 /// `held` on both sides), with the tangent
 /// (a contact row holds each of its nodes' `D` components in turn, each `c n`).
-pub fn tangent_entries<const D: usize>(
-    normal_row: &[Entry<f64>],
-    n: &[f64; D],
+pub fn tangent_entries<T: Scalar, const D: usize>(
+    normal_row: &[Entry<T>],
+    n: &[T; D],
     held: &[usize],
-) -> Vec<([f64; D], Vec<Entry<f64>>)> {
+) -> Vec<([T; D], Vec<Entry<T>>)> {
     free_tangents(n, held)
         .into_iter()
         .map(|t| {
             let e = normal_row
                 .chunks_exact(D)
                 .flat_map(|chunk| {
-                    let c: f64 = chunk.iter().zip(n).map(|(e, na)| e.2 * na).sum();
+                    let c: T = chunk.iter().zip(n).map(|(e, na)| e.2 * *na).sum();
                     let (s, first) = (chunk[0].0, chunk[0].1);
                     (0..D).map(move |a| (s, first + a, c * t[a]))
                 })
@@ -355,23 +355,28 @@ pub fn tangent_entries<const D: usize>(
 /// A friction row along such an axis only repeats the supports' rows, and in
 /// 3D its share of the node's disc would be taken from the other direction's
 /// bound. An axis oblique to the face leaves the tangents as they are: the
-/// node still slips by moving along the others.
-pub fn free_tangents<const D: usize>(n: &[f64; D], held: &[usize]) -> Vec<[f64; D]> {
+/// node still slips by moving along the others. (The choices read the
+/// values only: in dual numbers the tangents' derivatives are those of the
+/// frame chosen at the values.)
+pub fn free_tangents<T: Scalar, const D: usize>(n: &[T; D], held: &[usize]) -> Vec<[T; D]> {
     let mut out = tangents(n);
     for &a in held.iter().filter(|&&a| a < D) {
-        if n[a].abs() > 1e-9 {
+        if n[a].re().abs() > 1e-9 {
             continue;
         }
         out = if D == 3 && out.len() == 2 {
             // The tangent normal to e_a: n x e_a.
-            let t: [f64; D] = std::array::from_fn(|k| {
+            let t: [T; D] = std::array::from_fn(|k| {
                 let (b, c) = ((k + 1) % 3, (k + 2) % 3);
-                n[b] * f64::from(u8::from(c == a)) - n[c] * f64::from(u8::from(b == a))
+                n[b] * T::from(f64::from(u8::from(c == a)))
+                    - n[c] * T::from(f64::from(u8::from(b == a)))
             });
             vec![t]
         } else {
             // A single tangent stays where it is normal to e_a.
-            out.into_iter().filter(|t| t[a].abs() <= 1e-9).collect()
+            out.into_iter()
+                .filter(|t| t[a].re().abs() <= 1e-9)
+                .collect()
         };
     }
     out
@@ -381,18 +386,22 @@ pub fn free_tangents<const D: usize>(n: &[f64; D], held: &[usize]) -> Vec<[f64; 
 /// in 2D `n` turned clockwise (`(1, 0)` for `n = (0, 1)`); in 3D `t1` along
 /// the axis least aligned with `n` (the first of equals), made normal to it,
 /// and `t2 = n x t1` (`(1, 0, 0)`, `(0, 1, 0)` for `n = (0, 0, 1)`).
-pub fn tangents<const D: usize>(n: &[f64; D]) -> Vec<[f64; D]> {
+pub fn tangents<T: Scalar, const D: usize>(n: &[T; D]) -> Vec<[T; D]> {
     if D == 2 {
         return vec![std::array::from_fn(|a| if a == 0 { n[1] } else { -n[0] })];
     }
-    let axis = (0..D).fold(
-        0,
-        |best, a| if n[a].abs() < n[best].abs() { a } else { best },
-    );
-    let mut t1: [f64; D] = std::array::from_fn(|a| f64::from(u8::from(a == axis)) - n[axis] * n[a]);
-    let len = t1.iter().map(|v| v * v).sum::<f64>().sqrt();
+    let axis = (0..D).fold(0, |best, a| {
+        if n[a].re().abs() < n[best].re().abs() {
+            a
+        } else {
+            best
+        }
+    });
+    let mut t1: [T; D] =
+        std::array::from_fn(|a| T::from(f64::from(u8::from(a == axis))) - n[axis] * n[a]);
+    let len = t1.iter().map(|v| *v * *v).sum::<T>().sqrt();
     t1.iter_mut().for_each(|v| *v /= len);
-    let t2: [f64; D] = std::array::from_fn(|a| {
+    let t2: [T; D] = std::array::from_fn(|a| {
         let (b, c) = ((a + 1) % 3, (a + 2) % 3);
         n[b] * t1[c] - n[c] * t1[b]
     });

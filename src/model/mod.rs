@@ -17,6 +17,7 @@ mod search;
 
 pub use geometry::{FaceEdge, FacePatch};
 pub use mesh::{BodyMesh, Layout, MeshLayout, SubdomainMesh};
+pub(crate) use rows::{held_at_zero, held_axes};
 pub use rows::{ContactPrimary, Named, Row, RowKind, SlipLaw};
 pub use search::{unheld, SearchFindings, Unheld};
 

@@ -523,12 +523,7 @@ fn contacts<P: Piece<D, N> + Named, const D: usize, const N: usize>(
     let mut idle = Vec::new();
     let mut searches = Vec::new();
     let friction = &mut Vec::new();
-    // The dofs supports hold at zero (their rows come first, one entry each).
-    let held: HashSet<(usize, usize)> = rows
-        .iter()
-        .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry) && r.c == 0.0)
-        .filter_map(|r| r.entries.first().map(|e| (e.0, e.1)))
-        .collect();
+    let held = held_at_zero(rows);
     for (ci, contact) in scene.contacts.iter().enumerate() {
         let sec = &contact.secondary;
         let nodes = nodes_or_error(problem, sec, design)?;
@@ -659,24 +654,41 @@ fn slip_law<const D: usize>(
 }
 
 /// A unit tangent with its un-normalized row.
-type Tangent<const D: usize> = ([f64; D], Vec<(usize, usize, f64)>);
+type Tangent<T, const D: usize> = ([T; D], Vec<(usize, usize, T)>);
 
-/// The tangential rows of a contact row `e` with normal `n` (un-normalized,
-/// with their tangents), less the axes held at zero (`held`: dofs) on its
-/// secondary node and on every primary node it touches (an obstacle has
-/// none): [`tangent_entries`].
-fn tangent_rows<const D: usize>(
-    e: &[(usize, usize, f64)],
-    normal: &[f64; D],
+/// The dofs that supports hold at zero (their rows come first, one entry
+/// each): where friction rows would only repeat them.
+pub(crate) fn held_at_zero(rows: &[Row]) -> HashSet<(usize, usize)> {
+    rows.iter()
+        .filter(|r| matches!(r.kind, RowKind::Dirichlet | RowKind::Symmetry) && r.c == 0.0)
+        .filter_map(|r| r.entries.first().map(|e| (e.0, e.1)))
+        .collect()
+}
+
+/// The axes held at zero (`held`: dofs) on every node of contact row `e`:
+/// its secondary node and every primary node it touches (an obstacle has
+/// none).
+pub(crate) fn held_axes<T, const D: usize>(
+    e: &[(usize, usize, T)],
     held: &HashSet<(usize, usize)>,
-) -> Vec<Tangent<D>> {
-    let axes: Vec<usize> = (0..D)
+) -> Vec<usize> {
+    (0..D)
         .filter(|a| {
             e.chunks_exact(D)
                 .all(|chunk| held.contains(&(chunk[0].0, chunk[0].1 + a)))
         })
-        .collect();
-    tangent_entries(e, normal, &axes)
+        .collect()
+}
+
+/// The tangential rows of a contact row `e` with normal `n` (un-normalized,
+/// with their tangents), less the axes held at zero: [`tangent_entries`]
+/// of [`held_axes`].
+fn tangent_rows<const D: usize>(
+    e: &[(usize, usize, f64)],
+    normal: &[f64; D],
+    held: &HashSet<(usize, usize)>,
+) -> Vec<Tangent<f64, D>> {
+    tangent_entries(e, normal, &held_axes::<f64, D>(e, held))
 }
 
 /// The deepest overlap of each contact that has one, the contacts that got

@@ -8,6 +8,7 @@
 //! functionals' evaluation ([`super::semi`], whose [`Sensitivity`] this
 //! extends).
 
+use super::friction::{restrict, spread};
 use super::semi::{
     for_moving_elements, gradient_rows, sliding, solve_settings, Class, Cost, Sensitivity, Solved,
     Tangent, D,
@@ -174,6 +175,12 @@ impl<'a> Sensitivity<'a> {
                 self.weak()
             )));
         }
+        if self.transitions() > 0 {
+            return Err(SolveError::Unsupported(format!(
+                "{} friction nodes on their slip bound without slipping (the stick-slip transition): the functional is only directionally differentiable there; use finite differences",
+                self.transitions()
+            )));
+        }
         let starts = self.adjoint_starts(fs.len(), starts);
         let (solved, cost) = self.adjoint_solves(fs, tolerance, starts.as_deref())?;
         let ends = self.per_state_row(&solved);
@@ -200,12 +207,7 @@ impl<'a> Sensitivity<'a> {
             state_starts = vec![self.state.lambda.clone(); n];
             &state_starts
         };
-        fits(starts).then(|| {
-            starts
-                .iter()
-                .map(|l| self.kept.iter().map(|&r| l[r]).collect())
-                .collect()
-        })
+        fits(starts).then(|| starts.iter().map(|l| restrict(&self.kept, l)).collect())
     }
 
     /// The adjoints' multipliers per state row (zero where not kept).
@@ -213,13 +215,7 @@ impl<'a> Sensitivity<'a> {
         let rows = self.state.problem.rows.len();
         solved
             .iter()
-            .map(|(_, nu)| {
-                let mut end = vec![0.0; rows];
-                for (&r, v) in self.kept.iter().zip(nu) {
-                    end[r] = *v;
-                }
-                end
-            })
+            .map(|(_, nu)| spread(&self.kept, nu, rows))
             .collect()
     }
 
@@ -314,6 +310,13 @@ impl<'a> Sensitivity<'a> {
             });
             if kinks > 0 {
                 kinked.push(i);
+            }
+            // The slip forces' derivatives, `g' s`: data of `f_bar`.
+            if !self.friction.slipping.is_empty() {
+                let g = self.slip_bound_derivatives(i, &scale);
+                for (k, (w, _, _)) in adjoints.iter().enumerate() {
+                    implicit[k] += self.friction.slip_work(state, &g, w);
+                }
             }
             // The explicit part: the derivative with u' = 0 and l' = 0.
             let explicit = Explicit {
@@ -472,7 +475,7 @@ impl<'a> Sensitivity<'a> {
                 Leaf::Geometry(_) | Leaf::Area(_) | Leaf::Volume(_) | Leaf::Initial(_) => {}
             }
         }
-        let c_adj: Vec<f64> = self.kept.iter().map(|&r| jl[r]).collect();
+        let c_adj = restrict(&self.kept, &jl);
         (ju, c_adj)
     }
 }

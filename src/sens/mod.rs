@@ -14,6 +14,7 @@
 
 pub mod adjoint;
 pub mod fd;
+pub mod friction;
 pub mod functional;
 pub mod semi;
 mod tape;
@@ -62,12 +63,6 @@ pub fn gradient(
     method: SensitivityMethod,
     options: &GradientOptions,
 ) -> Result<Gradient, GradientError> {
-    if method != SensitivityMethod::FiniteDifference && state.friction.is_some() {
-        return Err(crate::tfeti::error::SolveError::Unsupported(
-            semi::FRICTION_REFUSED.to_string(),
-        )
-        .into());
-    }
     match method {
         SensitivityMethod::FiniteDifference => {
             fd::gradient(scene, state, options.step, options.scheme)

@@ -18,6 +18,7 @@
 //! solves and the gradient's rows. The adjoint itself is in
 //! [`super::adjoint`].
 
+use super::friction::{restrict, spread, FrictionRows, Kept};
 use super::functional::body_measure;
 use super::tape::{seeded, Rhs, RowDerivative, Tape};
 use crate::lang::expr::{Arith, Point};
@@ -143,26 +144,33 @@ pub enum Class {
     Inactive,
 }
 
-/// Why the semi-analytic and adjoint methods refuse a state with friction.
-pub const FRICTION_REFUSED: &str = "the semi-analytic and adjoint sensitivities are not derived for contact with friction: \
-     use finite differences (`sensitivity { method = finite_difference }`, or `--method finite_difference`)";
+/// Below this a row's gap `c - B u` is closed (and a slip zero): relative to
+/// the largest right-hand side and row value (`bu`).
+fn gap_tolerance(state: &State, bu: &[f64]) -> f64 {
+    let cmax = state
+        .problem
+        .rows
+        .iter()
+        .map(|r| r.c.abs())
+        .fold(0.0, f64::max);
+    let umax = bu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
+    1e-7 * (cmax + umax).max(f64::MIN_POSITIVE)
+}
 
 /// Classifies the rows of a solved state.
 pub fn classify(state: &State) -> Vec<Class> {
     let p = &state.problem;
     let m = state.lambda.len();
     // Contact rows only: a friction row is no contact (its multiplier may
-    // take either sign); it is classed `Inactive` (the semi-analytic and
-    // adjoint methods refuse friction before they classify).
+    // take either sign); it is classed `Inactive` here and by
+    // [`FrictionRows`] in the sensitivities.
     let contact = |i: usize| matches!(p.rows[i].kind, RowKind::Contact { .. });
     let lmax = (p.n_equality..m)
         .filter(|&i| contact(i))
         .map(|i| state.lambda[i].abs())
         .fold(0.0f64, f64::max);
     let bu = state.row_values();
-    let cmax = p.rows.iter().map(|r| r.c.abs()).fold(0.0, f64::max);
-    let umax = bu.iter().fold(0.0f64, |a, b| a.max(b.abs()));
-    let gap_tol = 1e-7 * (cmax + umax).max(f64::MIN_POSITIVE);
+    let gap_tol = gap_tolerance(state, &bu);
     (0..m)
         .map(|i| {
             if i < p.n_equality {
@@ -360,9 +368,13 @@ pub struct Sensitivity<'a> {
     pub scene: &'a Scene,
     pub state: &'a State,
     pub classes: Vec<Class>,
-    /// State rows kept (equalities and strong contacts first, weak after).
-    pub kept: Vec<usize>,
+    /// The rows of the sensitivity dual: equalities, strong contacts and
+    /// sticking friction rows first, then the rows across 3D slips, weak
+    /// contacts after.
+    pub kept: Vec<Kept>,
     pub n_equality: usize,
+    /// What friction adds (nothing without).
+    pub(super) friction: FrictionRows,
     /// Built here, or the state's own where it was solved on these rows.
     pub(super) dual: Arc<DualSystem>,
     /// `K u` of the state per subdomain (energy derivatives need it per direction).
@@ -406,29 +418,35 @@ impl<'a> Sensitivity<'a> {
         kind: Option<Kind>,
         form: SchurForm,
     ) -> Result<Self, SolveError> {
-        if state.friction.is_some() {
-            return Err(SolveError::Unsupported(FRICTION_REFUSED.to_string()));
-        }
         let classes = classify(state);
-        let mut kept: Vec<usize> = (0..classes.len())
+        let friction = FrictionRows::of(state, gap_tolerance(state, &state.row_values()))?;
+        let mut kept: Vec<Kept> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))
+            .chain(friction.stick.iter().copied())
+            .map(Kept::Row)
             .collect();
+        kept.extend(friction.across.iter().map(|(k, _)| *k));
         let n_equality = kept.len();
-        kept.extend((0..classes.len()).filter(|&i| classes[i] == Class::Weak));
+        kept.extend(
+            (0..classes.len())
+                .filter(|&i| classes[i] == Class::Weak)
+                .map(Kept::Row),
+        );
         // The state solved on exactly these rows (an optimization's warm
         // state on the previous active set): its dual, coarse problem and
         // preconditioner serve here too. Its preconditioner wins over `kind`
         // and `form` (Dirichlet where the scene asks for none, at least as
         // good as what the directions and adjoints ask for, and built).
+        let state_rows: Option<Vec<usize>> = kept.iter().map(Kept::row).collect();
         let shared = state
             .kept_dual
             .as_ref()
-            .filter(|k| k.rows == kept && n_equality == kept.len());
+            .filter(|k| state_rows.as_ref() == Some(&k.rows) && n_equality == kept.len());
         let dual = match shared {
             Some(k) => Arc::clone(&k.system),
             None => {
-                let rows: Vec<&crate::model::Row> =
-                    kept.iter().map(|&i| &state.problem.rows[i]).collect();
+                let rows = dual_rows(&state.problem, &kept);
+                let rows: Vec<&crate::model::Row> = rows.iter().map(|r| r.as_ref()).collect();
                 let mut dual = DualSystem::new(
                     state.dual.cluster(),
                     &rows,
@@ -436,6 +454,14 @@ impl<'a> Sensitivity<'a> {
                     state.elimination.clone(),
                 )
                 .map_err(|_| SolveError::SensitivityUndefined)?;
+                if !friction.across.is_empty() {
+                    let mut compliance = vec![0.0; kept.len()];
+                    let first = n_equality - friction.across.len();
+                    for (k, (_, d)) in friction.across.iter().enumerate() {
+                        compliance[first + k] = *d;
+                    }
+                    dual.set_compliance(compliance);
+                }
                 dual.defer_preconditioner(kind, n_equality, form);
                 Arc::new(dual)
             }
@@ -446,6 +472,7 @@ impl<'a> Sensitivity<'a> {
             classes,
             kept,
             n_equality,
+            friction,
             dual,
             ku: state.dual.cluster().apply_k(&state.u),
             tape: OnceLock::new(),
@@ -486,6 +513,28 @@ impl<'a> Sensitivity<'a> {
         self.classes.iter().filter(|c| **c == Class::Weak).count()
     }
 
+    /// Number of friction nodes on their slip bound that do not slip (the
+    /// stick-slip transition): with any, derivatives are one-sided too.
+    pub fn transitions(&self) -> usize {
+        self.friction.transitions
+    }
+
+    /// What makes the derivatives one-sided, if anything: weak contacts and
+    /// friction nodes at the stick-slip transition.
+    pub fn one_sided(&self) -> Option<String> {
+        let mut why = Vec::new();
+        if self.weak() > 0 {
+            why.push(format!("{} weak contacts", self.weak()));
+        }
+        if self.transitions() > 0 {
+            why.push(format!(
+                "{} friction nodes at the stick-slip transition, taken as sticking",
+                self.transitions()
+            ));
+        }
+        (!why.is_empty()).then(|| why.join(", "))
+    }
+
     /// Exact derivatives in the direction of design variable `i`.
     pub fn direction(&self, i: usize, tolerance: f64) -> Result<Direction, SolveError> {
         self.direction_from(self.rhs(i), tolerance)
@@ -510,13 +559,9 @@ impl<'a> Sensitivity<'a> {
     ) -> Result<(Vec<Direction>, Cost), SolveError> {
         let m = self.scene.design.len();
         let rows = self.state.problem.rows.len();
-        let starts: Option<Vec<Vec<f64>>> =
-            (starts.len() == m && starts.iter().all(|l| l.len() == rows)).then(|| {
-                starts
-                    .iter()
-                    .map(|l| self.kept.iter().map(|&r| l[r]).collect())
-                    .collect()
-            });
+        let starts: Option<Vec<Vec<f64>>> = (starts.len() == m
+            && starts.iter().all(|l| l.len() == rows))
+        .then(|| starts.iter().map(|l| restrict(&self.kept, l)).collect());
         let rhs: Vec<Rhs> = (0..m).map(|i| self.rhs(i)).collect();
         let mut failed = Cost::default();
         if m > 1 && self.n_equality == self.kept.len() {
@@ -609,9 +654,9 @@ impl<'a> Sensitivity<'a> {
         kept_lambda: &[f64],
         hessian_applications: usize,
     ) -> Direction {
-        let mut lambda = vec![0.0; self.state.problem.rows.len()];
-        for (k, &r) in self.kept.iter().enumerate() {
-            lambda[r] = kept_lambda[k];
+        let mut lambda = spread(&self.kept, kept_lambda, self.state.problem.rows.len());
+        for (l, s) in lambda.iter_mut().zip(&rhs.slip_lambda) {
+            *l += s;
         }
         Direction {
             u,
@@ -693,6 +738,13 @@ impl<'a> Sensitivity<'a> {
             .filter(|_| scene.gravity.is_some())
             .map(|pos| load_derivative::<P, DIM, N>(scene, state, pos, &scene.design_init()));
         let mut rhs = tape.rhs::<DIM>(scene, state, &self.kept, i, gravity);
+        if !self.friction.slipping.is_empty() {
+            let g = self.slip_bound_derivatives(i, &rhs.scale);
+            let mut lambda = vec![0.0; state.problem.rows.len()];
+            self.friction
+                .slip_forces(state, &g, &mut rhs.fbar, &mut lambda);
+            rhs.slip_lambda = lambda;
+        }
         let kpu = match (jacobians, &pos) {
             (Some(j), _) => j.times(state, &tape.velocities[i]),
             (None, Some(pos)) => stiffness_derivative_times_u_dual(state, pos),
@@ -707,6 +759,22 @@ impl<'a> Sensitivity<'a> {
         }
         rhs.ukpu = Cluster::dot(&kpu, &state.u);
         rhs
+    }
+
+    /// `g'` of each slipping friction node in direction `i` (the dual's
+    /// units; `scale`: the rows' scale derivatives in that direction).
+    pub(super) fn slip_bound_derivatives(&self, i: usize, scale: &[f64]) -> Vec<f64> {
+        let (scene, state, tape) = (self.scene, self.state, self.tape());
+        let dd = seeded(&scene.design_init(), i);
+        if state.problem.dim == 2 {
+            let pos = tape.dual_positions::<2>(state, i);
+            self.friction
+                .bound_derivatives::<FaceEdge, 2, 2>(scene, state, (&pos, &dd), scale)
+        } else {
+            let pos = tape.dual_positions::<3>(state, i);
+            self.friction
+                .bound_derivatives::<FacePatch, 3, 4>(scene, state, (&pos, &dd), scale)
+        }
     }
 
     /// Per body node: whether some design direction moves it.
@@ -874,6 +942,40 @@ impl<'a> Sensitivity<'a> {
     }
 }
 
+/// The dual's rows of `kept`: the state's own, and the rows across slips
+/// formed from their two tangential rows.
+fn dual_rows<'p>(
+    p: &'p crate::model::Problem,
+    kept: &[Kept],
+) -> Vec<std::borrow::Cow<'p, crate::model::Row>> {
+    use std::borrow::Cow;
+    kept.iter()
+        .map(|k| match *k {
+            Kept::Row(r) => Cow::Borrowed(&p.rows[r]),
+            Kept::Across { rows, along } => {
+                let (a, b) = (&p.rows[rows[0]], &p.rows[rows[1]]);
+                // Both tangential rows come from the node's contact row: the
+                // same dofs in the same order.
+                let mut entries: Vec<(usize, usize, f64)> = Vec::new();
+                for (row, w) in [(a, along[0]), (b, along[1])] {
+                    for &(s, d, v) in &row.entries {
+                        match entries.iter_mut().find(|e| e.0 == s && e.1 == d) {
+                            Some(e) => e.2 += w * v,
+                            None => entries.push((s, d, w * v)),
+                        }
+                    }
+                }
+                Cow::Owned(crate::model::Row {
+                    entries,
+                    c: along[0] * a.c + along[1] * b.c,
+                    scale: a.scale,
+                    kind: a.kind.clone(),
+                })
+            }
+        })
+        .collect()
+}
+
 fn num_traits_abs(a: D) -> D {
     if a.re < 0.0 {
         -a
@@ -945,12 +1047,11 @@ pub(super) fn gradient(
             gradient[k][i] = sens.derivative(f, i, dir);
         }
     }
-    let weak = sens.weak();
     let gradient = super::Gradient {
-        method: match (weak, kinked.is_empty()) {
-            (0, true) => "semi_analytic".to_string(),
-            (0, false) => format!("semi_analytic ({})", sliding(&kinked)),
-            _ => format!("semi_analytic (one-sided: {weak} weak contacts)"),
+        method: match (sens.one_sided(), kinked.is_empty()) {
+            (None, true) => "semi_analytic".to_string(),
+            (None, false) => format!("semi_analytic ({})", sliding(&kinked)),
+            (Some(why), _) => format!("semi_analytic (one-sided: {why})"),
         },
         functionals: names,
         values,

@@ -9,14 +9,16 @@
 //! its velocities: the geometry code runs once, not once per direction
 //! (issue 16; numerics.md, "Shape sensitivity").
 
+use super::friction::{restrict, Kept};
 use super::functional::{hexahedra, ring};
 use crate::fem::facet::Facet;
 use crate::fem::hex::hex_volume_gradient;
 use crate::lang::scene::Scene;
 use crate::model::geometry::{
-    body_positions, contact_row, coords, face_loads, normalize, obstacle_row, tie_row, NormalRow,
-    ObstacleShape, Pattern, Piece,
+    body_positions, contact_row, coords, face_loads, normalize, obstacle_row, tangent_entries,
+    tie_row, NormalRow, ObstacleShape, Pattern, Piece,
 };
+use crate::model::{held_at_zero, held_axes};
 use crate::model::{ContactPrimary, Named, RowKind};
 use crate::state::State;
 use num_dual::{Dual64, DualSVec64};
@@ -53,6 +55,9 @@ pub struct Rhs {
     pub kinks: usize,
     /// Each body's measure (area or volume) and its derivative.
     pub measures: Vec<D>,
+    /// `l'` per state row that is data: the slip forces' derivatives
+    /// (empty without slipping friction nodes).
+    pub slip_lambda: Vec<f64>,
 }
 
 /// The tangents of a dual number with `K` of them (zero where it has none).
@@ -206,6 +211,8 @@ enum RowMotion {
         obstacle: usize,
         body: usize,
         node: usize,
+        /// A friction row's tangent: which of the node's, and the axes held.
+        tangent: Option<(usize, Vec<usize>)>,
     },
 }
 
@@ -241,6 +248,7 @@ impl Tape {
             .map(|b| velocities.iter().any(|v| !v[b].is_empty()))
             .collect();
         let mut seeded = Seeded::<DIM, K>::new(&pos);
+        let held = held_at_zero(&p.rows);
         let thickness = if DIM == 2 { scene.thickness } else { 1.0 };
         let mut loads = Vec::new();
         for load in face_loads::<P, DIM, N>(scene, p, &design) {
@@ -282,6 +290,7 @@ impl Tape {
                     obstacle: *o,
                     body: *body,
                     node: *node,
+                    tangent: None,
                 },
                 RowKind::Contact {
                     body,
@@ -319,6 +328,54 @@ impl Tape {
                         },
                     )
                 }),
+                RowKind::Friction {
+                    body,
+                    node,
+                    normal_row,
+                    axis,
+                    ..
+                } => {
+                    let normal = &p.rows[*normal_row];
+                    let axes = held_axes::<f64, DIM>(&normal.entries, &held);
+                    match &normal.kind {
+                        RowKind::Contact {
+                            primary: ContactPrimary::Obstacle(o),
+                            ..
+                        } => RowMotion::Obstacle {
+                            obstacle: *o,
+                            body: *body,
+                            node: *node,
+                            tangent: Some((*axis, axes)),
+                        },
+                        RowKind::Contact { primary, .. } => {
+                            P::of(primary).map_or(RowMotion::Still, |piece| {
+                                let motion = row_tape(
+                                    &mut seeded,
+                                    (*body, *node, false),
+                                    &piece,
+                                    moves[*body] || moves[piece.body()],
+                                    |pos| {
+                                        let (e, pr) = contact_row(
+                                            p,
+                                            *body,
+                                            *node,
+                                            &piece,
+                                            pos,
+                                            Pattern::Full,
+                                        );
+                                        let t = tangent_entries(&e, &pr.normal, &axes)
+                                            .into_iter()
+                                            .nth(*axis);
+                                        let zero = DualSVec64::from_re(0.0);
+                                        (t.and_then(|(_, e)| normalize(e, zero)), pr.local)
+                                    },
+                                );
+                                friction_motion(motion)
+                            })
+                        }
+                        _ => RowMotion::Still,
+                    }
+                }
                 _ => RowMotion::Still,
             })
             .enumerate()
@@ -342,7 +399,7 @@ impl Tape {
         &self,
         scene: &Scene,
         state: &State,
-        kept: &[usize],
+        kept: &[Kept],
         i: usize,
         gravity: Option<Vec<Vec<f64>>>,
     ) -> Rhs {
@@ -376,13 +433,14 @@ impl Tape {
         });
         Rhs {
             fbar,
-            cbar: kept.iter().map(|&r| cbar_all[r]).collect(),
+            cbar: restrict(kept, &cbar_all),
             fprime,
             ukpu: 0.0,
             scale,
             secondary,
             kinks,
             measures: self.measures(v),
+            slip_lambda: Vec::new(),
         }
     }
 
@@ -466,6 +524,7 @@ impl Tape {
                     obstacle,
                     body,
                     node,
+                    tangent,
                 } => {
                     let shapes = obstacles.get_or_insert_with(|| {
                         let dd = seeded(&scene.design_init(), i);
@@ -475,13 +534,16 @@ impl Tape {
                             .map(|o| ObstacleShape::at(o, &dd))
                             .collect()
                     });
-                    let Some(row) = obstacle_motion(p, &shapes[*obstacle], *body, *node, v) else {
+                    let shape = &shapes[*obstacle];
+                    let Some(row) = obstacle_motion(p, shape, (*body, *node), tangent, v) else {
                         continue;
                     };
                     // An obstacle row's entries are its secondary node's.
                     let mut secondary = [0.0; 3];
-                    for (s, e) in secondary.iter_mut().zip(&row.entries) {
-                        *s = e.2.eps;
+                    if tangent.is_none() {
+                        for (s, e) in secondary.iter_mut().zip(&row.entries) {
+                            *s = e.2.eps;
+                        }
                     }
                     RowDerivative {
                         entries: row.entries.iter().map(|&(s, d, x)| (s, d, x.eps)).collect(),
@@ -623,19 +685,40 @@ fn velocities<const DIM: usize>(scene: &Scene, design: &[f64]) -> Vec<Vec<Vec<f6
     out
 }
 
-/// An obstacle row in a direction (its secondary node moving with `v`).
+/// An obstacle row in a direction (its secondary node moving with `v`): the
+/// contact row, or with `tangent` (which of the node's tangents, the axes
+/// held) a friction row.
 fn obstacle_motion<const DIM: usize>(
     p: &crate::model::Problem,
     shape: &ObstacleShape<D, DIM>,
-    body: usize,
-    node: usize,
+    (body, node): (usize, usize),
+    tangent: &Option<(usize, Vec<usize>)>,
     v: &[Vec<f64>],
 ) -> Option<NormalRow<D>> {
     let c = p.bodies[body].coords[node];
     let x: [D; DIM] =
         std::array::from_fn(|a| D::new(c[a], v[body].get(DIM * node + a).copied().unwrap_or(0.0)));
     let (n, gap) = shape.normal_gap(&x)?;
-    normalize(obstacle_row(p, body, node, &n), gap)
+    let e = obstacle_row(p, body, node, &n);
+    match tangent {
+        None => normalize(e, gap),
+        Some((axis, held)) => {
+            let (_, t) = tangent_entries(&e, &n, held).into_iter().nth(*axis)?;
+            normalize(t, D::from(0.0))
+        }
+    }
+}
+
+/// A friction row's motion: as [`row_tape`] made it, without facet
+/// boundaries (its contact row counts the node's kink once).
+fn friction_motion(motion: RowMotion) -> RowMotion {
+    match motion {
+        RowMotion::Piece(mut row) => {
+            row.boundary.clear();
+            RowMotion::Piece(row)
+        }
+        other => other,
+    }
 }
 
 /// Linearizes one contact or tie row (`contact`) of secondary node

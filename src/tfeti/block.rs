@@ -333,7 +333,7 @@ pub fn dual_solve_block(
         .into_iter()
         .zip(cs)
         .zip(fs.iter().zip(&l_tilde))
-        .map(|((y, c), (f, l))| homogenized_rhs(dual, y, c, dual.cluster().cancellation(f, l)))
+        .map(|((y, c), (f, l))| homogenized_rhs(dual, y, (c, l), dual.cluster().cancellation(f, l)))
         .unzip();
     // The starts, homogenized and projected (zero where only round-off is
     // left, see `homogenized_start`).

@@ -253,6 +253,22 @@ impl DualSystem {
         }
     }
 
+    /// [`Dual::set_compliance`] with `d` per row given to [`DualSystem::new`]
+    /// (FETI: of the rows it keeps).
+    pub fn set_compliance(&mut self, d: Vec<f64>) {
+        match self {
+            DualSystem::Total(dual) => dual.set_compliance(d),
+            DualSystem::Classical { dual, reduced, .. } => {
+                let kept = reduced
+                    .kept
+                    .iter()
+                    .map(|&i| d.get(i).copied().unwrap_or(0.0))
+                    .collect();
+                dual.set_compliance(kept);
+            }
+        }
+    }
+
     /// Positions (in the rows given) of the rows in the dual problem solved.
     pub fn kept_rows(&self) -> Vec<usize> {
         match self {

@@ -69,6 +69,10 @@ pub struct Dual {
     /// projected again before `F`; classical FETI's eps-detected kernels
     /// amplify it (one more CG step per direction on scont2d).
     exact_kernels: bool,
+    /// A diagonal added to `F` (empty: none): rows that hold only up to a
+    /// compliance, `B_i u - d_i l_i = c_i` (the sensitivity of a 3D node
+    /// slipping under friction: its slip direction turns with `u'`).
+    compliance: Vec<f64>,
 }
 
 fn nanos(t: Instant) -> u64 {
@@ -139,6 +143,7 @@ impl Dual {
             deferred: None,
             grams: OnceLock::new(),
             exact_kernels: true,
+            compliance: Vec::new(),
         }
     }
 
@@ -297,17 +302,48 @@ impl Dual {
         self.grams.get_or_init(|| self.cluster.equilibrium_grams())
     }
 
-    /// `y = F x` (deterministic: see [`Cluster::apply_f`]).
+    /// Adds the diagonal `d` (one entry per multiplier, `d >= 0`) to `F`:
+    /// row `i` then holds as `B_i u - d_i l_i = c_i`. Every product with `F`
+    /// and the homogenization take it; the preconditioners do not (they
+    /// approximate `F^-1` the less well, nothing more).
+    pub fn set_compliance(&mut self, d: Vec<f64>) {
+        debug_assert!(d.is_empty() || d.len() == self.multipliers());
+        self.compliance = if d.iter().any(|x| *x != 0.0) {
+            d
+        } else {
+            Vec::new()
+        };
+    }
+
+    /// The compliance (empty: none).
+    pub fn compliance(&self) -> &[f64] {
+        &self.compliance
+    }
+
+    /// `y += D x` for the compliance `D` (nothing without one).
+    fn add_compliance(&self, x: &[f64], y: &mut [f64]) {
+        for ((yi, xi), di) in y.iter_mut().zip(x).zip(&self.compliance) {
+            *yi += di * xi;
+        }
+    }
+
+    /// `y = F x` (deterministic: see [`Cluster::apply_f`]), with the
+    /// compliance where there is one ([`Self::set_compliance`]).
     pub fn apply_f(&self, x: &[f64], y: &mut [f64]) {
         self.f_applications.fetch_add(1, Ordering::Relaxed);
         self.cluster.apply_f(x, y);
+        self.add_compliance(x, y);
     }
 
     /// `F x_c` for a block of columns, one pass over the factors for all of
     /// them (counted as one application per column).
     pub fn apply_f_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
         self.f_applications.fetch_add(xs.len(), Ordering::Relaxed);
-        self.cluster.apply_f_block(xs)
+        let mut ys = self.cluster.apply_f_block(xs);
+        for (x, y) in xs.iter().zip(&mut ys) {
+            self.add_compliance(x, y);
+        }
+        ys
     }
 
     /// `z <- L^-1 Q z` (`G~ = L^-1 Q G`).

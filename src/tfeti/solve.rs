@@ -85,7 +85,12 @@ pub fn dual_solve_bounded(
     let l_tilde = particular(dual, f);
     // d - F l~ with d = B K^+ f - c, one pass over the factors.
     let loads = dual.cluster().loads_less(f, &l_tilde);
-    let (d, b) = homogenized_rhs(dual, loads, c, dual.cluster().cancellation(f, &l_tilde));
+    let (d, b) = homogenized_rhs(
+        dual,
+        loads,
+        (c, &l_tilde),
+        dual.cluster().cancellation(f, &l_tilde),
+    );
     if n_equality == m {
         return equality_solve(dual, f, &l_tilde, &d, &b, settings, start);
     }
@@ -461,7 +466,7 @@ pub(crate) fn particular(dual: &Dual, f: &[&[f64]]) -> Vec<f64> {
 }
 
 /// `(d - F l~, b = P (d - F l~))` from `loads = B K^+ (f - B^T l~)` (`d`
-/// has the gaps `c` taken off) and the loads'
+/// has the gaps `c` and the compliance's `D l~` taken off) and the loads'
 /// [`Cluster::cancellation`](super::cluster::Cluster::cancellation) by `l~`.
 /// A right-hand side at round-off of the data it came from is zero: a scene
 /// moved only rigidly (prescribed displacements, no load) has lambda = 0.
@@ -472,7 +477,7 @@ pub(crate) fn particular(dual: &Dual, f: &[&[f64]]) -> Vec<f64> {
 pub(crate) fn homogenized_rhs(
     dual: &Dual,
     loads: Vec<f64>,
-    c: &[f64],
+    (c, l_tilde): (&[f64], &[f64]),
     cancellation: f64,
 ) -> (Vec<f64>, Vec<f64>) {
     let size = match norm(&loads) {
@@ -481,6 +486,9 @@ pub(crate) fn homogenized_rhs(
     };
     let mut d = loads;
     d.iter_mut().zip(c).for_each(|(di, ci)| *di -= ci);
+    for ((di, l), k) in d.iter_mut().zip(l_tilde).zip(dual.compliance()) {
+        *di -= k * l;
+    }
     let mut b = d.clone();
     dual.project(&mut b);
     if norm(&b) <= 1e3 * f64::EPSILON * (size + norm(c)) {
