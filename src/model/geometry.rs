@@ -715,7 +715,7 @@ mod tests {
                 }
             }
         }
-        let up = [0.0, 0.0, 1.0];
+        let up = [0.0f64, 0.0, 1.0];
         assert_eq!(tangents(&up), vec![[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
         // A symmetry plane y = 0 holds uy: slip along x only.
         let t = free_tangents(&up, &[1]);

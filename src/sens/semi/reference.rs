@@ -137,7 +137,7 @@ impl Sensitivity<'_> {
             }
             cbar_all[r] = row.c.eps - bu;
         }
-        let cbar: Vec<f64> = self.kept.iter().map(|&r| cbar_all[r]).collect();
+        let cbar = crate::sens::friction::restrict(&self.kept, &cbar_all);
         let ukpu = Cluster::dot(&kpu, &state.u);
         Rhs {
             fbar,
@@ -148,6 +148,7 @@ impl Sensitivity<'_> {
             secondary,
             kinks,
             measures: scene.bodies.iter().map(|b| body_measure(b, &dd)).collect(),
+            slip_lambda: Vec::new(),
         }
     }
 }
@@ -231,7 +232,7 @@ mod tests {
             .collect();
         // On the kept rows only, as the adjoint's multipliers are.
         let mut nu = vec![0.0; p.rows.len()];
-        for &r in &sens.kept {
+        for r in sens.kept.iter().filter_map(|k| k.row()) {
             nu[r] = (0.71 * r as f64).cos();
         }
         let tape = sens.tape();
@@ -247,7 +248,7 @@ mod tests {
             moved += usize::from(rhs.cbar.iter().any(|c| *c != 0.0));
             // The reverse pass against the forward one without K'u.
             let forward = sens.rhs_per_direction::<P, DIM, N>(i, false);
-            let nu_kept: Vec<f64> = sens.kept.iter().map(|&r| nu[r]).collect();
+            let nu_kept = crate::sens::friction::restrict(&sens.kept, &nu);
             let expected = Cluster::dot(&w, &forward.fbar)
                 + nu_kept
                     .iter()
