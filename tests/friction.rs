@@ -267,6 +267,35 @@ fn tresca_sensitivities_equal_central_differences_in_2d() {
     assert_agree(&adj, &semi, 1e-9);
 }
 
+/// Tresca against a rigid circle: the friction rows of obstacle contacts
+/// move with their node (a few dual operations per direction, not the
+/// tape's Jacobians), and the exact methods equal central differences.
+#[test]
+fn tresca_sensitivities_against_an_obstacle_equal_central_differences() {
+    let src = SHEARED
+        .edit(
+            "body base { material = soft, x = 0 .. 3, y = 0 .. 1, mesh = 24 x 8, subdomains = 3 x 1 }",
+            "obstacle floor { center = (1.5, -20), radius = 20.995 }",
+        )
+        .edit("fix base.bottom\n", "")
+        .edit("primary = base.top", "primary = floor")
+        .edit("SB", "0.7");
+    let s = scene(&src);
+    let f = contact(&s, &solved(&s))
+        .friction
+        .expect("a friction report");
+    assert!(
+        f.stick > 0 && f.slip > 0,
+        "stick {} slip {}",
+        f.stick,
+        f.slip
+    );
+    let semi = semi_analytic(&s, 1e-10).expect("semi-analytic");
+    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("finite differences");
+    assert_agree(&semi, &fd, 1e-6);
+    assert_agree(&adjoint(&s, 1e-10).expect("adjoint"), &semi, 1e-9);
+}
+
 /// Tresca in 3D, every touching node slipping obliquely (a disc per node):
 /// a slip's direction turns with the design, which the compliant row across
 /// it carries; without it the derivatives are off by some 1e-4. Semi-analytic
