@@ -302,3 +302,49 @@ fix b.bottom
     );
     assert!(err.contains("expected a positive relative error"), "{err}");
 }
+
+/// A finite-difference step too large for a perturbed design to be solved
+/// is a row of the sensitivity study (what the study is there to show), not
+/// the end of it: its table row says so, the summary gives the reason, and
+/// the chart leaves it out.
+#[test]
+fn an_unsolvable_difference_step_is_a_row_of_the_sensitivity_study() {
+    use cso::studies::output::{study_row, study_summary};
+    use cso::studies::sensitivity::{Study, StudyRun};
+    let run = |step: f64, unsolvable: Option<&str>| StudyRun {
+        method: "finite_difference central".into(),
+        tolerance: 1e-6,
+        step: Some(step),
+        seconds: if unsolvable.is_some() { 0.0 } else { 0.01 },
+        hessian_applications: 100,
+        error: if unsolvable.is_some() {
+            f64::INFINITY
+        } else {
+            1e-5
+        },
+        active_set_changed: false,
+        unsolvable: unsolvable.map(str::to_string),
+    };
+    let study = Study {
+        scene: "s".into(),
+        reference: vec![1.0],
+        richardson_agreement: 1e-9,
+        runs: vec![run(1e-1, Some("the body would slide")), run(1e-5, None)],
+    };
+    let row = study_row(&study.runs[0]);
+    assert!(
+        row.contains("| 1e-1 |") && row.contains("unsolvable"),
+        "{row}"
+    );
+    let summary = study_summary(&study);
+    assert!(
+        summary.contains("1 of the finite-difference runs could not solve a perturbed design; at h = 1e-1: the body would slide"),
+        "{summary}"
+    );
+    assert!(
+        summary.contains("| central | 1e-6 | 1e-5 .. 1e-5 |"),
+        "{summary}"
+    );
+    let svg = study.svg().expect("a chart");
+    assert!(!svg.contains("inf") && !svg.contains("NaN"));
+}

@@ -255,11 +255,17 @@ pub const STUDY_HEADER: &str = "| method | tolerance | h | seconds | Hessian | e
 
 /// One run of the study, printed as it finishes.
 pub fn study_row(r: &StudyRun) -> String {
+    let step = r.step.map_or("-".to_string(), |h| format!("{h:.0e}"));
+    if r.unsolvable.is_some() {
+        return format!(
+            "| {} | {:.0e} | {step} | - | - | unsolvable | |",
+            r.method, r.tolerance
+        );
+    }
     format!(
-        "| {} | {:.0e} | {} | {:.4} | {} | {:.2e} | {} |",
+        "| {} | {:.0e} | {step} | {:.4} | {} | {:.2e} | {} |",
         r.method,
         r.tolerance,
-        r.step.map_or("-".to_string(), |h| format!("{h:.0e}")),
         r.seconds,
         r.hessian_applications,
         r.error,
@@ -286,6 +292,20 @@ pub fn study_summary(study: &Study) -> String {
                 .map_or("none".to_string(), |(a, b)| format!("{a:.0e} .. {b:.0e}")),
             t.best.0,
             t.best.1
+        );
+    }
+    // The largest step that failed, and why (the runs go from large steps to
+    // small ones).
+    if let Some((r, why)) = study
+        .runs
+        .iter()
+        .find_map(|r| r.unsolvable.as_ref().map(|why| (r, why)))
+    {
+        let n = study.runs.iter().filter(|r| r.unsolvable.is_some()).count();
+        let _ = write!(
+            o,
+            "\n\n{n} of the finite-difference runs could not solve a perturbed design; at h = {:.0e}: {why}",
+            r.step.unwrap_or(0.0)
         );
     }
     o

@@ -23,6 +23,11 @@ pub struct StudyRun {
     pub hessian_applications: usize,
     pub error: f64,
     pub active_set_changed: bool,
+    /// A finite-difference step that moved the geometry too far for a
+    /// perturbed design to be solved (faces crossing, contact lost, a load
+    /// friction no longer carries): why; its error is infinite.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub unsolvable: Option<String>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -117,6 +122,7 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
                 hessian_applications: g.hessian_applications,
                 error: error(&g, &reference),
                 active_set_changed: false,
+                unsolvable: None,
             };
             progress(&run);
             runs.push(run);
@@ -129,15 +135,30 @@ pub fn study(scene: &Scene, progress: &mut dyn FnMut(&StudyRun)) -> Result<Study
                     scheme,
                     ..options
                 };
-                let g = gradient(&s, &state, fd, &at)?;
-                let run = StudyRun {
-                    method: format!("finite_difference {name}"),
-                    tolerance: tol,
-                    step: Some(step),
-                    seconds: g.seconds,
-                    hessian_applications: g.hessian_applications,
-                    error: error(&g, &reference),
-                    active_set_changed: !g.active_set_changed.is_empty(),
+                let method = format!("finite_difference {name}");
+                let run = match gradient(&s, &state, fd, &at) {
+                    Ok(g) => StudyRun {
+                        method,
+                        tolerance: tol,
+                        step: Some(step),
+                        seconds: g.seconds,
+                        hessian_applications: g.hessian_applications,
+                        error: error(&g, &reference),
+                        active_set_changed: !g.active_set_changed.is_empty(),
+                        unsolvable: None,
+                    },
+                    // Where differences fail is what the study shows.
+                    Err(e @ GradientError::Perturbed { .. }) => StudyRun {
+                        method,
+                        tolerance: tol,
+                        step: Some(step),
+                        seconds: 0.0,
+                        hessian_applications: 0,
+                        error: f64::INFINITY,
+                        active_set_changed: false,
+                        unsolvable: Some(e.to_string()),
+                    },
+                    Err(e) => return Err(e),
                 };
                 progress(&run);
                 runs.push(run);
@@ -239,7 +260,7 @@ impl Study {
         let mut keys: Vec<String> = Vec::new();
         let mut xs: Vec<Vec<f64>> = Vec::new();
         let mut ys: Vec<Vec<f64>> = Vec::new();
-        for r in &self.runs {
+        for r in self.runs.iter().filter(|r| r.unsolvable.is_none()) {
             let key = if r.active_set_changed {
                 "finite differences, active set changed".to_string()
             } else if r.method.starts_with("finite") {
