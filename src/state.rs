@@ -978,6 +978,7 @@ impl<'a> SolveOptions<'a> {
             previous: Some(previous),
             refactor: Refactor::Changed,
             warm,
+            comm: previous.comm(),
             ..SolveOptions::default()
         }
     }
@@ -1402,6 +1403,13 @@ impl State {
     /// `B u` per row (normalized rows, like `c`).
     pub fn row_values(&self) -> Vec<f64> {
         self.dual.cluster().apply_b(&self.u)
+    }
+
+    /// The ranks it was solved on, where more than one: a state solved
+    /// from it ([`SolveOptions::from`]) keeps its subdomains there.
+    pub fn comm(&self) -> Option<Arc<dyn Comm>> {
+        let comm = self.dual.cluster().comm();
+        (comm.size() > 1).then(|| Arc::clone(comm))
     }
 
     /// Has the dual solve converged?

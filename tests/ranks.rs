@@ -145,3 +145,82 @@ fn the_sparse_coarse_problem_gives_the_serial_state_bitwise_on_ranks() {
         }
     }
 }
+
+/// The gradient of every method on thread ranks, as JSON of its bits.
+fn gradient_bits(
+    scene: &Scene,
+    method: cso::lang::scene::SensitivityMethod,
+    comm: Option<Arc<dyn Comm>>,
+) -> Result<Vec<Vec<u64>>, String> {
+    let design = scene.design_init();
+    let state = cso::state::solve_with(
+        scene,
+        &design,
+        &cso::state::SolveOptions {
+            comm,
+            ..Default::default()
+        },
+        &mut |_| {},
+    )
+    .map_err(|e| e.to_string())?;
+    let g = cso::sens::gradient(
+        scene,
+        &state,
+        method,
+        &cso::sens::GradientOptions::of(scene),
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(g.gradient
+        .iter()
+        .map(|r| r.iter().map(|x| x.to_bits()).collect())
+        .collect())
+}
+
+/// The three gradient methods on thread ranks: each rank's gradient is the
+/// serial one bit for bit (the sensitivity and adjoint solves run on the
+/// state's distributed dual, the perturbed solves of finite differences on
+/// its ranks), frictionless and with Tresca friction in 3D.
+#[test]
+fn gradients_on_thread_ranks_are_the_serial_ones_bitwise() {
+    use cso::lang::scene::SensitivityMethod as M;
+    let tresca = crate::fixture::example_src("punch3d")
+        .replace(
+            "secondary = punch.bottom }",
+            "secondary = punch.bottom, slip_bound = 1 }",
+        )
+        .replace(
+            "ux = 0, uy = 0, uz = -0.01",
+            "ux = 0.004, uy = 0.003, uz = -0.01",
+        );
+    let tresca = compile(&tresca, &options()).expect("checks");
+    for (name, scene, p) in [
+        ("scont2d", example("scont2d"), 2),
+        ("scont2d", example("scont2d"), 3),
+        ("punch3d", example("punch3d"), 2),
+        ("punch3d with Tresca friction", tresca, 3),
+    ] {
+        for method in [M::SemiAnalytic, M::Adjoint, M::FiniteDifference] {
+            let serial = gradient_bits(&scene, method, None).expect("serial");
+            let got: Vec<_> = std::thread::scope(|s| {
+                let handles: Vec<_> = thread_ranks(p)
+                    .into_iter()
+                    .map(|r| {
+                        let scene = &scene;
+                        s.spawn(move || gradient_bits(scene, method, Some(Arc::new(r))))
+                    })
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("rank"))
+                    .collect()
+            });
+            for (r, g) in got.into_iter().enumerate() {
+                let g = g.unwrap_or_else(|e| panic!("{name} {method:?} rank {r} of {p}: {e}"));
+                assert!(
+                    g == serial,
+                    "{name} {method:?} rank {r} of {p}: the gradient differs"
+                );
+            }
+        }
+    }
+}

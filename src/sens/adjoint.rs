@@ -20,6 +20,7 @@ use crate::state::{SolveError, State};
 use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
+use rayon::prelude::*;
 use std::time::Instant;
 
 /// Adjoint gradients (per functional, per design variable), the Hessian
@@ -96,32 +97,37 @@ fn node_shape_gradients(
         .collect();
     // Per subdomain: (body dof, one value per w) of its elements.
     type Contributions = Vec<(usize, Vec<f64>)>;
-    let per_subdomain: Vec<(usize, Contributions)> = state.dual.cluster().map(|s, _| {
-        let m = &p.subdomains[s];
-        let moves = &moving[m.body];
-        let mut acc = Vec::new();
-        let mut we: Vec<Vec<f64>> = vec![Vec::new(); ws.len()];
-        for_moving_elements(state, s, moving, |e, x, ue| {
-            for (wk, w) in we.iter_mut().zip(ws) {
-                wk.clear();
-                wk.extend(e.iter().flat_map(|&k| &w[s][dim * k..dim * k + dim]));
-            }
-            let we_ref: Vec<&[f64]> = we.iter().map(Vec::as_slice).collect();
-            let Some(g) = m.element.shape_gradient(x, &m.section, &we_ref, ue) else {
-                return;
-            };
-            for (a, &k) in e.iter().enumerate() {
-                if !moves[m.grid[k]] {
-                    continue;
+    // Every subdomain on every rank (the elements need no factor): the same
+    // sums whatever the rank count.
+    let per_subdomain: Vec<(usize, Contributions)> = (0..p.subdomains.len())
+        .into_par_iter()
+        .map(|s| {
+            let m = &p.subdomains[s];
+            let moves = &moving[m.body];
+            let mut acc = Vec::new();
+            let mut we: Vec<Vec<f64>> = vec![Vec::new(); ws.len()];
+            for_moving_elements(state, s, moving, |e, x, ue| {
+                for (wk, w) in we.iter_mut().zip(ws) {
+                    wk.clear();
+                    wk.extend(e.iter().flat_map(|&k| &w[s][dim * k..dim * k + dim]));
                 }
-                for c in 0..dim {
-                    let at = dim * a + c;
-                    acc.push((dim * m.grid[k] + c, g.iter().map(|gw| gw[at]).collect()));
+                let we_ref: Vec<&[f64]> = we.iter().map(Vec::as_slice).collect();
+                let Some(g) = m.element.shape_gradient(x, &m.section, &we_ref, ue) else {
+                    return;
+                };
+                for (a, &k) in e.iter().enumerate() {
+                    if !moves[m.grid[k]] {
+                        continue;
+                    }
+                    for c in 0..dim {
+                        let at = dim * a + c;
+                        acc.push((dim * m.grid[k] + c, g.iter().map(|gw| gw[at]).collect()));
+                    }
                 }
-            }
-        });
-        (s, acc)
-    });
+            });
+            (s, acc)
+        })
+        .collect();
     // Summed in subdomain order: the same bits whatever the thread count.
     for (s, acc) in per_subdomain {
         let body = p.subdomains[s].body;

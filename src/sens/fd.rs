@@ -5,7 +5,7 @@
 
 use super::functional::Eval;
 use crate::lang::scene::{Scene, Scheme};
-use crate::state::{solve, solve_with, SolveError, SolveOptions, State, WarmStart};
+use crate::state::{solve_with, SolveError, SolveOptions, State, WarmStart};
 use serde::Serialize;
 use std::fmt;
 use std::time::Instant;
@@ -190,7 +190,11 @@ pub(super) fn gradient(
     let design = scene.design_init();
     let resolved;
     let base = if state.warm_started || state.on_active_set {
-        resolved = solve(scene, &design, &mut |_| {})?;
+        let cold = SolveOptions {
+            comm: state.comm(),
+            ..SolveOptions::default()
+        };
+        resolved = solve_with(scene, &design, &cold, &mut |_| {})?;
         &resolved
     } else {
         state
