@@ -1,6 +1,7 @@
-//! `cso solve` under `mpirun` (feature `mpi`): the same report bits as the
-//! serial solver on 1, 2 and 4 ranks, and every rank stopping with the same
-//! message on bad input and on a failing rank, never hanging.
+//! `cso solve` and `cso sensitivity` under `mpirun` (feature `mpi`): the
+//! same report and gradient bits as the serial solver on 1, 2, 3 and 4 ranks,
+//! and every rank stopping with the same message on bad input and on a
+//! failing rank, never hanging.
 
 use crate::root;
 use std::path::Path;
@@ -167,7 +168,56 @@ fn a_failing_rank_stops_every_rank_with_its_message() {
 
 #[test]
 fn commands_that_are_not_distributed_say_so() {
-    let (code, _, err) = run(Some(2), &[], &["sensitivity", "examples/hertz2d.cso"]);
+    let (code, _, err) = run(Some(2), &[], &["optimize", "examples/scont2d.cso"]);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("only `cso solve` runs distributed"), "{err}");
+    assert!(
+        err.contains("only `cso solve` and `cso sensitivity` run distributed"),
+        "{err}"
+    );
+    let (code, _, err) = run(
+        Some(2),
+        &[],
+        &["sensitivity", "examples/scont2d.cso", "--study"],
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(err.contains("runs in one process"), "{err}");
+}
+
+/// sensitivity.json without its wall times.
+fn sensitivity(ranks: Option<usize>, method: &str, dir: &Path) -> serde_json::Value {
+    let _ = std::fs::remove_dir_all(dir);
+    let out = dir.to_str().expect("utf-8 path");
+    let args = [
+        "--quiet",
+        "sensitivity",
+        "examples/scont2d.cso",
+        "--method",
+        method,
+        "-o",
+        out,
+    ];
+    let (code, stdout, stderr) = run(ranks, &[], &args);
+    assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
+    let text = std::fs::read_to_string(dir.join("sensitivity.json")).expect("written");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    let o = v.as_object_mut().expect("an object");
+    for k in ["seconds", "state_seconds"] {
+        o.remove(k);
+    }
+    v
+}
+
+/// `cso sensitivity` under `mpirun -n 2` and `-n 3`: the serial gradients and
+/// counts, bit for bit, by every method.
+#[test]
+fn sensitivity_over_ranks_gives_the_serial_gradient_bitwise() {
+    let base = std::env::temp_dir().join(format!("cso-mpi-sens-{}", std::process::id()));
+    for method in ["semi_analytic", "adjoint", "finite_difference"] {
+        let serial = sensitivity(None, method, &base.join(format!("{method}-1")));
+        for n in [2, 3] {
+            let got = sensitivity(Some(n), method, &base.join(format!("{method}-{n}")));
+            assert!(got == serial, "{method} on {n} ranks differs from serial");
+        }
+    }
+    let _ = std::fs::remove_dir_all(&base);
 }

@@ -4,18 +4,26 @@
 use super::args::{Optimize, Sensitivity};
 use super::job::{load, write_into, Job};
 use super::print::{fail, fail_solve, Outcome, Progress, EXIT_INTERRUPTED, EXIT_IO, EXIT_SCENE};
+use super::ranks::Ranks;
 use cso::io::atomic::write_files;
 use cso::io::tables;
 use cso::lang::CheckOptions;
-use cso::sens::{solve_gradient, GradientOptions};
+use cso::sens::{solve_gradient_on, GradientOptions};
 use cso::studies::output;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::Arc;
 
 impl Sensitivity {
-    /// A table of dJ/da_i for the objective and each constraint (or the study).
-    pub fn run(&self, opts: &CheckOptions) -> Outcome {
-        let job = Job::load(&self.file, opts, self.out.as_deref(), self.threads)?;
+    /// A table of dJ/da_i for the objective and each constraint (or the study);
+    /// under `mpirun` the state's subdomains spread over the ranks and rank 0
+    /// writes.
+    pub fn run(&self, opts: &CheckOptions, ranks: &Ranks) -> Outcome {
+        let distributed = ranks.as_ref().is_some_and(|c| c.size() > 1);
+        if distributed && self.study {
+            let msg = "`cso sensitivity --study` runs in one process; run it without mpirun";
+            return Err(fail(EXIT_IO, msg));
+        }
+        let job = Job::load_on(&self.file, opts, self.out.as_deref(), self.threads, ranks)?;
         let scene = &job.scene;
         if self.study {
             return self.run_study(&job);
@@ -32,7 +40,9 @@ impl Sensitivity {
             ..defaults
         };
         let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
-        let g = job.run(bar, |_| solve_gradient(scene, method, &options));
+        let g = job.run(bar, |_| {
+            solve_gradient_on(scene, method, &options, ranks.clone())
+        });
         let g = g.map_err(|e| match e {
             // A bad `--step` is a usage error, not the scene's.
             cso::sens::GradientError::Step(_) => fail(EXIT_IO, e),
@@ -40,7 +50,8 @@ impl Sensitivity {
             e => fail(EXIT_SCENE, e),
         })?;
         outln!("{}", tables::gradient(scene, &g));
-        if let Some(dir) = &self.out {
+        let lead = ranks.as_ref().is_none_or(|c| c.rank() == 0);
+        if let Some(dir) = self.out.as_ref().filter(|_| lead) {
             let header = cso::io::provenance::Header::of(scene, "sensitivity", &[("time", "s")])
                 .with_units(cso::io::provenance::scene_units(scene));
             let json = cso::io::provenance::to_json(&header, &g)

@@ -3,6 +3,7 @@
 //! thread pool, and work run on it with its progress shown ([`Job`]).
 
 use super::print::{fail, quiet, Outcome, Progress, EXIT_IO, EXIT_SCENE};
+use super::ranks::{together, Ranks};
 use cso::io::atomic::{write_files, Files};
 use cso::io::outputs::OutputDir;
 use cso::lang::{compile, diag, CheckOptions, Scene};
@@ -27,6 +28,30 @@ impl Job {
     ) -> Result<Job, u8> {
         let scene = load(file, opts)?;
         Job::new(scene, out, threads)
+    }
+
+    /// [`Job::load`] on the ranks of `mpirun` (`ranks`): every rank reads and
+    /// checks the scene, rank 0 alone probes `out`, and each rank takes its
+    /// share of the node's cores unless `threads` says otherwise; a failure on
+    /// any rank stops them all. Without ranks, [`Job::load`].
+    pub fn load_on(
+        file: &Path,
+        opts: &CheckOptions,
+        out: Option<&Path>,
+        threads: Option<usize>,
+        ranks: &Ranks,
+    ) -> Result<Job, u8> {
+        if ranks.is_none() {
+            return Job::load(file, opts, out, threads);
+        }
+        let scene = together(ranks, load(file, opts))?;
+        let lead = ranks.as_ref().is_none_or(|c| c.rank() == 0);
+        together(ranks, if lead { prepare(out) } else { Ok(()) })?;
+        let pool = together(
+            ranks,
+            thread_pool(threads.or_else(|| Some(threads_per_rank()))),
+        )?;
+        Ok(Job { scene, pool })
     }
 
     /// [`Job::load`] for a scene already checked (and anything else about it

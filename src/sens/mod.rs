@@ -89,10 +89,28 @@ pub fn solve_gradient(
     method: SensitivityMethod,
     options: &GradientOptions,
 ) -> Result<Gradient, GradientError> {
+    solve_gradient_on(scene, method, options, None)
+}
+
+/// [`solve_gradient`] with the state's subdomains spread over the ranks of
+/// `comm` (`cso sensitivity` under `mpirun`): the sensitivity and adjoint
+/// solves run on the state's distributed dual, the finite differences'
+/// perturbed states on its ranks, and every rank returns the serial
+/// gradient bit for bit. Collective: every rank calls it.
+pub fn solve_gradient_on(
+    scene: &Scene,
+    method: SensitivityMethod,
+    options: &GradientOptions,
+    comm: Option<std::sync::Arc<dyn crate::tfeti::comm::Comm>>,
+) -> Result<Gradient, GradientError> {
     if method == SensitivityMethod::FiniteDifference {
         // Refuse a bad step before the state's solve.
         check_step(options.step)?;
     }
-    let state = crate::state::solve(scene, &scene.design_init(), &mut |_| {})?;
+    let options_on = crate::state::SolveOptions {
+        comm,
+        ..Default::default()
+    };
+    let state = crate::state::solve_with(scene, &scene.design_init(), &options_on, &mut |_| {})?;
     gradient(scene, &state, method, options)
 }
