@@ -21,12 +21,12 @@ fn main() -> ExitCode {
     let outcome = match &cli.command {
         Command::Solve(c) => c.run(&opts, &ranks),
         Command::Sensitivity(c) => c.run(&opts, &ranks),
+        Command::Optimize(c) => c.run(&opts, &ranks),
         _ if ranks.as_ref().is_some_and(|c| c.size() > 1) => Err(fail(
             EXIT_IO,
-            "only `cso solve` and `cso sensitivity` run distributed over MPI ranks yet (optimization does not); run this command without mpirun",
+            "only `cso solve`, `cso sensitivity` and `cso optimize` run distributed over MPI ranks; run this command without mpirun",
         )),
         Command::Check(c) => c.run(&opts),
-        Command::Optimize(c) => c.run(&opts),
         Command::Compare(c) => c.run(&opts),
         Command::Bench(c) => c.run(),
         Command::Study(StudyCommand::Convergence(c)) => c.run(&opts),

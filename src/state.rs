@@ -1037,7 +1037,7 @@ fn solve_on(
     let tell = |p: Phase| tell(phases, p);
     let t0 = Instant::now();
     let mut times = Times::default();
-    let first_on_active_set = active_set_first(scene, previous, warm, &*comm);
+    let first_on_active_set = active_set_first(scene, previous, warm);
     let setup = setup_on(
         scene,
         design,
@@ -1117,24 +1117,19 @@ fn solve_on(
     Ok(state)
 }
 
-/// Whether a warm solve tries the previous active set first (TFETI, one
-/// process, multipliers to start from). A state kept there satisfies the KKT
+/// Whether a warm solve tries the previous active set first (TFETI,
+/// multipliers to start from; on any number of ranks, where it runs as the
+/// serial one does, bit for bit). A state kept there satisfies the KKT
 /// conditions to the tolerance, so what `precheck_balance` and the full
 /// system's coarse problem would refuse (loads nothing balances, a free
 /// rigid motion) cannot hold; both wait until SMALBE runs. Only where the
 /// tolerance is at most the balance test's 1e-6: a looser one could keep
 /// a state that test refuses.
-fn active_set_first(
-    scene: &Scene,
-    previous: Option<&State>,
-    warm: WarmStart,
-    comm: &dyn Comm,
-) -> bool {
+fn active_set_first(scene: &Scene, previous: Option<&State>, warm: WarmStart) -> bool {
     warm.on_active_set
         && warm.multipliers
         && previous.is_some()
         && scene.solver.method != crate::lang::scene::SolverMethod::Feti
-        && comm.size() == 1
         && scene.solver.tolerance <= 1e-6
 }
 

@@ -168,10 +168,10 @@ fn a_failing_rank_stops_every_rank_with_its_message() {
 
 #[test]
 fn commands_that_are_not_distributed_say_so() {
-    let (code, _, err) = run(Some(2), &[], &["optimize", "examples/scont2d.cso"]);
+    let (code, _, err) = run(Some(2), &[], &["compare", "examples/scont2d.cso"]);
     assert_eq!(code, 2, "{err}");
     assert!(
-        err.contains("only `cso solve` and `cso sensitivity` run distributed"),
+        err.contains("only `cso solve`, `cso sensitivity` and `cso optimize` run distributed"),
         "{err}"
     );
     let (code, _, err) = run(
@@ -220,4 +220,45 @@ fn sensitivity_over_ranks_gives_the_serial_gradient_bitwise() {
         }
     }
     let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `cso optimize` under `mpirun -n 2` and `-n 3`: the serial history.json
+/// (every iterate's design, values, gradient counts) and best.cso, bit for
+/// bit; the wall times aside.
+#[test]
+fn optimize_over_ranks_follows_the_serial_iterates_bitwise() {
+    let base = std::env::temp_dir().join(format!("cso-mpi-opt-{}", std::process::id()));
+    let history = |ranks: Option<usize>| {
+        let dir = base.join(format!("{ranks:?}"));
+        let _ = std::fs::remove_dir_all(&dir);
+        let out = dir.to_str().expect("utf-8 path");
+        let args = ["--quiet", "optimize", "examples/scont2d.cso", "-o", out];
+        let (code, stdout, stderr) = run(ranks, &[], &args);
+        assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
+        let text = std::fs::read_to_string(dir.join("history.json")).expect("written");
+        let mut v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+        strip_seconds(&mut v);
+        let best = std::fs::read_to_string(dir.join("best.cso")).expect("best design");
+        (v, best)
+    };
+    let serial = history(None);
+    assert!(serial.0["history"].as_array().is_some_and(|h| h.len() > 3));
+    for n in [2, 3] {
+        let got = history(Some(n));
+        assert!(got.0 == serial.0, "history.json on {n} ranks differs");
+        assert_eq!(got.1, serial.1, "best.cso on {n} ranks");
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// Removes every wall time (`seconds`, `*_seconds`, `times`) from a JSON value.
+fn strip_seconds(v: &mut serde_json::Value) {
+    match v {
+        serde_json::Value::Object(o) => {
+            o.retain(|k, _| k != "times" && k != "seconds" && !k.ends_with("_seconds"));
+            o.values_mut().for_each(strip_seconds);
+        }
+        serde_json::Value::Array(a) => a.iter_mut().for_each(strip_seconds),
+        _ => {}
+    }
 }

@@ -224,3 +224,52 @@ fn gradients_on_thread_ranks_are_the_serial_ones_bitwise() {
         }
     }
 }
+
+/// An optimization on thread ranks (warm states on the previous active set,
+/// partial refactorization, warm adjoints, all distributed): every rank
+/// follows the serial iterates bit for bit.
+#[test]
+fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
+    let mut scene = example("scont2d");
+    scene.optimize.max_iterations = 6;
+    let run = |comm: Option<Arc<dyn Comm>>| {
+        let reuse = cso::opt::Reuse::default();
+        let run = cso::opt::optimize_on(&scene, reuse, &comm, &mut |_, _| true)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let bits: Vec<Vec<u64>> = run
+            .history
+            .iter()
+            .map(|it| {
+                let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
+                b.push(it.objective.to_bits());
+                b.push(it.hessian_applications as u64);
+                b.push(u64::from(it.on_active_set));
+                b
+            })
+            .collect();
+        bits
+    };
+    let serial = run(None);
+    assert!(
+        serial.iter().any(|b| b.last() == Some(&1)),
+        "warm states kept on the active set"
+    );
+    for p in [2, 3] {
+        let got: Vec<_> = std::thread::scope(|s| {
+            let handles: Vec<_> = thread_ranks(p)
+                .into_iter()
+                .map(|r| {
+                    let run = &run;
+                    s.spawn(move || run(Some(Arc::new(r))))
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("rank"))
+                .collect()
+        });
+        for (r, g) in got.into_iter().enumerate() {
+            assert!(g == serial, "rank {r} of {p}: the iterates differ");
+        }
+    }
+}

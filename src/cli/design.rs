@@ -4,7 +4,7 @@
 use super::args::{Optimize, Sensitivity};
 use super::job::{load, write_into, Job};
 use super::print::{fail, fail_solve, Outcome, Progress, EXIT_INTERRUPTED, EXIT_IO, EXIT_SCENE};
-use super::ranks::Ranks;
+use super::ranks::{together, Ranks};
 use cso::io::atomic::write_files;
 use cso::io::tables;
 use cso::lang::CheckOptions;
@@ -85,17 +85,20 @@ impl Sensitivity {
 }
 
 impl Optimize {
-    /// MMA iterations with a progress line, then the best design.
-    pub fn run(&self, opts: &CheckOptions) -> Outcome {
-        let mut scene = load(&self.file, opts)?;
+    /// MMA iterations with a progress line, then the best design; under
+    /// `mpirun` every state's subdomains spread over the ranks, the design
+    /// update replicated, and rank 0 writes.
+    pub fn run(&self, opts: &CheckOptions, ranks: &Ranks) -> Outcome {
+        let mut scene = together(ranks, load(&self.file, opts))?;
         if let Some(p) = self.preconditioner {
             scene.solver.preconditioner = p;
         }
         if let Some(l) = self.local_f {
             scene.solver.local_f = l;
         }
-        let job = Job::new(scene, self.out.as_deref(), self.threads)?;
+        let job = Job::new_on(scene, self.out.as_deref(), self.threads, ranks)?;
         let scene = &job.scene;
+        let lead = ranks.as_ref().is_none_or(|c| c.rank() == 0);
         // Ctrl-C: finish the current design, then stop with the best one written
         // and exit with EXIT_INTERRUPTED. Without a handler (one is already set)
         // Ctrl-C simply ends the process. Set before anything is printed, so
@@ -104,10 +107,11 @@ impl Optimize {
         let handler_stop = stop.clone();
         let _ = ctrlc::set_handler(move || handler_stop.store(true, Ordering::SeqCst));
         let bar = Progress::bar("optimize", scene.optimize.max_iterations as u64);
-        let out = self.out.as_deref();
+        let out = self.out.as_deref().filter(|_| lead);
         let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
         let result = job.run(bar, |bar| {
-            cso::opt::optimize(scene, &mut |it, state| {
+            let reuse = cso::opt::Reuse::default();
+            cso::opt::optimize_on(scene, reuse, ranks, &mut |it, state| {
                 if let Some(series) = series.as_mut() {
                     series.record(scene, it.iteration, &it.design, state);
                 }
@@ -119,7 +123,13 @@ impl Optimize {
                     )
                 });
                 bar.inc();
-                !stop.load(Ordering::SeqCst)
+                // Every rank stops at the same design (Ctrl-C reaches the
+                // ranks at different moments).
+                let mut stopped = [u64::from(stop.load(Ordering::SeqCst))];
+                if let Some(comm) = ranks {
+                    comm.all_reduce_u64(&mut stopped, cso::tfeti::comm::Op::Max);
+                }
+                stopped[0] == 0
             })
         });
         let run = result.map_err(|e| match e {

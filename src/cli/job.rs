@@ -45,12 +45,23 @@ impl Job {
             return Job::load(file, opts, out, threads);
         }
         let scene = together(ranks, load(file, opts))?;
+        Job::new_on(scene, out, threads, ranks)
+    }
+
+    /// [`Job::load_on`] for a scene already checked.
+    pub fn new_on(
+        scene: Scene,
+        out: Option<&Path>,
+        threads: Option<usize>,
+        ranks: &Ranks,
+    ) -> Result<Job, u8> {
+        if ranks.is_none() {
+            return Job::new(scene, out, threads);
+        }
         let lead = ranks.as_ref().is_none_or(|c| c.rank() == 0);
         together(ranks, if lead { prepare(out) } else { Ok(()) })?;
-        let pool = together(
-            ranks,
-            thread_pool(threads.or_else(|| Some(threads_per_rank()))),
-        )?;
+        let threads = threads.or_else(|| Some(threads_per_rank()));
+        let pool = together(ranks, thread_pool(threads))?;
         Ok(Job { scene, pool })
     }
 

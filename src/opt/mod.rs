@@ -181,7 +181,7 @@ fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
     warm: &[Vec<f64>],
-    reuse: Reuse,
+    (reuse, comm): (Reuse, &Ranks),
 ) -> Result<(State, Gradient), GradientError> {
     let design = scene.design_init();
     let state = match previous {
@@ -192,7 +192,7 @@ fn state_and_gradient(
             };
             crate::state::solve_with(scene, &design, &options, &mut |_| {})?
         }
-        _ => crate::state::solve(scene, &design, &mut |_| {})?,
+        _ => cold(scene, &design, comm)?,
     };
     let options = crate::sens::GradientOptions {
         warm: if reuse.warm_adjoint { warm } else { &[] },
@@ -217,7 +217,34 @@ pub fn optimize_with(
     reuse: Reuse,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, GradientError> {
-    let frozen = frozen_at_start(scene)?;
+    optimize_on(scene, reuse, &None, observer)
+}
+
+/// The ranks a state's subdomains spread over (None: this process).
+pub type Ranks = Option<std::sync::Arc<dyn crate::tfeti::comm::Comm>>;
+
+/// A cold state solve at `design`, on `comm`'s ranks where given.
+fn cold(scene: &Scene, design: &[f64], comm: &Ranks) -> Result<State, SolveError> {
+    let options = crate::state::SolveOptions {
+        comm: comm.clone(),
+        ..Default::default()
+    };
+    crate::state::solve_with(scene, design, &options, &mut |_| {})
+}
+
+/// [`optimize_with`] with every state's subdomains spread over the ranks of
+/// `comm` (`cso optimize` under `mpirun`): the state, sensitivity and adjoint
+/// solves run distributed, the design update (MMA, a few variables) is
+/// replicated, and every rank follows the serial iterates bit for bit.
+/// Collective: every rank calls it, and `observer` must answer alike on
+/// every rank.
+pub fn optimize_on(
+    scene: &Scene,
+    reuse: Reuse,
+    comm: &Ranks,
+    observer: &mut dyn FnMut(&Iterate, &State) -> bool,
+) -> Result<Optimization, GradientError> {
+    let frozen = frozen_at_start(scene, comm)?;
     let x0 = scene.design_init();
     let bounds = Bounds {
         lower: scene.design.iter().map(|d| d.lower).collect(),
@@ -242,11 +269,12 @@ pub fn optimize_with(
         let t = Instant::now();
         let current = with_design(&frozen, &x);
         let mut halvings = 0;
-        let (state, mut g) = match state_and_gradient(&current, previous.as_ref(), &warm, reuse) {
+        let solved = state_and_gradient(&current, previous.as_ref(), &warm, (reuse, comm));
+        let (state, mut g) = match solved {
             Ok(r) => r,
             Err(e) if k > 0 => {
                 let last_good = history.last().map_or(&x0, |h| &h.design);
-                match step_back(&frozen, &x, last_good, reuse) {
+                match step_back(&frozen, &x, last_good, (reuse, comm)) {
                     Some((trial, halved, state, g)) => {
                         x = trial;
                         halvings = halved;
@@ -306,7 +334,7 @@ pub fn optimize_with(
 
 /// The scene's design problem with every `initial(e)` replaced by its value
 /// at the starting design (one state solve there).
-fn frozen_at_start(scene: &Scene) -> Result<Scene, GradientError> {
+fn frozen_at_start(scene: &Scene, comm: &Ranks) -> Result<Scene, GradientError> {
     let Some(objective) = &scene.objective else {
         return Err(SolveError::Unsupported("the scene has no `minimize` objective".into()).into());
     };
@@ -314,7 +342,7 @@ fn frozen_at_start(scene: &Scene) -> Result<Scene, GradientError> {
         return Err(SolveError::Unsupported("the scene has no design variables".into()).into());
     }
     let x0 = scene.design_init();
-    let start = crate::state::solve(scene, &x0, &mut |_| {})?;
+    let start = cold(scene, &x0, comm)?;
     let eval = Eval {
         scene,
         design: &x0,
@@ -346,7 +374,7 @@ fn step_back(
     frozen: &Scene,
     x: &[f64],
     last_good: &[f64],
-    reuse: Reuse,
+    run: (Reuse, &Ranks),
 ) -> Option<(Vec<f64>, usize, State, Gradient)> {
     let mut trial = x.to_vec();
     for halvings in 1..=STEP_BACKS {
@@ -360,7 +388,7 @@ fn step_back(
         {
             continue;
         }
-        if let Ok((state, g)) = state_and_gradient(&scene, None, &[], reuse) {
+        if let Ok((state, g)) = state_and_gradient(&scene, None, &[], run) {
             return Some((trial, halvings, state, g));
         }
     }

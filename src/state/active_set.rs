@@ -82,7 +82,7 @@ pub(super) fn solve(
     settings: &SmalbeSettings,
 ) -> Outcome {
     let (n_eq, m) = (problem.n_equality, problem.rows.len());
-    if previous.len() != m || n_eq == m || dual.cluster().is_distributed() {
+    if previous.len() != m || n_eq == m {
         return Outcome::Refused(0, 0);
     }
     let tol = settings.tolerance;
