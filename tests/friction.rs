@@ -265,6 +265,29 @@ fn tresca_sensitivities_equal_central_differences_in_2d() {
     assert_agree(&semi, &fd, 1e-6);
     let adj = adjoint(&s, 1e-10).expect("adjoint");
     assert_agree(&adj, &semi, 1e-9);
+    // Classical FETI: its rows, the same derivatives.
+    let mut feti = s.clone();
+    feti.solver.method = cso::lang::scene::SolverMethod::Feti;
+    assert_agree(&semi_analytic(&feti, 1e-10).expect("FETI"), &semi, 1e-8);
+    assert_agree(&adjoint(&feti, 1e-10).expect("FETI adjoint"), &semi, 1e-8);
+}
+
+/// A Tresca bound that vanishes at a node (`2 (x - 1.5)^2`, zero at the
+/// middle of the face, no shear): that node carries no tangential force and
+/// slips freely, as without friction, so the derivatives are two-sided there
+/// and equal central differences; the adjoint solves too.
+#[test]
+fn a_vanishing_slip_bound_is_frictionless_in_the_sensitivities() {
+    let s = scene(
+        &SHEARED
+            .edit("SB", "2 * (x - 1.5)^2")
+            .edit("ux = 0.01", "ux = 0"),
+    );
+    let semi = semi_analytic(&s, 1e-10).expect("semi-analytic");
+    assert_eq!(semi.method, "semi_analytic", "no node at a transition");
+    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("finite differences");
+    assert_agree(&semi, &fd, 1e-6);
+    assert_agree(&adjoint(&s, 1e-10).expect("adjoint"), &semi, 1e-9);
 }
 
 /// Tresca against a rigid circle: the friction rows of obstacle contacts

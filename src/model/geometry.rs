@@ -348,6 +348,19 @@ pub fn tangent_entries<T: Scalar, const D: usize>(
         .collect()
 }
 
+/// Friction row `axis` of a contact row `e` with unit normal `n`
+/// (un-normalized), normalized: [`tangent_entries`]' row `axis`, its
+/// right-hand side zero. None where it has no such tangent or no entries.
+pub fn friction_row<T: Scalar, const D: usize>(
+    e: &[Entry<T>],
+    n: &[T; D],
+    held: &[usize],
+    axis: usize,
+) -> Option<NormalRow<T>> {
+    let (_, t) = tangent_entries(e, n, held).into_iter().nth(axis)?;
+    normalize(t, T::from(0.0))
+}
+
 /// The tangents along which a contact node can slip where both sides hold
 /// the axes `held` (a symmetry plane through both bodies; an obstacle's side
 /// cannot move): [`tangents`], less each held axis that lies in the tangent

@@ -317,7 +317,9 @@ impl<'a> Sensitivity<'a> {
             if kinks > 0 {
                 kinked.push(i);
             }
-            // The slip forces' derivatives, `g' s`: data of `f_bar`.
+            // The slip forces' derivatives, `g' s`: data of `f_bar`. (They
+            // are `l'` of the tangential rows too, which no functional reads:
+            // `J_l` is zero there, see `adjoint_data`.)
             if !self.friction.slipping.is_empty() {
                 let g = self.slip_bound_derivatives(i, &scale);
                 for (k, (w, _, _)) in adjoints.iter().enumerate() {

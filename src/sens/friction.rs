@@ -9,24 +9,28 @@
 //!   the slip force's derivative `g' s` is data. With two, the part across
 //!   the slip, `mu = p^T l_t'` (`p` normal to `s` in the tangent plane), is
 //!   the multiplier of a compliant row `p^T B_t u' - (|w| / g) mu = -p^T
-//!   B_t' u` ([`Kept::Across`], [`crate::tfeti::dual::Dual::set_compliance`]);
+//!   B_t' u` ([`Kept::Across`], [`crate::tfeti::dual::Dual::set_row_compliance`]);
 //! - it is on its bound without slipping (`w = 0`): the stick-slip
 //!   transition, where the derivative is only one-sided. It is taken as
-//!   sticking and the result says so.
+//!   sticking and the result says so;
+//! - its bound is zero (`g = 0`, a Tresca bound that vanishes there): it
+//!   carries no tangential force and its slip is free, as without friction.
+//!   (`g >= 0` everywhere, so where it vanishes on a smooth bound `g' = 0`.)
 //!
 //! `g = P A` (the slip bound at the node times its tributary area) moves
 //! with the geometry: `g'` in dual numbers per direction. Coulomb's bound
 //! moves with the normal force (`g = mu l_n`), which these methods do not
 //! follow: refused ([`COULOMB_REFUSED`]).
 
-use super::semi::D;
 use crate::lang::expr::Point;
 use crate::lang::scene::{Friction, Scene};
 use crate::model::geometry::{selected_pieces, tributary_areas, Piece};
-use crate::model::{RowKind, SlipLaw};
+use crate::model::RowKind;
 use crate::state::{SolveError, State};
 use crate::tfeti::slip::SlipBounds;
 use std::collections::HashMap;
+
+type D = num_dual::Dual64;
 
 /// Why the semi-analytic and adjoint methods refuse Coulomb friction.
 pub const COULOMB_REFUSED: &str = "the semi-analytic and adjoint sensitivities are derived for Tresca friction (`slip_bound`) only: \
@@ -93,11 +97,13 @@ pub fn spread(kept: &[Kept], x: &[f64], rows: usize) -> Vec<f64> {
 pub struct Slipping {
     /// Its tangential rows (`rows[..len]`).
     pub rows: [usize; 2],
+    /// How many: 1 (2D, or one free tangent) or 2 (a disc).
     pub len: usize,
     /// The unit slip direction in the rows' frame (`l_t / |l_t|`).
     pub s: [f64; 2],
-    /// Its bound `g` (the dual's units) and slip `|w|`.
+    /// Its bound `g` (the dual's units).
     pub bound: f64,
+    /// The size of its slip, `|w|`.
     pub slip: f64,
 }
 
@@ -117,29 +123,22 @@ pub struct FrictionRows {
 
 impl FrictionRows {
     /// The friction rows of `state` (none without friction); refuses
-    /// Coulomb's law. `gap_tol`: below it a slip is zero.
-    pub fn of(state: &State, gap_tol: f64) -> Result<Self, SolveError> {
+    /// Coulomb's law. `bu`: the state's row values `B u`; `gap_tol`: below
+    /// it a slip is zero.
+    pub fn of(state: &State, bu: &[f64], gap_tol: f64) -> Result<Self, SolveError> {
         let Some(friction) = &state.friction else {
             return Ok(Self::default());
         };
         let p = &state.problem;
-        if p.rows.iter().any(|r| {
-            matches!(
-                r.kind,
-                RowKind::Friction {
-                    law: SlipLaw::Coulomb(_),
-                    ..
-                }
-            )
-        }) {
+        if crate::state::friction::coulomb(p) {
             return Err(SolveError::Unsupported(COULOMB_REFUSED.to_string()));
         }
         let bounds = &friction.bounds;
         let lambda = &state.lambda;
         let scale = SlipBounds::scale(lambda, p.n_equality);
-        let bu = state.row_values();
         let mut out = FrictionRows::default();
-        for g in &bounds.groups {
+        // A zero bound carries nothing: no rows, as without friction.
+        for g in bounds.groups.iter().filter(|g| g.bound > 0.0) {
             let rows = &g.rows[..g.len];
             let w: Vec<f64> = rows.iter().map(|&r| bu[r] - p.rows[r].c).collect();
             let slip = w.iter().map(|x| x * x).sum::<f64>().sqrt();
@@ -153,15 +152,12 @@ impl FrictionRows {
                 out.stick.extend_from_slice(rows);
                 continue;
             }
-            // The force's direction, or where there is none (a zero bound)
-            // the slip's.
-            let (dir, size) = if force > 0.0 {
-                (rows.iter().map(|&r| lambda[r]).collect::<Vec<_>>(), force)
-            } else {
-                (w.clone(), slip)
-            };
-            let s = [dir[0] / size, dir.get(1).map_or(0.0, |x| x / size)];
-            if g.len == 2 && g.bound > 0.0 {
+            // The force's direction (on its bound, not zero).
+            let s = [
+                lambda[rows[0]] / force,
+                rows.get(1).map_or(0.0, |&r| lambda[r] / force),
+            ];
+            if g.len == 2 {
                 let across = Kept::Across {
                     rows: g.rows,
                     along: [-s[1], s[0]],

@@ -159,6 +159,11 @@ fn gap_tolerance(state: &State, bu: &[f64]) -> f64 {
 
 /// Classifies the rows of a solved state.
 pub fn classify(state: &State) -> Vec<Class> {
+    classes_of(state, &state.row_values())
+}
+
+/// [`classify`] with the state's row values `bu`.
+fn classes_of(state: &State, bu: &[f64]) -> Vec<Class> {
     let p = &state.problem;
     let m = state.lambda.len();
     // Contact rows only: a friction row is no contact (its multiplier may
@@ -169,8 +174,7 @@ pub fn classify(state: &State) -> Vec<Class> {
         .filter(|&i| contact(i))
         .map(|i| state.lambda[i].abs())
         .fold(0.0f64, f64::max);
-    let bu = state.row_values();
-    let gap_tol = gap_tolerance(state, &bu);
+    let gap_tol = gap_tolerance(state, bu);
     (0..m)
         .map(|i| {
             if i < p.n_equality {
@@ -418,8 +422,9 @@ impl<'a> Sensitivity<'a> {
         kind: Option<Kind>,
         form: SchurForm,
     ) -> Result<Self, SolveError> {
-        let classes = classify(state);
-        let friction = FrictionRows::of(state, gap_tolerance(state, &state.row_values()))?;
+        let bu = state.row_values();
+        let classes = classes_of(state, &bu);
+        let friction = FrictionRows::of(state, &bu, gap_tolerance(state, &bu))?;
         let mut kept: Vec<Kept> = (0..classes.len())
             .filter(|&i| matches!(classes[i], Class::Equality | Class::Strong))
             .chain(friction.stick.iter().copied())
@@ -460,7 +465,7 @@ impl<'a> Sensitivity<'a> {
                     for (k, (_, d)) in friction.across.iter().enumerate() {
                         compliance[first + k] = *d;
                     }
-                    dual.set_compliance(compliance);
+                    dual.set_row_compliance(compliance);
                 }
                 dual.defer_preconditioner(kind, n_equality, form);
                 Arc::new(dual)

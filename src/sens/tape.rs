@@ -15,7 +15,7 @@ use crate::fem::facet::Facet;
 use crate::fem::hex::hex_volume_gradient;
 use crate::lang::scene::Scene;
 use crate::model::geometry::{
-    body_positions, contact_row, coords, face_loads, normalize, obstacle_row, tangent_entries,
+    body_positions, contact_row, coords, face_loads, friction_row, normalize, obstacle_row,
     tie_row, NormalRow, ObstacleShape, Pattern, Piece,
 };
 use crate::model::{held_at_zero, held_axes};
@@ -328,53 +328,8 @@ impl Tape {
                         },
                     )
                 }),
-                RowKind::Friction {
-                    body,
-                    node,
-                    normal_row,
-                    axis,
-                    ..
-                } => {
-                    let normal = &p.rows[*normal_row];
-                    let axes = held_axes::<f64, DIM>(&normal.entries, &held);
-                    match &normal.kind {
-                        RowKind::Contact {
-                            primary: ContactPrimary::Obstacle(o),
-                            ..
-                        } => RowMotion::Obstacle {
-                            obstacle: *o,
-                            body: *body,
-                            node: *node,
-                            tangent: Some((*axis, axes)),
-                        },
-                        RowKind::Contact { primary, .. } => {
-                            P::of(primary).map_or(RowMotion::Still, |piece| {
-                                let motion = row_tape(
-                                    &mut seeded,
-                                    (*body, *node, false),
-                                    &piece,
-                                    moves[*body] || moves[piece.body()],
-                                    |pos| {
-                                        let (e, pr) = contact_row(
-                                            p,
-                                            *body,
-                                            *node,
-                                            &piece,
-                                            pos,
-                                            Pattern::Full,
-                                        );
-                                        let t = tangent_entries(&e, &pr.normal, &axes)
-                                            .into_iter()
-                                            .nth(*axis);
-                                        let zero = DualSVec64::from_re(0.0);
-                                        (t.and_then(|(_, e)| normalize(e, zero)), pr.local)
-                                    },
-                                );
-                                friction_motion(motion)
-                            })
-                        }
-                        _ => RowMotion::Still,
-                    }
+                RowKind::Friction { .. } => {
+                    friction_tape::<P, DIM, N, K>(p, &row.kind, &held, &moves, &mut seeded)
                 }
                 _ => RowMotion::Still,
             })
@@ -702,17 +657,52 @@ fn obstacle_motion<const DIM: usize>(
     let e = obstacle_row(p, body, node, &n);
     match tangent {
         None => normalize(e, gap),
-        Some((axis, held)) => {
-            let (_, t) = tangent_entries(&e, &n, held).into_iter().nth(*axis)?;
-            normalize(t, D::from(0.0))
-        }
+        Some((axis, held)) => friction_row(&e, &n, held, *axis),
     }
 }
 
-/// A friction row's motion: as [`row_tape`] made it, without facet
-/// boundaries (its contact row counts the node's kink once).
-fn friction_motion(motion: RowMotion) -> RowMotion {
-    match motion {
+/// How friction row `kind` moves: against an obstacle, per direction;
+/// over a facet, on the tape like its contact row, without facet boundaries
+/// (its contact row counts the node's kink once). `held`: the dofs supports
+/// hold at zero, `moves`: which bodies move.
+fn friction_tape<P: Piece<DIM, N> + Named, const DIM: usize, const N: usize, const K: usize>(
+    p: &crate::model::Problem,
+    kind: &RowKind,
+    held: &std::collections::HashSet<(usize, usize)>,
+    moves: &[bool],
+    seeded: &mut Seeded<DIM, K>,
+) -> RowMotion {
+    let RowKind::Friction {
+        body,
+        node,
+        normal_row,
+        axis,
+        ..
+    } = *kind
+    else {
+        return RowMotion::Still;
+    };
+    let normal = &p.rows[normal_row];
+    let axes = held_axes::<f64, DIM>(&normal.entries, held);
+    let RowKind::Contact { primary, .. } = &normal.kind else {
+        return RowMotion::Still;
+    };
+    if let ContactPrimary::Obstacle(o) = primary {
+        return RowMotion::Obstacle {
+            obstacle: *o,
+            body,
+            node,
+            tangent: Some((axis, axes)),
+        };
+    }
+    let Some(piece) = P::of(primary) else {
+        return RowMotion::Still;
+    };
+    let moving = moves[body] || moves[piece.body()];
+    match row_tape(seeded, (body, node, false), &piece, moving, |pos| {
+        let (e, pr) = contact_row(p, body, node, &piece, pos, Pattern::Full);
+        (friction_row(&e, &pr.normal, &axes, axis), pr.local)
+    }) {
         RowMotion::Piece(mut row) => {
             row.boundary.clear();
             RowMotion::Piece(row)

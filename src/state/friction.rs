@@ -88,7 +88,7 @@ pub fn slip_bounds(problem: &Problem, lambda: Option<&[f64]>) -> SlipBounds {
 }
 
 /// Whether any friction row follows Coulomb's law.
-fn coulomb(problem: &Problem) -> bool {
+pub(crate) fn coulomb(problem: &Problem) -> bool {
     problem.rows.iter().any(|r| {
         matches!(
             r.kind,

@@ -253,18 +253,18 @@ impl DualSystem {
         }
     }
 
-    /// [`Dual::set_compliance`] with `d` per row given to [`DualSystem::new`]
-    /// (FETI: of the rows it keeps).
-    pub fn set_compliance(&mut self, d: Vec<f64>) {
+    /// [`Dual::set_row_compliance`] with `d` per row given to
+    /// [`DualSystem::new`] (FETI: of the rows it keeps).
+    pub fn set_row_compliance(&mut self, d: Vec<f64>) {
         match self {
-            DualSystem::Total(dual) => dual.set_compliance(d),
+            DualSystem::Total(dual) => dual.set_row_compliance(d),
             DualSystem::Classical { dual, reduced, .. } => {
                 let kept = reduced
                     .kept
                     .iter()
                     .map(|&i| d.get(i).copied().unwrap_or(0.0))
                     .collect();
-                dual.set_compliance(kept);
+                dual.set_row_compliance(kept);
             }
         }
     }

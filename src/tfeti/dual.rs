@@ -72,7 +72,7 @@ pub struct Dual {
     /// A diagonal added to `F` (empty: none): rows that hold only up to a
     /// compliance, `B_i u - d_i l_i = c_i` (the sensitivity of a 3D node
     /// slipping under friction: its slip direction turns with `u'`).
-    compliance: Vec<f64>,
+    row_compliance: Vec<f64>,
 }
 
 fn nanos(t: Instant) -> u64 {
@@ -143,7 +143,7 @@ impl Dual {
             deferred: None,
             grams: OnceLock::new(),
             exact_kernels: true,
-            compliance: Vec::new(),
+            row_compliance: Vec::new(),
         }
     }
 
@@ -306,29 +306,29 @@ impl Dual {
     /// row `i` then holds as `B_i u - d_i l_i = c_i`. Every product with `F`
     /// and the homogenization take it; the preconditioners do not (they
     /// approximate `F^-1` the less well, nothing more).
-    pub fn set_compliance(&mut self, d: Vec<f64>) {
+    pub fn set_row_compliance(&mut self, d: Vec<f64>) {
         debug_assert!(d.is_empty() || d.len() == self.multipliers());
-        self.compliance = if d.iter().any(|x| *x != 0.0) {
+        self.row_compliance = if d.iter().any(|x| *x != 0.0) {
             d
         } else {
             Vec::new()
         };
     }
 
-    /// The compliance (empty: none).
-    pub fn compliance(&self) -> &[f64] {
-        &self.compliance
+    /// The rows' compliance (empty: none).
+    pub fn row_compliance(&self) -> &[f64] {
+        &self.row_compliance
     }
 
-    /// `y += D x` for the compliance `D` (nothing without one).
+    /// `y += D x` for the rows' compliance `D` (nothing without one).
     fn add_compliance(&self, x: &[f64], y: &mut [f64]) {
-        for ((yi, xi), di) in y.iter_mut().zip(x).zip(&self.compliance) {
+        for ((yi, xi), di) in y.iter_mut().zip(x).zip(&self.row_compliance) {
             *yi += di * xi;
         }
     }
 
     /// `y = F x` (deterministic: see [`Cluster::apply_f`]), with the
-    /// compliance where there is one ([`Self::set_compliance`]).
+    /// compliance where there is one ([`Self::set_row_compliance`]).
     pub fn apply_f(&self, x: &[f64], y: &mut [f64]) {
         self.f_applications.fetch_add(1, Ordering::Relaxed);
         self.cluster.apply_f(x, y);

@@ -486,7 +486,7 @@ pub(crate) fn homogenized_rhs(
     };
     let mut d = loads;
     d.iter_mut().zip(c).for_each(|(di, ci)| *di -= ci);
-    for ((di, l), k) in d.iter_mut().zip(l_tilde).zip(dual.compliance()) {
+    for ((di, l), k) in d.iter_mut().zip(l_tilde).zip(dual.row_compliance()) {
         *di -= k * l;
     }
     let mut b = d.clone();
