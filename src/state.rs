@@ -831,15 +831,22 @@ fn same_on_every_rank(comm: &dyn Comm, sol: &DualSolution) -> Result<(), SolveEr
 /// Distributed runs of a build with the test-only feature `fault-injection`:
 /// whether `CSO_MPI_FAIL_RANK` names this rank, making its first subdomain `s`
 /// fail as a singular factorization would (the test of a rank that fails
-/// while the others succeed). Other builds never read the variable.
+/// while the others succeed), from its `CSO_MPI_FAIL_SETUP`-th set-up on
+/// (default the first: a later one fails in the middle of an optimization).
+/// Other builds never read the variables.
 #[cfg(feature = "fault-injection")]
 fn injected_fault(comm: &dyn Comm, s: usize, first: usize) -> bool {
-    comm.size() > 1
-        && s == first
-        && std::env::var("CSO_MPI_FAIL_RANK")
+    static SETUPS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+    let var = |name: &str| {
+        std::env::var(name)
             .ok()
             .and_then(|v| v.trim().parse::<usize>().ok())
-            == Some(comm.rank())
+    };
+    if comm.size() < 2 || s != first || var("CSO_MPI_FAIL_RANK") != Some(comm.rank()) {
+        return false;
+    }
+    let setup = 1 + SETUPS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    setup >= var("CSO_MPI_FAIL_SETUP").unwrap_or(1)
 }
 
 /// See the `fault-injection` build's version: no fault here.

@@ -90,6 +90,16 @@ fn two_blocks_on_1_2_4_ranks_gives_the_serial_report_bitwise() {
     }
 }
 
+/// Eight ranks on two cores (`--oversubscribe`): scont2d's 16 subdomains,
+/// two per rank, give the serial report.
+#[test]
+fn eight_ranks_give_the_serial_report_bitwise() {
+    let scene = "examples/scont2d.cso";
+    let serial = solve(None, scene, &[], &scratch("sc-serial"));
+    let dist = solve(Some(8), scene, &[], &scratch("sc-8"));
+    assert_same(&serial, &dist, "scont2d on 8 ranks");
+}
+
 #[test]
 fn a_3d_scene_with_the_dirichlet_preconditioner_on_3_ranks_matches_serial() {
     let scene = "examples/semicoercive3d.cso";
@@ -261,4 +271,37 @@ fn strip_seconds(v: &mut serde_json::Value) {
         serde_json::Value::Array(a) => a.iter_mut().for_each(strip_seconds),
         _ => {}
     }
+}
+
+/// A rank that fails in the middle of an optimization (from its fourth
+/// set-up on, `CSO_MPI_FAIL_SETUP`): every rank stops the optimization at
+/// the same design with the same reason, and rank 0 still writes the best
+/// design found before it.
+#[test]
+fn a_rank_failing_mid_optimization_stops_every_rank_and_keeps_the_best() {
+    let dir = std::env::temp_dir().join(format!("cso-mpi-optfail-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.to_str().expect("utf-8 path");
+    let env = [
+        ("CSO_MPI_FAIL_RANK", "1"),
+        ("CSO_MPI_FAIL_SETUP", "4"),
+        ("CSO_MPI_ALL_RANKS", "1"),
+    ];
+    let (code, stdout, err) = run(
+        Some(2),
+        &env,
+        &["optimize", "examples/scont2d.cso", "-o", out],
+    );
+    // As a serial optimization that meets a design it cannot solve: the
+    // run ends, reported as failed, with its best design.
+    assert_eq!(code, 0, "{stdout}\n{err}");
+    let reasons: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("stopped: failed") && l.contains("fault injected"))
+        .collect();
+    assert_eq!(reasons.len(), 2, "every rank says why:\n{stdout}\n{err}");
+    assert_eq!(reasons[0], reasons[1], "the same design and reason");
+    let best = std::fs::read_to_string(dir.join("best.cso")).expect("rank 0 wrote the best design");
+    assert!(best.contains("design"), "{best}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
