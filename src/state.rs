@@ -1468,6 +1468,8 @@ mod tests {
                 feasibility: 0.0,
                 history: Vec::new(),
                 norm_estimate: 1.0,
+                steps: crate::qp::Steps::default(),
+                per_outer: Vec::new(),
             },
             b_norm: 1.0,
             end: None,

@@ -866,17 +866,17 @@ fn smalbe_settings_are_chosen_on_the_command_line_one_row_each() {
 fn dense_local_f_is_chosen_on_the_command_line_and_changes_no_count() {
     let (code, out, err) = bench_scaling("4", "4x2", &["--local-f", "implicit,explicit"]);
     assert_eq!(code, 0, "{err}");
-    // The 4x2 cut's two rows: same outer/inner/Hessian counts, every
-    // subdomain dense in the second.
+    // The 4x2 cut's two rows: same outer/inner counts, steps by kind and
+    // Hessian applications, every subdomain dense in the second.
     let rows: Vec<Vec<&str>> = out
         .lines()
         .filter(|l| l.starts_with("| 4 | 4x2 |"))
         .map(|l| l.split('|').map(str::trim).collect())
         .collect();
     assert_eq!(rows.len(), 2, "{out}");
-    assert_eq!(rows[0][6..9], rows[1][6..9], "{out}");
+    assert_eq!(rows[0][6..11], rows[1][6..11], "{out}");
     assert_eq!(
-        (rows[0][15], rows[1][15]),
+        (rows[0][17], rows[1][17]),
         ("implicit 0/9", "explicit 9/9"),
         "{out}"
     );

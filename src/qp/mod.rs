@@ -63,4 +63,37 @@ pub struct QpInfo {
     pub history: Vec<f64>,
     /// Estimate of `||A||` by power iteration.
     pub norm_estimate: f64,
+    /// MPRGP's steps by kind, in all (not in the reports: the benchmarks'
+    /// breakdown of where the iterations go).
+    #[serde(skip)]
+    pub steps: Steps,
+    /// The same per SMALBE outer iteration, with its Hessian applications.
+    #[serde(skip)]
+    pub per_outer: Vec<Steps>,
+}
+
+/// MPRGP's steps by kind and the Hessian applications they took.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Steps {
+    /// Conjugate gradient steps that stayed feasible (one application each).
+    pub cg: usize,
+    /// Expansions: a CG step cut at the boundary, then a projected gradient
+    /// step (two applications).
+    pub expansions: usize,
+    /// Proportioning steps (one application).
+    pub proportioning: usize,
+    /// Hessian applications in all (the steps', and gradients recomputed).
+    pub applications: usize,
+}
+
+impl Steps {
+    /// The sum of two counts.
+    pub fn plus(self, o: Steps) -> Steps {
+        Steps {
+            cg: self.cg + o.cg,
+            expansions: self.expansions + o.expansions,
+            proportioning: self.proportioning + o.proportioning,
+            applications: self.applications + o.applications,
+        }
+    }
 }

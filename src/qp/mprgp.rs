@@ -108,6 +108,8 @@ fn fresh_info() -> QpInfo {
         feasibility: 0.0,
         history: Vec::new(),
         norm_estimate: f64::NAN,
+        steps: crate::qp::Steps::default(),
+        per_outer: Vec::new(),
     }
 }
 
@@ -205,6 +207,10 @@ fn minimize<S: Set>(
     info.status = run.status;
     info.inner_iterations = run.iterations;
     info.hessian_applications += run.applications;
+    info.steps = super::Steps {
+        applications: run.applications,
+        ..run.steps
+    };
     info.projected_gradient = run.gp_norm;
     info.history = history;
     info
@@ -268,6 +274,8 @@ pub(super) struct Run {
     pub(super) applications: usize,
     /// `||g^P||` at the returned `x`.
     pub(super) gp_norm: f64,
+    /// Its steps by kind (`applications` left to the caller's total).
+    pub(super) steps: super::Steps,
 }
 
 /// Lower bounds `x_i >= lower_i` only: MPRGP's own loops, unchanged (the
@@ -454,6 +462,7 @@ pub(super) fn run<S: Set>(
         iterations: 0,
         applications: 0,
         gp_norm: f64::NAN,
+        steps: super::Steps::default(),
     };
     set.project(x);
     if !g_ready {
@@ -551,9 +560,11 @@ fn cg_step<S: Set>(
         axpy(-a_cg, &ws.ap, &mut ws.g);
         q.set.project(x);
         conjugate_direction(q, x, pap, ws);
+        out.steps.cg += 1;
     } else {
         expansion_step(q, x, a_f, blocking, ws);
         out.applications += 1;
+        out.steps.expansions += 1;
     }
     Ok(())
 }
@@ -646,6 +657,7 @@ fn proportioning_step<S: Set>(
     q.set.project(x);
     q.set.bind(x, p, blocking);
     face_direction(q.precond, x, q.set, g, r, p);
+    out.steps.proportioning += 1;
     Ok(())
 }
 

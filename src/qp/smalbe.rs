@@ -423,6 +423,8 @@ pub fn solve(
         feasibility: f64::NAN,
         history: Vec::with_capacity(settings.max_outer.min(1 << 16)),
         norm_estimate: f64::NAN,
+        steps: crate::qp::Steps::default(),
+        per_outer: Vec::new(),
     };
     let n = problem.a.dim();
     if let Some(why) = check_dimensions(n, problem.b, problem.lower, x) {
@@ -727,6 +729,12 @@ fn outer_loop<S: Set>(
         info.outer_iterations = k + 1;
         info.inner_iterations += run.iterations;
         info.hessian_applications += run.applications;
+        let steps = crate::qp::Steps {
+            applications: run.applications,
+            ..run.steps
+        };
+        info.steps = info.steps.plus(steps);
+        info.per_outer.push(steps);
         info.projected_gradient = run.gp_norm;
         if let Status::Breakdown(why) = run.status {
             info.status = Status::Breakdown(Breakdown::Smalbe {
@@ -1489,6 +1497,21 @@ mod tests {
         assert!(info.hessian_applications >= power + info.inner_iterations);
         assert!(info.outer_iterations >= 2, "{info:?}");
         assert_eq!(seen.len(), info.outer_iterations);
+        // The steps by kind: every inner step one of them, per outer
+        // iteration and in all; each outer iteration's applications within
+        // the total, beside the power iterations.
+        let st = info.steps;
+        assert_eq!(
+            st.cg + st.expansions + st.proportioning,
+            info.inner_iterations
+        );
+        assert_eq!(info.per_outer.len(), info.outer_iterations);
+        let summed = info
+            .per_outer
+            .iter()
+            .fold(crate::qp::Steps::default(), |a, b| a.plus(*b));
+        assert_eq!(summed, st);
+        assert_eq!(st.applications + power, info.hessian_applications);
         for (k, &(outer, apps, hist)) in seen.iter().enumerate() {
             assert_eq!(outer, k + 1);
             assert_eq!(hist, k + 1);

@@ -199,6 +199,10 @@ pub struct ScalingRow {
     pub dual: usize,
     pub outer: usize,
     pub inner: usize,
+    /// The inner steps by kind, in all and per outer iteration (issue 41:
+    /// which part grows with the decomposition).
+    pub steps: crate::qp::Steps,
+    pub per_outer: Vec<crate::qp::Steps>,
     pub hessian: usize,
     pub time_factorize: f64,
     pub time_solve: f64,
@@ -264,6 +268,8 @@ fn row_of(
         dual: state.problem.rows.len(),
         outer: state.info.outer_iterations,
         inner: state.info.inner_iterations,
+        steps: state.info.steps,
+        per_outer: state.info.per_outer.clone(),
         hessian: state.info.hessian_applications,
         time_factorize: state.times.factorize,
         time_solve: state.times.solve,

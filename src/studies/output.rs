@@ -29,12 +29,14 @@ pub fn cuts_row(hh: usize, (sx, sy): (usize, usize), cells: &str) -> String {
 }
 
 /// The columns of `cso bench scaling` after H/h and cuts.
-pub const SCALING_COLUMNS: [&str; 17] = [
+pub const SCALING_COLUMNS: [&str; 19] = [
     "subdomains",
     "primal",
     "dual",
     "outer",
     "inner",
+    "CG / exp / prop",
+    "inner per outer",
     "Hessian",
     "factorize s",
     "solve s",
@@ -52,12 +54,16 @@ pub const SCALING_COLUMNS: [&str; 17] = [
 /// The cells of one [`SCALING_COLUMNS`] row.
 pub fn scaling_cells(r: &ScalingRow) -> String {
     format!(
-        "{} | {} | {} | {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2} | {} | {:.0} | {}",
+        "{} | {} | {} | {} | {} | {} / {} / {} | {} | {}{} | {:.3} | {:.3} | {:.3} | {} | {:.1e} | {} | {} {}/{} | {:.2} | {} | {:.0} | {}",
         r.subdomains,
         r.primal,
         r.dual,
         r.outer,
         r.inner,
+        r.steps.cg,
+        r.steps.expansions,
+        r.steps.proportioning,
+        per_outer(&r.per_outer),
         r.hessian,
         if r.converged { "" } else { " (not converged)" },
         r.time_factorize,
@@ -75,6 +81,22 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         8.0 * r.factor_values as f64 / 1e6,
         r.ordering,
     )
+}
+
+/// The inner steps of each outer iteration, `a,b,c,...` (the first ten, then
+/// `...` and the last).
+fn per_outer(steps: &[crate::qp::Steps]) -> String {
+    let count = |s: &crate::qp::Steps| s.cg + s.expansions + s.proportioning;
+    let mut cells: Vec<String> = steps
+        .iter()
+        .take(10)
+        .map(|s| count(s).to_string())
+        .collect();
+    if steps.len() > 10 {
+        cells.push("...".into());
+        cells.extend(steps.last().map(|s| count(s).to_string()));
+    }
+    cells.join(",")
 }
 
 /// The columns of `cso bench coarse` after H/h and cuts.

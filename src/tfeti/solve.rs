@@ -383,6 +383,8 @@ fn projected_cg(
         feasibility: 0.0,
         history: Vec::new(),
         norm_estimate: f64::NAN,
+        steps: crate::qp::Steps::default(),
+        per_outer: Vec::new(),
     };
     if bnorm == 0.0 {
         return (x, exact.then_some(fx), info);
