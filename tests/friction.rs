@@ -250,21 +250,7 @@ solver { tolerance = 1e-10 }
 #[test]
 fn tresca_sensitivities_equal_central_differences_in_2d() {
     let s = scene(&SHEARED.edit("SB", "0.52"));
-    let f = contact(&s, &solved(&s))
-        .friction
-        .expect("a friction report");
-    assert!(
-        f.stick > 0 && f.slip > 0,
-        "stick {} slip {}",
-        f.stick,
-        f.slip
-    );
-    let semi = semi_analytic(&s, 1e-10).expect("semi-analytic");
-    assert_eq!(semi.method, "semi_analytic", "no node at the transition");
-    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("finite differences");
-    assert_agree(&semi, &fd, 1e-6);
-    let adj = adjoint(&s, 1e-10).expect("adjoint");
-    assert_agree(&adj, &semi, 1e-9);
+    let semi = exact_against_differences(&s, true);
     // Classical FETI: its rows, the same derivatives.
     let mut feti = s.clone();
     feti.solver.method = cso::lang::scene::SolverMethod::Feti;
@@ -283,11 +269,7 @@ fn a_vanishing_slip_bound_is_frictionless_in_the_sensitivities() {
             .edit("SB", "2 * (x - 1.5)^2")
             .edit("ux = 0.01", "ux = 0"),
     );
-    let semi = semi_analytic(&s, 1e-10).expect("semi-analytic");
-    assert_eq!(semi.method, "semi_analytic", "no node at a transition");
-    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("finite differences");
-    assert_agree(&semi, &fd, 1e-6);
-    assert_agree(&adjoint(&s, 1e-10).expect("adjoint"), &semi, 1e-9);
+    exact_against_differences(&s, false);
 }
 
 /// Tresca against a rigid circle: the friction rows of obstacle contacts
@@ -303,20 +285,28 @@ fn tresca_sensitivities_against_an_obstacle_equal_central_differences() {
         .edit("fix base.bottom\n", "")
         .edit("primary = base.top", "primary = floor")
         .edit("SB", "0.7");
-    let s = scene(&src);
-    let f = contact(&s, &solved(&s))
-        .friction
-        .expect("a friction report");
-    assert!(
-        f.stick > 0 && f.slip > 0,
-        "stick {} slip {}",
-        f.stick,
-        f.slip
-    );
-    let semi = semi_analytic(&s, 1e-10).expect("semi-analytic");
-    let fd = finite_difference(&s, 1e-5, Scheme::Central).expect("finite differences");
+    exact_against_differences(&scene(&src), true);
+}
+
+/// The semi-analytic gradient of `s` (tolerance 1e-10, no node at a
+/// transition) against central differences to 1e-6, and the adjoint against
+/// it to 1e-9; with `mixed`, the state has both sticking and slipping nodes.
+fn exact_against_differences(s: &Scene, mixed: bool) -> cso::sens::Gradient {
+    if mixed {
+        let f = contact(s, &solved(s)).friction.expect("a friction report");
+        assert!(
+            f.stick > 0 && f.slip > 0,
+            "stick {} slip {}",
+            f.stick,
+            f.slip
+        );
+    }
+    let semi = semi_analytic(s, 1e-10).expect("semi-analytic");
+    assert_eq!(semi.method, "semi_analytic", "no node at a transition");
+    let fd = finite_difference(s, 1e-5, Scheme::Central).expect("finite differences");
     assert_agree(&semi, &fd, 1e-6);
-    assert_agree(&adjoint(&s, 1e-10).expect("adjoint"), &semi, 1e-9);
+    assert_agree(&adjoint(s, 1e-10).expect("adjoint"), &semi, 1e-9);
+    semi
 }
 
 /// Tresca in 3D, every touching node slipping obliquely (a disc per node):

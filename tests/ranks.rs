@@ -201,19 +201,7 @@ fn gradients_on_thread_ranks_are_the_serial_ones_bitwise() {
     ] {
         for method in [M::SemiAnalytic, M::Adjoint, M::FiniteDifference] {
             let serial = gradient_bits(&scene, method, None).expect("serial");
-            let got: Vec<_> = std::thread::scope(|s| {
-                let handles: Vec<_> = thread_ranks(p)
-                    .into_iter()
-                    .map(|r| {
-                        let scene = &scene;
-                        s.spawn(move || gradient_bits(scene, method, Some(Arc::new(r))))
-                    })
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| h.join().expect("rank"))
-                    .collect()
-            });
+            let got = each_rank(p, |comm| gradient_bits(&scene, method, Some(comm)));
             for (r, g) in got.into_iter().enumerate() {
                 let g = g.unwrap_or_else(|e| panic!("{name} {method:?} rank {r} of {p}: {e}"));
                 assert!(
@@ -255,21 +243,26 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
         "warm states kept on the active set"
     );
     for p in [2, 3] {
-        let got: Vec<_> = std::thread::scope(|s| {
-            let handles: Vec<_> = thread_ranks(p)
-                .into_iter()
-                .map(|r| {
-                    let run = &run;
-                    s.spawn(move || run(Some(Arc::new(r))))
-                })
-                .collect();
-            handles
-                .into_iter()
-                .map(|h| h.join().expect("rank"))
-                .collect()
-        });
-        for (r, g) in got.into_iter().enumerate() {
+        for (r, g) in each_rank(p, |comm| run(Some(comm))).into_iter().enumerate() {
             assert!(g == serial, "rank {r} of {p}: the iterates differ");
         }
     }
+}
+
+/// `f` on each of `p` thread ranks, each on its own thread: every rank's
+/// answer.
+fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = thread_ranks(p)
+            .into_iter()
+            .map(|r| {
+                let f = &f;
+                s.spawn(move || f(Arc::new(r)))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("rank thread"))
+            .collect()
+    })
 }

@@ -72,6 +72,19 @@ pub struct QpInfo {
     pub per_outer: Vec<Steps>,
 }
 
+impl QpInfo {
+    /// Counts one SMALBE outer iteration's inner `steps` and its Hessian
+    /// `applications`.
+    pub(crate) fn record_outer(&mut self, steps: Steps, applications: usize) {
+        let steps = Steps {
+            applications,
+            ..steps
+        };
+        self.steps = self.steps.plus(steps);
+        self.per_outer.push(steps);
+    }
+}
+
 /// MPRGP's steps by kind and the Hessian applications they took.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
 pub struct Steps {

@@ -729,12 +729,7 @@ fn outer_loop<S: Set>(
         info.outer_iterations = k + 1;
         info.inner_iterations += run.iterations;
         info.hessian_applications += run.applications;
-        let steps = crate::qp::Steps {
-            applications: run.applications,
-            ..run.steps
-        };
-        info.steps = info.steps.plus(steps);
-        info.per_outer.push(steps);
+        info.record_outer(run.steps, run.applications);
         info.projected_gradient = run.gp_norm;
         if let Status::Breakdown(why) = run.status {
             info.status = Status::Breakdown(Breakdown::Smalbe {
