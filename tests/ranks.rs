@@ -179,7 +179,8 @@ fn gradient_bits(
 /// The three gradient methods on thread ranks: each rank's gradient is the
 /// serial one bit for bit (the sensitivity and adjoint solves run on the
 /// state's distributed dual, the perturbed solves of finite differences on
-/// its ranks), frictionless and with Tresca friction in 3D.
+/// its ranks), frictionless, with Tresca friction in 3D, and through a
+/// morph of an imported body.
 #[test]
 fn gradients_on_thread_ranks_are_the_serial_ones_bitwise() {
     use cso::lang::scene::SensitivityMethod as M;
@@ -193,11 +194,22 @@ fn gradients_on_thread_ranks_are_the_serial_ones_bitwise() {
             "ux = 0.004, uy = 0.003, uz = -0.01",
         );
     let tresca = compile(&tresca, &options()).expect("checks");
+    let examples = crate::root().join("examples");
+    let stamp2d = compile(
+        &crate::fixture::example_src("stamp2d"),
+        &cso::lang::CheckOptions {
+            base_dir: Some(examples),
+            ..options()
+        },
+    )
+    .expect("checks");
     for (name, scene, p) in [
         ("scont2d", example("scont2d"), 2),
         ("scont2d", example("scont2d"), 3),
         ("punch3d", example("punch3d"), 2),
         ("punch3d with Tresca friction", tresca, 3),
+        // Triangles from a mesh file, moved by a morph.
+        ("stamp2d", stamp2d, 2),
     ] {
         for method in [M::SemiAnalytic, M::Adjoint, M::FiniteDifference] {
             let serial = gradient_bits(&scene, method, None).expect("serial");
