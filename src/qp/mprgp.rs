@@ -830,21 +830,21 @@ pub(super) mod tests {
         }
     }
 
-    /// `C^T C + shift I` with `C` random n x n: SPD, condition controlled by `shift`.
     /// Lower bounds on two of every three variables, at random levels in
-    /// (-0.3, 0] (so that `x = 0` is feasible), the rest free.
-    fn random_lower(n: usize, rng: &mut Lcg) -> Vec<f64> {
+    /// (-depth, 0] (so that `x = 0` is feasible), the rest free.
+    pub(crate) fn random_lower(n: usize, depth: f64, rng: &mut Lcg) -> Vec<f64> {
         (0..n)
             .map(|i| {
                 if i % 3 == 2 {
                     f64::NEG_INFINITY
                 } else {
-                    -0.3 * rng.uniform()
+                    -depth * rng.uniform()
                 }
             })
             .collect()
     }
 
+    /// `C^T C + shift I` with `C` random n x n: SPD, condition controlled by `shift`.
     pub(crate) fn random_spd(n: usize, shift: f64, rng: &mut Lcg) -> Dense {
         let c: Vec<f64> = (0..n * n).map(|_| rng.symmetric()).collect();
         let mut a = vec![0.0; n * n];
@@ -1000,7 +1000,7 @@ pub(super) mod tests {
             let n = 2 + trial % 7;
             let a = random_spd(n, 0.2, &mut rng);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = random_lower(n, &mut rng);
+            let lower = random_lower(n, 0.3, &mut rng);
             let exact = enumerate_bounds(&a, &b, &lower);
             active_seen += (0..n).filter(|&i| exact[i] == lower[i]).count();
             // Start infeasible on purpose: mprgp must project first.
@@ -1281,7 +1281,7 @@ pub(super) mod tests {
             let n = 3 + trial % 11;
             let a = random_spd(n, 0.05, &mut rng);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = random_lower(n, &mut rng);
+            let lower = random_lower(n, 0.3, &mut rng);
             let start: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
             let settings = MprgpSettings {
                 tolerance: 1e-11,

@@ -785,7 +785,7 @@ mod tests {
     ) -> QpInfo {
         solve(&Problem::new(a, b, lower, g), x, settings, None, observer).0
     }
-    use crate::qp::mprgp::tests::{random_spd, solve_dense, Dense, Lcg};
+    use crate::qp::mprgp::tests::{random_lower, random_spd, solve_dense, Dense, Lcg};
 
     /// Dense `G` (m x n, row-major) with orthonormal rows.
     struct DenseEq {
@@ -1021,20 +1021,6 @@ mod tests {
         }
     }
 
-    /// Bounds on two of every three variables, at random non-positive levels
-    /// (so that `x = 0` is feasible), the rest free.
-    fn bounds(n: usize, rng: &mut Lcg) -> Vec<f64> {
-        (0..n)
-            .map(|i| {
-                if i % 3 == 2 {
-                    f64::NEG_INFINITY
-                } else {
-                    -0.2 * rng.uniform()
-                }
-            })
-            .collect()
-    }
-
     #[test]
     fn equalities_only_match_the_kkt_solve() {
         let mut rng = Lcg::new(11);
@@ -1072,7 +1058,7 @@ mod tests {
             let a = random_spd(n, 0.2, &mut rng);
             let geq = DenseEq::random(m, n, &mut rng);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = bounds(n, &mut rng);
+            let lower = random_lower(n, 0.2, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             active_seen += (0..n).filter(|&i| exact[i] == lower[i]).count();
             let mut x = vec![0.0; n];
@@ -1118,7 +1104,7 @@ mod tests {
             let mut gtgd = vec![0.0; n];
             geq.apply_t(&gd, &mut gtgd);
             let b: Vec<f64> = d.iter().zip(&gtgd).map(|(di, qi)| di - qi).collect();
-            let lower = bounds(n, &mut rng);
+            let lower = random_lower(n, 0.2, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             let mut x = vec![0.0; n];
             let info = solve(
@@ -1155,7 +1141,7 @@ mod tests {
             let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
             let precond = random_spd(n, 0.5, &mut rng);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = bounds(n, &mut rng);
+            let lower = random_lower(n, 0.2, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             let mut x = vec![0.0; n];
             let info = solve(
@@ -1196,7 +1182,7 @@ mod tests {
             let geq = DenseEq::random(m, n, &mut rng);
             let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = bounds(n, &mut rng);
+            let lower = random_lower(n, 0.2, &mut rng);
             let exact = enumerate(&a, &b, &lower, &geq);
             for before in [false, true] {
                 let settings = SmalbeSettings {
@@ -1291,7 +1277,7 @@ mod tests {
             v.iter().zip(&q).map(|(x, y)| x - y).collect()
         };
         let mut b = in_range_p((0..n).map(|_| rng.symmetric()).collect());
-        let lower = bounds(n, &mut rng);
+        let lower = random_lower(n, 0.2, &mut rng);
         let settings = SmalbeSettings {
             tolerance: 1e-9,
             ..SmalbeSettings::default()
@@ -1362,7 +1348,7 @@ mod tests {
         let geq = DenseEq::random(3, n, &mut rng);
         let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
         let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-        let lower = bounds(n, &mut rng);
+        let lower = random_lower(n, 0.2, &mut rng);
         let (mut x, mut y) = (vec![0.0; n], vec![0.0; n]);
         let plain = solve(
             &Problem::new(&a, &b, &lower, &geq),
@@ -1404,7 +1390,7 @@ mod tests {
         let geq = DenseEq::random(3, n, &mut rng);
         let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
         let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-        let lower = bounds(n, &mut rng);
+        let lower = random_lower(n, 0.2, &mut rng);
         let settings = SmalbeSettings {
             tolerance: 1e-5,
             ..SmalbeSettings::default()
@@ -1452,7 +1438,7 @@ mod tests {
         let geq = DenseEq::random(4, n, &mut rng);
         let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
         let b: Vec<f64> = (0..n).map(|_| 1e6 * rng.symmetric()).collect();
-        let lower = bounds(n, &mut rng)
+        let lower = random_lower(n, 0.2, &mut rng)
             .iter()
             .map(|l| 1e6 * l)
             .collect::<Vec<_>>();
@@ -1480,7 +1466,7 @@ mod tests {
         let geq = DenseEq::random(3, n, &mut rng);
         let a = projected(&random_spd(n, 0.05, &mut rng), &geq);
         let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-        let lower = bounds(n, &mut rng);
+        let lower = random_lower(n, 0.2, &mut rng);
         let mut x = vec![0.0; n];
         let mut seen: Vec<(usize, usize, usize)> = Vec::new();
         let info = smalbe(&a, &b, &lower, &geq, &mut x, &tight(), &mut |i| {
@@ -1523,7 +1509,7 @@ mod tests {
         let geq = DenseEq::random(3, n, &mut rng);
         let a = projected(&random_spd(n, 1e-3, &mut rng), &geq);
         let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-        let lower = bounds(n, &mut rng);
+        let lower = random_lower(n, 0.2, &mut rng);
         let budget = SmalbeSettings {
             max_hessian: 35,
             tolerance: 1e-14,
@@ -2362,7 +2348,7 @@ mod tests {
             let a = projected(&random_spd(n, 0.1, &mut rng), &geq);
             let precond = random_spd(n, 0.5, &mut rng);
             let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let lower = bounds(n, &mut rng);
+            let lower = random_lower(n, 0.2, &mut rng);
             let pre = (trial % 2 == 1).then_some(&precond as &dyn Operator);
             let settings = tight();
             let mut x = vec![0.0; n];
