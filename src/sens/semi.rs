@@ -959,17 +959,20 @@ fn dual_rows<'p>(
             Kept::Row(r) => Cow::Borrowed(&p.rows[r]),
             Kept::Across { rows, along } => {
                 let (a, b) = (&p.rows[rows[0]], &p.rows[rows[1]]);
-                // Both tangential rows come from the node's contact row: the
-                // same dofs in the same order.
-                let mut entries: Vec<(usize, usize, f64)> = Vec::new();
-                for (row, w) in [(a, along[0]), (b, along[1])] {
-                    for &(s, d, v) in &row.entries {
-                        match entries.iter_mut().find(|e| e.0 == s && e.1 == d) {
-                            Some(e) => e.2 += w * v,
-                            None => entries.push((s, d, w * v)),
-                        }
-                    }
-                }
+                // Both tangential rows come from the node's contact row
+                // (`tangent_entries`, nothing dropped): the same dofs in the
+                // same order.
+                debug_assert!(a
+                    .entries
+                    .iter()
+                    .zip(&b.entries)
+                    .all(|(x, y)| (x.0, x.1) == (y.0, y.1)));
+                let entries = a
+                    .entries
+                    .iter()
+                    .zip(&b.entries)
+                    .map(|(&(s, d, x), &(_, _, y))| (s, d, along[0] * x + along[1] * y))
+                    .collect();
                 Cow::Owned(crate::model::Row {
                     entries,
                     c: along[0] * a.c + along[1] * b.c,
