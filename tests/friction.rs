@@ -117,11 +117,19 @@ fn cattaneo_stick_zone_on_a_coarse_roller() {
         k.bound < 1e-10 && k.stick < 1e-6 && k.slip_direction < 1e-6,
         "{k:?}"
     );
-    // A slipping node's shear is mu times its pressure, a sticking one's less.
+    // A slipping node's shear is mu times its pressure, a sticking one's less:
+    // to what Coulomb's fixed point guarantees, a bound that changes by at
+    // most 10 eps of the largest bound (`state::friction`).
+    let largest = c.nodes.iter().map(|n| mu * n.pressure).fold(0.0, f64::max);
+    let slack = 10.0 * s.solver.tolerance * largest;
     for n in &c.nodes {
         let shear = n.shear.as_ref().expect("shear")[0].abs();
         match n.state {
-            Some("slip") => assert!((shear - mu * n.pressure).abs() <= 1e-6 * n.pressure),
+            Some("slip") => assert!(
+                (shear - mu * n.pressure).abs() <= slack,
+                "slip: shear {shear} against mu p {}",
+                mu * n.pressure
+            ),
             Some("stick") => assert!(shear < mu * n.pressure),
             _ => assert!(n.multiplier.abs() < 1e-6 * c.total_force),
         }

@@ -339,7 +339,7 @@ pub struct Sweep {
     /// repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
     pub local_f: Vec<LocalF>,
-    /// SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after` (any of
+    /// SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off` (any of
     /// them; rho, m0 relative to ||PFP||, eta to ||b||) or `default`
     /// (repeatable).
     #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]

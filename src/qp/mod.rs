@@ -9,6 +9,7 @@
 
 mod bounds;
 mod breakdown;
+mod face_metric;
 mod mprgp;
 mod set;
 pub mod smalbe;

@@ -36,12 +36,20 @@
 //! tightening every later inner solve for nothing (`cso bench scaling`:
 //! 208 -> 104 Hessian applications at 144 subdomains, BENCHMARKS.md).
 //!
+//! The face metric ([`super::face_metric`], [`SmalbeSettings::face_metric`])
+//! replaces `rho/2 ||G x||^2` by `rho/2 ||G x||_W^2` and the update by
+//! `mu += rho W G x`, with `W` the inverse of `G G^T` restricted to the
+//! entries off their bounds at the start of the outer iteration: an
+//! augmented Lagrangian in another basis of the same equalities, so the
+//! test above holds with `||.||_W` in place of `||.||`.
+//!
 //! # Reference
 //! Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009, ch. 6 (SMALBE).
 
 use std::cell::Cell;
 
 use super::bounds::{Blocks, Disc};
+use super::face_metric::FaceMetric;
 use super::mprgp::{
     self, axpy, check_dimensions, dot, estimate_norm, norm2, start_vector, step_length, Lower,
     MprgpSettings, Params, Set, Workspace,
@@ -108,6 +116,16 @@ pub struct SmalbeSettings {
     /// 0.5-1x the Hessian applications of `false` in every one of 81
     /// parameter sets, and removes the spike at 144 subdomains.
     pub lagrangian_before_update: bool,
+    /// Penalty and multiplier update in the metric of the equalities
+    /// restricted to the entries off their bounds ([`super::face_metric`]),
+    /// rebuilt before an outer iteration whenever the entries at their
+    /// bounds changed. Default `true`: on `cso bench scaling` it
+    /// keeps the outer iterations at 8-10 from 3 to 576 subdomains (9 to 28
+    /// without), and on hertz2d it takes 17 outer iterations and 175 Hessian
+    /// applications against 128 and 360 (BENCHMARKS.md). Not used with
+    /// discs (3D friction), nor where more than
+    /// [`FACE_METRIC_MAX`] entries are at their bounds.
+    pub face_metric: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
     /// `max_iterations` caps each inner solve, and its `abar_factor` is
@@ -123,6 +141,7 @@ impl Default for SmalbeSettings {
             beta: 2.0,
             eta_factor: 0.1,
             lagrangian_before_update: true,
+            face_metric: true,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,
@@ -136,7 +155,7 @@ impl Default for SmalbeSettings {
 /// any order; `default` for none): `rho`, `m0` and `eta` are the factors
 /// `rho_factor`, `m0_factor`, `eta_factor`, `lag` is
 /// `lagrangian_before_update`. For benchmarks (`cso bench scaling --smalbe`),
-/// not for scenes.
+/// not for scenes. `metric` is `face_metric` (`on` or `off`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct SmalbeOverrides {
     pub rho_factor: Option<f64>,
@@ -144,6 +163,7 @@ pub struct SmalbeOverrides {
     pub beta: Option<f64>,
     pub eta_factor: Option<f64>,
     pub lagrangian_before_update: Option<bool>,
+    pub face_metric: Option<bool>,
 }
 
 impl SmalbeOverrides {
@@ -164,6 +184,9 @@ impl SmalbeOverrides {
         if let Some(v) = self.lagrangian_before_update {
             settings.lagrangian_before_update = v;
         }
+        if let Some(v) = self.face_metric {
+            settings.face_metric = v;
+        }
     }
 
     /// No override set.
@@ -176,7 +199,7 @@ impl std::str::FromStr for SmalbeOverrides {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after` \
+        const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off` \
              (any of them, comma-separated) or `default`";
         let mut o = Self::default();
         if s.trim() == "default" {
@@ -224,6 +247,14 @@ impl std::str::FromStr for SmalbeOverrides {
                     };
                     o.lagrangian_before_update.replace(before).is_some()
                 }
+                "metric" => {
+                    let on = match value {
+                        "on" => true,
+                        "off" => false,
+                        _ => return Err(format!("`metric={value}`: metric is `on` or `off`")),
+                    };
+                    o.face_metric.replace(on).is_some()
+                }
                 _ => return Err(format!("unknown SMALBE setting `{key}`: {EXPECTED}")),
             };
             if slot_taken {
@@ -250,6 +281,9 @@ impl std::fmt::Display for SmalbeOverrides {
         if let Some(before) = self.lagrangian_before_update {
             parts.push(format!("lag={}", if before { "before" } else { "after" }));
         }
+        if let Some(on) = self.face_metric {
+            parts.push(format!("metric={}", if on { "on" } else { "off" }));
+        }
         if parts.is_empty() {
             f.write_str("default")
         } else {
@@ -273,6 +307,8 @@ struct Augmented<'a> {
     gx: Cell<Vec<f64>>,
     /// `G^T G x`.
     gtgx: Cell<Vec<f64>>,
+    /// `W` in `A + c G^T W G` ([`super::face_metric`]); none: `W = I`.
+    metric: std::cell::RefCell<Option<FaceMetric>>,
 }
 
 impl<'a> Augmented<'a> {
@@ -283,6 +319,7 @@ impl<'a> Augmented<'a> {
             c,
             gx: Cell::new(vec![0.0; g.rows()]),
             gtgx: Cell::new(vec![0.0; a.dim()]),
+            metric: std::cell::RefCell::new(None),
         }
     }
 }
@@ -297,6 +334,9 @@ impl Operator for Augmented<'_> {
         let mut gtgx = self.gtgx.take();
         self.a.apply(x, y);
         self.g.apply(x, &mut gx);
+        if let Some(w) = self.metric.borrow().as_ref() {
+            w.apply(&mut gx);
+        }
         self.g.apply_t(&gx, &mut gtgx);
         axpy(self.c, &gtgx, y);
         self.gx.set(gx);
@@ -395,7 +435,8 @@ impl<'a> Problem<'a> {
 /// Hessian count as applications of `a`, as do the power iterations that
 /// estimate `||A||` and `||A + rho G^T G||`. The solve stops with
 /// `MaxIterations` when `max_outer` or `max_hessian` runs out, and with
-/// `Breakdown` on non-positive curvature or NaN. Only the setup allocates.
+/// `Breakdown` on non-positive curvature or NaN. Only the setup (and, with
+/// a face metric, its small products) allocates.
 ///
 /// # Reference
 /// Z. Dostál, *Optimal Quadratic Programming Algorithms*, Springer 2009,
@@ -486,9 +527,12 @@ fn solve_over<S: Set>(
 struct Setup<'a> {
     norm_a: f64,
     rho: f64,
+    /// `||A + rho G^T G||` (estimated): `a_bar`'s norm without a metric.
+    norm_h: f64,
     hessian: Augmented<'a>,
     augmented_precond: Option<Augmented<'a>>,
-    a_bar: f64,
+    /// MPRGP's expansion step; smaller while a metric is in place.
+    a_bar: Cell<f64>,
     /// `||b||`, or with `b = 0` `||A|| ||P(0)||`.
     scale: f64,
 }
@@ -551,9 +595,10 @@ impl<'a> Setup<'a> {
         Some(Setup {
             norm_a,
             rho,
+            norm_h,
             hessian,
             augmented_precond,
-            a_bar,
+            a_bar: Cell::new(a_bar),
             scale,
         })
     }
@@ -568,6 +613,8 @@ struct Multipliers {
     big_m: f64,
     lagrangian_prev: f64,
     gx: Vec<f64>,
+    /// `W G x`.
+    wgx: Vec<f64>,
     gtgx: Vec<f64>,
 }
 
@@ -588,6 +635,7 @@ impl Multipliers {
             big_m: m_factor * setup.norm_a,
             lagrangian_prev: f64::NAN,
             gx: vec![0.0; m],
+            wgx: vec![0.0; m],
             gtgx: vec![0.0; n],
         };
         if let Some(mu0) = start.and_then(|s| s.mu.as_ref()).filter(|v| v.len() == m) {
@@ -605,11 +653,12 @@ impl Multipliers {
         end.gradient = Some(gp / setup.scale);
     }
 
-    /// The update after outer iteration `k` at `x` (feasibility `||G x||`
-    /// in `self.gx`): `mu += rho G x`, which moves `b~` by `-rho G^T G x` and
-    /// the gradient `g` of `L` by `+rho G^T G x` (kept exact without applying
-    /// `A` again), then `M /= beta` where the Lagrangian did not increase
-    /// enough (the test of the module docs).
+    /// The update after outer iteration `k` at `x` (`G x` in `self.gx`,
+    /// `feasibility` its norm): `mu += rho W G x` (`W = I` without a face
+    /// metric), which moves `b~` by `-rho G^T W G x` and the gradient `g` of
+    /// `L` by `+rho G^T W G x` (kept exact without applying `A` again), then
+    /// `M /= beta` where the Lagrangian did not increase enough (the test of
+    /// the module docs, its penalty `rho/2 ||G x||_W^2`).
     #[allow(clippy::too_many_arguments)]
     fn update(
         &mut self,
@@ -625,8 +674,19 @@ impl Multipliers {
         // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T G) x - b~,
         // at mu = mu_k here and at mu_{k+1} after the update.
         let lagrangian_before = 0.5 * (dot(x, g) - dot(x, &self.b_tilde));
-        problem.g.apply_t(&self.gx, &mut self.gtgx);
-        axpy(rho, &self.gx, &mut self.mu);
+        let penalty = match setup.hessian.metric.borrow().as_ref() {
+            Some(w) => {
+                self.wgx.copy_from_slice(&self.gx);
+                w.apply(&mut self.wgx);
+                dot(&self.gx, &self.wgx)
+            }
+            None => {
+                self.wgx.copy_from_slice(&self.gx);
+                feasibility * feasibility
+            }
+        };
+        problem.g.apply_t(&self.wgx, &mut self.gtgx);
+        axpy(rho, &self.wgx, &mut self.mu);
         axpy(-rho, &self.gtgx, &mut self.b_tilde);
         axpy(rho, &self.gtgx, g);
         let lagrangian = if settings.lagrangian_before_update {
@@ -634,11 +694,54 @@ impl Multipliers {
         } else {
             0.5 * (dot(x, g) - dot(x, &self.b_tilde))
         };
-        if k > 0 && lagrangian < self.lagrangian_prev + 0.5 * rho * feasibility * feasibility {
+        if k > 0 && lagrangian < self.lagrangian_prev + 0.5 * rho * penalty {
             self.big_m /= settings.beta;
         }
         self.lagrangian_prev = lagrangian;
     }
+}
+
+/// Most entries at their bounds for which [`SmalbeSettings::face_metric`]
+/// builds a metric: its `U` holds `rows(G)` values per entry, `U^T U` costs
+/// `rows(G)` times their square.
+pub const FACE_METRIC_MAX: usize = 2000;
+
+/// Puts the face metric of the entries of `x` at their bounds into the
+/// Hessian (or takes it out where none applies), unless it is already there;
+/// true where the Hessian changed (the gradient must be computed anew). The
+/// expansion step then takes `a_bar = abar_factor / (||A + rho G^T G|| +
+/// rho)`: on the entries off the metric's bounds the penalty `rho G_F^T W
+/// G_F` has norm at most `rho`, so the Hessian there at most `||A|| + rho`.
+fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &[f64]) -> bool {
+    if !settings.face_metric || !problem.discs.is_empty() {
+        return false;
+    }
+    let upper = |i: usize| problem.upper.map_or(f64::INFINITY, |u| u[i]);
+    let at_bound: Vec<usize> = (0..x.len())
+        .filter(|&i| {
+            (problem.lower[i].is_finite() && x[i] <= problem.lower[i])
+                || (upper(i).is_finite() && x[i] >= upper(i))
+        })
+        .collect();
+    let mut slot = setup.hessian.metric.borrow_mut();
+    if slot
+        .as_ref()
+        .map_or(at_bound.is_empty(), |w| w.set() == at_bound)
+    {
+        return false;
+    }
+    let had = slot.is_some();
+    *slot = if at_bound.len() <= FACE_METRIC_MAX {
+        FaceMetric::new(problem.g, x.len(), at_bound)
+    } else {
+        None
+    };
+    let norm = match *slot {
+        Some(_) => setup.norm_h + setup.rho,
+        None => setup.norm_h,
+    };
+    setup.a_bar.set(settings.mprgp.abar_factor / norm);
+    had || slot.is_some()
 }
 
 /// MPGP steps without a tenth off the projected gradient that end an inner
@@ -682,9 +785,12 @@ fn outer_loop<S: Set>(
     set.project(x);
 
     for k in 0..settings.max_outer {
+        if k > 0 && face_metric(problem, setup, settings, x) {
+            g_ready = false;
+        }
         let params = Params {
             gamma: settings.mprgp.gamma,
-            a_bar: setup.a_bar,
+            a_bar: setup.a_bar.get(),
             max_iterations: settings.mprgp.max_iterations,
             max_applications: settings
                 .max_hessian

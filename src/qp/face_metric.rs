@@ -1,0 +1,155 @@
+//! SMALBE's penalty in the metric of the equalities restricted to the free
+//! entries (issue 41).
+//!
+//! `G` has orthonormal rows, but the equalities an outer iteration actually
+//! enforces are those of the entries off their bounds: with `I0` the entries
+//! at their bounds and `U = G E_I0` (the columns of `G` there), they are
+//! `G_F x_F = 0` with `G_F G_F^T = I - U U^T`, no longer orthonormal. On the
+//! TFETI dual the columns of open contact rows carry a share of the smooth
+//! coarse modes that grows with the number of subdomains (the coarse problem
+//! `G G^T` is a Laplacian over the subdomains), so `I - U U^T` gets small
+//! eigenvalues, and the multiplier update `mu += rho G x` converges at the
+//! rate `1 - rho s` with `s` among them: 9 outer iterations at 3 subdomains,
+//! 28 at 576 (`cso bench scaling`, BENCHMARKS.md), each with a few inner
+//! steps, and no choice of `rho` avoids it (a larger one harms the inner
+//! solves as much as it helps the outer loop).
+//!
+//! The metric `W = (I - U U^T + delta I)^-1` puts the penalty and the update
+//! in the right norm: the augmented Lagrangian `f + mu^T G x + rho/2 ||G
+//! x||_W^2` with the update `mu += rho W G x` is an augmented Lagrangian for
+//! any symmetric positive definite `W` (a change of basis of the equalities),
+//! and on the face `I0` its penalty `rho G_F^T W G_F` is `rho` times an
+//! orthogonal projector (up to `delta`), as `rho G^T G` is without bounds. By
+//! Woodbury, `W = (1 + delta)^-1 (I + U C^-1 U^T)` with the small
+//! `C = (1 + delta) I - U^T U` (one row and column per entry at its bound),
+//! which is all that is stored besides `U`. `delta` keeps `W` bounded
+//! (`||W|| <= 1 / delta`) where the entries at their bounds leave a direction
+//! of `G` unconstrained (a body held by contact alone with its contact open).
+
+use faer::linalg::solvers::Solve;
+use faer::{Mat, Side};
+
+use super::Equality;
+
+/// `delta`: the regularization of `I - U U^T` (`||W|| <= 1 / delta`).
+const DELTA: f64 = 1e-2;
+
+/// `W = (I - U U^T + delta I)^-1` for the entries `set` at their bounds.
+pub(super) struct FaceMetric {
+    /// The entries at their bounds, ascending.
+    set: Vec<usize>,
+    /// `U = G E_set`, `rows(G) x |set|`.
+    u: Mat<f64>,
+    /// `C = (1 + delta) I - U^T U`, factored.
+    c: faer::linalg::solvers::Llt<f64>,
+}
+
+impl FaceMetric {
+    /// The metric for the entries `set` (ascending) at their bounds of a
+    /// problem with `n` unknowns: `|set|` applications of `G`. None for an
+    /// empty set, or where `C` is not positive definite (round-off at `delta`).
+    pub(super) fn new(g: &dyn Equality, n: usize, set: Vec<usize>) -> Option<FaceMetric> {
+        if set.is_empty() {
+            return None;
+        }
+        let m = g.rows();
+        let mut u = Mat::<f64>::zeros(m, set.len());
+        let (mut e, mut col) = (vec![0.0; n], vec![0.0; m]);
+        for (j, &i) in set.iter().enumerate() {
+            e[i] = 1.0;
+            g.apply(&e, &mut col);
+            e[i] = 0.0;
+            for (r, &v) in col.iter().enumerate() {
+                u[(r, j)] = v;
+            }
+        }
+        let mut c = u.transpose() * &u;
+        for j in 0..c.ncols() {
+            for i in 0..c.nrows() {
+                c[(i, j)] = if i == j { 1.0 + DELTA } else { 0.0 } - c[(i, j)];
+            }
+        }
+        let c = c.llt(Side::Lower).ok()?;
+        Some(FaceMetric { set, u, c })
+    }
+
+    /// The entries at their bounds it was built for.
+    pub(super) fn set(&self) -> &[usize] {
+        &self.set
+    }
+
+    /// `v <- W v`.
+    pub(super) fn apply(&self, v: &mut [f64]) {
+        let vm = faer::ColRef::from_slice(v);
+        let t = self.u.transpose() * vm;
+        let t = self.c.solve(t.as_mat());
+        let w = &self.u * t.col(0);
+        let s = 1.0 / (1.0 + DELTA);
+        for (vi, wi) in v.iter_mut().zip(w.iter()) {
+            *vi = s * (*vi + wi);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A dense `G` with orthonormal rows.
+    struct Dense(Mat<f64>);
+
+    impl Equality for Dense {
+        fn rows(&self) -> usize {
+            self.0.nrows()
+        }
+        fn apply(&self, x: &[f64], y: &mut [f64]) {
+            let r = &self.0 * faer::ColRef::from_slice(x);
+            for (yi, ri) in y.iter_mut().zip(r.iter()) {
+                *yi = *ri;
+            }
+        }
+        fn apply_t(&self, y: &[f64], x: &mut [f64]) {
+            let r = self.0.transpose() * faer::ColRef::from_slice(y);
+            for (xi, ri) in x.iter_mut().zip(r.iter()) {
+                *xi = *ri;
+            }
+        }
+    }
+
+    /// `W (G_F G_F^T + delta I) = I`, with `G_F` the columns off `set`.
+    #[test]
+    fn inverts_the_restricted_gram_matrix() {
+        let (m, n) = (3, 7);
+        let raw = Mat::from_fn(m, n, |i, j| {
+            ((i * 7 + j * 3) % 5) as f64 - 2.0 + 0.1 * j as f64
+        });
+        let q = raw.transpose().qr().compute_thin_Q();
+        let g = Dense(q.transpose().to_owned());
+        let set = vec![1, 4];
+        let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
+        assert_eq!(w.set(), &set[..]);
+        let gf = Mat::from_fn(
+            m,
+            n,
+            |i, j| if set.contains(&j) { 0.0 } else { g.0[(i, j)] },
+        );
+        let mut gram = &gf * gf.transpose();
+        for i in 0..m {
+            gram[(i, i)] += DELTA;
+        }
+        for c in 0..m {
+            let mut v: Vec<f64> = (0..m).map(|r| gram[(r, c)]).collect();
+            w.apply(&mut v);
+            for (r, &x) in v.iter().enumerate() {
+                let want = if r == c { 1.0 } else { 0.0 };
+                assert!((x - want).abs() < 1e-12, "W gram [{r},{c}] = {x}");
+            }
+        }
+    }
+
+    #[test]
+    fn no_metric_without_entries_at_bounds() {
+        let g = Dense(Mat::from_fn(1, 2, |_, j| if j == 0 { 1.0 } else { 0.0 }));
+        assert!(FaceMetric::new(&g, 2, vec![]).is_none());
+    }
+}
