@@ -109,6 +109,11 @@ pub struct Solve {
     /// Dense or implicit local F (default: the scene's `solver { local_f }`).
     #[arg(long, value_enum)]
     pub local_f: Option<LocalF>,
+    /// SMALBE's tuning, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off`
+    /// (any of them), for benchmarks: `metric=off` is the solver before the
+    /// face metric.
+    #[arg(long, value_name = "SETTINGS", value_parser = parse_smalbe)]
+    pub smalbe: Option<SmalbeOverrides>,
     #[command(flatten)]
     pub hertz: HertzArgs,
     /// Threads over subdomains (default: all cores).

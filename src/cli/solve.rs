@@ -24,6 +24,9 @@ impl Solve {
         if let Some(l) = self.local_f {
             scene.solver.local_f = l;
         }
+        if let Some(o) = self.smalbe {
+            scene.solver.smalbe = o;
+        }
         // Before the solve: a --radius or --load that does not read fails now.
         let hertz = together(ranks, self.hertz.reference(&scene))?;
         let prepared = if lead {

@@ -55,6 +55,7 @@ use super::mprgp::{
     MprgpSettings, Params, Set, Workspace,
 };
 use super::{Breakdown, Equality, Operator, QpInfo, Status};
+use std::rc::Rc;
 
 /// Parameters of [`solve`]. Scale-dependent ones are relative to `||A||`
 /// (estimated by power iterations) or `||b||`, so that one set of defaults
@@ -307,8 +308,9 @@ struct Augmented<'a> {
     gx: Cell<Vec<f64>>,
     /// `G^T G x`.
     gtgx: Cell<Vec<f64>>,
-    /// `W` in `A + c G^T W G` ([`super::face_metric`]); none: `W = I`.
-    metric: std::cell::RefCell<Option<FaceMetric>>,
+    /// `W` in `A + c G^T W G` ([`super::face_metric`]), or `W^-1` where
+    /// the flag is set (the preconditioner); none: `W = I`.
+    metric: std::cell::RefCell<Option<(Rc<FaceMetric>, bool)>>,
 }
 
 impl<'a> Augmented<'a> {
@@ -334,8 +336,10 @@ impl Operator for Augmented<'_> {
         let mut gtgx = self.gtgx.take();
         self.a.apply(x, y);
         self.g.apply(x, &mut gx);
-        if let Some(w) = self.metric.borrow().as_ref() {
-            w.apply(&mut gx);
+        match self.metric.borrow().as_ref() {
+            Some((w, false)) => w.apply(&mut gx),
+            Some((w, true)) => w.apply_inverse(&mut gx),
+            None => {}
         }
         self.g.apply_t(&gx, &mut gtgx);
         axpy(self.c, &gtgx, y);
@@ -675,7 +679,7 @@ impl Multipliers {
         // at mu = mu_k here and at mu_{k+1} after the update.
         let lagrangian_before = 0.5 * (dot(x, g) - dot(x, &self.b_tilde));
         let penalty = match setup.hessian.metric.borrow().as_ref() {
-            Some(w) => {
+            Some((w, _)) => {
                 self.wgx.copy_from_slice(&self.gx);
                 w.apply(&mut self.wgx);
                 dot(&self.gx, &self.wgx)
@@ -726,16 +730,22 @@ fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &
     let mut slot = setup.hessian.metric.borrow_mut();
     if slot
         .as_ref()
-        .map_or(at_bound.is_empty(), |w| w.set() == at_bound)
+        .map_or(at_bound.is_empty(), |(w, _)| w.set() == at_bound)
     {
         return false;
     }
     let had = slot.is_some();
-    *slot = if at_bound.len() <= FACE_METRIC_MAX {
-        FaceMetric::new(problem.g, x.len(), at_bound)
+    let metric = if at_bound.len() <= FACE_METRIC_MAX {
+        FaceMetric::new(problem.g, x.len(), at_bound).map(Rc::new)
     } else {
         None
     };
+    // The preconditioner's part on `range G^T`, `(1/rho) G^T G`, inverts the
+    // penalty `rho G^T G`; with the metric it is `(1/rho) G^T W^-1 G`.
+    if let Some(p) = &setup.augmented_precond {
+        *p.metric.borrow_mut() = metric.as_ref().map(|w| (w.clone(), true));
+    }
+    *slot = metric.map(|w| (w, false));
     let norm = match *slot {
         Some(_) => setup.norm_h + setup.rho,
         None => setup.norm_h,
