@@ -78,15 +78,6 @@ impl FaceMetric {
         &self.set
     }
 
-    /// `v <- W^-1 v = (1 + delta) v - U U^T v`.
-    pub(super) fn apply_inverse(&self, v: &mut [f64]) {
-        let t = self.u.transpose() * faer::ColRef::from_slice(v);
-        let w = &self.u * &t;
-        for (vi, wi) in v.iter_mut().zip(w.iter()) {
-            *vi = (1.0 + DELTA) * *vi - wi;
-        }
-    }
-
     /// `v <- W v`.
     pub(super) fn apply(&self, v: &mut [f64]) {
         let vm = faer::ColRef::from_slice(v);
@@ -153,24 +144,6 @@ mod tests {
                 let want = if r == c { 1.0 } else { 0.0 };
                 assert!((x - want).abs() < 1e-12, "W gram [{r},{c}] = {x}");
             }
-        }
-    }
-
-    #[test]
-    fn the_inverse_undoes_the_metric() {
-        let (m, n) = (4, 9);
-        let raw = Mat::from_fn(m, n, |i, j| {
-            ((i * 5 + j * 2) % 7) as f64 - 3.0 + 0.2 * i as f64
-        });
-        let q = raw.transpose().qr().compute_thin_Q();
-        let g = Dense(q.transpose().to_owned());
-        let w = FaceMetric::new(&g, n, vec![0, 3, 8]).expect("definite");
-        let v: Vec<f64> = (0..m).map(|i| 1.0 + i as f64 * 0.7).collect();
-        let mut x = v.clone();
-        w.apply(&mut x);
-        w.apply_inverse(&mut x);
-        for (a, b) in x.iter().zip(&v) {
-            assert!((a - b).abs() < 1e-12, "{a} against {b}");
         }
     }
 
