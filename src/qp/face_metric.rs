@@ -26,8 +26,10 @@
 //! (`||W|| <= 1 / delta`) where the entries at their bounds leave a direction
 //! of `G` unconstrained (a body held by contact alone with its contact open).
 
-use faer::linalg::solvers::Solve;
-use faer::{Mat, Side};
+use faer::dyn_stack::{MemBuffer, MemStack};
+use faer::linalg::cholesky::llt::{factor, solve};
+use faer::linalg::matmul::matmul;
+use faer::{Accum, Conj, Mat, Par};
 
 use super::Equality;
 
@@ -40,8 +42,8 @@ pub(super) struct FaceMetric {
     set: Vec<usize>,
     /// `U = G E_set`, `rows(G) x |set|`.
     u: Mat<f64>,
-    /// `C = (1 + delta) I - U^T U`, factored.
-    c: faer::linalg::solvers::Llt<f64>,
+    /// The Cholesky factor `L` of `C = (1 + delta) I - U^T U` (lower).
+    l: Mat<f64>,
 }
 
 impl FaceMetric {
@@ -63,14 +65,32 @@ impl FaceMetric {
                 u[(r, j)] = v;
             }
         }
-        let mut c = u.transpose() * &u;
-        for j in 0..c.ncols() {
-            for i in 0..c.nrows() {
-                c[(i, j)] = if i == j { 1.0 + DELTA } else { 0.0 } - c[(i, j)];
-            }
-        }
-        let c = c.llt(Side::Lower).ok()?;
-        Some(FaceMetric { set, u, c })
+        // Sequential kernels throughout: the same bits for any number of
+        // threads or ranks.
+        let k = set.len();
+        let mut l = Mat::<f64>::identity(k, k) * (1.0 + DELTA);
+        matmul(
+            l.as_mut(),
+            Accum::Add,
+            u.transpose(),
+            u.as_ref(),
+            -1.0,
+            Par::Seq,
+        );
+        let mut buf = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
+            k,
+            Par::Seq,
+            Default::default(),
+        ));
+        factor::cholesky_in_place(
+            l.as_mut(),
+            Default::default(),
+            Par::Seq,
+            MemStack::new(&mut buf),
+            Default::default(),
+        )
+        .ok()?;
+        Some(FaceMetric { set, u, l })
     }
 
     /// The entries at their bounds it was built for.
@@ -80,13 +100,40 @@ impl FaceMetric {
 
     /// `v <- W v`.
     pub(super) fn apply(&self, v: &mut [f64]) {
-        let vm = faer::ColRef::from_slice(v);
-        let t = self.u.transpose() * vm;
-        let t = self.c.solve(t.as_mat());
-        let w = &self.u * t.col(0);
+        let k = self.set.len();
+        let mut t = Mat::<f64>::zeros(k, 1);
+        let vm = faer::MatRef::from_column_major_slice(v, v.len(), 1);
+        matmul(
+            t.as_mut(),
+            Accum::Replace,
+            self.u.transpose(),
+            vm,
+            1.0,
+            Par::Seq,
+        );
+        solve::solve_in_place_with_conj(
+            self.l.as_ref(),
+            Conj::No,
+            t.as_mut(),
+            Par::Seq,
+            MemStack::new(&mut MemBuffer::new(solve::solve_in_place_scratch::<f64>(
+                k,
+                1,
+                Par::Seq,
+            ))),
+        );
+        let mut w = Mat::<f64>::zeros(v.len(), 1);
+        matmul(
+            w.as_mut(),
+            Accum::Replace,
+            self.u.as_ref(),
+            t.as_ref(),
+            1.0,
+            Par::Seq,
+        );
         let s = 1.0 / (1.0 + DELTA);
-        for (vi, wi) in v.iter_mut().zip(w.iter()) {
-            *vi = s * (*vi + wi);
+        for (i, vi) in v.iter_mut().enumerate() {
+            *vi = s * (*vi + w[(i, 0)]);
         }
     }
 }
@@ -145,6 +192,70 @@ mod tests {
                 assert!((x - want).abs() < 1e-12, "W gram [{r},{c}] = {x}");
             }
         }
+    }
+
+    /// More entries at their bounds than rows (`U^T U` singular), and a row
+    /// of `G` whose every entry is at a bound (`I - U U^T` singular there:
+    /// `delta` alone keeps `W` finite, `||W|| = 1 / delta`).
+    #[test]
+    fn more_entries_than_rows_and_a_row_left_free() {
+        let (m, n) = (3, 8);
+        let raw = Mat::from_fn(m, n, |i, j| {
+            if i == 0 {
+                // Row 0 lives on entries 0 and 1 only.
+                [1.0, 2.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0][j]
+            } else {
+                ((i * 3 + j * 5) % 7) as f64 - 3.0 + 0.3 * (i + j) as f64
+            }
+        });
+        let q = raw.transpose().qr().compute_thin_Q();
+        let g = Dense(q.transpose().to_owned());
+        let set = vec![0, 1, 2, 3, 5];
+        let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
+        let gf = Mat::from_fn(
+            m,
+            n,
+            |i, j| if set.contains(&j) { 0.0 } else { g.0[(i, j)] },
+        );
+        let mut gram = &gf * gf.transpose();
+        for i in 0..m {
+            gram[(i, i)] += DELTA;
+        }
+        for c in 0..m {
+            let mut v: Vec<f64> = (0..m).map(|r| gram[(r, c)]).collect();
+            w.apply(&mut v);
+            for (r, &x) in v.iter().enumerate() {
+                let want = if r == c { 1.0 } else { 0.0 };
+                assert!((x - want).abs() < 1e-10, "W gram [{r},{c}] = {x}");
+            }
+        }
+    }
+
+    /// The same bits from one thread as from four: sequential kernels at a
+    /// size where faer's parallel ones would split the sums.
+    #[test]
+    fn the_same_bits_for_any_number_of_threads() {
+        let (m, n) = (300, 700);
+        let raw = Mat::from_fn(m, n, |i, j| {
+            (((i * 31 + j * 17) % 101) as f64 - 50.0) / 50.0
+        });
+        let q = raw.transpose().qr().compute_thin_Q();
+        let g = Dense(q.transpose().to_owned());
+        let set: Vec<usize> = (0..n).step_by(2).collect();
+        let v0: Vec<f64> = (0..m).map(|i| ((i * 7) % 13) as f64 - 6.0).collect();
+        let on = |threads: usize| -> Vec<f64> {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .expect("pool");
+            pool.install(|| {
+                let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
+                let mut v = v0.clone();
+                w.apply(&mut v);
+                v
+            })
+        };
+        assert_eq!(on(1), on(4));
     }
 
     #[test]

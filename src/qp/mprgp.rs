@@ -179,6 +179,7 @@ fn minimize<S: Set>(
     let capacity = (settings.max_iterations / HISTORY_EVERY + 2).min(MAX_HISTORY);
     let mut history = Vec::with_capacity(capacity);
     let params = Params {
+        guard_expansion: false,
         gamma: settings.gamma,
         a_bar,
         max_iterations: settings.max_iterations,
@@ -265,6 +266,10 @@ pub(super) struct Params {
     pub(super) max_iterations: usize,
     /// Budget of applications of `a` for this run.
     pub(super) max_applications: usize,
+    /// Check that each expansion step lowers `f`, halving its step where it
+    /// does not: for a Hessian whose norm `a_bar` does not bound on every
+    /// face (SMALBE's face metric). Off, the expansion is Dostál's, to the bit.
+    pub(super) guard_expansion: bool,
 }
 
 /// What one run did.
@@ -455,6 +460,7 @@ pub(super) fn run<S: Set>(
         set,
         precond,
         a_bar: params.a_bar,
+        guard: params.guard_expansion,
     };
     let gamma2 = params.gamma * params.gamma;
     let mut out = Run {
@@ -504,6 +510,8 @@ struct Fixed<'a, S> {
     set: &'a S,
     precond: Option<&'a dyn Operator>,
     a_bar: f64,
+    /// [`Params::guard_expansion`].
+    guard: bool,
 }
 
 /// Whether the run ends at the current iterate, and how: a projected
@@ -562,8 +570,7 @@ fn cg_step<S: Set>(
         conjugate_direction(q, x, pap, ws);
         out.steps.cg += 1;
     } else {
-        expansion_step(q, x, a_f, blocking, ws);
-        out.applications += 1;
+        out.applications += expansion_step(q, x, a_f, blocking, ws);
         out.steps.expansions += 1;
     }
     Ok(())
@@ -605,23 +612,57 @@ fn conjugate_direction<S: Set>(q: &Fixed<S>, x: &[f64], pap: f64, ws: &mut Works
 /// Expansion: the feasible step `a_f` along `-p` to the face's boundary
 /// (`blocking`'s block put on its boundary), then a projected gradient step
 /// of fixed length `a_bar` along `phi`; the gradient anew (one application)
-/// and the new face's first direction.
+/// and the new face's first direction. Returns the applications of `A`.
+///
+/// With the guard, a step that raises `f` (measured exactly for a quadratic:
+/// `f(y) - f(x) = (g(x) + g(y))^T (y - x) / 2`) is taken again from the
+/// boundary point with half the length, one application each time: a
+/// projected gradient step lowers `f` once short enough.
 fn expansion_step<S: Set>(
     q: &Fixed<S>,
     x: &mut [f64],
     a_f: f64,
     blocking: usize,
     ws: &mut Workspace,
-) {
+) -> usize {
     let Workspace { g, p, ap, r, .. } = ws;
     axpy(-a_f, p, x);
     axpy(-a_f, ap, g);
     q.set.project(x);
     q.set.bind(x, p, blocking);
-    q.set.expand(x, g, q.a_bar);
-    gradient(q.a, q.b, x, g);
+    // `p` and `ap` are free now: the boundary point and its gradient.
+    if q.guard {
+        ap.copy_from_slice(x);
+        p.copy_from_slice(g);
+    }
+    let mut a_bar = q.a_bar;
+    let mut applications = 0;
+    loop {
+        q.set.expand(x, g, a_bar);
+        gradient(q.a, q.b, x, g);
+        applications += 1;
+        if !q.guard || applications > GUARD_HALVINGS {
+            break;
+        }
+        let change: f64 = x
+            .iter()
+            .zip(ap.iter())
+            .zip(g.iter().zip(p.iter()))
+            .map(|((y, x0), (gy, g0))| 0.5 * (gy + g0) * (y - x0))
+            .sum();
+        if change <= 0.0 || change.is_nan() {
+            break;
+        }
+        x.copy_from_slice(ap);
+        g.copy_from_slice(p);
+        a_bar *= 0.5;
+    }
     face_direction(q.precond, x, q.set, g, r, p);
+    applications
 }
+
+/// Most halvings of a guarded expansion step (`2^-10` of `a_bar`).
+const GUARD_HALVINGS: usize = 10;
 
 /// Proportioning: release constraints along the (reduced) chopped gradient
 /// `d = beta~` with the exact line-search step `g^T d / d^T A d`. With lower
@@ -1024,6 +1065,67 @@ pub(super) mod tests {
             active_seen >= 20,
             "too few active bounds to test: {active_seen}"
         );
+    }
+
+    /// An expansion step 30 times too long for `A` (what an entry freed on
+    /// SMALBE's face metric can see): unguarded it may raise `f`; guarded,
+    /// `f` falls at every step and the run reaches the enumerated minimizer.
+    #[test]
+    fn a_guarded_expansion_lowers_f_even_when_a_bar_is_too_long() {
+        let mut rng = Lcg::new(41);
+        let mut guarded_steps = 0;
+        for trial in 0..20 {
+            let n = 4 + trial % 5;
+            let a = random_spd(n, 0.1, &mut rng);
+            let b: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
+            let lower = random_lower(n, 0.3, &mut rng);
+            let exact = enumerate_bounds(&a, &b, &lower);
+            let mut ws = Workspace::new(n);
+            start_vector(&mut ws.p);
+            let (norm, _) = estimate_norm(&a, &mut ws.p, &mut ws.ap, 30);
+            let params = Params {
+                guard_expansion: true,
+                gamma: 1.0,
+                a_bar: 60.0 / norm,
+                max_iterations: 10_000,
+                max_applications: usize::MAX,
+            };
+            let f = |x: &[f64]| {
+                let ax = a.mul(x);
+                0.5 * dot(x, &ax) - dot(&b, x)
+            };
+            let mut x: Vec<f64> = lower.iter().map(|l| l.max(0.0)).collect();
+            let (mut last, mut rises) = (f(&x), 0);
+            let tol = 1e-11 * norm2(&b);
+            let out = run(
+                &a,
+                &b,
+                &Lower(&lower),
+                &mut x,
+                &params,
+                &mut ws,
+                false,
+                &mut |x, gp| {
+                    let now = f(x);
+                    if now > last + 1e-12 * last.abs().max(1.0) {
+                        rises += 1;
+                    }
+                    last = now;
+                    gp <= tol
+                },
+                &mut |_, _| {},
+                None,
+            );
+            assert_eq!(out.status, Status::Converged, "trial {trial}");
+            assert_eq!(rises, 0, "trial {trial}: f rose");
+            guarded_steps += out.steps.expansions;
+            let scale = exact.iter().fold(1.0f64, |m, v| m.max(v.abs()));
+            assert!(
+                max_diff(&x, &exact) <= 1e-8 * scale,
+                "trial {trial}: {x:?} vs {exact:?}"
+            );
+        }
+        assert!(guarded_steps >= 10, "too few expansions: {guarded_steps}");
     }
 
     #[test]
