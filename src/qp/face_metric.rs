@@ -163,18 +163,10 @@ mod tests {
         }
     }
 
-    /// `W (G_F G_F^T + delta I) = I`, with `G_F` the columns off `set`.
-    #[test]
-    fn inverts_the_restricted_gram_matrix() {
-        let (m, n) = (3, 7);
-        let raw = Mat::from_fn(m, n, |i, j| {
-            ((i * 7 + j * 3) % 5) as f64 - 2.0 + 0.1 * j as f64
-        });
-        let q = raw.transpose().qr().compute_thin_Q();
-        let g = Dense(q.transpose().to_owned());
-        let set = vec![1, 4];
-        let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
-        assert_eq!(w.set(), &set[..]);
+    /// `W (G_F G_F^T + delta I) = I` to `tol`, with `G_F` the columns of
+    /// `g` off `set`.
+    fn inverts(g: &Dense, w: &FaceMetric, set: &[usize], tol: f64) {
+        let (m, n) = (g.0.nrows(), g.0.ncols());
         let gf = Mat::from_fn(
             m,
             n,
@@ -189,9 +181,24 @@ mod tests {
             w.apply(&mut v);
             for (r, &x) in v.iter().enumerate() {
                 let want = if r == c { 1.0 } else { 0.0 };
-                assert!((x - want).abs() < 1e-12, "W gram [{r},{c}] = {x}");
+                assert!((x - want).abs() < tol, "W gram [{r},{c}] = {x}");
             }
         }
+    }
+
+    /// The metric of a set smaller than `G`'s rows.
+    #[test]
+    fn inverts_the_restricted_gram_matrix() {
+        let (m, n) = (3, 7);
+        let raw = Mat::from_fn(m, n, |i, j| {
+            ((i * 7 + j * 3) % 5) as f64 - 2.0 + 0.1 * j as f64
+        });
+        let q = raw.transpose().qr().compute_thin_Q();
+        let g = Dense(q.transpose().to_owned());
+        let set = vec![1, 4];
+        let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
+        assert_eq!(w.set(), &set[..]);
+        inverts(&g, &w, &set, 1e-12);
     }
 
     /// More entries at their bounds than rows (`U^T U` singular), and a row
@@ -212,23 +219,7 @@ mod tests {
         let g = Dense(q.transpose().to_owned());
         let set = vec![0, 1, 2, 3, 5];
         let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
-        let gf = Mat::from_fn(
-            m,
-            n,
-            |i, j| if set.contains(&j) { 0.0 } else { g.0[(i, j)] },
-        );
-        let mut gram = &gf * gf.transpose();
-        for i in 0..m {
-            gram[(i, i)] += DELTA;
-        }
-        for c in 0..m {
-            let mut v: Vec<f64> = (0..m).map(|r| gram[(r, c)]).collect();
-            w.apply(&mut v);
-            for (r, &x) in v.iter().enumerate() {
-                let want = if r == c { 1.0 } else { 0.0 };
-                assert!((x - want).abs() < 1e-10, "W gram [{r},{c}] = {x}");
-            }
-        }
+        inverts(&g, &w, &set, 1e-10);
     }
 
     /// The same bits from one thread as from four: sequential kernels at a

@@ -338,14 +338,7 @@ impl DualSystem {
                 observer,
             );
         };
-        // Classical FETI stays the textbook baseline: SMALBE without the face
-        // metric (which, on a scene whose open contacts leave a body free,
-        // can end its iteration budget on rows that happen to hold the body,
-        // where the plain method ends on rows that name the free motion).
-        let settings = &SmalbeSettings {
-            face_metric: false,
-            ..settings.clone()
-        };
+        let settings = &textbook(settings);
         // The friction groups on the kept rows (a row that lost every entry
         // to the eliminated dofs carries nothing; its multiplier is 0).
         let kept_at = |i: usize| reduced.kept.binary_search(&i).ok();
@@ -552,4 +545,15 @@ fn redundant(
         lambda[i] = x[(k, 0)];
     }
     Ok(())
+}
+
+/// Classical FETI stays the textbook baseline: SMALBE without the face
+/// metric, which, on a scene whose open contacts leave a body free, can end
+/// its iteration budget on rows that happen to hold the body, where the plain
+/// method ends on rows that name the free motion.
+fn textbook(settings: &SmalbeSettings) -> SmalbeSettings {
+    SmalbeSettings {
+        face_metric: false,
+        ..settings.clone()
+    }
 }
