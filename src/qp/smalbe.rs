@@ -124,7 +124,8 @@ pub struct SmalbeSettings {
     /// without), and on hertz2d it takes 17 outer iterations and 175 Hessian
     /// applications against 128 and 360 (BENCHMARKS.md). Not used with
     /// discs (3D friction), nor where more than
-    /// [`FACE_METRIC_MAX`] entries are at their bounds.
+    /// [`FACE_METRIC_MAX`] entries are at their bounds or building it would
+    /// cost more than [`FACE_METRIC_FLOPS`].
     pub face_metric: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
@@ -710,6 +711,10 @@ pub const FACE_METRIC_MAX: usize = 2000;
 /// Most values of `U` (`rows(G)` times the entries at their bounds): 32 MB.
 pub const FACE_METRIC_VALUES: usize = 4_000_000;
 
+/// Most flops of `U^T U` (`rows(G)` times the square of the entries at their
+/// bounds), paid each time the set changes: about a second on one core.
+pub const FACE_METRIC_FLOPS: usize = 2_000_000_000;
+
 /// Puts the face metric of the entries of `x` at their bounds into the
 /// Hessian (or takes it out where none applies), unless it is already there;
 /// true where the Hessian changed (the gradient must be computed anew). The
@@ -749,6 +754,11 @@ fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &
     let had = slot.is_some();
     let metric = if at_bound.len() <= FACE_METRIC_MAX
         && at_bound.len() * problem.g.rows() <= FACE_METRIC_VALUES
+        && at_bound
+            .len()
+            .saturating_mul(at_bound.len())
+            .saturating_mul(problem.g.rows())
+            <= FACE_METRIC_FLOPS
     {
         FaceMetric::new(problem.g, x.len(), at_bound)
     } else {
