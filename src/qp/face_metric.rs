@@ -40,57 +40,91 @@ const DELTA: f64 = 1e-2;
 pub(super) struct FaceMetric {
     /// The entries at their bounds, ascending.
     set: Vec<usize>,
-    /// `U = G E_set`, `rows(G) x |set|`.
-    u: Mat<f64>,
-    /// The Cholesky factor `L` of `C = (1 + delta) I - U^T U` (lower).
-    l: Mat<f64>,
+    form: Form,
 }
+
+/// How `W` is held: whichever of `U U^T` (`rows(G)` square) and `U^T U`
+/// (`|set|` square) is the smaller matrix is factored.
+enum Form {
+    /// Woodbury: `U` and the Cholesky factor of `C = (1 + delta) I - U^T U`;
+    /// `W = (1 + delta)^-1 (I + U C^-1 U^T)`. For sets smaller than `rows(G)`.
+    Woodbury { u: Mat<f64>, l: Mat<f64> },
+    /// The Cholesky factor of `(1 + delta) I - U U^T` itself. For sets of
+    /// `rows(G)` entries or more (a large contact face mostly open): the
+    /// cost no longer grows with the square of the set.
+    Direct { l: Mat<f64> },
+}
+
+/// Columns of `U` formed at a time for the direct form.
+const BLOCK: usize = 256;
 
 impl FaceMetric {
     /// The metric for the entries `set` (ascending) at their bounds of a
-    /// problem with `n` unknowns: `|set|` applications of `G`. None for an
-    /// empty set, or where `C` is not positive definite (round-off at `delta`).
+    /// problem with `n` unknowns: `|set|` applications of `G`, then
+    /// `rows(G) min(rows(G), |set|)^2`-odd flops (sequential kernels
+    /// throughout: the same bits for any number of threads or ranks). None
+    /// for an empty set, or where the factorization fails (round-off at
+    /// `delta`).
     pub(super) fn new(g: &dyn Equality, n: usize, set: Vec<usize>) -> Option<FaceMetric> {
         if set.is_empty() {
             return None;
         }
         let m = g.rows();
-        let mut u = Mat::<f64>::zeros(m, set.len());
         let (mut e, mut col) = (vec![0.0; n], vec![0.0; m]);
-        for (j, &i) in set.iter().enumerate() {
-            e[i] = 1.0;
-            g.apply(&e, &mut col);
-            e[i] = 0.0;
-            for (r, &v) in col.iter().enumerate() {
-                u[(r, j)] = v;
+        // `U`'s columns `first..first + cols` into `u`.
+        let mut columns = |first: usize, u: &mut Mat<f64>| {
+            for j in 0..u.ncols() {
+                let i = set[first + j];
+                e[i] = 1.0;
+                g.apply(&e, &mut col);
+                e[i] = 0.0;
+                for (r, &v) in col.iter().enumerate() {
+                    u[(r, j)] = v;
+                }
             }
-        }
-        // Sequential kernels throughout: the same bits for any number of
-        // threads or ranks.
-        let k = set.len();
-        let mut l = Mat::<f64>::identity(k, k) * (1.0 + DELTA);
-        matmul(
-            l.as_mut(),
-            Accum::Add,
-            u.transpose(),
-            u.as_ref(),
-            -1.0,
-            Par::Seq,
-        );
-        let mut buf = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
-            k,
-            Par::Seq,
-            Default::default(),
-        ));
-        factor::cholesky_in_place(
-            l.as_mut(),
-            Default::default(),
-            Par::Seq,
-            MemStack::new(&mut buf),
-            Default::default(),
-        )
-        .ok()?;
-        Some(FaceMetric { set, u, l })
+        };
+        let form = if set.len() < m {
+            let mut u = Mat::<f64>::zeros(m, set.len());
+            columns(0, &mut u);
+            let mut c = Mat::<f64>::identity(set.len(), set.len()) * (1.0 + DELTA);
+            matmul(
+                c.as_mut(),
+                Accum::Add,
+                u.transpose(),
+                u.as_ref(),
+                -1.0,
+                Par::Seq,
+            );
+            Form::Woodbury { u, l: cholesky(c)? }
+        } else {
+            let mut c = Mat::<f64>::identity(m, m) * (1.0 + DELTA);
+            for first in (0..set.len()).step_by(BLOCK) {
+                let mut u = Mat::<f64>::zeros(m, BLOCK.min(set.len() - first));
+                columns(first, &mut u);
+                matmul(
+                    c.as_mut(),
+                    Accum::Add,
+                    u.as_ref(),
+                    u.transpose(),
+                    -1.0,
+                    Par::Seq,
+                );
+            }
+            Form::Direct { l: cholesky(c)? }
+        };
+        Some(FaceMetric { set, form })
+    }
+
+    /// Values held and flops to build the metric of `k` entries at their
+    /// bounds with `m` rows of `G`, without building it.
+    pub(super) fn cost(m: usize, k: usize) -> (usize, usize) {
+        let small = m.min(k);
+        let values = if k < m {
+            m.saturating_mul(k)
+        } else {
+            m.saturating_mul(m)
+        };
+        (values, small.saturating_mul(small).saturating_mul(m.max(k)))
     }
 
     /// The entries at their bounds it was built for.
@@ -100,42 +134,70 @@ impl FaceMetric {
 
     /// `v <- W v`.
     pub(super) fn apply(&self, v: &mut [f64]) {
-        let k = self.set.len();
-        let mut t = Mat::<f64>::zeros(k, 1);
-        let vm = faer::MatRef::from_column_major_slice(v, v.len(), 1);
-        matmul(
-            t.as_mut(),
-            Accum::Replace,
-            self.u.transpose(),
-            vm,
-            1.0,
-            Par::Seq,
-        );
-        solve::solve_in_place_with_conj(
-            self.l.as_ref(),
-            Conj::No,
-            t.as_mut(),
-            Par::Seq,
-            MemStack::new(&mut MemBuffer::new(solve::solve_in_place_scratch::<f64>(
-                k,
-                1,
-                Par::Seq,
-            ))),
-        );
-        let mut w = Mat::<f64>::zeros(v.len(), 1);
-        matmul(
-            w.as_mut(),
-            Accum::Replace,
-            self.u.as_ref(),
-            t.as_ref(),
-            1.0,
-            Par::Seq,
-        );
-        let s = 1.0 / (1.0 + DELTA);
-        for (i, vi) in v.iter_mut().enumerate() {
-            *vi = s * (*vi + w[(i, 0)]);
+        match &self.form {
+            Form::Woodbury { u, l } => {
+                let mut t = Mat::<f64>::zeros(u.ncols(), 1);
+                let vm = faer::MatRef::from_column_major_slice(v, v.len(), 1);
+                matmul(t.as_mut(), Accum::Replace, u.transpose(), vm, 1.0, Par::Seq);
+                solve_llt(l, &mut t);
+                let mut w = Mat::<f64>::zeros(v.len(), 1);
+                matmul(
+                    w.as_mut(),
+                    Accum::Replace,
+                    u.as_ref(),
+                    t.as_ref(),
+                    1.0,
+                    Par::Seq,
+                );
+                let s = 1.0 / (1.0 + DELTA);
+                for (i, vi) in v.iter_mut().enumerate() {
+                    *vi = s * (*vi + w[(i, 0)]);
+                }
+            }
+            Form::Direct { l } => {
+                let mut t = Mat::from_fn(v.len(), 1, |i, _| v[i]);
+                solve_llt(l, &mut t);
+                for (i, vi) in v.iter_mut().enumerate() {
+                    *vi = t[(i, 0)];
+                }
+            }
         }
     }
+}
+
+/// The lower Cholesky factor of `c` (sequential), or None.
+fn cholesky(mut c: Mat<f64>) -> Option<Mat<f64>> {
+    let k = c.nrows();
+    let mut buf = MemBuffer::new(factor::cholesky_in_place_scratch::<f64>(
+        k,
+        Par::Seq,
+        Default::default(),
+    ));
+    factor::cholesky_in_place(
+        c.as_mut(),
+        Default::default(),
+        Par::Seq,
+        MemStack::new(&mut buf),
+        Default::default(),
+    )
+    .ok()?;
+    Some(c)
+}
+
+/// `t <- (L L^T)^-1 t` (sequential).
+fn solve_llt(l: &Mat<f64>, t: &mut Mat<f64>) {
+    let (k, cols) = (l.nrows(), t.ncols());
+    solve::solve_in_place_with_conj(
+        l.as_ref(),
+        Conj::No,
+        t.as_mut(),
+        Par::Seq,
+        MemStack::new(&mut MemBuffer::new(solve::solve_in_place_scratch::<f64>(
+            k,
+            cols,
+            Par::Seq,
+        ))),
+    );
 }
 
 #[cfg(test)]
@@ -220,6 +282,23 @@ mod tests {
         let set = vec![0, 1, 2, 3, 5];
         let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
         inverts(&g, &w, &set, 1e-10);
+    }
+
+    /// A set of at least `rows(G)` entries takes the direct form; it is the
+    /// same `W` as Woodbury's (checked against the definition).
+    #[test]
+    fn a_set_as_large_as_the_rows_takes_the_direct_form() {
+        let (m, n) = (3, 9);
+        let raw = Mat::from_fn(m, n, |i, j| {
+            ((i * 5 + j * 3) % 11) as f64 - 5.0 + 0.2 * j as f64
+        });
+        let q = raw.transpose().qr().compute_thin_Q();
+        let g = Dense(q.transpose().to_owned());
+        for set in [vec![0, 2], vec![0, 2, 4], vec![0, 1, 2, 4, 6, 8]] {
+            let w = FaceMetric::new(&g, n, set.clone()).expect("definite");
+            assert_eq!(matches!(w.form, Form::Direct { .. }), set.len() >= m);
+            inverts(&g, &w, &set, 1e-12);
+        }
     }
 
     /// The same bits from one thread as from four: sequential kernels at a

@@ -124,8 +124,8 @@ pub struct SmalbeSettings {
     /// without), and on hertz2d it takes 17 outer iterations and 175 Hessian
     /// applications against 128 and 360 (BENCHMARKS.md). Not used with
     /// discs (3D friction), nor where more than
-    /// [`FACE_METRIC_MAX`] entries are at their bounds or building it would
-    /// cost more than [`FACE_METRIC_FLOPS`].
+    /// where holding it would take more than [`FACE_METRIC_VALUES`] values
+    /// or building it more than [`FACE_METRIC_FLOPS`] flops.
     pub face_metric: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
@@ -703,16 +703,13 @@ impl Multipliers {
     }
 }
 
-/// Most entries at their bounds for which [`SmalbeSettings::face_metric`]
-/// builds a metric: its `U` holds `rows(G)` values per entry, `U^T U` costs
-/// `rows(G)` times their square.
-pub const FACE_METRIC_MAX: usize = 2000;
-
-/// Most values of `U` (`rows(G)` times the entries at their bounds): 32 MB.
+/// Most values a face metric holds (`rows(G)` times the smaller of
+/// `rows(G)` and the entries at their bounds): 32 MB.
 pub const FACE_METRIC_VALUES: usize = 4_000_000;
 
-/// Most flops of `U^T U` (`rows(G)` times the square of the entries at their
-/// bounds), paid each time the set changes: about a second on one core.
+/// Most flops to build a face metric (`rows(G)`, or the entries at their
+/// bounds where more, times the square of the smaller), paid each time the
+/// set changes: about a second on one core.
 pub const FACE_METRIC_FLOPS: usize = 2_000_000_000;
 
 /// Puts the face metric of the entries of `x` at their bounds into the
@@ -732,7 +729,8 @@ pub const FACE_METRIC_FLOPS: usize = 2_000_000_000;
 /// 606 applications against 531 and scont3d 123 against 115; taking the
 /// update `mu += rho W G x` in the next iteration's metric as well (which
 /// makes the test's identity exact) let hertz_ball's active set oscillate
-/// (1,582). `M` only sets inner precision; the final test is unchanged.
+/// (1,582; both measured with the Woodbury form for every set). `M` only
+/// sets inner precision; the final test is unchanged.
 fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &[f64]) -> bool {
     if !settings.face_metric || !problem.discs.is_empty() || problem.g.rows() == 0 {
         return false;
@@ -752,14 +750,8 @@ fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &
         return false;
     }
     let had = slot.is_some();
-    let metric = if at_bound.len() <= FACE_METRIC_MAX
-        && at_bound.len() * problem.g.rows() <= FACE_METRIC_VALUES
-        && at_bound
-            .len()
-            .saturating_mul(at_bound.len())
-            .saturating_mul(problem.g.rows())
-            <= FACE_METRIC_FLOPS
-    {
+    let (values, flops) = FaceMetric::cost(problem.g.rows(), at_bound.len());
+    let metric = if values <= FACE_METRIC_VALUES && flops <= FACE_METRIC_FLOPS {
         FaceMetric::new(problem.g, x.len(), at_bound)
     } else {
         None
