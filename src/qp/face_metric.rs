@@ -19,10 +19,11 @@
 //! x||_W^2` with the update `mu += rho W G x` is an augmented Lagrangian for
 //! any symmetric positive definite `W` (a change of basis of the equalities),
 //! and on the face `I0` its penalty `rho G_F^T W G_F` is `rho` times an
-//! orthogonal projector (up to `delta`), as `rho G^T G` is without bounds. By
-//! Woodbury, `W = (1 + delta)^-1 (I + U C^-1 U^T)` with the small
-//! `C = (1 + delta) I - U^T U` (one row and column per entry at its bound),
-//! which is all that is stored besides `U`. `delta` keeps `W` bounded
+//! orthogonal projector (up to `delta`), as `rho G^T G` is without bounds.
+//! For sets smaller than `rows(G)`, by Woodbury, `W = (1 + delta)^-1 (I + U
+//! C^-1 U^T)` with the small `C = (1 + delta) I - U^T U` (one row and column
+//! per entry at its bound), which is all that is stored besides `U`; for
+//! larger sets `(1 + delta) I - U U^T` itself is factored. `delta` keeps `W` bounded
 //! (`||W|| <= 1 / delta`) where the entries at their bounds leave a direction
 //! of `G` unconstrained (a body held by contact alone with its contact open).
 

@@ -120,12 +120,12 @@ pub struct SmalbeSettings {
     /// restricted to the entries off their bounds ([`super::face_metric`]),
     /// rebuilt before an outer iteration whenever the entries at their
     /// bounds changed. Default `true`: on `cso bench scaling` it
-    /// keeps the outer iterations at 8-10 from 3 to 576 subdomains (9 to 28
-    /// without), and on hertz2d it takes 17 outer iterations and 175 Hessian
+    /// keeps the outer iterations at 8-11 from 3 to 576 subdomains (9 to 28
+    /// without), and on hertz2d it takes 17 outer iterations and 172 Hessian
     /// applications against 128 and 360 (BENCHMARKS.md). Not used with
-    /// discs (3D friction), nor where more than
-    /// where holding it would take more than [`FACE_METRIC_VALUES`] values
-    /// or building it more than [`FACE_METRIC_FLOPS`] flops.
+    /// discs (3D friction), nor where holding it would take more than
+    /// [`FACE_METRIC_VALUES`] values or building it more than
+    /// [`FACE_METRIC_FLOPS`] flops.
     pub face_metric: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
@@ -758,8 +758,8 @@ fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &
     };
     // The preconditioner's part on `range G^T` stays `(1/rho) G^T G`: with
     // `(1/rho) G^T W^-1 G` instead (the inverse of the new penalty there)
-    // hertz_ball took 653 applications against 531, and `cso bench
-    // scaling` with the lumped and Dirichlet preconditioners the same.
+    // hertz_ball took 653 applications against 531 (at 118bf37), and `cso
+    // bench scaling` with the lumped and Dirichlet preconditioners the same.
     *slot = metric;
     let norm = match *slot {
         Some(_) => setup.norm_h + setup.rho,
