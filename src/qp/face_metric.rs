@@ -140,7 +140,7 @@ impl FaceMetric {
                 let mut t = Mat::<f64>::zeros(u.ncols(), 1);
                 let vm = faer::MatRef::from_column_major_slice(v, v.len(), 1);
                 matmul(t.as_mut(), Accum::Replace, u.transpose(), vm, 1.0, Par::Seq);
-                solve_llt(l, &mut t);
+                solve_llt(l, t.as_mut());
                 let mut w = Mat::<f64>::zeros(v.len(), 1);
                 matmul(
                     w.as_mut(),
@@ -156,11 +156,8 @@ impl FaceMetric {
                 }
             }
             Form::Direct { l } => {
-                let mut t = Mat::from_fn(v.len(), 1, |i, _| v[i]);
-                solve_llt(l, &mut t);
-                for (i, vi) in v.iter_mut().enumerate() {
-                    *vi = t[(i, 0)];
-                }
+                let n = v.len();
+                solve_llt(l, faer::MatMut::from_column_major_slice_mut(v, n, 1));
             }
         }
     }
@@ -186,12 +183,12 @@ fn cholesky(mut c: Mat<f64>) -> Option<Mat<f64>> {
 }
 
 /// `t <- (L L^T)^-1 t` (sequential).
-fn solve_llt(l: &Mat<f64>, t: &mut Mat<f64>) {
+fn solve_llt(l: &Mat<f64>, t: faer::MatMut<'_, f64>) {
     let (k, cols) = (l.nrows(), t.ncols());
     solve::solve_in_place_with_conj(
         l.as_ref(),
         Conj::No,
-        t.as_mut(),
+        t,
         Par::Seq,
         MemStack::new(&mut MemBuffer::new(solve::solve_in_place_scratch::<f64>(
             k,

@@ -676,16 +676,13 @@ impl Multipliers {
         // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T W G) x - b~,
         // at mu = mu_k here and at mu_{k+1} after the update.
         let lagrangian_before = 0.5 * (dot(x, g) - dot(x, &self.b_tilde));
+        self.wgx.copy_from_slice(&self.gx);
         let penalty = match setup.hessian.metric.borrow().as_ref() {
             Some(w) => {
-                self.wgx.copy_from_slice(&self.gx);
                 w.apply(&mut self.wgx);
                 dot(&self.gx, &self.wgx)
             }
-            None => {
-                self.wgx.copy_from_slice(&self.gx);
-                feasibility * feasibility
-            }
+            None => feasibility * feasibility,
         };
         problem.g.apply_t(&self.wgx, &mut self.gtgx);
         axpy(rho, &self.wgx, &mut self.mu);
