@@ -11,11 +11,12 @@
 
 use super::lock;
 use super::sparse::{
-    llt_forward_rows, llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower,
-    solve_scratch, SymbolicCache, UpperCsc,
+    llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower, solve_scratch,
+    SymbolicCache, UpperCsc,
 };
 use faer::dyn_stack::MemBuffer;
-use faer::sparse::linalg::cholesky::SymbolicCholesky;
+use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
+use faer::sparse::linalg::cholesky::{SymbolicCholesky, SymbolicCholeskyRaw};
 use faer::sparse::linalg::matmul::sparse_dense_matmul;
 use faer::sparse::{SparseColMat, SparseColMatRef, Triplet};
 use faer::{Accum, Mat, MatMut, MatRef, Par, Side};
@@ -82,7 +83,7 @@ impl Schur {
         kernel: &[f64],
         kdim: usize,
         form: SchurForm,
-        symbolic: &SymbolicCache,
+        cache: &SymbolicCache,
     ) -> Result<Schur, String> {
         let n = k.n;
         let nb = boundary.len();
@@ -115,42 +116,29 @@ impl Schur {
             return Ok(Schur(Held::Dense(dense_upper(&k_bb))));
         }
         let a = SparseColMatRef::new(k_ii.symbolic(), &k_ii.values);
-        let symbolic = symbolic.amd(a.symbolic())?;
-        let rhs_cols = if form == SchurForm::Implicit { 1 } else { nb };
-        let (l_values, buf) = llt_numeric(&symbolic, a, rhs_cols)
-            .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
-        let implicit_reads = 2 * l_values.len() + 2 * k_ib.compute_nnz() + k_bb.values.len();
+        let symbolic = cache.amd(a.symbolic())?;
+        let implicit_reads = 2 * symbolic.len_val() + 2 * k_ib.compute_nnz() + k_bb.values.len();
         let dense = match form {
             SchurForm::Dense | SchurForm::PreferDense => true,
             SchurForm::Implicit => false,
             SchurForm::Auto => nb * nb <= implicit_reads,
         };
-        if !dense {
-            return Ok(Schur(Held::Implicit(Box::new(Implicit {
-                k_bb,
-                k_ib,
-                symbolic,
-                l_values,
-                work: Mutex::new(Work {
-                    buf,
-                    interior: vec![0.0; ni],
-                }),
-            }))));
+        if dense {
+            return dense_by_factor(k, boundary, excluded, &in_i, &symbolic, cache)
+                .map(|s| Schur(Held::Dense(s)));
         }
-        // S = K_bb - Y^T Y with Y = L^-1 P K_ib (K_ii = P^T L L^T P): one
-        // forward solve on all nb columns, row-major for its kernel.
-        let mut y = vec![0.0; ni * nb];
-        let inv = symbolic.perm().map(|p| p.arrays().1);
-        for (i, j, v) in triplets.iter().map(|t| (t.row, t.col, t.val)) {
-            y[inv.map_or(i, |inv| inv[i]) * nb + j] += v;
-        }
-        let mut buf = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(nb, Par::Seq));
-        llt_forward_rows(&symbolic, &l_values, &mut y, nb, &mut buf);
-        let y = MatRef::from_row_major_slice(&y, ni, nb);
-        let mut s = dense_upper(&k_bb);
-        lower_gram(s.as_mut(), Accum::Add, y, -1.0);
-        mirror_lower(&mut s);
-        Ok(Schur(Held::Dense(s)))
+        let (l_values, buf) = llt_numeric(&symbolic, a, 1)
+            .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
+        Ok(Schur(Held::Implicit(Box::new(Implicit {
+            k_bb,
+            k_ib,
+            symbolic,
+            l_values,
+            work: Mutex::new(Work {
+                buf,
+                interior: vec![0.0; ni],
+            }),
+        }))))
     }
 
     /// Size of `b`.
@@ -255,6 +243,101 @@ impl Schur {
             }
         }
     }
+}
+
+/// `S` dense from one Cholesky factorization of `K` (without `excluded`)
+/// ordered interior first (AMD's order of `K_ii`, `interior`) and `b` last
+/// (in `boundary`'s order), with `alpha` added on `b`'s diagonal: the
+/// factor's last `nb` columns hold `L_bb` with `L_bb L_bb^T = S + alpha I`,
+/// the Schur complement a multifrontal factorization forms. The interior's
+/// updates reach `b` only through the supernodes whose rows touch it, so this
+/// costs about one factorization and the dense `nb x nb` block, where
+/// `Y = L_ii^-1 K_ib` formed densely and `Y^T Y` cost `ni nb^2` flops
+/// (BENCHMARKS.md, "Which preconditioner"). `alpha`, the largest diagonal
+/// entry of `K_bb`, makes the factor exist where `S` is singular (a floating
+/// subdomain: `K_ii` SPD is enough); taking it off again costs `eps alpha`,
+/// the rounding of `S`'s largest entries.
+fn dense_by_factor(
+    k: &UpperCsc,
+    boundary: &[usize],
+    excluded: &[usize],
+    in_i: &[usize],
+    interior: &SymbolicCholesky<usize>,
+    cache: &SymbolicCache,
+) -> Result<Mat<f64>, String> {
+    let (n, nb) = (k.n, boundary.len());
+    // The reduced numbering (without `excluded`), monotone so the upper
+    // triangle stays upper.
+    let mut kept = vec![usize::MAX; n];
+    let mut m = 0;
+    for (d, slot) in kept.iter_mut().enumerate() {
+        if excluded.binary_search(&d).is_err() {
+            *slot = m;
+            m += 1;
+        }
+    }
+    let mut a = if excluded.is_empty() {
+        k.clone()
+    } else {
+        k.without(&kept, m)
+    };
+    let ni = m - nb;
+    let mut interior_dofs = vec![0; ni];
+    for (d, &i) in in_i.iter().enumerate() {
+        if i != usize::MAX {
+            interior_dofs[i] = kept[d];
+        }
+    }
+    let mut order: Vec<usize> = match interior.perm() {
+        Some(p) => p.arrays().0.iter().map(|&i| interior_dofs[i]).collect(),
+        None => interior_dofs,
+    };
+    order.extend(boundary.iter().map(|&d| kept[d]));
+    let alpha = boundary
+        .iter()
+        .filter_map(|&d| a.find(kept[d], kept[d]).map(|p| a.values[p]))
+        .fold(0.0_f64, f64::max)
+        .max(f64::MIN_POSITIVE);
+    for &d in boundary {
+        let p = a
+            .find(kept[d], kept[d])
+            .ok_or_else(|| format!("K has no diagonal entry at dof {d}"))?;
+        a.values[p] += alpha;
+    }
+    let symbolic = cache.ordered_supernodal(a.symbolic(), &order)?;
+    let view = SparseColMatRef::new(a.symbolic(), &a.values);
+    let (l_values, _) = llt_numeric(&symbolic, view, 1)
+        .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
+    let SymbolicCholeskyRaw::Supernodal(sn) = symbolic.raw() else {
+        return Err("the ordered factorization is not supernodal".into());
+    };
+    // L_bb: the lower triangle of the factor's last nb rows and columns.
+    let mut l_bb = Mat::<f64>::zeros(nb, nb);
+    let factor = SupernodalLltRef::new(sn, &l_values);
+    for s in (0..sn.n_supernodes()).rev() {
+        let node = factor.supernode(s);
+        let (start, pattern, v) = (node.start(), node.pattern(), node.val());
+        let width = v.ncols();
+        if start + width <= ni {
+            break;
+        }
+        for j in start.max(ni) - start..width {
+            let c = start + j - ni;
+            for r in j..width {
+                l_bb[(start + r - ni, c)] = v[(r, j)];
+            }
+            for (q, &row) in pattern.iter().enumerate() {
+                l_bb[(row - ni, c)] = v[(width + q, j)];
+            }
+        }
+    }
+    let mut s = Mat::<f64>::zeros(nb, nb);
+    lower_gram(s.as_mut(), Accum::Replace, l_bb.transpose(), 1.0);
+    for i in 0..nb {
+        s[(i, i)] -= alpha;
+    }
+    mirror_lower(&mut s);
+    Ok(s)
 }
 
 /// The dense symmetric matrix of an upper triangle.

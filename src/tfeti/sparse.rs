@@ -12,7 +12,7 @@ use faer::sparse::linalg::cholesky::{
     SymbolicCholeskyRaw, SymmetricOrdering,
 };
 use faer::sparse::linalg::triangular_solve::solve_lower_triangular_in_place;
-use faer::sparse::linalg::LltError;
+use faer::sparse::linalg::{LltError, SupernodalThreshold};
 use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
 use faer::{Accum, Conj, Mat, MatMut, MatRef, Par, Side};
 use std::sync::{Arc, Mutex};
@@ -451,6 +451,9 @@ impl FactorShape {
 #[derive(Default)]
 pub struct SymbolicCache {
     entries: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
+    /// [`SymbolicCache::ordered_supernodal`]'s analyses (another kind, on
+    /// their own so that a key never meets the other's).
+    ordered: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
 }
 
 /// What a symbolic analysis is computed from.
@@ -508,6 +511,54 @@ impl SymbolicCache {
         }
         let s = Arc::new(symbolic_amd(a)?);
         self.insert(&key, &s);
+        Ok(s)
+    }
+
+    /// The supernodal symbolic factorization of `a` in exactly the order
+    /// `order` (`order[i]`: the row placed `i`-th), shared by every matrix of
+    /// the same pattern and order ([`super::schur`]'s dense `S`: `b` last).
+    pub fn ordered_supernodal(
+        &self,
+        a: SymbolicSparseColMatRef<'_, usize>,
+        order: &[usize],
+    ) -> Result<Arc<SymbolicCholesky<usize>>, String> {
+        let key = SymbolicKey {
+            col_ptr: a.col_ptr(),
+            row_idx: a.row_idx(),
+            order: Some(order),
+        };
+        let mut entries = lock(&self.ordered);
+        if let Some((_, s)) = entries.iter().find(|(k, _)| key.matches(k)) {
+            return Ok(s.clone());
+        }
+        let n = a.nrows();
+        let mut inverse = vec![usize::MAX; n];
+        for (i, &o) in order.iter().enumerate() {
+            match inverse.get_mut(o) {
+                Some(slot) if *slot == usize::MAX => *slot = i,
+                _ => return Err(format!("not a permutation of 0..{n}")),
+            }
+        }
+        if order.len() != n {
+            return Err(format!("an order of {} for {n} rows", order.len()));
+        }
+        let perm = faer::perm::PermRef::new_checked(order, &inverse, n);
+        let params = CholeskySymbolicParams {
+            supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
+            ..Default::default()
+        };
+        let s = Arc::new(
+            factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Custom(perm), params)
+                .map_err(|e| format!("symbolic factorization failed: {e:?}"))?,
+        );
+        entries.push((
+            (
+                a.col_ptr().to_vec(),
+                a.row_idx().to_vec(),
+                Some(order.to_vec()),
+            ),
+            s.clone(),
+        ));
         Ok(s)
     }
 }

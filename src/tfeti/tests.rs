@@ -767,3 +767,54 @@ fn the_augmented_dual_hessian_has_norm_max_of_one_and_rho() {
         );
     }
 }
+
+/// The dense Schur complement (one factorization with the touched dofs
+/// ordered last) is the implicit one (`K_bb x - K_bi K_ii^-1 K_ib x`) on a
+/// subdomain large enough for several supernodes on its perimeter: floating
+/// (TFETI, `S` singular: formed through the shift on `b`'s diagonal) and
+/// with held dofs removed (classical FETI).
+#[test]
+fn the_dense_schur_complement_by_one_ordered_factorization_is_the_implicit_one() {
+    let g = grid(14, 10, 0.1);
+    let mesh = Geometry::of(&g);
+    // The bottom row's inner nodes, off the touched perimeter.
+    let held: Vec<usize> = (6..16).collect();
+    let subs = [
+        Subdomain::total(&mesh).expect("factorizes"),
+        Subdomain::classical(&mesh, &held, 1e-10).expect("factorizes"),
+    ];
+    let (nx, ny) = (15, 11);
+    let perimeter: Vec<usize> = (0..nx * ny)
+        .filter(|&n| n % nx == 0 || n % nx == nx - 1 || n / nx == ny - 1)
+        .flat_map(|n| [2 * n, 2 * n + 1])
+        .collect();
+    let mut n_checked = 0;
+    for (k, sub) in subs.iter().enumerate() {
+        let cache = SymbolicCache::default();
+        let dense = sub
+            .schur(&perimeter, SchurForm::Dense, &cache)
+            .expect("regular");
+        let implicit = sub
+            .schur(&perimeter, SchurForm::Implicit, &cache)
+            .expect("regular");
+        assert!(dense.is_dense() && !implicit.is_dense());
+        let nb = perimeter.len();
+        for seed in 0..3 {
+            let x = rand_vec(nb, 90 + seed);
+            let (mut yd, mut yi) = (vec![0.0; nb], vec![0.0; nb]);
+            dense.apply(&x, &mut yd);
+            implicit.apply(&x, &mut yi);
+            let scale = yi.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+            let diff = yd
+                .iter()
+                .zip(&yi)
+                .fold(0.0f64, |a, (p, q)| a.max((p - q).abs()));
+            assert!(
+                scale > 0.0 && diff <= 1e-10 * scale,
+                "subdomain {k}: {diff:e} of {scale:e}"
+            );
+            n_checked += 1;
+        }
+    }
+    assert_eq!(n_checked, 6);
+}
