@@ -67,6 +67,8 @@ pub struct State {
     /// Symbolic and numeric factorizations, and subdomains reused whole from a
     /// previous state.
     pub factorizations: Factorizations,
+    /// The dual preconditioner of the state solve.
+    pub preconditioner: PreconditionerChoice,
     /// Whether the dual solve started from a previous state's multipliers.
     pub warm_started: bool,
     /// Whether the state is the solution on a predicted active set (a warm
@@ -888,14 +890,55 @@ pub fn operator_sizes(scene: &Scene, design: &[f64]) -> Result<OperatorSizes, So
     })
 }
 
-/// The scene's dual preconditioner, as the solver names it.
+/// The scene's dual preconditioner where it names one (`auto` and `none`:
+/// None; the state solve resolves `auto` with [`PreconditionerChoice::of`],
+/// the sensitivity solves take their own default).
 pub fn preconditioner(scene: &Scene) -> Option<crate::tfeti::precond::Kind> {
     use crate::lang::scene::Preconditioner;
     use crate::tfeti::precond::Kind;
     match scene.solver.preconditioner {
-        Preconditioner::None => None,
+        Preconditioner::Auto | Preconditioner::None => None,
         Preconditioner::Lumped => Some(Kind::Lumped),
         Preconditioner::Dirichlet => Some(Kind::Dirichlet),
+    }
+}
+
+/// The dual preconditioner a state solve took, and whether `auto` chose it
+/// (with what it weighed).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct PreconditionerChoice {
+    pub kind: Option<crate::tfeti::precond::Kind>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub auto: Option<crate::tfeti::precond_choice::Estimate>,
+}
+
+impl PreconditionerChoice {
+    /// The scene's preconditioner on `cluster`: `auto` resolved
+    /// (collectively, on a distributed cluster).
+    pub fn of(scene: &Scene, cluster: &crate::tfeti::cluster::Cluster) -> PreconditionerChoice {
+        match scene.solver.preconditioner {
+            crate::lang::scene::Preconditioner::Auto => {
+                let (kind, estimate) = crate::tfeti::precond_choice::choose(cluster);
+                PreconditionerChoice {
+                    kind,
+                    auto: Some(estimate),
+                }
+            }
+            _ => PreconditionerChoice {
+                kind: preconditioner(scene),
+                auto: None,
+            },
+        }
+    }
+
+    /// `none`, `lumped` or `dirichlet`.
+    pub fn name(&self) -> &'static str {
+        use crate::tfeti::precond::Kind;
+        match self.kind {
+            None => "none",
+            Some(Kind::Lumped) => "lumped",
+            Some(Kind::Dirichlet) => "dirichlet",
+        }
     }
 }
 
@@ -1230,6 +1273,7 @@ struct Operators {
     all_rows: Option<Dual>,
     elimination: Option<Arc<Elimination>>,
     factorizations: Factorizations,
+    precond: PreconditionerChoice,
 }
 
 impl Operators {
@@ -1241,7 +1285,8 @@ impl Operators {
         } else {
             setup.dual_system()?
         };
-        system.set_preconditioner(preconditioner(scene), setup.problem.n_equality);
+        let precond = PreconditionerChoice::of(scene, &setup.cluster);
+        system.set_preconditioner(precond.kind, setup.problem.n_equality);
         let Setup {
             problem,
             cluster,
@@ -1267,6 +1312,7 @@ impl Operators {
             all_rows,
             elimination,
             factorizations,
+            precond,
         })
     }
 
@@ -1379,6 +1425,7 @@ impl Operators {
             f_applications,
             b_norm,
             factorizations: self.factorizations,
+            preconditioner: self.precond,
             warm_started,
             on_active_set: kept_dual.is_some(),
             kept_dual,

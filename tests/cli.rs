@@ -864,7 +864,11 @@ fn smalbe_settings_are_chosen_on_the_command_line_one_row_each() {
 
 #[test]
 fn dense_local_f_is_chosen_on_the_command_line_and_changes_no_count() {
-    let (code, out, err) = bench_scaling("4", "4x2", &["--local-f", "implicit,explicit"]);
+    let (code, out, err) = bench_scaling(
+        "4",
+        "4x2",
+        &["--local-f", "implicit,explicit", "--preconditioner", "none"],
+    );
     assert_eq!(code, 0, "{err}");
     // The 4x2 cut's two rows: same outer/inner counts, steps by kind and
     // Hessian applications, every subdomain dense in the second.

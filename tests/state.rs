@@ -425,3 +425,45 @@ displace punch.top { ux = 0, uy = 0, uz = -0.05 }
         "a rigid motion stores no energy"
     );
 }
+
+/// `preconditioner = auto` (the default) takes Dirichlet on 2D subdomains
+/// whose `F_s` is applied by solves with the factor (H/h = 64 here), none
+/// where `F_s` is held dense (the examples), and either way the answer is
+/// the one without a preconditioner, to the tolerance.
+#[test]
+fn auto_takes_dirichlet_only_where_f_is_applied_by_factor_solves() {
+    use cso::lang::scene::Preconditioner;
+    use cso::tfeti::precond::Kind;
+    let src = "scene large { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+body block { material = soft, x = 0 .. 2, y = 0 .. 1, bottom = 0.05 * (x - 1)^2,
+  mesh = 128 x 64, subdomains = 2 x 1 }
+obstacle floor { point = (0, 0), normal = (0, 1) }
+symmetry block.left
+traction block.top = (0, -5)
+contact seat { primary = floor, secondary = block.bottom }
+";
+    let mut s = scene(src);
+    assert_eq!(s.solver.preconditioner, Preconditioner::Auto);
+    let auto = solve(&s, &[], &mut |_| {}).expect("solves");
+    assert_eq!(auto.dual.cluster().local_f_stats().explicit, 0);
+    assert_eq!(auto.preconditioner.kind, Some(Kind::Dirichlet));
+    let estimate = auto.preconditioner.auto.expect("auto weighed");
+    assert!(estimate.schur < 0.5 * estimate.f, "{estimate:?}");
+    s.solver.preconditioner = Preconditioner::None;
+    let none = solve(&s, &[], &mut |_| {}).expect("solves");
+    assert_eq!(none.preconditioner.kind, None);
+    assert!(auto.converged() && none.converged());
+    assert!(
+        auto.info.hessian_applications < none.info.hessian_applications,
+        "{} against {}",
+        auto.info.hessian_applications,
+        none.info.hessian_applications
+    );
+    let (ea, en) = (auto.energy(), none.energy());
+    assert!((ea - en).abs() <= 1e-5 * en.abs(), "{ea} against {en}");
+    let small = example("two_blocks");
+    let state = solve(&small, &[], &mut |_| {}).expect("solves");
+    assert!(state.dual.cluster().local_f_stats().explicit > 0);
+    assert_eq!(state.preconditioner.kind, None);
+}

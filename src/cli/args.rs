@@ -338,7 +338,7 @@ pub struct Cuts3d {
 #[derive(Args, Debug)]
 pub struct Sweep {
     /// Dual preconditioners (repeatable, or comma-separated).
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::None])]
+    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [Preconditioner::Auto])]
     pub preconditioner: Vec<Preconditioner>,
     /// How each subdomain's part of F is applied (see `solver { local_f }`;
     /// repeatable, or comma-separated).

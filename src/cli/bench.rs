@@ -110,7 +110,7 @@ impl Default for Table {
             sides: Vec::new(),
             max_cuts: (1, 1),
             tolerance: 1e-6,
-            preconditioner: vec![Preconditioner::None],
+            preconditioner: vec![Preconditioner::Auto],
             local_f: vec![LocalF::Auto],
             smalbe: vec![SmalbeOverrides::default()],
             ordering: vec![Ordering::Dissection],

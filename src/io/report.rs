@@ -76,6 +76,8 @@ pub struct SolverReport {
     pub history: Vec<f64>,
     /// Solves repeated with a wider contact search (0: the first settled).
     pub search_rounds: usize,
+    /// The dual preconditioner solved with, and with `auto` what it weighed.
+    pub preconditioner: crate::state::PreconditionerChoice,
     /// With friction: the dual solves (Coulomb's fixed point: one per update
     /// of the slip bounds) and the bounds' relative change after each.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -237,6 +239,7 @@ impl Report {
             feasibility: state.info.feasibility / state.b_norm.max(f64::MIN_POSITIVE),
             history: state.info.history.clone(),
             search_rounds: state.search.rounds,
+            preconditioner: state.preconditioner,
             friction: state.friction.clone(),
         };
         let bodies = p
@@ -350,9 +353,14 @@ impl Report {
         }
         let v = &self.solver;
         let status = dual_status(&v.status, v.max_iterations);
+        let precond = match (&v.preconditioner.kind, &v.preconditioner.auto) {
+            (None, _) => String::new(),
+            (Some(_), None) => format!(", {} preconditioner", v.preconditioner.name()),
+            (Some(_), Some(_)) => format!(", {} preconditioner by auto", v.preconditioner.name()),
+        };
         let _ = writeln!(
             o,
-            "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {})",
+            "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {}{precond})",
             v.outer_iterations,
             v.inner_iterations,
             v.hessian_applications,

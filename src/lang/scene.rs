@@ -1078,11 +1078,16 @@ pub enum SolverMethod {
     Feti,
 }
 
-/// `solver { preconditioner }`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, ValueEnum)]
+/// `solver { preconditioner }`. `auto` (the default) takes Dirichlet where
+/// its dense Schur complements read little beside `F` and form fast (2D
+/// subdomains whose `F_s` is applied by solves, H/h from about 64), none
+/// elsewhere ([`crate::tfeti::precond_choice`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
 #[value(rename_all = "snake_case")]
 pub enum Preconditioner {
+    #[default]
+    Auto,
     None,
     Lumped,
     Dirichlet,
@@ -1124,7 +1129,7 @@ pub struct SolverSettings {
     pub tolerance: f64,
     /// Cap on Hessian applications of the whole solve; default 2000.
     pub max_iterations: usize,
-    /// Dual preconditioner; default `none`.
+    /// Dual preconditioner; default `auto`.
     pub preconditioner: Preconditioner,
     /// Dense or implicit local `F_s`; default `auto`.
     pub local_f: LocalF,
@@ -1150,7 +1155,7 @@ impl Default for SolverSettings {
             method: SolverMethod::Tfeti,
             tolerance: 1e-6,
             max_iterations: 2000,
-            preconditioner: Preconditioner::None,
+            preconditioner: Preconditioner::Auto,
             local_f: LocalF::Auto,
             eps: 1e-10,
             smalbe: crate::qp::SmalbeOverrides::default(),

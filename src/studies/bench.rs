@@ -212,6 +212,8 @@ pub struct ScalingRow {
     pub kkt: f64,
     pub converged: bool,
     pub preconditioner: Preconditioner,
+    /// The preconditioner solved with (`auto` resolved).
+    pub resolved: &'static str,
     pub local_f: LocalF,
     /// SMALBE's parameters overridden (`--smalbe`).
     pub smalbe: SmalbeOverrides,
@@ -278,6 +280,7 @@ fn row_of(
         kkt: state.kkt.worst(),
         converged: state.converged(),
         preconditioner: scene.solver.preconditioner,
+        resolved: state.preconditioner.name(),
         local_f: scene.solver.local_f,
         smalbe: scene.solver.smalbe,
         explicit: state.dual.cluster().local_f_stats().explicit,

@@ -10,6 +10,7 @@ use super::sensitivity::{Study, StudyRun};
 use super::stability::Sweep;
 use crate::io::atomic::Files;
 use crate::io::provenance::{self, Header};
+use crate::lang::scene::Preconditioner;
 use crate::lang::Scene;
 use std::fmt::Write as _;
 
@@ -72,7 +73,10 @@ pub fn scaling_cells(r: &ScalingRow) -> String {
         r.peak_memory
             .map_or("?".to_string(), |m| format!("{:.0}", m as f64 / 1e6)),
         r.kkt,
-        format!("{:?}", r.preconditioner).to_lowercase(),
+        match r.preconditioner {
+            Preconditioner::Auto => format!("auto: {}", r.resolved),
+            p => format!("{p:?}").to_lowercase(),
+        },
         r.local_f.name(),
         r.explicit,
         r.subdomains,

@@ -239,6 +239,7 @@ pub fn config(method: SolverMethod, p: Preconditioner) -> String {
         SolverMethod::Feti => "FETI",
     };
     let p = match p {
+        Preconditioner::Auto => "auto",
         Preconditioner::None => "none",
         Preconditioner::Lumped => "lumped",
         Preconditioner::Dirichlet => "dirichlet",

@@ -20,6 +20,7 @@ use super::local_f::{budget, dense_bytes, wants_explicit, LocalF, LocalFStats};
 use super::lock;
 use super::rows::LocalRows;
 use super::settings::CoarseForm;
+use super::sparse::FactorShape;
 use super::subdomain::Subdomain;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
@@ -372,6 +373,27 @@ impl Cluster {
             .flatten()
             .map(|f| dense_bytes(f.nrows()))
             .sum()
+    }
+
+    /// Per owned subdomain, what one application of its `F_s` and of a
+    /// dense Schur complement on its rows' dofs cost: (local rows, dofs the
+    /// rows touch, factor shape, whether `F_s` is held dense).
+    pub fn application_shapes(&self) -> Vec<(usize, usize, FactorShape, bool)> {
+        (0..self.subs.len())
+            .map(|i| {
+                let lr = &self.local[self.first + i];
+                let mut dofs: Vec<usize> = lr.entries.iter().map(|e| e.1).collect();
+                dofs.sort_unstable();
+                dofs.dedup();
+                let dense = self.explicit[i].is_some();
+                (
+                    lr.rows.len(),
+                    dofs.len(),
+                    self.subs[i].factor_shape(),
+                    dense,
+                )
+            })
+            .collect()
     }
 
     /// The communicator of the ranks that share the subdomains.

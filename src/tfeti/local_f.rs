@@ -76,6 +76,33 @@ pub fn saved_seconds(rows: usize, shape: &FactorShape) -> f64 {
     shape.solve_bytes() as f64 / rate - dense_bytes(rows) as f64 / DENSE_BYTES
 }
 
+/// Seconds of one application of a subdomain's part of `F`: the dense
+/// `F_s` of `rows` rows where it is held, else the solves with the factor.
+pub fn application_seconds(rows: usize, shape: &FactorShape, dense: bool) -> f64 {
+    if dense {
+        dense_seconds(rows)
+    } else {
+        let rate = if shape.supernodal {
+            SUPERNODAL_BYTES
+        } else {
+            SIMPLICIAL_BYTES
+        };
+        shape.solve_bytes() as f64 / rate
+    }
+}
+
+/// Seconds of one product with a dense symmetric `n x n` block.
+pub fn dense_seconds(n: usize) -> f64 {
+    dense_bytes(n) as f64 / DENSE_BYTES
+}
+
+/// Seconds to factor a dense `n x n` block and multiply its factor by its
+/// transpose (`n^3 / 3` multiply-adds each), at the dense product's rate.
+pub fn dense_factor_seconds(n: usize) -> f64 {
+    let n = n as f64;
+    4.0 / 3.0 * n * n * n / GEMM_FLOPS
+}
+
 /// Whether a subdomain with `rows` local rows and a factor of `shape` holds
 /// `F_s` dense under `choice` (memory aside). `Auto`: where an application
 /// reads less and forming pays for itself within [`PAYBACK`] applications

@@ -27,6 +27,7 @@ pub mod local_f;
 pub mod mpi;
 pub mod ordering;
 pub mod precond;
+pub mod precond_choice;
 pub mod reconstruct;
 pub mod rows;
 pub mod schur;

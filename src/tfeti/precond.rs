@@ -341,16 +341,15 @@ impl DualPreconditioner {
             .collect();
         // Dense S_s under the memory rule of the dense local F (and within
         // what those leave of the budget): beyond it, implicit. Forming one
-        // takes an interior-by-touched work block besides (`L^-1 K_ib`),
-        // freed after: it must fit too.
+        // takes a factor of `K_s` whose last block is dense and a copy of
+        // that block besides (`schur::dense_by_factor`), freed after: they
+        // must fit too.
         let (cap, mut held) = (budget(), cluster.local_f_held());
         let forms: Vec<SchurForm> = boundaries
             .iter()
-            .zip(cluster.owned())
-            .map(|(b, s)| {
+            .map(|b| {
                 let bytes = dense_bytes(b.len());
-                let interior = cluster.dofs(s).saturating_sub(b.len());
-                let forming = interior * b.len() * std::mem::size_of::<f64>();
+                let forming = 2 * bytes;
                 if kind != Kind::Dirichlet
                     || !matches!(form, SchurForm::Auto | SchurForm::PreferDense)
                 {
