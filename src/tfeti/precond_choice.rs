@@ -17,6 +17,14 @@
 //! scenes and raised them by up to 1.8x on others, with nothing known before
 //! the solve that tells which.
 //!
+//! What the estimate leaves out, measured: the set-up's sparse factorization
+//! of `K_s` (about 30 ns per factor value, 5-7 applications of `F_s`), and
+//! that the applications of a solve grow with the decomposition. So the rule
+//! takes Dirichlet where two subdomains at H/h = 64 do not repay it
+//! (`roller64_1` of `bench/families.py`: 0.089 s against 0.082 s), and keeps
+//! it where eight to thirty-six do (0.75-0.85x); a set-up term with a fixed
+//! count of applications would lose those to save this one.
+//!
 //! The estimate is summed in whole nanoseconds over the subdomains of every
 //! rank (an exact integer all-reduce), so every rank decides alike.
 

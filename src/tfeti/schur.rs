@@ -11,8 +11,8 @@
 
 use super::lock;
 use super::sparse::{
-    llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower, solve_scratch,
-    SymbolicCache, UpperCsc,
+    llt_forward_rows, llt_numeric, llt_solve, llt_solve_block, lower_gram, mirror_lower,
+    solve_scratch, SymbolicCache, UpperCsc,
 };
 use faer::dyn_stack::MemBuffer;
 use faer::sparse::linalg::cholesky::supernodal::SupernodalLltRef;
@@ -123,6 +123,15 @@ impl Schur {
             SchurForm::Implicit => false,
             SchurForm::Auto => nb * nb <= implicit_reads,
         };
+        // The Gram form costs `ni nb^2 / 2` multiply-adds, the ordered
+        // factor `2 nb^3 / 3` and a second sparse analysis and factorization:
+        // the former where the interior is no larger than the touched dofs
+        // (3D subdomains of a few hundred dofs, where the factor path cost
+        // `cso bench sensitivity3d` 2-10 % more).
+        if dense && ni <= nb {
+            return dense_by_gram(&k_bb, &triplets, a, &symbolic, nb)
+                .map(|s| Schur(Held::Dense(s)));
+        }
         if dense {
             return dense_by_factor(k, boundary, excluded, &in_i, &symbolic, cache)
                 .map(|s| Schur(Held::Dense(s)));
@@ -243,6 +252,33 @@ impl Schur {
             }
         }
     }
+}
+
+/// `S = K_bb - Y^T Y` with `Y = L^-1 P K_ib` (`K_ii = P^T L L^T P`): one
+/// forward solve on all `nb` columns, row-major for its kernel, and a dense
+/// Gram product of `ni nb^2` multiply-adds.
+fn dense_by_gram(
+    k_bb: &UpperCsc,
+    k_ib: &[Triplet<usize, usize, f64>],
+    k_ii: SparseColMatRef<'_, usize, f64>,
+    symbolic: &SymbolicCholesky<usize>,
+    nb: usize,
+) -> Result<Mat<f64>, String> {
+    let ni = k_ii.nrows();
+    let (l_values, _) = llt_numeric(symbolic, k_ii, 1)
+        .map_err(|e| format!("K_ii is not positive definite: {e:?}"))?;
+    let mut y = vec![0.0; ni * nb];
+    let inv = symbolic.perm().map(|p| p.arrays().1);
+    for (i, j, v) in k_ib.iter().map(|t| (t.row, t.col, t.val)) {
+        y[inv.map_or(i, |inv| inv[i]) * nb + j] += v;
+    }
+    let mut buf = MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(nb, Par::Seq));
+    llt_forward_rows(symbolic, &l_values, &mut y, nb, &mut buf);
+    let y = MatRef::from_row_major_slice(&y, ni, nb);
+    let mut s = dense_upper(k_bb);
+    lower_gram(s.as_mut(), Accum::Add, y, -1.0);
+    mirror_lower(&mut s);
+    Ok(s)
 }
 
 /// `S` dense from one Cholesky factorization of `K` (without `excluded`)

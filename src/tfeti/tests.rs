@@ -772,7 +772,8 @@ fn the_augmented_dual_hessian_has_norm_max_of_one_and_rho() {
 /// ordered last) is the implicit one (`K_bb x - K_bi K_ii^-1 K_ib x`) on a
 /// subdomain large enough for several supernodes on its perimeter: floating
 /// (TFETI, `S` singular: formed through the shift on `b`'s diagonal) and
-/// with held dofs removed (classical FETI).
+/// with held dofs removed (classical FETI); and the Gram form
+/// (`K_bb - Y^T Y`) where the interior is the smaller.
 #[test]
 fn the_dense_schur_complement_by_one_ordered_factorization_is_the_implicit_one() {
     let g = grid(14, 10, 0.1);
@@ -788,8 +789,20 @@ fn the_dense_schur_complement_by_one_ordered_factorization_is_the_implicit_one()
         .filter(|&n| n % nx == 0 || n % nx == nx - 1 || n / nx == ny - 1)
         .flat_map(|n| [2 * n, 2 * n + 1])
         .collect();
+    // Everything but a 7 x 5 block of inner nodes and the held dofs: an
+    // interior smaller than the touched dofs takes the Gram form.
+    let most: Vec<usize> = (0..nx * ny)
+        .filter(|&n| !(4..=10).contains(&(n % nx)) || !(3..=7).contains(&(n / nx)))
+        .flat_map(|n| [2 * n, 2 * n + 1])
+        .filter(|d| !held.contains(d))
+        .collect();
     let mut n_checked = 0;
-    for (k, sub) in subs.iter().enumerate() {
+    for (k, (sub, touched)) in subs
+        .iter()
+        .flat_map(|s| [(s, &perimeter), (s, &most)])
+        .enumerate()
+    {
+        let perimeter = touched;
         let cache = SymbolicCache::default();
         let dense = sub
             .schur(&perimeter, SchurForm::Dense, &cache)
@@ -816,5 +829,5 @@ fn the_dense_schur_complement_by_one_ordered_factorization_is_the_implicit_one()
             n_checked += 1;
         }
     }
-    assert_eq!(n_checked, 6);
+    assert_eq!(n_checked, 12);
 }
