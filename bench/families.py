@@ -1,30 +1,30 @@
 #!/usr/bin/env python3
 """Contact families for issue 41 (BENCHMARKS.md, "Why the outer loop grows"):
 writes roller{1,2,4,8,16}.cso, stack{1,2,4,8}.cso and ball{1,2,3,4}.cso into
-OUT and, with --run CSO, solves each with `--smalbe metric=off` and `on` and
+OUT (and the 2D two at H/h = 64: roller64_{1,2,4}, stack64_{1,2}) and, with --run CSO, solves each with `--smalbe metric=off` and `on` and
 prints subdomains, outer iterations, Hessian applications and solve seconds.
 
     python3 bench/families.py /tmp/fam --run target/release/cso
 """
 import json, subprocess, sys, os
-def roller(k):  # 2D: roller on a floor, traction, symmetry; cut k x 2k, H/h = 16
+def roller(k, hh=16):  # 2D: roller on a floor, traction, symmetry; cut k x 2k, H/h = 16
     return f"""scene roller{k} {{ dim = 2, thickness = 1 m }}
 let R = 50 mm
 material steel {{ E = 210 GPa, nu = 0.3 }}
 body roller {{ material = steel, x = 0 .. 10 mm, y = 0 .. 20 mm, bottom = R - sqrt(R^2 - x^2),
-  mesh = {16*k} x {32*k}, subdomains = {k} x {2*k} }}
+  mesh = {hh*k} x {2*hh*k}, subdomains = {k} x {2*k} }}
 obstacle floor {{ point = (0, 0), normal = (0, 1) }}
 symmetry roller.left
 traction roller.top = (0, -100 MPa)
 contact seat {{ primary = floor, secondary = roller.bottom }}
 solver {{ tolerance = 1e-6 }}
 """
-def stack(c):  # 2D: semicoercive punch on a base, traction; base 3c x 2c, punch c x 2c, H/h = 16
+def stack(c, hh=16):  # 2D: semicoercive punch on a base, traction; base 3c x 2c, punch c x 2c, H/h = 16
     return f"""scene stack{c} {{ dim = 2 }}
 material soft {{ E = 1000, nu = 0.3 }}
-body base {{ material = soft, x = 1.5 .. 3, y = 0 .. 1, mesh = {48*c} x {32*c}, subdomains = {3*c} x {2*c} }}
+body base {{ material = soft, x = 1.5 .. 3, y = 0 .. 1, mesh = {3*hh*c} x {2*hh*c}, subdomains = {3*c} x {2*c} }}
 body punch {{ material = soft, x = 1.5 .. 2, y = 1 .. 2, bottom = 1 + 0.02 * (2*x - 3)^2,
-  mesh = {16*c} x {32*c}, subdomains = {c} x {2*c} }}
+  mesh = {hh*c} x {2*hh*c}, subdomains = {c} x {2*c} }}
 fix base.bottom
 symmetry base.left
 symmetry punch.left
@@ -57,6 +57,12 @@ def main():
             path = os.path.join(out, f"{stem}{k}.cso")
             open(path, "w").write(make(k))
             names.append(path)
+    # The 2D families at H/h = 64 (issue 41, item 2: where `auto` takes
+    # Dirichlet): roller64_{1,2,4}.cso, stack64_{1,2}.cso.
+    for make, sizes, stem in ((roller, (1, 2, 4), "roller64_"), (stack, (1, 2), "stack64_")):
+        for k in sizes:
+            path = os.path.join(out, f"{stem}{k}.cso")
+            open(path, "w").write(make(k, 64))
     if "--run" not in sys.argv:
         return
     cso = sys.argv[sys.argv.index("--run") + 1]

@@ -802,16 +802,15 @@ fn the_dense_schur_complement_by_one_ordered_factorization_is_the_implicit_one()
         .flat_map(|s| [(s, &perimeter), (s, &most)])
         .enumerate()
     {
-        let perimeter = touched;
         let cache = SymbolicCache::default();
         let dense = sub
-            .schur(&perimeter, SchurForm::Dense, &cache)
+            .schur(touched, SchurForm::Dense, &cache)
             .expect("regular");
         let implicit = sub
-            .schur(&perimeter, SchurForm::Implicit, &cache)
+            .schur(touched, SchurForm::Implicit, &cache)
             .expect("regular");
         assert!(dense.is_dense() && !implicit.is_dense());
-        let nb = perimeter.len();
+        let nb = touched.len();
         for seed in 0..3 {
             let x = rand_vec(nb, 90 + seed);
             let (mut yd, mut yi) = (vec![0.0; nb], vec![0.0; nb]);
