@@ -1285,8 +1285,19 @@ impl Operators {
         } else {
             setup.dual_system()?
         };
-        let precond = PreconditionerChoice::of(scene, &setup.cluster);
-        system.set_preconditioner(precond.kind, setup.problem.n_equality);
+        // Weighed on the cluster the dual solves on (classical FETI: its
+        // reduced one, without the held rows); built on first use where the
+        // solve may not iterate (a warm start kept on its active set).
+        let precond = PreconditionerChoice::of(scene, system.dual().cluster());
+        if deferred {
+            system.defer_preconditioner(
+                precond.kind,
+                setup.problem.n_equality,
+                crate::tfeti::schur::SchurForm::Auto,
+            );
+        } else {
+            system.set_preconditioner(precond.kind, setup.problem.n_equality);
+        }
         let Setup {
             problem,
             cluster,

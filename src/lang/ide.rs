@@ -910,9 +910,9 @@ pub mod docs {
                 ),
                 f(
                     "preconditioner",
-                    "`none`, `lumped` or `dirichlet`",
+                    "`auto`, `none`, `lumped` or `dirichlet`",
                     "",
-                    Some("none"),
+                    Some("auto"),
                 ),
                 f(
                     "local_f",

@@ -343,13 +343,19 @@ impl DualPreconditioner {
         // what those leave of the budget): beyond it, implicit. Forming one
         // takes a factor of `K_s` whose last block is dense and a copy of
         // that block besides (`schur::dense_by_factor`), freed after: they
-        // must fit too.
+        // must fit too (counted once, though each thread forming at the same
+        // time holds one: a known slack, within the three quarters of memory
+        // the budget leaves).
         let (cap, mut held) = (budget(), cluster.local_f_held());
+        let factor_values = cluster.map(|_, sub| sub.factor_shape().values);
         let forms: Vec<SchurForm> = boundaries
             .iter()
-            .map(|b| {
+            .zip(&factor_values)
+            .map(|(b, &values)| {
                 let bytes = dense_bytes(b.len());
-                let forming = 2 * bytes;
+                // S and L_bb, and the ordered factor: about the subdomain's
+                // own plus the dense block's lower half.
+                let forming = 2 * bytes + bytes / 2 + values * std::mem::size_of::<f64>();
                 if kind != Kind::Dirichlet
                     || !matches!(form, SchurForm::Auto | SchurForm::PreferDense)
                 {

@@ -283,16 +283,16 @@ fn dense_by_gram(
 
 /// `S` dense from one Cholesky factorization of `K` (without `excluded`)
 /// ordered interior first (AMD's order of `K_ii`, `interior`) and `b` last
-/// (in `boundary`'s order), with `alpha` added on `b`'s diagonal: the
-/// factor's last `nb` columns hold `L_bb` with `L_bb L_bb^T = S + alpha I`,
-/// the Schur complement a multifrontal factorization forms. The interior's
+/// (in `boundary`'s order), with `D = diag(K_bb)` added on `b`'s diagonal:
+/// the factor's last `nb` columns hold `L_bb` with `L_bb L_bb^T = S + D`, the
+/// Schur complement a multifrontal factorization forms. The interior's
 /// updates reach `b` only through the supernodes whose rows touch it, so this
 /// costs about one factorization and the dense `nb x nb` block, where
 /// `Y = L_ii^-1 K_ib` formed densely and `Y^T Y` cost `ni nb^2` flops
-/// (BENCHMARKS.md, "Which preconditioner"). `alpha`, the largest diagonal
-/// entry of `K_bb`, makes the factor exist where `S` is singular (a floating
-/// subdomain: `K_ii` SPD is enough); taking it off again costs `eps alpha`,
-/// the rounding of `S`'s largest entries.
+/// (BENCHMARKS.md, "Which preconditioner"). The shift makes the factor exist
+/// where `S` is singular (a floating subdomain: `K_ii` SPD is enough, and
+/// `S + D >= D > 0`); taking it off again costs `eps D_jj` in row and column
+/// `j`, the rounding of `S`'s own diagonal there.
 fn dense_by_factor(
     k: &UpperCsc,
     boundary: &[usize],
@@ -302,6 +302,9 @@ fn dense_by_factor(
     cache: &SymbolicCache,
 ) -> Result<Mat<f64>, String> {
     let (n, nb) = (k.n, boundary.len());
+    if let Some(d) = boundary.iter().find(|d| excluded.binary_search(d).is_ok()) {
+        return Err(format!("dof {d} is both touched and held"));
+    }
     // The reduced numbering (without `excluded`), monotone so the upper
     // triangle stays upper.
     let mut kept = vec![usize::MAX; n];
@@ -329,16 +332,14 @@ fn dense_by_factor(
         None => interior_dofs,
     };
     order.extend(boundary.iter().map(|&d| kept[d]));
-    let alpha = boundary
-        .iter()
-        .filter_map(|&d| a.find(kept[d], kept[d]).map(|p| a.values[p]))
-        .fold(0.0_f64, f64::max)
-        .max(f64::MIN_POSITIVE);
+    let mut shift = Vec::with_capacity(nb);
     for &d in boundary {
         let p = a
             .find(kept[d], kept[d])
-            .ok_or_else(|| format!("K has no diagonal entry at dof {d}"))?;
-        a.values[p] += alpha;
+            .filter(|&p| a.values[p] > 0.0)
+            .ok_or_else(|| format!("K has no positive diagonal entry at dof {d}"))?;
+        shift.push(a.values[p]);
+        a.values[p] *= 2.0;
     }
     let symbolic = cache.ordered_supernodal(a.symbolic(), &order)?;
     let view = SparseColMatRef::new(a.symbolic(), &a.values);
@@ -367,10 +368,14 @@ fn dense_by_factor(
             }
         }
     }
+    // The factor and the shifted copy of K go before S is allocated: the
+    // memory budget counts S, L_bb and the factor, not more.
+    drop(l_values);
+    drop(a);
     let mut s = Mat::<f64>::zeros(nb, nb);
     lower_gram(s.as_mut(), Accum::Replace, l_bb.transpose(), 1.0);
-    for i in 0..nb {
-        s[(i, i)] -= alpha;
+    for (i, d) in shift.iter().enumerate() {
+        s[(i, i)] -= d;
     }
     mirror_lower(&mut s);
     Ok(s)

@@ -527,9 +527,12 @@ impl SymbolicCache {
             row_idx: a.row_idx(),
             order: Some(order),
         };
-        let mut entries = lock(&self.ordered);
-        if let Some((_, s)) = entries.iter().find(|(k, _)| key.matches(k)) {
-            return Ok(s.clone());
+        let found = lock(&self.ordered)
+            .iter()
+            .find(|(k, _)| key.matches(k))
+            .map(|(_, s)| s.clone());
+        if let Some(s) = found {
+            return Ok(s);
         }
         let n = a.nrows();
         let mut inverse = vec![usize::MAX; n];
@@ -551,14 +554,19 @@ impl SymbolicCache {
             factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Custom(perm), params)
                 .map_err(|e| format!("symbolic factorization failed: {e:?}"))?,
         );
-        entries.push((
-            (
-                a.col_ptr().to_vec(),
-                a.row_idx().to_vec(),
-                Some(order.to_vec()),
-            ),
-            s.clone(),
-        ));
+        // Analysed without the lock (subdomains of other patterns analyse
+        // at the same time); a twin analysed meanwhile is the same result.
+        let mut entries = lock(&self.ordered);
+        if !entries.iter().any(|(k, _)| key.matches(k)) {
+            entries.push((
+                (
+                    a.col_ptr().to_vec(),
+                    a.row_idx().to_vec(),
+                    Some(order.to_vec()),
+                ),
+                s.clone(),
+            ));
+        }
         Ok(s)
     }
 }
