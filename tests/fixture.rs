@@ -8,6 +8,19 @@ use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
 use cso::sens::{Gradient, GradientError, GradientOptions};
 
+/// A 2D block on a rigid floor cut into two subdomains at H/h = 64, whose
+/// `F_s` are applied by factor solves: where `preconditioner = auto` takes
+/// Dirichlet.
+pub const LARGE_2D: &str = "scene large { dim = 2 }
+material soft { E = 1000, nu = 0.3 }
+body block { material = soft, x = 0 .. 2, y = 0 .. 1, bottom = 0.05 * (x - 1)^2,
+  mesh = 128 x 64, subdomains = 2 x 1 }
+obstacle floor { point = (0, 0), normal = (0, 1) }
+symmetry block.left
+traction block.top = (0, -5)
+contact seat { primary = floor, secondary = block.bottom }
+";
+
 /// The text of `examples/NAME.cso`.
 pub fn example_src(name: &str) -> String {
     let path = root().join("examples").join(format!("{name}.cso"));

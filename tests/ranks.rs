@@ -74,16 +74,7 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
 /// the serial ones bit for bit.
 #[test]
 fn auto_decides_alike_on_every_rank() {
-    let src = "scene large { dim = 2 }
-material soft { E = 1000, nu = 0.3 }
-body block { material = soft, x = 0 .. 2, y = 0 .. 1, bottom = 0.05 * (x - 1)^2,
-  mesh = 128 x 64, subdomains = 2 x 1 }
-obstacle floor { point = (0, 0), normal = (0, 1) }
-symmetry block.left
-traction block.top = (0, -5)
-contact seat { primary = floor, secondary = block.bottom }
-";
-    let scene = compile(src, &options()).expect("checks");
+    let scene = compile(crate::fixture::LARGE_2D, &options()).expect("checks");
     let serial = outcome(&scene, None).expect("serial solve");
     assert_eq!(serial["solver"]["preconditioner"]["kind"], "dirichlet");
     for (r, got) in on_ranks(&scene, 2).into_iter().enumerate() {

@@ -434,16 +434,7 @@ displace punch.top { ux = 0, uy = 0, uz = -0.05 }
 fn auto_takes_dirichlet_only_where_f_is_applied_by_factor_solves() {
     use cso::lang::scene::Preconditioner;
     use cso::tfeti::precond::Kind;
-    let src = "scene large { dim = 2 }
-material soft { E = 1000, nu = 0.3 }
-body block { material = soft, x = 0 .. 2, y = 0 .. 1, bottom = 0.05 * (x - 1)^2,
-  mesh = 128 x 64, subdomains = 2 x 1 }
-obstacle floor { point = (0, 0), normal = (0, 1) }
-symmetry block.left
-traction block.top = (0, -5)
-contact seat { primary = floor, secondary = block.bottom }
-";
-    let mut s = scene(src);
+    let mut s = scene(crate::fixture::LARGE_2D);
     assert_eq!(s.solver.preconditioner, Preconditioner::Auto);
     let auto = solve(&s, &[], &mut |_| {}).expect("solves");
     assert_eq!(auto.dual.cluster().local_f_stats().explicit, 0);
