@@ -1274,6 +1274,8 @@ struct Operators {
     elimination: Option<Arc<Elimination>>,
     factorizations: Factorizations,
     precond: PreconditionerChoice,
+    /// The preconditioner of the solves on a predicted active set.
+    kept_precond: Option<crate::tfeti::precond::Kind>,
 }
 
 impl Operators {
@@ -1324,6 +1326,7 @@ impl Operators {
             elimination,
             factorizations,
             precond,
+            kept_precond: active_set::kept_preconditioner(scene),
         })
     }
 
@@ -1436,7 +1439,15 @@ impl Operators {
             f_applications,
             b_norm,
             factorizations: self.factorizations,
-            preconditioner: self.precond,
+            // A state kept on its predicted active set was solved there,
+            // with that path's preconditioner.
+            preconditioner: match kept_dual {
+                Some(_) => PreconditionerChoice {
+                    kind: self.kept_precond,
+                    auto: None,
+                },
+                None => self.precond,
+            },
             warm_started,
             on_active_set: kept_dual.is_some(),
             kept_dual,

@@ -426,6 +426,14 @@ fn a_state_on_the_previous_active_set_is_kept_only_as_the_contact_solution() {
         agree(&warm, &cold, what);
         if what == "a small step" {
             assert!(warm.on_active_set, "{what}: not kept");
+            // Solved on the active set with that path's preconditioner
+            // (Dirichlet where the scene asks for auto or none), and so
+            // reported; SMALBE's state reports auto's choice.
+            assert_eq!(
+                warm.preconditioner.kind,
+                Some(cso::tfeti::precond::Kind::Dirichlet)
+            );
+            assert_eq!(smalbe.preconditioner.kind, None);
             // Its sensitivities solve on the state's own dual and give the
             // gradients of the SMALBE state's (its own dual built), adjoint
             // and semi-analytic alike.

@@ -60,6 +60,13 @@ pub(super) enum Outcome {
     Refused(usize, usize),
 }
 
+/// The preconditioner of the equality-only solves on a predicted active
+/// set: the scene's where it names one, else Dirichlet (equalities only,
+/// where it cuts the iterations most).
+pub(crate) fn kept_preconditioner(scene: &Scene) -> Option<Kind> {
+    crate::state::preconditioner(scene).or(Some(Kind::Dirichlet))
+}
+
 /// Solves the state on the rows `problem` holds as equalities and the contact
 /// rows with a positive multiplier in `previous` (one per row of `problem`),
 /// correcting that set where the KKT conditions on every row of `dual` fail;
@@ -95,7 +102,7 @@ pub(super) fn solve(
     // The attempts together spend at most half the solve's budget of Hessian
     // applications, so that SMALBE keeps the rest where they fail.
     let budget = settings.max_hessian / 2;
-    let kind = crate::state::preconditioner(scene).or(Some(Kind::Dirichlet));
+    let kind = kept_preconditioner(scene);
     for _ in 0..ATTEMPTS {
         if hessian >= budget {
             break;
