@@ -381,19 +381,24 @@ impl Cluster {
     pub fn application_shapes(&self) -> Vec<(usize, usize, FactorShape, bool)> {
         (0..self.subs.len())
             .map(|i| {
-                let lr = &self.local[self.first + i];
-                let mut dofs: Vec<usize> = lr.entries.iter().map(|e| e.1).collect();
-                dofs.sort_unstable();
-                dofs.dedup();
+                let s = self.first + i;
                 let dense = self.explicit[i].is_some();
                 (
-                    lr.rows.len(),
-                    dofs.len(),
+                    self.local[s].rows.len(),
+                    self.touched_dofs(s).len(),
                     self.subs[i].factor_shape(),
                     dense,
                 )
             })
             .collect()
+    }
+
+    /// The dofs of subdomain `s` that its rows touch, sorted.
+    pub fn touched_dofs(&self, s: usize) -> Vec<usize> {
+        let mut dofs: Vec<usize> = self.local[s].entries.iter().map(|e| e.1).collect();
+        dofs.sort_unstable();
+        dofs.dedup();
+        dofs
     }
 
     /// The communicator of the ranks that share the subdomains.

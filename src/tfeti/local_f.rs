@@ -68,12 +68,7 @@ pub fn forming_seconds(rows: usize, shape: &FactorShape) -> f64 {
 
 /// Seconds one application saves with `F_s` dense (negative: it costs).
 pub fn saved_seconds(rows: usize, shape: &FactorShape) -> f64 {
-    let rate = if shape.supernodal {
-        SUPERNODAL_BYTES
-    } else {
-        SIMPLICIAL_BYTES
-    };
-    shape.solve_bytes() as f64 / rate - dense_bytes(rows) as f64 / DENSE_BYTES
+    application_seconds(rows, shape, false) - dense_seconds(rows)
 }
 
 /// Seconds of one application of a subdomain's part of `F`: the dense

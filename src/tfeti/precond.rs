@@ -330,15 +330,8 @@ impl DualPreconditioner {
     /// first `n_equality` rows.
     pub fn new(cluster: &Cluster, kind: Kind, n_equality: usize, form: SchurForm) -> Self {
         let first = cluster.owned().start;
-        let boundaries: Vec<Vec<usize>> = cluster
-            .owned()
-            .map(|s| {
-                let mut b: Vec<usize> = cluster.local_rows(s).entries.iter().map(|e| e.1).collect();
-                b.sort_unstable();
-                b.dedup();
-                b
-            })
-            .collect();
+        let boundaries: Vec<Vec<usize>> =
+            cluster.owned().map(|s| cluster.touched_dofs(s)).collect();
         // Dense S_s under the memory rule of the dense local F (and within
         // what those leave of the budget): beyond it, implicit. Forming one
         // takes a factor of `K_s` whose last block is dense and a copy of

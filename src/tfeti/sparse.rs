@@ -194,13 +194,9 @@ pub fn symbolic_best(
     let Some(order) = order.filter(|o| o.len() == n) else {
         return Ok(amd);
     };
-    let mut inverse = vec![usize::MAX; n];
-    for (i, &o) in order.iter().enumerate() {
-        match inverse.get_mut(o) {
-            Some(slot) if *slot == usize::MAX => *slot = i,
-            _ => return Ok(amd),
-        }
-    }
+    let Some(inverse) = inverse_of(order, n) else {
+        return Ok(amd);
+    };
     let perm = faer::perm::PermRef::new_checked(order, &inverse, n);
     match factorize_symbolic_cholesky(
         a,
@@ -211,6 +207,18 @@ pub fn symbolic_best(
         Ok(custom) if custom.len_val() < amd.len_val() => Ok(custom),
         _ => Ok(amd),
     }
+}
+
+/// The inverse of the permutation `order` of `0..n` (None if it is not one).
+fn inverse_of(order: &[usize], n: usize) -> Option<Vec<usize>> {
+    let mut inverse = vec![usize::MAX; n];
+    for (i, &o) in order.iter().enumerate() {
+        match inverse.get_mut(o) {
+            Some(slot) if *slot == usize::MAX => *slot = i,
+            _ => return None,
+        }
+    }
+    (order.len() == n).then_some(inverse)
 }
 
 /// `x <- L^-T D^-1 L^-1 x` with a faer sparse `L D L^T` factor.
@@ -450,10 +458,10 @@ impl FactorShape {
 /// symbolically factorized (not reused from an earlier design).
 #[derive(Default)]
 pub struct SymbolicCache {
-    entries: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
+    entries: Analyses,
     /// [`SymbolicCache::ordered_supernodal`]'s analyses (another kind, on
     /// their own so that a key never meets the other's).
-    ordered: Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>,
+    ordered: Analyses,
 }
 
 /// What a symbolic analysis is computed from.
@@ -471,28 +479,37 @@ impl SymbolicKey<'_> {
     }
 }
 
-impl SymbolicCache {
-    fn entries(&self) -> std::sync::MutexGuard<'_, Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>> {
-        lock(&self.entries)
-    }
+type Analyses = Mutex<Vec<(OwnedKey, Arc<SymbolicCholesky<usize>>)>>;
 
+/// The analysis of `key` in `list`, if there is one.
+fn find_in(list: &Analyses, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
+    lock(list)
+        .iter()
+        .find(|(k, _)| key.matches(k))
+        .map(|(_, s)| s.clone())
+}
+
+/// Keeps `symbolic` for `key` in `list` unless a twin got there first (the
+/// same inputs: the same result).
+fn insert_in(list: &Analyses, key: &SymbolicKey, symbolic: &Arc<SymbolicCholesky<usize>>) {
+    let mut entries = lock(list);
+    if !entries.iter().any(|(k, _)| key.matches(k)) {
+        let owned = (
+            key.col_ptr.to_vec(),
+            key.row_idx.to_vec(),
+            key.order.map(<[usize]>::to_vec),
+        );
+        entries.push((owned, symbolic.clone()));
+    }
+}
+
+impl SymbolicCache {
     pub(crate) fn get(&self, key: &SymbolicKey) -> Option<Arc<SymbolicCholesky<usize>>> {
-        self.entries()
-            .iter()
-            .find(|(k, _)| key.matches(k))
-            .map(|(_, s)| s.clone())
+        find_in(&self.entries, key)
     }
 
     pub(crate) fn insert(&self, key: &SymbolicKey, symbolic: &Arc<SymbolicCholesky<usize>>) {
-        let mut entries = self.entries();
-        if !entries.iter().any(|(k, _)| key.matches(k)) {
-            let owned = (
-                key.col_ptr.to_vec(),
-                key.row_idx.to_vec(),
-                key.order.map(<[usize]>::to_vec),
-            );
-            entries.push((owned, symbolic.clone()));
-        }
+        insert_in(&self.entries, key, symbolic)
     }
 
     /// AMD's symbolic factorization of `a` (what [`symbolic_best`] gives
@@ -527,46 +544,23 @@ impl SymbolicCache {
             row_idx: a.row_idx(),
             order: Some(order),
         };
-        let found = lock(&self.ordered)
-            .iter()
-            .find(|(k, _)| key.matches(k))
-            .map(|(_, s)| s.clone());
-        if let Some(s) = found {
+        if let Some(s) = find_in(&self.ordered, &key) {
             return Ok(s);
         }
         let n = a.nrows();
-        let mut inverse = vec![usize::MAX; n];
-        for (i, &o) in order.iter().enumerate() {
-            match inverse.get_mut(o) {
-                Some(slot) if *slot == usize::MAX => *slot = i,
-                _ => return Err(format!("not a permutation of 0..{n}")),
-            }
-        }
-        if order.len() != n {
-            return Err(format!("an order of {} for {n} rows", order.len()));
-        }
+        let inverse = inverse_of(order, n).ok_or_else(|| format!("not a permutation of 0..{n}"))?;
         let perm = faer::perm::PermRef::new_checked(order, &inverse, n);
         let params = CholeskySymbolicParams {
             supernodal_flop_ratio_threshold: SupernodalThreshold::FORCE_SUPERNODAL,
             ..Default::default()
         };
+        // Analysed without the lock: subdomains of other patterns analyse
+        // at the same time.
         let s = Arc::new(
             factorize_symbolic_cholesky(a, Side::Upper, SymmetricOrdering::Custom(perm), params)
                 .map_err(|e| format!("symbolic factorization failed: {e:?}"))?,
         );
-        // Analysed without the lock (subdomains of other patterns analyse
-        // at the same time); a twin analysed meanwhile is the same result.
-        let mut entries = lock(&self.ordered);
-        if !entries.iter().any(|(k, _)| key.matches(k)) {
-            entries.push((
-                (
-                    a.col_ptr().to_vec(),
-                    a.row_idx().to_vec(),
-                    Some(order.to_vec()),
-                ),
-                s.clone(),
-            ));
-        }
+        insert_in(&self.ordered, &key, &s);
         Ok(s)
     }
 }
