@@ -17,7 +17,8 @@ use crate::tfeti::rows::LocalRows;
 use crate::tfeti::solve::{DualSolution, DualStart, SlipBounds};
 use crate::tfeti::subdomain::{Geometry, Kind, Subdomain, SubdomainError, SymbolicCache};
 pub use active_set::KeptDual;
-use active_set::Outcome;
+pub use predict::Prediction;
+use active_set::{Outcome, Plan};
 pub use friction::FrictionSolve;
 use friction::{has_friction, solve_with_friction};
 use rayon::prelude::*;
@@ -29,6 +30,7 @@ use std::time::Instant;
 mod active_set;
 mod finite;
 pub mod friction;
+mod predict;
 mod search;
 
 /// Wall time of each phase, seconds.
@@ -84,6 +86,8 @@ pub struct State {
     pub search: Search,
     /// With friction: the solves it took and the slip bounds of the last.
     pub friction: Option<FrictionSolve>,
+    /// A cold solve through a predicted active set: how it went.
+    pub prediction: Option<Prediction>,
 }
 
 /// What a state solve takes from the state of the same scene at a nearby
@@ -1116,11 +1120,19 @@ fn solve_on(
     let frictionless = !has_friction(problem);
     let mut attempt = match (warm.on_active_set && frictionless, &start, &ops.system) {
         (true, Some(s), DualSystem::Total(full)) => Attempt::of(
-            active_set::solve(scene, problem, full, &s.lambda, &f, &c, &settings),
-            previous,
+            active_set::solve(
+                problem,
+                full,
+                &s.lambda,
+                (&f, &c),
+                &settings,
+                Plan::warm(scene, &settings),
+            ),
+            previous.and_then(|p| p.end.clone()),
         ),
         _ => Attempt::default(),
     };
+    let (mut prediction, mut kept_precond) = (None, ops.kept_precond);
     let sol = match attempt.solution.take() {
         Some(sol) => sol,
         None => {
@@ -1134,7 +1146,16 @@ fn solve_on(
                 .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             times.coarse += t.elapsed().as_secs_f64();
             if frictionless {
-                ops.solve(&f, &c, &settings, start.as_ref(), observer)?
+                match predict::plan(scene, &ops, &settings, start.is_some()) {
+                    Some(plan) => {
+                        let (sol, tried, how) =
+                            ops.predicted_solve((&f, &c), &settings, plan, observer)?;
+                        (attempt, prediction) = (tried, Some(how));
+                        kept_precond = plan.kind;
+                        sol
+                    }
+                    None => ops.solve(&f, &c, &settings, start.as_ref(), observer)?,
+                }
             } else {
                 let (sol, done) = solve_with_friction(
                     scene,
@@ -1152,7 +1173,12 @@ fn solve_on(
     };
     times.solve = t.elapsed().as_secs_f64();
     same_on_every_rank(&**ops.system.dual().cluster().comm(), &sol)?;
+    let ops = Operators {
+        kept_precond,
+        ..ops
+    };
     let mut state = ops.into_state(sol, attempt, warm_started, times, t0);
+    state.prediction = prediction.take();
     if let Some(done) = friction {
         state.kkt.friction = Some(friction_kkt(
             &state.problem,
@@ -1241,19 +1267,20 @@ struct Attempt {
 }
 
 impl Attempt {
-    fn of(outcome: Outcome, previous: Option<&State>) -> Attempt {
+    /// The attempt from its outcome; a kept state carries SMALBE's state
+    /// `end` (the previous solve's, or the prediction's), for a later design
+    /// whose active set changes.
+    fn of(outcome: Outcome, end: Option<(SmalbeWarm, f64)>) -> Attempt {
         match outcome {
-            Outcome::Kept(mut sol, applications, dual, residuals) => {
-                // SMALBE's state stays the previous solve's, for a later
-                // design whose active set changes.
-                sol.end = previous.and_then(|p| p.end.clone());
+            Outcome::Kept(mut sol, applications, dual, residuals, _) => {
+                sol.end = end;
                 Attempt {
                     solution: Some(*sol),
                     kept_dual: Some((Arc::new(dual), residuals)),
                     spent: (0, applications),
                 }
             }
-            Outcome::Refused(hessian, applications) => Attempt {
+            Outcome::Refused(hessian, applications, _) => Attempt {
                 solution: None,
                 kept_dual: None,
                 spent: (hessian, applications),
@@ -1454,6 +1481,7 @@ impl Operators {
             end,
             search: Search::default(),
             friction: None,
+            prediction: None,
         }
     }
 }

@@ -127,6 +127,12 @@ pub struct SmalbeSettings {
     /// [`FACE_METRIC_VALUES`] values or building it more than
     /// [`FACE_METRIC_FLOPS`] flops.
     pub face_metric: bool,
+    /// Whether a cold contact state solve predicts its active set by SMALBE
+    /// at a loose tolerance and solves the equality problem on it
+    /// (`crate::state`'s `predict` module): `Some(true)` always, `Some(false)`
+    /// never, `None` (default) where it pays, in 3D with every `F_s` applied
+    /// by factor solves. Read by the state solve, not by SMALBE itself.
+    pub predict: Option<bool>,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
     /// `max_iterations` caps each inner solve, and its `abar_factor` is
@@ -143,6 +149,7 @@ impl Default for SmalbeSettings {
             eta_factor: 0.1,
             lagrangian_before_update: true,
             face_metric: true,
+            predict: None,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,
@@ -156,7 +163,8 @@ impl Default for SmalbeSettings {
 /// any order; `default` for none): `rho`, `m0` and `eta` are the factors
 /// `rho_factor`, `m0_factor`, `eta_factor`, `lag` is
 /// `lagrangian_before_update`. For benchmarks (`cso bench scaling --smalbe`),
-/// not for scenes. `metric` is `face_metric` (`on` or `off`).
+/// not for scenes. `metric` is `face_metric` (`on` or `off`); `predict` is
+/// `predict` (`on`, `off` or `auto`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct SmalbeOverrides {
     pub rho_factor: Option<f64>,
@@ -165,6 +173,7 @@ pub struct SmalbeOverrides {
     pub eta_factor: Option<f64>,
     pub lagrangian_before_update: Option<bool>,
     pub face_metric: Option<bool>,
+    pub predict: Option<Option<bool>>,
 }
 
 impl SmalbeOverrides {
@@ -188,6 +197,9 @@ impl SmalbeOverrides {
         if let Some(v) = self.face_metric {
             settings.face_metric = v;
         }
+        if let Some(v) = self.predict {
+            settings.predict = v;
+        }
     }
 
     /// No override set.
@@ -200,8 +212,8 @@ impl std::str::FromStr for SmalbeOverrides {
     type Err = String;
 
     fn from_str(s: &str) -> Result<Self, String> {
-        const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off` \
-             (any of them, comma-separated) or `default`";
+        const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off,\
+             predict=on|off|auto` (any of them, comma-separated) or `default`";
         let mut o = Self::default();
         if s.trim() == "default" {
             return Ok(o);
@@ -256,6 +268,19 @@ impl std::str::FromStr for SmalbeOverrides {
                     };
                     o.face_metric.replace(on).is_some()
                 }
+                "predict" => {
+                    let on = match value {
+                        "on" => Some(true),
+                        "off" => Some(false),
+                        "auto" => None,
+                        _ => {
+                            return Err(format!(
+                                "`predict={value}`: predict is `on`, `off` or `auto`"
+                            ))
+                        }
+                    };
+                    o.predict.replace(on).is_some()
+                }
                 _ => return Err(format!("unknown SMALBE setting `{key}`: {EXPECTED}")),
             };
             if slot_taken {
@@ -284,6 +309,14 @@ impl std::fmt::Display for SmalbeOverrides {
         }
         if let Some(on) = self.face_metric {
             parts.push(format!("metric={}", if on { "on" } else { "off" }));
+        }
+        if let Some(on) = self.predict {
+            let v = match on {
+                Some(true) => "on",
+                Some(false) => "off",
+                None => "auto",
+            };
+            parts.push(format!("predict={v}"));
         }
         if parts.is_empty() {
             f.write_str("default")

@@ -46,18 +46,41 @@ pub struct KeptDual {
 }
 
 /// Active sets tried before SMALBE takes over: the predicted one and two
-/// corrections.
+/// corrections (a warm start's; a cold prediction's tries one more).
 const ATTEMPTS: usize = 3;
+
+/// How an active set is tried: the equality solves' preconditioner, how
+/// many sets at most (the predicted one and its corrections), and their
+/// budget of Hessian applications together.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Plan {
+    pub kind: Option<Kind>,
+    pub attempts: usize,
+    pub budget: usize,
+}
+
+impl Plan {
+    /// A warm start's: the scene's preconditioner (Dirichlet where it names
+    /// none), three sets, half the solve's budget.
+    pub fn warm(scene: &Scene, settings: &SmalbeSettings) -> Plan {
+        Plan {
+            kind: kept_preconditioner(scene),
+            attempts: ATTEMPTS,
+            budget: settings.max_hessian / 2,
+        }
+    }
+}
 
 /// What the attempt gave.
 pub(super) enum Outcome {
     /// The solution of the contact problem (multipliers of every row; its
     /// Hessian applications those of every attempt), the applications of
-    /// `F` it took in all, the dual it was solved on, and its KKT residuals.
-    Kept(Box<DualSolution>, usize, KeptDual, Kkt),
+    /// `F` it took in all, the dual it was solved on, its KKT residuals,
+    /// and the equality solves it took.
+    Kept(Box<DualSolution>, usize, KeptDual, Kkt, usize),
     /// No solution found this way: the Hessian applications and
-    /// applications of `F` spent.
-    Refused(usize, usize),
+    /// applications of `F` spent, and the equality solves.
+    Refused(usize, usize, usize),
 }
 
 /// The preconditioner of the equality-only solves on a predicted active
@@ -71,8 +94,10 @@ pub(crate) fn kept_preconditioner(scene: &Scene) -> Option<Kind> {
 /// rows with a positive multiplier in `previous` (one per row of `problem`),
 /// correcting that set where the KKT conditions on every row of `dual` fail;
 /// keeps the first solution whose sign, penetration and equilibrium
-/// residuals are within the tolerance of `settings`. The dual preconditioner is the scene's,
-/// Dirichlet where it asks for none, its Schur complements dense within the
+/// residuals are within the tolerance of `settings`; at most `plan.attempts`
+/// sets within `plan.budget` Hessian applications. The dual preconditioner
+/// is `plan.kind` (a warm start's: the scene's,
+/// Dirichlet where it asks for none), its Schur complements dense within the
 /// memory budget: they are formed once per subdomain and kept with it
 /// (`Subdomain::schur`), so across an optimization only the subdomains the
 /// design moves form theirs again (implicit ones cost two solves with the
@@ -80,17 +105,16 @@ pub(crate) fn kept_preconditioner(scene: &Scene) -> Option<Kind> {
 /// scont_large it takes a third fewer applications than lumped
 /// (BENCHMARKS.md).
 pub(super) fn solve(
-    scene: &Scene,
     problem: &Problem,
     dual: &Dual,
     previous: &[f64],
-    f: &[&[f64]],
-    c: &[f64],
+    (f, c): (&[&[f64]], &[f64]),
     settings: &SmalbeSettings,
+    plan: Plan,
 ) -> Outcome {
     let (n_eq, m) = (problem.n_equality, problem.rows.len());
     if previous.len() != m || n_eq == m {
-        return Outcome::Refused(0, 0);
+        return Outcome::Refused(0, 0, 0);
     }
     let tol = settings.tolerance;
     let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
@@ -98,15 +122,15 @@ pub(super) fn solve(
         .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
         .collect();
     let mut start = previous.to_vec();
-    let (mut hessian, mut applications) = (0, 0);
-    // The attempts together spend at most half the solve's budget of Hessian
+    let (mut hessian, mut applications, mut solves) = (0, 0, 0);
+    // The attempts together spend at most the plan's budget of Hessian
     // applications, so that SMALBE keeps the rest where they fail.
-    let budget = settings.max_hessian / 2;
-    let kind = kept_preconditioner(scene);
-    for _ in 0..ATTEMPTS {
+    let (budget, kind) = (plan.budget.min(settings.max_hessian), plan.kind);
+    for _ in 0..plan.attempts {
         if hessian >= budget {
             break;
         }
+        solves += 1;
         let settings = SmalbeSettings {
             max_hessian: budget - hessian,
             ..settings.clone()
@@ -149,6 +173,7 @@ pub(super) fn solve(
                     system: Arc::new(system),
                 },
                 check,
+                solves,
             );
         }
         if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
@@ -157,7 +182,7 @@ pub(super) fn solve(
         start = lambda.iter().map(|l| l.max(0.0)).collect();
         start[..n_eq].copy_from_slice(&lambda[..n_eq]);
     }
-    Outcome::Refused(hessian, applications)
+    Outcome::Refused(hessian, applications, solves)
 }
 
 /// The equality-only dual on the rows `kept` (those held), with its deferred

@@ -1,0 +1,186 @@
+//! A cold contact solve by a predicted active set: SMALBE to a loose
+//! tolerance ([`TOLERANCE`]) says which contact rows carry load; the
+//! equality-only problem on them is solved by projected CG with a dual
+//! preconditioner, corrected by primal-dual active set steps and kept only
+//! where the KKT conditions hold to the tolerance (the warm start's path,
+//! [`super::active_set`]); where that fails within its budget, SMALBE goes
+//! on from its prediction.
+//!
+//! Why: SMALBE's inner MPRGP solves are restarted by every outer iteration
+//! and preconditioned only in face, so a dual preconditioner buys them
+//! little: the 3D scaling scene at 72 subdomains takes 116 Hessian
+//! applications plain and 141 with the lumped preconditioner, where
+//! projected CG with it solves the same scene glued in 20. Predicting and
+//! then solving on the active set takes 56 there (BENCHMARKS.md, "A
+//! predicted active set").
+
+use super::active_set::{self, Outcome, Plan};
+use super::{Attempt, Operators};
+use crate::lang::scene::{Preconditioner, Scene};
+use crate::qp::{QpInfo, SmalbeSettings, Status};
+use crate::tfeti::classical::DualSystem;
+use crate::tfeti::error::SolveError;
+use crate::tfeti::precond::Kind;
+use crate::tfeti::solve::{DualSolution, DualStart};
+
+/// SMALBE's relative tolerance for the prediction. On the 3D scaling scene
+/// at 72 subdomains 1e-1, 1e-2 and 1e-3 take 56, 61 and 81 applications in
+/// all (lumped): a rough active set corrected by an active set step costs
+/// less than SMALBE's sharper one.
+pub const TOLERANCE: f64 = 0.1;
+
+/// The equality solves' budget of Hessian applications, in multiples of
+/// the prediction's (at least [`MIN_BUDGET`]): where they fail, SMALBE
+/// goes on, and the solve has spent at most this much more.
+const BUDGET: usize = 3;
+const MIN_BUDGET: usize = 30;
+
+/// Active sets tried: the predicted one and three corrections.
+const ATTEMPTS: usize = 4;
+
+/// How a cold solve predicted its active set, for the report.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Prediction {
+    /// SMALBE's tolerance for it.
+    pub tolerance: f64,
+    /// SMALBE's Hessian applications to it.
+    pub smalbe_applications: usize,
+    /// Equality-only solves on it and its corrections.
+    pub equality_solves: usize,
+    /// Whether the last was kept; else SMALBE finished from the prediction.
+    pub kept: bool,
+}
+
+/// Whether the cold frictionless solve of `ops` predicts its active set,
+/// and how: `settings.predict`, or where `None` in 3D with every `F_s`
+/// applied by factor solves (in 2D the dense `F_s` make SMALBE's
+/// applications cheap and the equality solves' set-up does not pay: 0.8 s
+/// against 2.1 s on a 2D roller of 512 subdomains). The equality solves take
+/// the scene's `lumped` or `dirichlet`, else lumped (in 3D Dirichlet's set-up
+/// costs more than it saves: 7.3 s against 11.1 s on a 3D column of 128
+/// subdomains).
+pub(super) fn plan(
+    scene: &Scene,
+    ops: &Operators,
+    settings: &SmalbeSettings,
+    warm: bool,
+) -> Option<Plan> {
+    let problem = &ops.problem;
+    let total = matches!(ops.system, DualSystem::Total(_));
+    if warm || !total || problem.n_equality == problem.rows.len() {
+        return None;
+    }
+    if settings.tolerance >= TOLERANCE || settings.predict == Some(false) {
+        return None;
+    }
+    let pays = || {
+        let dense = match &ops.precond.auto {
+            Some(e) => e.dense_f,
+            None => crate::tfeti::precond_choice::estimate(ops.system.dual().cluster()).dense_f,
+        };
+        problem.dim == 3 && dense == 0
+    };
+    if settings.predict.is_none() && !pays() {
+        return None;
+    }
+    let kind = match scene.solver.preconditioner {
+        Preconditioner::Dirichlet => Kind::Dirichlet,
+        _ => Kind::Lumped,
+    };
+    Some(Plan {
+        kind: Some(kind),
+        attempts: ATTEMPTS,
+        budget: 0,
+    })
+}
+
+impl Operators {
+    /// The dual solve through a predicted active set (see the module): the
+    /// solution, what the equality solves left ([`Attempt`]: the dual kept,
+    /// or their cost where refused), and the prediction.
+    pub(super) fn predicted_solve(
+        &self,
+        (f, c): (&[&[f64]], &[f64]),
+        settings: &SmalbeSettings,
+        plan: Plan,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<(DualSolution, Attempt, Prediction), SolveError> {
+        let loose = SmalbeSettings {
+            tolerance: TOLERANCE,
+            ..settings.clone()
+        };
+        let first = self.solve(f, c, &loose, None, observer)?;
+        let spent = first.info.hessian_applications;
+        let mut prediction = Prediction {
+            tolerance: TOLERANCE,
+            smalbe_applications: spent,
+            equality_solves: 0,
+            kept: false,
+        };
+        let left = settings.max_hessian.saturating_sub(spent);
+        let outcome = match (&self.system, first.info.status == Status::Converged) {
+            (DualSystem::Total(full), true) => {
+                let plan = Plan {
+                    budget: (BUDGET * spent).max(MIN_BUDGET).min(left / 2),
+                    ..plan
+                };
+                active_set::solve(&self.problem, full, &first.lambda, (f, c), settings, plan)
+            }
+            _ => Outcome::Refused(0, 0, 0),
+        };
+        match outcome {
+            Outcome::Kept(mut sol, applications, dual, kkt, solves) => {
+                prediction.equality_solves = solves;
+                prediction.kept = true;
+                sol.info = joined(first.info, sol.info);
+                let end = first.end;
+                let kept = Outcome::Kept(sol, applications, dual, kkt, solves);
+                let mut attempt = Attempt::of(kept, end);
+                let sol = attempt.solution.take().ok_or(SolveError::Unsupported(
+                    "a kept active set without its solution".into(),
+                ))?;
+                Ok((sol, attempt, prediction))
+            }
+            Outcome::Refused(hessian, applications, solves) => {
+                prediction.equality_solves = solves;
+                let start = DualStart {
+                    lambda: first.lambda.clone(),
+                    active_set: true,
+                    smalbe: first.end.as_ref().map(|e| e.0.clone()),
+                    pfp: first.end.as_ref().map(|e| e.1),
+                };
+                let rest = SmalbeSettings {
+                    max_hessian: left.saturating_sub(hessian),
+                    ..settings.clone()
+                };
+                let mut sol = self.solve(f, c, &rest, Some(&start), observer)?;
+                sol.info = joined(first.info, sol.info);
+                let attempt = Attempt {
+                    spent: (hessian, applications),
+                    ..Attempt::default()
+                };
+                Ok((sol, attempt, prediction))
+            }
+        }
+    }
+}
+
+/// The counts of a solve in two parts, `first` then `then`: outer and inner
+/// iterations, Hessian applications, steps and histories added; the final
+/// status and residuals `then`'s.
+fn joined(first: QpInfo, then: QpInfo) -> QpInfo {
+    let mut per_outer = first.per_outer;
+    per_outer.extend_from_slice(&then.per_outer);
+    let mut history = first.history;
+    history.extend_from_slice(&then.history);
+    QpInfo {
+        outer_iterations: first.outer_iterations + then.outer_iterations,
+        inner_iterations: first.inner_iterations + then.inner_iterations,
+        hessian_applications: first.hessian_applications + then.hessian_applications,
+        steps: first.steps.plus(then.steps),
+        per_outer,
+        history,
+        norm_estimate: first.norm_estimate,
+        ..then
+    }
+}
