@@ -1280,7 +1280,7 @@ impl Attempt {
                     spent: (0, applications),
                 }
             }
-            Outcome::Refused(hessian, applications, _) => Attempt {
+            Outcome::Refused(hessian, applications, ..) => Attempt {
                 solution: None,
                 kept_dual: None,
                 spent: (hessian, applications),

@@ -82,6 +82,11 @@ pub struct SolverReport {
     /// of the slip bounds) and the bounds' relative change after each.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub friction: Option<crate::state::FrictionSolve>,
+    /// A cold solve through a predicted active set: SMALBE's tolerance and
+    /// applications for it, the equality solves after, and whether the last
+    /// was kept (else SMALBE finished).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub active_set: Option<crate::state::Prediction>,
 }
 
 #[derive(Debug, Clone, Serialize)]
@@ -240,6 +245,7 @@ impl Report {
             history: state.info.history.clone(),
             search_rounds: state.search.rounds,
             preconditioner: state.preconditioner,
+            active_set: state.prediction,
             friction: state.friction.clone(),
         };
         let bodies = p
@@ -358,9 +364,20 @@ impl Report {
             (Some(_), None) => format!(", {} preconditioner", v.preconditioner.name()),
             (Some(_), Some(_)) => format!(", {} preconditioner by auto", v.preconditioner.name()),
         };
+        let predicted = match &v.active_set {
+            None => String::new(),
+            Some(p) => format!(
+                "; active set predicted by SMALBE at {} in {}, {} equality solve{} on it{}",
+                n.num(p.tolerance),
+                p.smalbe_applications,
+                p.equality_solves,
+                if p.equality_solves == 1 { "" } else { "s" },
+                if p.kept { "" } else { " refused, SMALBE finished" }
+            ),
+        };
         let _ = writeln!(
             o,
-            "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {}{precond})",
+            "  {status}: {} outer, {} inner iterations, {} Hessian applications (tolerance {}{predicted}{precond})",
             v.outer_iterations,
             v.inner_iterations,
             v.hessian_applications,

@@ -133,6 +133,11 @@ pub struct SmalbeSettings {
     /// never, `None` (default) where it pays, in 3D with every `F_s` applied
     /// by factor solves. Read by the state solve, not by SMALBE itself.
     pub predict: Option<bool>,
+    /// Projected CG (equality-only duals) stops early where its mean rate
+    /// so far forecasts the budget `max_hessian` spent before the
+    /// tolerance: the predicted active set's solves, whose budget is small
+    /// and whose failure SMALBE takes over. Default `false`.
+    pub forecast: bool,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
     /// `max_iterations` caps each inner solve, and its `abar_factor` is
@@ -150,6 +155,7 @@ impl Default for SmalbeSettings {
             lagrangian_before_update: true,
             face_metric: true,
             predict: None,
+            forecast: false,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,

@@ -79,8 +79,10 @@ pub(super) enum Outcome {
     /// and the equality solves it took.
     Kept(Box<DualSolution>, usize, KeptDual, Kkt, usize),
     /// No solution found this way: the Hessian applications and
-    /// applications of `F` spent, and the equality solves.
-    Refused(usize, usize, usize),
+    /// applications of `F` spent, the equality solves, and the multipliers
+    /// of the last one that converged (every row; the contacts that pull at
+    /// 0).
+    Refused(usize, usize, usize, Option<Vec<f64>>),
 }
 
 /// The preconditioner of the equality-only solves on a predicted active
@@ -114,7 +116,7 @@ pub(super) fn solve(
 ) -> Outcome {
     let (n_eq, m) = (problem.n_equality, problem.rows.len());
     if previous.len() != m || n_eq == m {
-        return Outcome::Refused(0, 0, 0);
+        return Outcome::Refused(0, 0, 0, None);
     }
     let tol = settings.tolerance;
     let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
@@ -123,6 +125,7 @@ pub(super) fn solve(
         .collect();
     let mut start = previous.to_vec();
     let (mut hessian, mut applications, mut solves) = (0, 0, 0);
+    let mut last = None;
     // The attempts together spend at most the plan's budget of Hessian
     // applications, so that SMALBE keeps the rest where they fail.
     let (budget, kind) = (plan.budget.min(settings.max_hessian), plan.kind);
@@ -153,13 +156,14 @@ pub(super) fn solve(
             }
         };
         hessian += sol.info.hessian_applications;
-        if sol.info.status != Status::Converged {
-            break;
-        }
         let mut lambda = vec![0.0; m];
         for (k, &i) in kept.iter().enumerate() {
             lambda[i] = sol.lambda[k];
         }
+        if sol.info.status != Status::Converged {
+            break;
+        }
+        last = Some(feasible(&lambda, n_eq));
         // The held rows (gluing, supports, held contacts) hold to the CG's
         // tolerance, as SMALBE's do to its own; what the equality solve does
         // not impose is tested here.
@@ -179,10 +183,16 @@ pub(super) fn solve(
         if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
             break;
         }
-        start = lambda.iter().map(|l| l.max(0.0)).collect();
-        start[..n_eq].copy_from_slice(&lambda[..n_eq]);
+        start = feasible(&lambda, n_eq);
     }
-    Outcome::Refused(hessian, applications, solves)
+    Outcome::Refused(hessian, applications, solves, last)
+}
+
+/// `lambda` with its contact rows (from `n_eq` on) at 0 where they pull.
+fn feasible(lambda: &[f64], n_eq: usize) -> Vec<f64> {
+    let mut l: Vec<f64> = lambda.iter().map(|l| l.max(0.0)).collect();
+    l[..n_eq].copy_from_slice(&lambda[..n_eq]);
+    l
 }
 
 /// The equality-only dual on the rows `kept` (those held), with its deferred

@@ -52,13 +52,14 @@ pub struct Prediction {
 }
 
 /// Whether the cold frictionless solve of `ops` predicts its active set,
-/// and how: `settings.predict`, or where `None` in 3D with every `F_s`
-/// applied by factor solves (in 2D the dense `F_s` make SMALBE's
-/// applications cheap and the equality solves' set-up does not pay: 0.8 s
-/// against 2.1 s on a 2D roller of 512 subdomains). The equality solves take
-/// the scene's `lumped` or `dirichlet`, else lumped (in 3D Dirichlet's set-up
-/// costs more than it saves: 7.3 s against 11.1 s on a 3D column of 128
-/// subdomains).
+/// and how: `settings.predict`, or where `None` in 3D (in 2D it took fewer
+/// applications but more time on every family measured: SMALBE's
+/// applications of dense `F_s` are cheap beside the equality solves'
+/// set-up, 0.8 s against 2.1 s on a roller of 512 subdomains; and at H/h =
+/// 64, where `F_s` is applied by factor solves, 0.24 s against 0.39 s). The
+/// equality solves take the scene's `dirichlet`, else lumped (in 3D
+/// Dirichlet's set-up costs more than it saves: 7.3 s against 11.1 s on a
+/// column of 128 subdomains).
 pub(super) fn plan(
     scene: &Scene,
     ops: &Operators,
@@ -73,14 +74,7 @@ pub(super) fn plan(
     if settings.tolerance >= TOLERANCE || settings.predict == Some(false) {
         return None;
     }
-    let pays = || {
-        let dense = match &ops.precond.auto {
-            Some(e) => e.dense_f,
-            None => crate::tfeti::precond_choice::estimate(ops.system.dual().cluster()).dense_f,
-        };
-        problem.dim == 3 && dense == 0
-    };
-    if settings.predict.is_none() && !pays() {
+    if settings.predict.is_none() && problem.dim != 3 {
         return None;
     }
     let kind = match scene.solver.preconditioner {
@@ -124,9 +118,13 @@ impl Operators {
                     budget: (BUDGET * spent).max(MIN_BUDGET).min(left / 2),
                     ..plan
                 };
-                active_set::solve(&self.problem, full, &first.lambda, (f, c), settings, plan)
+                let settings = SmalbeSettings {
+                    forecast: true,
+                    ..settings.clone()
+                };
+                active_set::solve(&self.problem, full, &first.lambda, (f, c), &settings, plan)
             }
-            _ => Outcome::Refused(0, 0, 0),
+            _ => Outcome::Refused(0, 0, 0, None),
         };
         match outcome {
             Outcome::Kept(mut sol, applications, dual, kkt, solves) => {
@@ -141,10 +139,12 @@ impl Operators {
                 ))?;
                 Ok((sol, attempt, prediction))
             }
-            Outcome::Refused(hessian, applications, solves) => {
+            Outcome::Refused(hessian, applications, solves, last) => {
                 prediction.equality_solves = solves;
+                // From the last equality solve's multipliers where there was
+                // one (nearer than the prediction), with SMALBE's state.
                 let start = DualStart {
-                    lambda: first.lambda.clone(),
+                    lambda: last.unwrap_or_else(|| first.lambda.clone()),
                     active_set: true,
                     smalbe: first.end.as_ref().map(|e| e.0.clone()),
                     pfp: first.end.as_ref().map(|e| e.1),

@@ -423,8 +423,11 @@ fn projected_cg(
     let mut p = z.clone();
     let mut ap = vec![0.0; m];
     let mut rz: f64 = r.iter().zip(&z).map(|(a, b)| a * b).sum();
+    let r0 = rr.sqrt();
     while rr.sqrt() > settings.tolerance * bnorm {
-        if info.hessian_applications >= settings.max_hessian {
+        if info.hessian_applications >= settings.max_hessian
+            || (settings.forecast && beyond_budget(&info, r0, settings.tolerance * bnorm, rr.sqrt(), settings.max_hessian))
+        {
             info.status = Status::MaxIterations;
             break;
         }
@@ -455,6 +458,23 @@ fn projected_cg(
     info.projected_gradient = rr.sqrt();
     (x, exact.then_some(fx), info)
 }
+
+/// Whether CG, at the residual `r` after `info.inner_iterations` steps from
+/// `r0`, is forecast not to reach `target` within `budget` applications at
+/// the mean rate so far (checked from [`FORECAST_STEPS`] steps on): a solve
+/// that would stop at its budget anyway stops now.
+fn beyond_budget(info: &QpInfo, r0: f64, target: f64, r: f64, budget: usize) -> bool {
+    let steps = info.inner_iterations;
+    if steps < FORECAST_STEPS || !(r > 0.0 && r < r0) {
+        return false;
+    }
+    let rate = (r / r0).ln() / steps as f64;
+    let left = (target / r).ln() / rate;
+    info.hessian_applications as f64 + left > budget as f64
+}
+
+/// CG steps before [`beyond_budget`] forecasts.
+const FORECAST_STEPS: usize = 10;
 
 /// `l~ = G~^T L^-1 R^T f`: multipliers that balance every subdomain's
 /// rigid modes (`G l~ = e`), the particular solution the dual problem is
