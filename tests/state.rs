@@ -458,3 +458,56 @@ fn auto_takes_dirichlet_only_where_f_is_applied_by_factor_solves() {
     assert!(state.dual.cluster().local_f_stats().explicit > 0);
     assert_eq!(state.preconditioner.kind, None);
 }
+
+/// A cold 3D contact solve predicts its active set (SMALBE at 1e-1, then
+/// equality solves on it) by default and not with `predict=off`; forced on
+/// in 2D it works there too. Either way the state is SMALBE's alone to the
+/// tolerance (energy, multipliers, the KKT residuals), in fewer Hessian
+/// applications.
+#[test]
+fn a_predicted_active_set_gives_smalbes_state_in_fewer_applications() {
+    let mut forced = example("two_blocks");
+    forced.solver.smalbe.predict = Some(Some(true));
+    for (name, scene) in [
+        ("semicoercive3d", example("semicoercive3d")),
+        ("scont3d", example("scont3d")),
+        ("two_blocks", forced),
+    ] {
+        let mut off = scene.clone();
+        off.solver.smalbe.predict = Some(Some(false));
+        let design = scene.design_init();
+        let alone = solve(&off, &design, &mut |_| {}).expect("solves");
+        let predicted = solve(&scene, &design, &mut |_| {}).expect("solves");
+        assert!(alone.prediction.is_none(), "{name}");
+        let how = predicted.prediction.expect("predicted");
+        assert!(how.kept && how.equality_solves >= 1, "{name}: {how:?}");
+        assert!(predicted.on_active_set, "{name}");
+        assert!(alone.converged() && predicted.converged(), "{name}");
+        let (a, p) = (
+            alone.info.hessian_applications,
+            predicted.info.hessian_applications,
+        );
+        assert!(p < a, "{name}: {p} against {a}");
+        let (ea, ep) = (alone.energy(), predicted.energy());
+        assert!(
+            (ea - ep).abs() <= 1e-5 * ea.abs(),
+            "{name}: {ep} against {ea}"
+        );
+        let top = alone.lambda.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let worst = alone
+            .lambda
+            .iter()
+            .zip(&predicted.lambda)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(
+            worst <= 1e-4 * top,
+            "{name}: multipliers differ by {worst} of {top}"
+        );
+        let tol = scene.solver.tolerance;
+        let k = &predicted.kkt;
+        assert!(
+            k.equilibrium <= tol && k.penetration <= tol && k.sign <= tol,
+            "{name}: {k:?}"
+        );
+    }
+}

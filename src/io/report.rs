@@ -372,7 +372,11 @@ impl Report {
                 p.smalbe_applications,
                 p.equality_solves,
                 if p.equality_solves == 1 { "" } else { "s" },
-                if p.kept { "" } else { " refused, SMALBE finished" }
+                if p.kept {
+                    ""
+                } else {
+                    " refused, SMALBE finished"
+                }
             ),
         };
         let _ = writeln!(

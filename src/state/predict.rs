@@ -184,3 +184,101 @@ fn joined(first: QpInfo, then: QpInfo) -> QpInfo {
         ..then
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::state::{setup_on, smalbe_settings};
+    use crate::tfeti::comm::serial;
+
+    /// A block of two subdomains pressed onto a rigid plane.
+    const BLOCK: &str = "scene block { dim = 3 }
+material soft { E = 1000, nu = 0.3 }
+body b { material = soft, x = 0 .. 1, y = 0 .. 1, z = 0 .. 1, mesh = 4 x 4 x 4, subdomains = 2 x 1 x 1,
+  bottom = 0.1 * ((x - 0.5)^2 + (y - 0.5)^2) }
+obstacle floor { point = (0, 0, 0), normal = (0, 0, 1) }
+displace b.top { ux = 0, uy = 0, uz = -0.02 }
+contact seat { primary = floor, secondary = b.bottom }
+";
+
+    fn solved(plan: Option<Plan>) -> (DualSolution, Attempt, Option<Prediction>, usize) {
+        let scene =
+            crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
+        let design = scene.design_init();
+        let setup = setup_on(&scene, &design, None, serial(), false, None).expect("sets up");
+        let ops = Operators::of(&scene, setup, false).expect("operators");
+        let problem = &ops.problem;
+        let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
+        let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+        let settings = smalbe_settings(&scene);
+        let contact_rows = problem.rows.len() - problem.n_equality;
+        match plan {
+            Some(plan) => {
+                let (sol, attempt, how) = ops
+                    .predicted_solve((&f, &c), &settings, plan, &mut |_| {})
+                    .expect("solves");
+                (sol, attempt, Some(how), contact_rows)
+            }
+            None => {
+                let sol = ops
+                    .solve(&f, &c, &settings, None, &mut |_| {})
+                    .expect("solves");
+                (sol, Attempt::default(), None, contact_rows)
+            }
+        }
+    }
+
+    fn plan(attempts: usize) -> Plan {
+        Plan {
+            kind: Some(Kind::Lumped),
+            attempts,
+            budget: 0,
+        }
+    }
+
+    /// The multipliers of two solves agree to the tolerance's order.
+    fn agree(a: &[f64], b: &[f64]) {
+        let top = b.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let worst = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(
+            worst <= 1e-4 * top,
+            "multipliers differ by {worst} of {top}"
+        );
+    }
+
+    /// The kept path: the active set SMALBE predicts at 1e-1 holds after an
+    /// equality solve or two, and that state is SMALBE's to the tolerance,
+    /// with the prediction's applications counted.
+    #[test]
+    fn a_kept_prediction_is_smalbes_state() {
+        let (smalbe, _, _, rows) = solved(None);
+        assert!(rows > 0);
+        let (sol, attempt, how, _) = solved(Some(plan(ATTEMPTS)));
+        let how = how.expect("predicted");
+        assert!(how.kept, "{how:?}");
+        assert!((1..=ATTEMPTS).contains(&how.equality_solves), "{how:?}");
+        assert!(attempt.kept_dual.is_some());
+        assert_eq!(sol.info.status, Status::Converged);
+        assert!(sol.info.hessian_applications > how.smalbe_applications);
+        agree(&sol.lambda, &smalbe.lambda);
+    }
+
+    /// The refused path: with no equality solve allowed, SMALBE goes on
+    /// from its prediction (its state and multipliers) to the tolerance, and
+    /// its count includes the prediction's.
+    #[test]
+    fn smalbe_finishes_from_the_prediction_where_no_active_set_is_kept() {
+        let (smalbe, _, _, _) = solved(None);
+        let (sol, attempt, how, _) = solved(Some(plan(0)));
+        let how = how.expect("predicted");
+        assert!(!how.kept && how.equality_solves == 0, "{how:?}");
+        assert!(attempt.kept_dual.is_none());
+        assert_eq!(sol.info.status, Status::Converged);
+        assert!(sol.info.outer_iterations > 0);
+        assert!(sol.info.hessian_applications > how.smalbe_applications);
+        agree(&sol.lambda, &smalbe.lambda);
+    }
+}

@@ -426,7 +426,14 @@ fn projected_cg(
     let r0 = rr.sqrt();
     while rr.sqrt() > settings.tolerance * bnorm {
         if info.hessian_applications >= settings.max_hessian
-            || (settings.forecast && beyond_budget(&info, r0, settings.tolerance * bnorm, rr.sqrt(), settings.max_hessian))
+            || (settings.forecast
+                && beyond_budget(
+                    &info,
+                    r0,
+                    settings.tolerance * bnorm,
+                    rr.sqrt(),
+                    settings.max_hessian,
+                ))
         {
             info.status = Status::MaxIterations;
             break;
@@ -556,7 +563,43 @@ pub(crate) fn galerkin_start(b: &[f64], x0: &mut [f64], ax: &mut [f64]) -> Optio
 
 #[cfg(test)]
 mod tests {
-    use super::galerkin_start;
+    use super::{beyond_budget, galerkin_start, FORECAST_STEPS};
+    use crate::qp::QpInfo;
+
+    fn after(steps: usize) -> QpInfo {
+        QpInfo {
+            status: crate::qp::Status::Converged,
+            outer_iterations: 0,
+            inner_iterations: steps,
+            hessian_applications: steps + 1,
+            projected_gradient: 0.0,
+            feasibility: 0.0,
+            history: Vec::new(),
+            norm_estimate: f64::NAN,
+            steps: crate::qp::Steps::default(),
+            per_outer: Vec::new(),
+        }
+    }
+
+    /// The forecast at a tenth per 10 steps: 1e-6 is 60 steps away from 1,
+    /// so a budget of 50 is spent first and one of 80 is not; before
+    /// `FORECAST_STEPS` steps, and where the residual has not fallen, it
+    /// does not judge.
+    #[test]
+    fn the_forecast_stops_only_what_its_budget_cannot_finish() {
+        let info = after(10);
+        assert!(beyond_budget(&info, 1.0, 1e-6, 0.1, 50));
+        assert!(!beyond_budget(&info, 1.0, 1e-6, 0.1, 80));
+        assert!(!beyond_budget(
+            &after(FORECAST_STEPS - 1),
+            1.0,
+            1e-6,
+            0.1,
+            20
+        ));
+        assert!(!beyond_budget(&info, 1.0, 1e-6, 1.0, 20));
+        assert!(!beyond_budget(&info, 1.0, 1e-6, 2.0, 20));
+    }
 
     /// `A = diag(1, 4)`, `x = (1, 1)`, `b = A x`.
     const B: [f64; 2] = [1.0, 4.0];
