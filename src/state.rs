@@ -1146,12 +1146,13 @@ fn solve_on(
                 .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             times.coarse += t.elapsed().as_secs_f64();
             if frictionless {
-                match predict::plan(scene, &ops, &settings, start.is_some()) {
-                    Some(plan) => {
+                match predict::predicts(scene, &ops, &settings, start.is_some()) {
+                    Some(kind) => {
+                        let attempts = (kind, predict::ATTEMPTS);
                         let (sol, tried, how) =
-                            ops.predicted_solve((&f, &c), &settings, plan, observer)?;
+                            ops.predicted_solve((&f, &c), &settings, attempts, observer)?;
                         (attempt, prediction) = (tried, Some(how));
-                        kept_precond = plan.kind;
+                        kept_precond = Some(kind);
                         sol
                     }
                     None => ops.solve(&f, &c, &settings, start.as_ref(), observer)?,
@@ -1178,7 +1179,7 @@ fn solve_on(
         ..ops
     };
     let mut state = ops.into_state(sol, attempt, warm_started, times, t0);
-    state.prediction = prediction.take();
+    state.prediction = prediction;
     if let Some(done) = friction {
         state.kkt.friction = Some(friction_kkt(
             &state.problem,

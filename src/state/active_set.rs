@@ -156,12 +156,12 @@ pub(super) fn solve(
             }
         };
         hessian += sol.info.hessian_applications;
+        if sol.info.status != Status::Converged {
+            break;
+        }
         let mut lambda = vec![0.0; m];
         for (k, &i) in kept.iter().enumerate() {
             lambda[i] = sol.lambda[k];
-        }
-        if sol.info.status != Status::Converged {
-            break;
         }
         last = Some(feasible(&lambda, n_eq));
         // The held rows (gluing, supports, held contacts) hold to the CG's

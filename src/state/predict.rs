@@ -36,7 +36,7 @@ const BUDGET: usize = 3;
 const MIN_BUDGET: usize = 30;
 
 /// Active sets tried: the predicted one and three corrections.
-const ATTEMPTS: usize = 4;
+pub const ATTEMPTS: usize = 4;
 
 /// How a cold solve predicted its active set, for the report.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
@@ -51,8 +51,9 @@ pub struct Prediction {
     pub kept: bool,
 }
 
-/// Whether the cold frictionless solve of `ops` predicts its active set,
-/// and how: `settings.predict`, or where `None` in 3D (in 2D it took fewer
+/// The equality solves' preconditioner where the cold frictionless solve of
+/// `ops` predicts its active set (None: SMALBE alone): as `settings.predict`
+/// says, or where that is `None` in 3D (in 2D it took fewer
 /// applications but more time on every family measured: SMALBE's
 /// applications of dense `F_s` are cheap beside the equality solves'
 /// set-up, 0.8 s against 2.1 s on a roller of 512 subdomains; and at H/h =
@@ -60,12 +61,12 @@ pub struct Prediction {
 /// equality solves take the scene's `dirichlet`, else lumped (in 3D
 /// Dirichlet's set-up costs more than it saves: 7.3 s against 11.1 s on a
 /// column of 128 subdomains).
-pub(super) fn plan(
+pub(super) fn predicts(
     scene: &Scene,
     ops: &Operators,
     settings: &SmalbeSettings,
     warm: bool,
-) -> Option<Plan> {
+) -> Option<Kind> {
     let problem = &ops.problem;
     let total = matches!(ops.system, DualSystem::Total(_));
     if warm || !total || problem.n_equality == problem.rows.len() {
@@ -77,26 +78,22 @@ pub(super) fn plan(
     if settings.predict.is_none() && problem.dim != 3 {
         return None;
     }
-    let kind = match scene.solver.preconditioner {
+    Some(match scene.solver.preconditioner {
         Preconditioner::Dirichlet => Kind::Dirichlet,
         _ => Kind::Lumped,
-    };
-    Some(Plan {
-        kind: Some(kind),
-        attempts: ATTEMPTS,
-        budget: 0,
     })
 }
 
 impl Operators {
-    /// The dual solve through a predicted active set (see the module): the
-    /// solution, what the equality solves left ([`Attempt`]: the dual kept,
-    /// or their cost where refused), and the prediction.
+    /// The dual solve through a predicted active set (see the module), the
+    /// equality solves preconditioned by `kind`, at most `attempts` sets:
+    /// the solution, what the equality solves left ([`Attempt`]: the dual
+    /// kept, or their cost where refused), and the prediction.
     pub(super) fn predicted_solve(
         &self,
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
-        plan: Plan,
+        (kind, attempts): (Kind, usize),
         observer: &mut dyn FnMut(&QpInfo),
     ) -> Result<(DualSolution, Attempt, Prediction), SolveError> {
         let loose = SmalbeSettings {
@@ -115,8 +112,9 @@ impl Operators {
         let outcome = match (&self.system, first.info.status == Status::Converged) {
             (DualSystem::Total(full), true) => {
                 let plan = Plan {
+                    kind: Some(kind),
+                    attempts,
                     budget: (BUDGET * spent).max(MIN_BUDGET).min(left / 2),
-                    ..plan
                 };
                 let settings = SmalbeSettings {
                     forecast: true,
@@ -201,7 +199,9 @@ displace b.top { ux = 0, uy = 0, uz = -0.02 }
 contact seat { primary = floor, secondary = b.bottom }
 ";
 
-    fn solved(plan: Option<Plan>) -> (DualSolution, Attempt, Option<Prediction>, usize) {
+    /// The block's dual solved by SMALBE alone (None) or through a
+    /// prediction trying at most `attempts` sets.
+    fn solved(attempts: Option<usize>) -> (DualSolution, Attempt, Option<Prediction>, usize) {
         let scene =
             crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
         let design = scene.design_init();
@@ -212,10 +212,10 @@ contact seat { primary = floor, secondary = b.bottom }
         let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
         let settings = smalbe_settings(&scene);
         let contact_rows = problem.rows.len() - problem.n_equality;
-        match plan {
-            Some(plan) => {
+        match attempts {
+            Some(attempts) => {
                 let (sol, attempt, how) = ops
-                    .predicted_solve((&f, &c), &settings, plan, &mut |_| {})
+                    .predicted_solve((&f, &c), &settings, (Kind::Lumped, attempts), &mut |_| {})
                     .expect("solves");
                 (sol, attempt, Some(how), contact_rows)
             }
@@ -225,14 +225,6 @@ contact seat { primary = floor, secondary = b.bottom }
                     .expect("solves");
                 (sol, Attempt::default(), None, contact_rows)
             }
-        }
-    }
-
-    fn plan(attempts: usize) -> Plan {
-        Plan {
-            kind: Some(Kind::Lumped),
-            attempts,
-            budget: 0,
         }
     }
 
@@ -256,7 +248,7 @@ contact seat { primary = floor, secondary = b.bottom }
     fn a_kept_prediction_is_smalbes_state() {
         let (smalbe, _, _, rows) = solved(None);
         assert!(rows > 0);
-        let (sol, attempt, how, _) = solved(Some(plan(ATTEMPTS)));
+        let (sol, attempt, how, _) = solved(Some(ATTEMPTS));
         let how = how.expect("predicted");
         assert!(how.kept, "{how:?}");
         assert!((1..=ATTEMPTS).contains(&how.equality_solves), "{how:?}");
@@ -272,7 +264,7 @@ contact seat { primary = floor, secondary = b.bottom }
     #[test]
     fn smalbe_finishes_from_the_prediction_where_no_active_set_is_kept() {
         let (smalbe, _, _, _) = solved(None);
-        let (sol, attempt, how, _) = solved(Some(plan(0)));
+        let (sol, attempt, how, _) = solved(Some(0));
         let how = how.expect("predicted");
         assert!(!how.kept && how.equality_solves == 0, "{how:?}");
         assert!(attempt.kept_dual.is_none());
