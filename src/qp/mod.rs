@@ -74,6 +74,42 @@ pub struct QpInfo {
 }
 
 impl QpInfo {
+    /// A run before it starts: converged, nothing counted, the projected
+    /// gradient not known yet.
+    pub fn fresh() -> QpInfo {
+        QpInfo {
+            status: Status::Converged,
+            outer_iterations: 0,
+            inner_iterations: 0,
+            hessian_applications: 0,
+            projected_gradient: f64::NAN,
+            feasibility: 0.0,
+            history: Vec::new(),
+            norm_estimate: f64::NAN,
+            steps: Steps::default(),
+            per_outer: Vec::new(),
+        }
+    }
+
+    /// The counts of this solve and of `last` after it together (outer and
+    /// inner iterations, Hessian applications, steps, histories), with
+    /// `last`'s status, residuals and norm estimate.
+    pub fn followed_by(&self, last: &QpInfo) -> QpInfo {
+        let mut history = self.history.clone();
+        history.extend_from_slice(&last.history);
+        let mut per_outer = self.per_outer.clone();
+        per_outer.extend_from_slice(&last.per_outer);
+        QpInfo {
+            outer_iterations: self.outer_iterations + last.outer_iterations,
+            inner_iterations: self.inner_iterations + last.inner_iterations,
+            hessian_applications: self.hessian_applications + last.hessian_applications,
+            history,
+            steps: self.steps.plus(last.steps),
+            per_outer,
+            ..last.clone()
+        }
+    }
+
     /// Counts one SMALBE outer iteration's inner `steps` and its Hessian
     /// `applications`.
     pub(crate) fn record_outer(&mut self, steps: Steps, applications: usize) {

@@ -89,28 +89,12 @@ pub fn mprgp(
     settings: &MprgpSettings,
     norm_a: Option<f64>,
 ) -> QpInfo {
-    let mut info = fresh_info();
+    let mut info = QpInfo::fresh();
     if let Some(why) = check_dimensions(a.dim(), b, lower, x) {
         info.status = Status::Breakdown(why);
         return info;
     }
     minimize(a, b, &Lower(lower), x, settings, norm_a, info)
-}
-
-/// The info of a run before it starts.
-fn fresh_info() -> QpInfo {
-    QpInfo {
-        status: Status::Converged,
-        outer_iterations: 0,
-        inner_iterations: 0,
-        hessian_applications: 0,
-        projected_gradient: f64::NAN,
-        feasibility: 0.0,
-        history: Vec::new(),
-        norm_estimate: f64::NAN,
-        steps: crate::qp::Steps::default(),
-        per_outer: Vec::new(),
-    }
 }
 
 /// Minimizes `1/2 x^T A x - b^T x` over boxes `lower_i <= x_i <= upper_i`
@@ -131,7 +115,7 @@ pub fn mpgp(
     settings: &MprgpSettings,
     norm_a: Option<f64>,
 ) -> QpInfo {
-    let mut info = fresh_info();
+    let mut info = QpInfo::fresh();
     let n = a.dim();
     let set = match check_dimensions(n, b, lower, x)
         .map_or_else(|| Blocks::new(n, lower, upper, discs), Err)

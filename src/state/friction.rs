@@ -287,17 +287,5 @@ fn summed(total: &QpInfo, last: &QpInfo, add: bool) -> QpInfo {
             ..last.clone()
         };
     }
-    let mut history = total.history.clone();
-    history.extend_from_slice(&last.history);
-    let mut per_outer = total.per_outer.clone();
-    per_outer.extend_from_slice(&last.per_outer);
-    QpInfo {
-        outer_iterations: total.outer_iterations + last.outer_iterations,
-        inner_iterations: total.inner_iterations + last.inner_iterations,
-        hessian_applications: total.hessian_applications + last.hessian_applications,
-        history,
-        steps: total.steps.plus(last.steps),
-        per_outer,
-        ..last.clone()
-    }
+    total.followed_by(last)
 }

@@ -128,7 +128,7 @@ impl Operators {
             Outcome::Kept(mut sol, applications, dual, kkt, solves) => {
                 prediction.equality_solves = solves;
                 prediction.kept = true;
-                sol.info = joined(first.info, sol.info);
+                sol.info = first.info.followed_by(&sol.info);
                 let end = first.end;
                 let kept = Outcome::Kept(sol, applications, dual, kkt, solves);
                 let mut attempt = Attempt::of(kept, end);
@@ -152,7 +152,7 @@ impl Operators {
                     ..settings.clone()
                 };
                 let mut sol = self.solve(f, c, &rest, Some(&start), observer)?;
-                sol.info = joined(first.info, sol.info);
+                sol.info = first.info.followed_by(&sol.info);
                 let attempt = Attempt {
                     spent: (hessian, applications),
                     ..Attempt::default()
@@ -160,26 +160,6 @@ impl Operators {
                 Ok((sol, attempt, prediction))
             }
         }
-    }
-}
-
-/// The counts of a solve in two parts, `first` then `then`: outer and inner
-/// iterations, Hessian applications, steps and histories added; the final
-/// status and residuals `then`'s.
-fn joined(first: QpInfo, then: QpInfo) -> QpInfo {
-    let mut per_outer = first.per_outer;
-    per_outer.extend_from_slice(&then.per_outer);
-    let mut history = first.history;
-    history.extend_from_slice(&then.history);
-    QpInfo {
-        outer_iterations: first.outer_iterations + then.outer_iterations,
-        inner_iterations: first.inner_iterations + then.inner_iterations,
-        hessian_applications: first.hessian_applications + then.hessian_applications,
-        steps: first.steps.plus(then.steps),
-        per_outer,
-        history,
-        norm_estimate: first.norm_estimate,
-        ..then
     }
 }
 

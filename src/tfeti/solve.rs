@@ -375,16 +375,8 @@ fn projected_cg(
     let mut fp = vec![0.0; m];
     let mut r = b.to_vec();
     let mut info = QpInfo {
-        status: Status::Converged,
-        outer_iterations: 0,
-        inner_iterations: 0,
-        hessian_applications: 0,
         projected_gradient: 0.0,
-        feasibility: 0.0,
-        history: Vec::new(),
-        norm_estimate: f64::NAN,
-        steps: crate::qp::Steps::default(),
-        per_outer: Vec::new(),
+        ..QpInfo::fresh()
     };
     if bnorm == 0.0 {
         return (x, exact.then_some(fx), info);
@@ -568,16 +560,9 @@ mod tests {
 
     fn after(steps: usize) -> QpInfo {
         QpInfo {
-            status: crate::qp::Status::Converged,
-            outer_iterations: 0,
             inner_iterations: steps,
             hessian_applications: steps + 1,
-            projected_gradient: 0.0,
-            feasibility: 0.0,
-            history: Vec::new(),
-            norm_estimate: f64::NAN,
-            steps: crate::qp::Steps::default(),
-            per_outer: Vec::new(),
+            ..QpInfo::fresh()
         }
     }
 
