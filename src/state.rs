@@ -74,7 +74,8 @@ pub struct State {
     /// Whether the dual solve started from a previous state's multipliers.
     pub warm_started: bool,
     /// Whether the state is the solution on a predicted active set (a warm
-    /// start's `on_active_set`, kept by its KKT check) rather than SMALBE's.
+    /// start's `on_active_set`, kept by its KKT check) rather than SMALBE's;
+    /// a cold solve's predicted active set is `prediction` instead.
     pub on_active_set: bool,
     /// The equality-only dual it was solved on, if so.
     pub kept_dual: Option<Arc<KeptDual>>,
@@ -1151,7 +1152,7 @@ fn solve_on(
                         let attempts = (kind, predict::ATTEMPTS);
                         let (sol, tried, how) =
                             ops.predicted_solve((&f, &c), &settings, attempts, observer)?;
-                        (attempt, prediction) = (tried, Some(how));
+                        (attempt, prediction) = (tried, how);
                         kept_precond = Some(kind);
                         sol
                     }
@@ -1179,6 +1180,11 @@ fn solve_on(
         ..ops
     };
     let mut state = ops.into_state(sol, attempt, warm_started, times, t0);
+    // A cold solve's kept prediction is `prediction`; `on_active_set` stays
+    // a warm start's (finite differences re-solve such a base state cold).
+    if prediction.is_some() {
+        state.on_active_set = false;
+    }
     state.prediction = prediction;
     if let Some(done) = friction {
         state.kkt.friction = Some(friction_kkt(

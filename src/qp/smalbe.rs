@@ -127,11 +127,11 @@ pub struct SmalbeSettings {
     /// [`FACE_METRIC_VALUES`] values or building it more than
     /// [`FACE_METRIC_FLOPS`] flops.
     pub face_metric: bool,
-    /// Whether a cold contact state solve predicts its active set by SMALBE
-    /// at a loose tolerance and solves the equality problem on it
-    /// (`crate::state`'s `predict` module): `Some(true)` always, `Some(false)`
-    /// never, `None` (default) where it pays, in 3D with every `F_s` applied
-    /// by factor solves. Read by the state solve, not by SMALBE itself.
+    /// Whether a cold frictionless TFETI contact state solve (tolerance
+    /// below 0.1) predicts its active set by SMALBE at a loose tolerance and
+    /// solves the equality problem on it (`crate::state`'s `predict`
+    /// module): `Some(true)` in any dimension, `Some(false)` never, `None`
+    /// (default) in 3D. Read by the state solve, not by SMALBE itself.
     pub predict: Option<bool>,
     /// Projected CG (equality-only duals) stops early where its mean rate
     /// so far forecasts the budget `max_hessian` spent before the
@@ -179,7 +179,19 @@ pub struct SmalbeOverrides {
     pub eta_factor: Option<f64>,
     pub lagrangian_before_update: Option<bool>,
     pub face_metric: Option<bool>,
+    /// `Some(None)`: `predict=auto`; serialized as `on`, `off` or `auto`.
+    #[serde(serialize_with = "predict_word")]
     pub predict: Option<Option<bool>>,
+}
+
+/// `predict` as its word in the settings string (`null` where not set).
+fn predict_word<S: serde::Serializer>(v: &Option<Option<bool>>, s: S) -> Result<S::Ok, S::Error> {
+    match v {
+        None => s.serialize_none(),
+        Some(Some(true)) => s.serialize_str("on"),
+        Some(Some(false)) => s.serialize_str("off"),
+        Some(None) => s.serialize_str("auto"),
+    }
 }
 
 impl SmalbeOverrides {

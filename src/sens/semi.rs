@@ -438,15 +438,16 @@ impl<'a> Sensitivity<'a> {
                 .map(Kept::Row),
         );
         // The state solved on exactly these rows (an optimization's warm
-        // state on the previous active set): its dual, coarse problem and
-        // preconditioner serve here too. Its preconditioner wins over `kind`
-        // and `form` (Dirichlet where the scene asks for none, at least as
-        // good as what the directions and adjoints ask for, and built).
+        // state on the previous active set, or a cold solve's predicted
+        // one): its dual, coarse problem and preconditioner serve here too.
+        // A warm state's preconditioner wins over `kind` and `form`
+        // (Dirichlet where the scene asks for none, at least as good as what
+        // the directions and adjoints ask for, and built); a predicted one
+        // serves only with the preconditioner asked for.
         let state_rows: Option<Vec<usize>> = kept.iter().map(Kept::row).collect();
-        let shared = state
-            .kept_dual
-            .as_ref()
-            .filter(|k| state_rows.as_ref() == Some(&k.rows) && n_equality == kept.len());
+        let shared = state.kept_dual.as_ref().filter(|k| {
+            state_rows.as_ref() == Some(&k.rows) && n_equality == kept.len() && k.serves(kind)
+        });
         let dual = match shared {
             Some(k) => Arc::clone(&k.system),
             None => {

@@ -43,6 +43,20 @@ use std::sync::Arc;
 pub struct KeptDual {
     pub rows: Vec<usize>,
     pub system: Arc<DualSystem>,
+    /// Its dual preconditioner.
+    pub kind: Option<Kind>,
+    /// Whether a cold solve's prediction kept it (else a warm start's).
+    pub predicted: bool,
+}
+
+impl KeptDual {
+    /// Whether sensitivity solves that ask for the preconditioner `kind`
+    /// take this dual: a warm start's always (its preconditioner, the
+    /// scene's or Dirichlet, is at least as good and built), a prediction's
+    /// only with the same preconditioner (`cso compare` asks for none).
+    pub fn serves(&self, kind: Option<Kind>) -> bool {
+        !self.predicted || self.kind == kind
+    }
 }
 
 /// Active sets tried before SMALBE takes over: the predicted one and two
@@ -57,6 +71,8 @@ pub(super) struct Plan {
     pub kind: Option<Kind>,
     pub attempts: usize,
     pub budget: usize,
+    /// A cold solve's prediction (else a warm start's previous active set).
+    pub predicted: bool,
 }
 
 impl Plan {
@@ -67,6 +83,7 @@ impl Plan {
             kind: kept_preconditioner(scene),
             attempts: ATTEMPTS,
             budget: settings.max_hessian / 2,
+            predicted: false,
         }
     }
 }
@@ -124,7 +141,7 @@ pub(super) fn solve(
         .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
         .collect();
     let mut start = previous.to_vec();
-    let (mut hessian, mut applications, mut solves) = (0, 0, 0);
+    let (mut hessian, mut applications, mut solves, mut inner) = (0, 0, 0, 0);
     let mut last = None;
     // The attempts together spend at most the plan's budget of Hessian
     // applications, so that SMALBE keeps the rest where they fail.
@@ -133,7 +150,6 @@ pub(super) fn solve(
         if hessian >= budget {
             break;
         }
-        solves += 1;
         let settings = SmalbeSettings {
             max_hessian: budget - hessian,
             ..settings.clone()
@@ -146,6 +162,7 @@ pub(super) fn solve(
         else {
             break;
         };
+        solves += 1;
         applications += system.f_applications();
         let sol = match solved {
             Ok(sol) => sol,
@@ -156,6 +173,7 @@ pub(super) fn solve(
             }
         };
         hessian += sol.info.hessian_applications;
+        inner += sol.info.inner_iterations;
         if sol.info.status != Status::Converged {
             break;
         }
@@ -170,11 +188,13 @@ pub(super) fn solve(
         let check = kkt(problem, dual, &sol.u, &lambda);
         if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
             return Outcome::Kept(
-                Box::new(on_every_row(sol, lambda, hessian)),
+                Box::new(on_every_row(sol, lambda, (hessian, inner))),
                 applications,
                 KeptDual {
                     rows: kept,
                     system: Arc::new(system),
+                    kind,
+                    predicted: plan.predicted,
                 },
                 check,
                 solves,
@@ -230,11 +250,16 @@ fn solve_held(
 }
 
 /// The kept solution as the contact problem's: `lambda` on every row, the
-/// Hessian applications of every attempt, no SMALBE state.
-fn on_every_row(sol: DualSolution, lambda: Vec<f64>, hessian: usize) -> DualSolution {
+/// Hessian applications and CG steps of every attempt, no SMALBE state.
+fn on_every_row(
+    sol: DualSolution,
+    lambda: Vec<f64>,
+    (hessian, inner): (usize, usize),
+) -> DualSolution {
     let info = QpInfo {
         outer_iterations: 0,
         hessian_applications: hessian,
+        inner_iterations: inner,
         ..sol.info
     };
     DualSolution {

@@ -88,19 +88,31 @@ impl Operators {
     /// The dual solve through a predicted active set (see the module), the
     /// equality solves preconditioned by `kind`, at most `attempts` sets:
     /// the solution, what the equality solves left ([`Attempt`]: the dual
-    /// kept, or their cost where refused), and the prediction.
+    /// kept, or their cost where refused), and the prediction (None where
+    /// the loose solve failed and SMALBE alone solved).
     pub(super) fn predicted_solve(
         &self,
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
         (kind, attempts): (Kind, usize),
         observer: &mut dyn FnMut(&QpInfo),
-    ) -> Result<(DualSolution, Attempt, Prediction), SolveError> {
+    ) -> Result<(DualSolution, Attempt, Option<Prediction>), SolveError> {
         let loose = SmalbeSettings {
             tolerance: TOLERANCE,
             ..settings.clone()
         };
-        let first = self.solve(f, c, &loose, None, observer)?;
+        // Should the loose solve fail (its displacements leave a rigid
+        // motion undetermined, say), SMALBE alone decides.
+        let first = match self.solve(f, c, &loose, None, observer) {
+            Ok(first) => first,
+            Err(_) => {
+                return Ok((
+                    self.solve(f, c, settings, None, observer)?,
+                    Attempt::default(),
+                    None,
+                ))
+            }
+        };
         let spent = first.info.hessian_applications;
         let mut prediction = Prediction {
             tolerance: TOLERANCE,
@@ -115,6 +127,7 @@ impl Operators {
                     kind: Some(kind),
                     attempts,
                     budget: (BUDGET * spent).max(MIN_BUDGET).min(left / 2),
+                    predicted: true,
                 };
                 let settings = SmalbeSettings {
                     forecast: true,
@@ -129,13 +142,22 @@ impl Operators {
                 prediction.equality_solves = solves;
                 prediction.kept = true;
                 sol.info = first.info.followed_by(&sol.info);
-                let end = first.end;
+                // SMALBE's state for a later design's warm start, without its
+                // loose final gradient (which would keep that start's inner
+                // cap at the prediction's tolerance).
+                let end = first.end.map(|(w, pfp)| {
+                    let w = crate::qp::SmalbeWarm {
+                        gradient: None,
+                        ..w
+                    };
+                    (w, pfp)
+                });
                 let kept = Outcome::Kept(sol, applications, dual, kkt, solves);
                 let mut attempt = Attempt::of(kept, end);
                 let sol = attempt.solution.take().ok_or(SolveError::Unsupported(
                     "a kept active set without its solution".into(),
                 ))?;
-                Ok((sol, attempt, prediction))
+                Ok((sol, attempt, Some(prediction)))
             }
             Outcome::Refused(hessian, applications, solves, last) => {
                 prediction.equality_solves = solves;
@@ -157,7 +179,7 @@ impl Operators {
                     spent: (hessian, applications),
                     ..Attempt::default()
                 };
-                Ok((sol, attempt, prediction))
+                Ok((sol, attempt, Some(prediction)))
             }
         }
     }
@@ -197,7 +219,7 @@ contact seat { primary = floor, secondary = b.bottom }
                 let (sol, attempt, how) = ops
                     .predicted_solve((&f, &c), &settings, (Kind::Lumped, attempts), &mut |_| {})
                     .expect("solves");
-                (sol, attempt, Some(how), contact_rows)
+                (sol, attempt, how, contact_rows)
             }
             None => {
                 let sol = ops
