@@ -1146,31 +1146,13 @@ fn solve_on(
                 .check_coarse()
                 .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             times.coarse += t.elapsed().as_secs_f64();
-            if frictionless {
-                match predict::predicts(scene, &ops, &settings, start.is_some()) {
-                    Some(kind) => {
-                        let attempts = (kind, predict::ATTEMPTS);
-                        let (sol, tried, how) =
-                            ops.predicted_solve((&f, &c), &settings, attempts, observer)?;
-                        (attempt, prediction) = (tried, how);
-                        kept_precond = Some(kind);
-                        sol
-                    }
-                    None => ops.solve(&f, &c, &settings, start.as_ref(), observer)?,
-                }
-            } else {
-                let (sol, done) = solve_with_friction(
-                    scene,
-                    problem,
-                    settings.tolerance,
-                    start.as_ref(),
-                    &mut |bounds, start| {
-                        ops.solve_bounded(&f, &c, bounds, &settings, start, observer)
-                    },
-                )?;
-                friction = Some(done);
-                sol
+            let (sol, predicted, done) =
+                ops.solve_dual(scene, (&f, &c), &settings, start.as_ref(), observer)?;
+            if let Some((tried, how, kind)) = predicted {
+                (attempt, prediction, kept_precond) = (tried, how, Some(kind));
             }
+            friction = done;
+            sol
         }
     };
     times.solve = t.elapsed().as_secs_f64();
@@ -1371,6 +1353,47 @@ impl Operators {
             self.system.dual().cluster(),
             free_modes,
         ))
+    }
+
+    /// The dual solve where no kept active set answered: with friction its
+    /// loop of solves (and what it did), else through a predicted active set
+    /// where [`predict::predicts`] says so (what the equality solves left,
+    /// the prediction, their preconditioner), else SMALBE from `start`.
+    #[allow(clippy::type_complexity)]
+    fn solve_dual(
+        &self,
+        scene: &Scene,
+        (f, c): (&[&[f64]], &[f64]),
+        settings: &SmalbeSettings,
+        start: Option<&DualStart>,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<
+        (
+            DualSolution,
+            Option<(Attempt, Option<Prediction>, crate::tfeti::precond::Kind)>,
+            Option<FrictionSolve>,
+        ),
+        SolveError,
+    > {
+        if has_friction(&self.problem) {
+            let (sol, done) = solve_with_friction(
+                scene,
+                &self.problem,
+                settings.tolerance,
+                start,
+                &mut |bounds, start| self.solve_bounded(f, c, bounds, settings, start, observer),
+            )?;
+            return Ok((sol, None, Some(done)));
+        }
+        match predict::predicts(scene, self, settings, start.is_some()) {
+            Some(kind) => {
+                let attempts = (kind, predict::ATTEMPTS);
+                let (sol, tried, how) =
+                    self.predicted_solve((f, c), settings, attempts, observer)?;
+                Ok((sol, Some((tried, how, kind)), None))
+            }
+            None => Ok((self.solve(f, c, settings, start, observer)?, None, None)),
+        }
     }
 
     /// The dual solve by SMALBE on every row; rigid motions it leaves
