@@ -11,6 +11,8 @@ each took.
 """
 import json, os, subprocess, sys, tempfile
 
+from rounds import least
+
 
 def solve(cso, scene, extra):
     with tempfile.TemporaryDirectory() as out:
@@ -37,16 +39,8 @@ def main():
     if len(args) < 4:
         sys.exit(__doc__)
     before, after, reps, scenes = args[0], args[1], int(args[2]), args[3:]
-    best = {}
-    for _ in range(reps):
-        for scene in scenes:
-            for tag, cso in (("before", before), ("after", after)):
-                r = solve(cso, scene, extra)
-                if r is None:
-                    continue
-                key = (scene, tag)
-                if key not in best or r["total"] < best[key]["total"]:
-                    best[key] = r
+    binaries = {"before": before, "after": after}
+    best = least(reps, scenes, binaries, lambda scene, tag: solve(binaries[tag], scene, extra))
     print("| scene | before: Hessian, s | after: Hessian, s, preconditioner | time after / before |")
     print("|---|---|---|---|")
     for scene in scenes:

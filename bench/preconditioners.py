@@ -12,6 +12,8 @@ whether auto picked the fastest (or one within 10% of it).
 """
 import json, os, subprocess, sys, tempfile
 
+from rounds import least
+
 KINDS = ["none", "lumped", "dirichlet"]
 
 
@@ -43,16 +45,7 @@ def main():
         sys.exit(__doc__)
     cso, reps, scenes = args[0], int(args[1]), args[2:]
     kinds = KINDS + (["auto"] if "--auto" in sys.argv else [])
-    best = {}
-    for _ in range(reps):
-        for scene in scenes:
-            for kind in kinds:
-                r = solve(cso, scene, kind)
-                if r is None:
-                    continue
-                key = (scene, kind)
-                if key not in best or r["total"] < best[key]["total"]:
-                    best[key] = r
+    best = least(reps, scenes, kinds, lambda scene, kind: solve(cso, scene, kind))
     print("| scene | n_s | dofs/s | contact/s | none | lumped | dirichlet | fastest |" + (" auto |" if "auto" in kinds else ""))
     print("|---|---|---|---|---|---|---|---|" + ("---|" if "auto" in kinds else ""))
     for scene in scenes:

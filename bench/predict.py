@@ -2,12 +2,14 @@
 """A predicted active set against SMALBE alone (BENCHMARKS.md, "A predicted
 active set"): solves each scene with `--smalbe predict=off` and with the
 default, ROUNDS times interleaved, and prints per scene the Hessian
-applications, the least solve and total seconds of each, how the active set
+applications, the solve and total seconds of each one's fastest run, how the active set
 was found, and the energies' relative difference.
 
     python3 bench/predict.py target/release/cso 3 examples/hertz3d.cso /tmp/fam/ball*.cso
 """
 import json, os, subprocess, sys, tempfile
+
+from rounds import least
 
 
 def run(cso, scene, smalbe):
@@ -35,20 +37,9 @@ def main():
     cso, rounds, scenes = sys.argv[1], int(sys.argv[2]), sys.argv[3:]
     print("| scene | subdomains | SMALBE: Hessian, solve s, total s | predicted: Hessian, solve s, total s | how | total ratio | energy rel. diff. |")
     print("|---|---|---|---|---|---|---|")
+    best = least(rounds, scenes, ("predict=off", "default"), lambda scene, k: run(cso, scene, k))
     for scene in scenes:
-        best = {"predict=off": None, "default": None}
-        for _ in range(rounds):
-            for k in best:
-                r = run(cso, scene, k)
-                if r is None:
-                    continue
-                b = best[k]
-                if b is None:
-                    best[k] = r
-                else:
-                    b["solve"] = min(b["solve"], r["solve"])
-                    b["total"] = min(b["total"], r["total"])
-        off, on = best["predict=off"], best["default"]
+        off, on = best.get((scene, "predict=off")), best.get((scene, "default"))
         if off is None or on is None:
             print(f"| {os.path.basename(scene)} | failed |")
             continue
