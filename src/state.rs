@@ -1546,10 +1546,31 @@ impl State {
         self.info.status == Status::Converged
     }
 
-    /// Displacement of a body's grid node (from its first copy).
-    /// The displacement of a body's grid node (`z = 0` in 2D).
+    /// The displacement of a body's grid node from its first copy (`z = 0` in 2D).
     pub fn node_displacement(&self, body: usize, node: usize) -> [f64; 3] {
-        let (s, l) = self.problem.bodies[body].copies(node)[0];
+        let b = &self.problem.bodies[body];
+        self.node_displacement_in(
+            body,
+            node,
+            b.first_subdomain..b.first_subdomain + b.subdomains(),
+        )
+    }
+
+    /// The displacement of a body node from its first copy in `subdomains`
+    /// (a rank's own, where the others' may not be at hand), or from its
+    /// first copy where none is there.
+    pub fn node_displacement_in(
+        &self,
+        body: usize,
+        node: usize,
+        subdomains: std::ops::Range<usize>,
+    ) -> [f64; 3] {
+        let copies = self.problem.bodies[body].copies(node);
+        let (s, l) = copies
+            .iter()
+            .copied()
+            .find(|(s, _)| subdomains.contains(s))
+            .unwrap_or(copies[0]);
         let d = self.problem.dim;
         std::array::from_fn(|a| if a < d { self.u[s][d * l + a] } else { 0.0 })
     }

@@ -110,3 +110,39 @@ pub fn finite_difference(s: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, 
         options,
     )
 }
+
+/// The attribute `name` of every `<Piece` of a VTK XML file.
+fn piece_attributes(xml: &str, name: &str) -> Vec<String> {
+    xml.split("<Piece ")
+        .skip(1)
+        .filter_map(|p| {
+            let start = p.find(&format!("{name}=\""))? + name.len() + 2;
+            Some(p[start..start + p[start..].find('"')?].to_string())
+        })
+        .collect()
+}
+
+/// A distributed solve's `BODY.pvtu` in `dir`: it lists `ranks` pieces (one
+/// per rank holding a subdomain of the body), each there, with every cell of
+/// the serial `whole` VTU once between them; and no `BODY.vtu` beside it.
+pub fn assert_pieces(whole: &std::path::Path, dir: &std::path::Path, body: &str, ranks: usize) {
+    let read = |p: &std::path::Path| {
+        std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+    };
+    let count = |xml: &str| -> usize {
+        piece_attributes(xml, "NumberOfCells")
+            .iter()
+            .map(|n| n.parse::<usize>().expect("a count"))
+            .sum()
+    };
+    let pvtu = read(&dir.join(format!("{body}.pvtu")));
+    assert!(pvtu.contains("type=\"PUnstructuredGrid\""), "{body}.pvtu");
+    let sources = piece_attributes(&pvtu, "Source");
+    assert_eq!(sources.len(), ranks, "{body}: pieces {sources:?}");
+    let cells: usize = sources.iter().map(|s| count(&read(&dir.join(s)))).sum();
+    assert_eq!(cells, count(&read(whole)), "{body}: the pieces' cells");
+    assert!(
+        !dir.join(format!("{body}.vtu")).exists(),
+        "{body}.vtu beside the pieces"
+    );
+}

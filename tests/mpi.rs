@@ -3,6 +3,7 @@
 //! and every rank stopping with the same message on bad input and on a
 //! failing rank, never hanging.
 
+use crate::fixture::assert_pieces;
 use crate::root;
 use std::path::Path;
 use std::process::Command;
@@ -82,12 +83,26 @@ fn two_blocks_on_1_2_4_ranks_gives_the_serial_report_bitwise() {
         let dist = solve(Some(n), scene, &[], &scratch(&format!("tb-{n}")));
         assert_same(&serial, &dist, &format!("two_blocks on {n} ranks"));
     }
-    // The VTU files rank 0 writes are the serial ones too.
+    // One rank: the serial VTU files. More: one piece per rank under a .pvtu.
     for f in ["base.vtu", "punch.vtu"] {
         let a = std::fs::read(scratch("tb-serial").join(f)).expect("serial VTU");
-        let b = std::fs::read(scratch("tb-2").join(f)).expect("distributed VTU");
-        assert!(a == b, "{f} differs on 2 ranks");
+        let b = std::fs::read(scratch("tb-1").join(f)).expect("VTU of one rank");
+        assert!(a == b, "{f} differs on 1 rank");
     }
+    // base: subdomains 0..12, punch 12..16, the same size; 2 ranks cut
+    // them by dofs at 8, so the punch lies on the second.
+    assert_pieces(
+        &scratch("tb-serial").join("base.vtu"),
+        &scratch("tb-2"),
+        "base",
+        2,
+    );
+    assert_pieces(
+        &scratch("tb-serial").join("punch.vtu"),
+        &scratch("tb-2"),
+        "punch",
+        1,
+    );
 }
 
 /// Eight ranks on two cores (`--oversubscribe`): scont2d's 16 subdomains,
@@ -118,9 +133,14 @@ fn bodies_from_mesh_files_on_2_and_3_ranks_give_the_serial_report_bitwise() {
         let dist = solve(Some(n), scene, &[], &scratch(&format!("ring-{n}")));
         assert_same(&serial, &dist, &format!("ring on {n} ranks"));
     }
-    let a = std::fs::read(scratch("ring-serial").join("ring.vtu")).expect("serial VTU");
-    let b = std::fs::read(scratch("ring-2").join("ring.vtu")).expect("distributed VTU");
-    assert!(a == b, "ring.vtu differs on 2 ranks");
+    let whole = scratch("ring-serial").join("ring.vtu");
+    let ranks = std::fs::read_to_string(scratch("ring-2").join("ring.pvtu")).expect("ring.pvtu");
+    assert_pieces(
+        &whole,
+        &scratch("ring-2"),
+        "ring",
+        ranks.matches("<Piece ").count(),
+    );
 }
 
 #[test]
@@ -132,9 +152,14 @@ fn coulomb_friction_on_2_ranks_gives_the_serial_report_bitwise() {
     let dist = solve(Some(2), scene, &[], &scratch("cattaneo-2"));
     assert_same(&serial, &dist, "cattaneo2d on 2 ranks");
     assert!(dist["solver"]["friction"]["solves"].as_u64() > Some(1));
-    let a = std::fs::read(scratch("cattaneo-serial").join("roller.vtu")).expect("serial VTU");
-    let b = std::fs::read(scratch("cattaneo-2").join("roller.vtu")).expect("distributed VTU");
-    assert!(a == b, "roller.vtu differs on 2 ranks");
+    let whole = scratch("cattaneo-serial").join("roller.vtu");
+    let pvtu = std::fs::read_to_string(scratch("cattaneo-2").join("roller.pvtu")).expect("pvtu");
+    assert_pieces(
+        &whole,
+        &scratch("cattaneo-2"),
+        "roller",
+        pvtu.matches("<Piece ").count(),
+    );
 }
 
 #[test]

@@ -66,14 +66,8 @@ impl Solve {
         let report = cso::io::report::Report::new(&scene, &state);
         out!("{}", report.summary_text());
         let reference = hertz.and_then(|h| hertz_line(&h, &scene, &report));
-        if let Some(dir) = self.out.as_ref().filter(|_| lead) {
-            let written =
-                cso::io::solve_files::write_all(dir, &scene, &state, &report, reference.as_ref());
-            written.map_err(|e| {
-                let msg = format!("cannot write results to {}: {e}", dir.display());
-                fail(EXIT_IO, msg)
-            })?;
-            outln!("results written to {}", dir.display());
+        if let Some(dir) = self.out.as_ref() {
+            write_files(dir, ranks, &scene, &state, &report, reference.as_ref())?;
         }
         if !state.converged() {
             let status =
@@ -83,6 +77,38 @@ impl Solve {
         }
         Ok(())
     }
+}
+
+/// The files of the solve in `dir`: rank 0 writes them; distributed, every
+/// rank first writes its piece of each body's VTU, rank 0 the `.pvtu` over
+/// them.
+fn write_files(
+    dir: &std::path::Path,
+    ranks: &Ranks,
+    scene: &cso::lang::Scene,
+    state: &cso::state::State,
+    report: &cso::io::report::Report,
+    reference: Option<&cso::io::contact_charts::PressureReference>,
+) -> Outcome {
+    use cso::io::solve_files::{write_all, write_pieces, Layout};
+    let failed = |e: std::io::Error| {
+        let msg = format!("cannot write results to {}: {e}", dir.display());
+        fail(EXIT_IO, msg)
+    };
+    let cluster = state.dual.cluster();
+    let layout = if cluster.is_distributed() {
+        together(ranks, write_pieces(dir, scene, state).map_err(failed))?;
+        Layout::Pieces {
+            bounds: cluster.bounds(),
+        }
+    } else {
+        Layout::Whole
+    };
+    if ranks.as_ref().is_none_or(|c| c.rank() == 0) {
+        write_all(dir, scene, state, report, reference, layout).map_err(failed)?;
+        outln!("results written to {}", dir.display());
+    }
+    Ok(())
 }
 
 /// With `--hertz`: Hertz's size and peak against the model's, printed, and

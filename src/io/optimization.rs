@@ -11,7 +11,7 @@ use super::atomic::write_atomic;
 use super::plot::{chart, Axis, Scale, Series};
 use super::provenance::{scene_units, to_json, Header};
 use super::report::{body_fields, Report};
-use super::solve_files::write_all;
+use super::solve_files::{write_all, Layout};
 use super::vtu::pvd_string;
 use crate::lang::Scene;
 use crate::opt::Optimization;
@@ -142,7 +142,7 @@ pub fn write(dir: &Path, scene: &Scene, run: &Optimization) -> io::Result<()> {
         let state = crate::state::solve(&best, &best.design_init(), &mut |_| {})
             .map_err(io::Error::other)?;
         let report = Report::new(&best, &state);
-        write_all(dir, &best, &state, &report, None)?;
+        write_all(dir, &best, &state, &report, None, Layout::Whole)?;
     }
     Ok(())
 }

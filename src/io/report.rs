@@ -827,17 +827,109 @@ fn centre_strain(m: &SubdomainMesh, e: &[usize], ue: &[f64]) -> Vec<f64> {
 /// Displacement, stress, von Mises, subdomain id and contact pressure (both
 /// sides of each contact) of body `b`, solved at `design`.
 pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> BodyFields {
+    let body = &state.problem.bodies[b];
+    let all = body.first_subdomain..body.first_subdomain + body.subdomains();
+    let nodes: Vec<usize> = (0..body.coords.len()).collect();
+    piece_fields(
+        scene,
+        design,
+        state,
+        b,
+        all,
+        &nodes,
+        &|mesh, points, cells| vtu_string(mesh, points, cells, Encoding::Binary),
+    )
+}
+
+/// The `.vtu` piece of body `b` on the cells of the subdomains in `owned`
+/// (a rank's), with the points those cells use; None where the body has no
+/// subdomain there. Displacements are read from the owned subdomains' copies.
+pub fn body_piece(
+    scene: &Scene,
+    design: &[f64],
+    state: &State,
+    b: usize,
+    owned: std::ops::Range<usize>,
+) -> Option<String> {
     let p = &state.problem;
     let body = &p.bodies[b];
-    let n = body.coords.len();
-    let disp: Vec<[f64; 3]> = (0..n).map(|k| state.node_displacement(b, k)).collect();
-    let points = body.coords.clone();
+    let start = owned.start.max(body.first_subdomain);
+    let end = owned.end.min(body.first_subdomain + body.subdomains());
+    if start >= end {
+        return None;
+    }
+    let mut nodes: Vec<usize> = (start..end)
+        .flat_map(|s| {
+            let m = &p.subdomains[s];
+            m.element_nodes().flat_map(|e| e.iter().map(|&l| m.grid[l]))
+        })
+        .collect();
+    nodes.sort_unstable();
+    nodes.dedup();
+    let f = piece_fields(
+        scene,
+        design,
+        state,
+        b,
+        start..end,
+        &nodes,
+        &|mesh, points, cells| vtu_string(mesh, points, cells, Encoding::Binary),
+    );
+    Some(f.vtu)
+}
+
+/// The `.pvtu` of body `b` over the pieces `pieces` (file names): the same
+/// fields as [`body_piece`] writes, declared.
+pub fn body_pvtu(
+    scene: &Scene,
+    design: &[f64],
+    state: &State,
+    b: usize,
+    pieces: &[String],
+) -> String {
+    let first = state.problem.bodies[b].first_subdomain;
+    let f = piece_fields(
+        scene,
+        design,
+        state,
+        b,
+        first..first,
+        &[],
+        &|_, points, cells| crate::io::vtu::pvtu_string(points, cells, pieces),
+    );
+    f.vtu
+}
+
+/// Writes the fields of `mesh` (points, cells): a `.vtu` or a `.pvtu`.
+type FieldsWriter<'a> = dyn Fn(&VtuMesh, &[(&str, Field)], &[(&str, Field)]) -> String + 'a;
+
+/// Body `b`'s fields on the cells of `subdomains` and the body nodes `nodes`
+/// (every node those cells use, ascending), written by `write`.
+fn piece_fields(
+    scene: &Scene,
+    design: &[f64],
+    state: &State,
+    b: usize,
+    subdomains: std::ops::Range<usize>,
+    nodes: &[usize],
+    write: &FieldsWriter,
+) -> BodyFields {
+    let p = &state.problem;
+    let body = &p.bodies[b];
+    let mut point = vec![usize::MAX; body.coords.len()];
+    for (i, &k) in nodes.iter().enumerate() {
+        point[k] = i;
+    }
+    let disp: Vec<[f64; 3]> = nodes
+        .iter()
+        .map(|&k| state.node_displacement_in(b, k, subdomains.clone()))
+        .collect();
+    let points: Vec<[f64; 3]> = nodes.iter().map(|&k| body.coords[k]).collect();
     let mut cells = Vec::new();
     let mut subdomain = Vec::new();
     let mut stress = Vec::new();
     let mut von_mises = Vec::new();
-    let first = body.first_subdomain;
-    for s in first..first + body.subdomains() {
+    for s in subdomains {
         let m = &p.subdomains[s];
         for e in m.element_nodes() {
             cells.push(e.iter().map(|&l| m.grid[l]).collect::<Vec<usize>>());
@@ -847,12 +939,13 @@ pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> Bo
             von_mises.push(vm);
         }
     }
-    let pressure = crate::io::pressure::nodal_pressure(scene, design, state, b);
-    let connectivity = cells.concat();
+    let at = |values: Vec<f64>| -> Vec<f64> { nodes.iter().map(|&k| values[k]).collect() };
+    let pressure = at(crate::io::pressure::nodal_pressure(scene, design, state, b));
+    let connectivity: Vec<usize> = cells.iter().flatten().map(|&k| point[k]).collect();
     let mesh = VtuMesh {
         points: &points,
         connectivity: &connectivity,
-        cell_type: CellType::of(p.subdomains[first].element),
+        cell_type: CellType::of(p.subdomains[body.first_subdomain].element),
     };
     // VTU vectors have three components: 3D stress goes as normal and shear parts.
     let part = |k: usize| -> Vec<[f64; 3]> {
@@ -881,20 +974,25 @@ pub fn body_fields(scene: &Scene, design: &[f64], state: &State, b: usize) -> Bo
     }
     cell_fields.push(("von Mises", Field::Scalar(&von_mises)));
     cell_fields.push(("subdomain", Field::Int(&subdomain)));
-    let friction = crate::io::pressure::nodal_friction(state, b);
+    let friction = crate::io::pressure::nodal_friction(state, b).map(|f| {
+        let shear: Vec<[f64; 3]> = nodes.iter().map(|&k| f.shear[k]).collect();
+        let slip: Vec<[f64; 3]> = nodes.iter().map(|&k| f.slip[k]).collect();
+        let state: Vec<i64> = nodes.iter().map(|&k| f.state[k]).collect();
+        (shear, slip, state)
+    });
     let mut point_fields = vec![
         ("displacement", Field::Vector(&disp)),
         ("contact pressure", Field::Scalar(&pressure)),
     ];
-    if let Some(f) = &friction {
-        point_fields.push(("contact shear", Field::Vector(&f.shear)));
-        point_fields.push(("slip", Field::Vector(&f.slip)));
+    if let Some((shear, slip, state)) = &friction {
+        point_fields.push(("contact shear", Field::Vector(shear)));
+        point_fields.push(("slip", Field::Vector(slip)));
         point_fields.push((
             "friction state (1 stick, 2 slip, 3 open)",
-            Field::Int(&f.state),
+            Field::Int(state),
         ));
     }
-    let vtu = vtu_string(&mesh, &point_fields, &cell_fields, Encoding::Binary);
+    let vtu = write(&mesh, &point_fields, &cell_fields);
     BodyFields {
         disp,
         cells,

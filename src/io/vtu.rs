@@ -217,6 +217,50 @@ pub fn pvd_string(entries: &[(f64, &str)]) -> String {
     s
 }
 
+/// The parallel file (`.pvtu`) over pieces written one per rank: the
+/// fields' names and types (taken from `point_data` and `cell_data`, whose
+/// values are not read) and each piece's file, relative to the `.pvtu`'s
+/// directory. ParaView opens it as one data set.
+pub fn pvtu_string(
+    point_data: &[(&str, Field)],
+    cell_data: &[(&str, Field)],
+    pieces: &[String],
+) -> String {
+    let mut s = String::new();
+    s.push_str("<?xml version=\"1.0\"?>\n");
+    s.push_str(
+        "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\" byte_order=\"LittleEndian\" header_type=\"UInt64\">\n",
+    );
+    s.push_str("  <PUnstructuredGrid GhostLevel=\"0\">\n");
+    let declare = |s: &mut String, tag: &str, fields: &[(&str, Field)]| {
+        let _ = writeln!(s, "    <{tag}>");
+        for (name, field) in fields {
+            let (ty, comps) = match field {
+                Field::Scalar(_) => ("Float64", ""),
+                Field::Vector(_) => ("Float64", " NumberOfComponents=\"3\""),
+                Field::Int(_) => ("Int64", ""),
+            };
+            let _ = writeln!(
+                s,
+                "      <PDataArray type=\"{ty}\" Name=\"{}\"{comps}/>",
+                xml_escape(name)
+            );
+        }
+        let _ = writeln!(s, "    </{tag}>");
+    };
+    declare(&mut s, "PPointData", point_data);
+    declare(&mut s, "PCellData", cell_data);
+    s.push_str("    <PPoints>\n");
+    s.push_str("      <PDataArray type=\"Float64\" Name=\"Points\" NumberOfComponents=\"3\"/>\n");
+    s.push_str("    </PPoints>\n");
+    for piece in pieces {
+        let _ = writeln!(s, "    <Piece Source=\"{}\"/>", xml_escape(piece));
+    }
+    s.push_str("  </PUnstructuredGrid>\n");
+    s.push_str("</VTKFile>\n");
+    s
+}
+
 /// The values of one `DataArray`.
 enum Values<'a> {
     Floats(&'a [f64]),
@@ -576,7 +620,7 @@ pub(crate) mod tests {
     }
 
     /// The data of a binary array: checks the UInt64 byte count header.
-    fn binary_array(xml: &str, name: &str) -> Vec<u8> {
+    pub(crate) fn binary_array(xml: &str, name: &str) -> Vec<u8> {
         let tokens = array_tokens(xml, name);
         assert_eq!(tokens.len(), 1, "one base64 block");
         let block = decode64(tokens[0]);
@@ -587,6 +631,22 @@ pub(crate) mod tests {
             "{name}: the header counts the data bytes"
         );
         block[8..].to_vec()
+    }
+
+    /// The `f64` values of a binary array.
+    pub(crate) fn binary_floats(xml: &str, name: &str) -> Vec<f64> {
+        binary_array(xml, name)
+            .chunks(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    }
+
+    /// The `i64` values of a binary array.
+    pub(crate) fn binary_ints(xml: &str, name: &str) -> Vec<i64> {
+        binary_array(xml, name)
+            .chunks(8)
+            .map(|c| i64::from_le_bytes(c.try_into().unwrap()))
+            .collect()
     }
 
     #[test]

@@ -416,6 +416,12 @@ impl Cluster {
         self.first..self.first + self.subs.len()
     }
 
+    /// Where each rank's subdomains start: rank `r` owns
+    /// `bounds[r]..bounds[r + 1]`.
+    pub fn bounds(&self) -> &[usize] {
+        &self.bounds
+    }
+
     /// Local rows of each rank's subdomains in all (the layout of a gathered
     /// row vector).
     pub fn rows_per_rank(&self) -> Vec<usize> {
