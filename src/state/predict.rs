@@ -173,7 +173,9 @@ impl Operators {
                     max_hessian: left.saturating_sub(hessian),
                     ..settings.clone()
                 };
-                let mut sol = self.solve(f, c, &rest, Some(&start), observer)?;
+                // The progress goes on from the prediction's counts.
+                let mut after = |i: &QpInfo| observer(&first.info.followed_by(i));
+                let mut sol = self.solve(f, c, &rest, Some(&start), &mut after)?;
                 sol.info = first.info.followed_by(&sol.info);
                 let attempt = Attempt {
                     spent: (hessian, applications),
@@ -204,6 +206,16 @@ contact seat { primary = floor, secondary = b.bottom }
     /// The block's dual solved by SMALBE alone (None) or through a
     /// prediction trying at most `attempts` sets.
     fn solved(attempts: Option<usize>) -> (DualSolution, Attempt, Option<Prediction>, usize) {
+        let (sol, attempt, how, rows, _) = observed(attempts);
+        (sol, attempt, how, rows)
+    }
+
+    /// [`solved`], with the Hessian applications the progress observer saw.
+    fn observed(
+        attempts: Option<usize>,
+    ) -> (DualSolution, Attempt, Option<Prediction>, usize, Vec<usize>) {
+        let mut seen = Vec::new();
+        let mut observer = |i: &QpInfo| seen.push(i.hessian_applications);
         let scene =
             crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
         let design = scene.design_init();
@@ -217,15 +229,15 @@ contact seat { primary = floor, secondary = b.bottom }
         match attempts {
             Some(attempts) => {
                 let (sol, attempt, how) = ops
-                    .predicted_solve((&f, &c), &settings, (Kind::Lumped, attempts), &mut |_| {})
+                    .predicted_solve((&f, &c), &settings, (Kind::Lumped, attempts), &mut observer)
                     .expect("solves");
-                (sol, attempt, how, contact_rows)
+                (sol, attempt, how, contact_rows, seen)
             }
             None => {
                 let sol = ops
-                    .solve(&f, &c, &settings, None, &mut |_| {})
+                    .solve(&f, &c, &settings, None, &mut observer)
                     .expect("solves");
-                (sol, Attempt::default(), None, contact_rows)
+                (sol, Attempt::default(), None, contact_rows, seen)
             }
         }
     }
@@ -262,11 +274,14 @@ contact seat { primary = floor, secondary = b.bottom }
 
     /// The refused path: with no equality solve allowed, SMALBE goes on
     /// from its prediction (its state and multipliers) to the tolerance, and
-    /// its count includes the prediction's.
+    /// its count includes the prediction's, as the progress shows it: never
+    /// going back, ending at the total.
     #[test]
     fn smalbe_finishes_from_the_prediction_where_no_active_set_is_kept() {
         let (smalbe, _, _, _) = solved(None);
-        let (sol, attempt, how, _) = solved(Some(0));
+        let (sol, attempt, how, _, seen) = observed(Some(0));
+        assert!(seen.windows(2).all(|w| w[0] <= w[1]), "{seen:?}");
+        assert_eq!(seen.last(), Some(&sol.info.hessian_applications));
         let how = how.expect("predicted");
         assert!(!how.kept && how.equality_solves == 0, "{how:?}");
         assert!(attempt.kept_dual.is_none());
