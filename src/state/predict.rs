@@ -102,15 +102,20 @@ impl Operators {
             ..settings.clone()
         };
         // Should the loose solve fail (its displacements leave a rigid
-        // motion undetermined, say), SMALBE alone decides.
-        let first = match self.solve(f, c, &loose, None, observer) {
+        // motion undetermined, say), SMALBE alone decides; the loose
+        // solve's applications (its progress's last count) are counted.
+        let mut loose_info = QpInfo::fresh();
+        let mut seen = |i: &QpInfo| {
+            loose_info = i.clone();
+            observer(i)
+        };
+        let first = match self.solve(f, c, &loose, None, &mut seen) {
             Ok(first) => first,
             Err(_) => {
-                return Ok((
-                    self.solve(f, c, settings, None, observer)?,
-                    Attempt::default(),
-                    None,
-                ))
+                let mut after = |i: &QpInfo| observer(&loose_info.followed_by(i));
+                let mut sol = self.solve(f, c, settings, None, &mut after)?;
+                sol.info = loose_info.followed_by(&sol.info);
+                return Ok((sol, Attempt::default(), None));
             }
         };
         let spent = first.info.hessian_applications;
@@ -253,6 +258,14 @@ contact seat { primary = floor, secondary = b.bottom }
             worst <= 1e-4 * top,
             "multipliers differ by {worst} of {top}"
         );
+    }
+
+    /// The progress's last count is the solve's, the power iterations for
+    /// `||P F P||` included: what a failed loose solve adds to the count.
+    #[test]
+    fn the_progress_ends_at_the_solves_count() {
+        let (sol, _, _, _, seen) = observed(None);
+        assert_eq!(seen.last(), Some(&sol.info.hessian_applications));
     }
 
     /// The kept path: the active set SMALBE predicts at 1e-1 holds after an

@@ -143,9 +143,21 @@ pub fn dual_solve_bounded(
         discs: &discs,
         ..smalbe::Problem::new(&a, &b, &lower_bounds, &g)
     };
-    let (mut info, end) =
-        smalbe::solve(&problem, &mut lhat, settings, Some(&smalbe_start), observer);
-    // The power iterations for ||P F P|| are applications of the same F.
+    // The power iterations for ||P F P|| are applications of the same F:
+    // counted in the progress too, so that its last count is the solve's.
+    let mut counted = |i: &QpInfo| {
+        observer(&QpInfo {
+            hessian_applications: i.hessian_applications + power,
+            ..i.clone()
+        })
+    };
+    let (mut info, end) = smalbe::solve(
+        &problem,
+        &mut lhat,
+        settings,
+        Some(&smalbe_start),
+        &mut counted,
+    );
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
