@@ -346,6 +346,24 @@ probe tip {{ body = beam, at = (1, 0, 0) }}
         "{uz} vs {uz_wide}"
     );
     assert!((-0.16..-0.14).contains(&uz), "{uz}");
+    // Every round predicted its active set (3D, cold): the report counts
+    // them all, so more than the last round alone, which is the solve of
+    // the scene with the final search from the start.
+    let last = state.search.widened[0].expect("widened");
+    let once = solve(&scene(&src(Some(last))), &[], &mut |_| {}).expect("solves");
+    assert_eq!(once.search.rounds, 0);
+    let (all, one) = (
+        state.prediction.expect("predicted"),
+        once.prediction.expect("predicted"),
+    );
+    assert!(
+        all.smalbe_applications > one.smalbe_applications,
+        "{all:?} {one:?}"
+    );
+    assert!(
+        all.equality_solves >= one.equality_solves,
+        "{all:?} {one:?}"
+    );
 }
 
 #[test]

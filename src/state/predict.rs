@@ -43,9 +43,9 @@ pub const ATTEMPTS: usize = 4;
 pub struct Prediction {
     /// SMALBE's tolerance for it.
     pub tolerance: f64,
-    /// SMALBE's Hessian applications to it.
+    /// SMALBE's Hessian applications to it (over every search round).
     pub smalbe_applications: usize,
-    /// Equality-only solves on it and its corrections.
+    /// Equality-only solves on it and its corrections (every round's).
     pub equality_solves: usize,
     /// Whether the last was kept; else SMALBE finished from the prediction.
     pub kept: bool,

@@ -204,4 +204,9 @@ fn add_cost(state: &mut State, earlier: &State) {
     state.info.hessian_applications += earlier.info.hessian_applications;
     state.f_applications += earlier.f_applications;
     state.factorizations = earlier.factorizations;
+    // Every round's predicted active set counted, the last one's outcome.
+    if let (Some(p), Some(e)) = (state.prediction.as_mut(), &earlier.prediction) {
+        p.smalbe_applications += e.smalbe_applications;
+        p.equality_solves += e.equality_solves;
+    }
 }
