@@ -115,34 +115,202 @@ pub fn finite_difference(s: &Scene, h: f64, scheme: Scheme) -> Result<Gradient, 
 fn piece_attributes(xml: &str, name: &str) -> Vec<String> {
     xml.split("<Piece ")
         .skip(1)
-        .filter_map(|p| {
-            let start = p.find(&format!("{name}=\""))? + name.len() + 2;
-            Some(p[start..start + p[start..].find('"')?].to_string())
+        .filter_map(|p| attribute(&format!(" {p}"), name))
+        .collect()
+}
+
+/// The value of `name="..."` in the text of one XML tag.
+fn attribute(tag: &str, name: &str) -> Option<String> {
+    let tag = &tag[..tag.find('>').unwrap_or(tag.len())];
+    let start = tag.find(&format!(" {name}=\""))? + name.len() + 3;
+    Some(tag[start..start + tag[start..].find('"')?].to_string())
+}
+
+/// Standard base64 (padded), decoded.
+fn base64(text: &str) -> Vec<u8> {
+    let value = |c: u8| -> u32 {
+        match c {
+            b'A'..=b'Z' => (c - b'A') as u32,
+            b'a'..=b'z' => (c - b'a') as u32 + 26,
+            b'0'..=b'9' => (c - b'0') as u32 + 52,
+            b'+' => 62,
+            b'/' => 63,
+            _ => panic!("not base64: {c}"),
+        }
+    };
+    let mut out = Vec::new();
+    for chunk in text.trim().as_bytes().chunks(4) {
+        let pad = chunk.iter().filter(|&&c| c == b'=').count();
+        let n = chunk
+            .iter()
+            .map(|&c| if c == b'=' { 0 } else { value(c) })
+            .fold(0u32, |acc, v| (acc << 6) | v);
+        out.extend_from_slice(&n.to_be_bytes()[1..4 - pad]);
+    }
+    out
+}
+
+/// Every `DataArray` (or `PDataArray`) of a VTK XML file: (name, type,
+/// components, the data's bytes; none for a declaration).
+fn arrays(xml: &str, tag: &str) -> Vec<(String, String, usize, Vec<u8>)> {
+    xml.split(&format!("<{tag} "))
+        .skip(1)
+        .map(|a| {
+            let a = &format!(" {a}");
+            let name = attribute(a, "Name").unwrap_or_default();
+            let ty = attribute(a, "type").expect("a type");
+            let comps =
+                attribute(a, "NumberOfComponents").map_or(1, |c| c.parse().expect("a count"));
+            let body = &a[a.find('>').expect("a tag") + 1..];
+            let data = match body.find("</DataArray>") {
+                Some(end) if !a[..a.find('>').unwrap_or(0)].ends_with('/') => {
+                    let block = base64(&body[..end]);
+                    block[8..].to_vec()
+                }
+                _ => Vec::new(),
+            };
+            (name, ty, comps, data)
         })
         .collect()
 }
 
-/// A distributed solve's `BODY.pvtu` in `dir`: it lists `ranks` pieces (one
-/// per rank holding a subdomain of the body), each there, with every cell of
-/// the serial `whole` VTU once between them; and no `BODY.vtu` beside it.
+/// A VTU file's arrays by name, as f64 (Float64 and Int64 alike).
+fn values(xml: &str) -> std::collections::HashMap<String, (usize, Vec<f64>)> {
+    arrays(xml, "DataArray")
+        .into_iter()
+        .filter(|(_, ty, _, _)| ty != "UInt8")
+        .map(|(name, ty, comps, data)| {
+            let v = data
+                .chunks(8)
+                .map(|c| {
+                    let b: [u8; 8] = c.try_into().expect("8 bytes");
+                    if ty == "Int64" {
+                        i64::from_le_bytes(b) as f64
+                    } else {
+                        f64::from_le_bytes(b)
+                    }
+                })
+                .collect();
+            (name, (comps, v))
+        })
+        .collect()
+}
+
+/// The points of each cell of a VTU file, as coordinate bits.
+fn cells_by_points(v: &std::collections::HashMap<String, (usize, Vec<f64>)>) -> Vec<Vec<[u64; 3]>> {
+    let (points, conn, offsets) = (&v["Points"].1, &v["connectivity"].1, &v["offsets"].1);
+    let mut start = 0;
+    offsets
+        .iter()
+        .map(|&end| {
+            let cell = conn[start..end as usize]
+                .iter()
+                .map(|&i| std::array::from_fn(|a| points[3 * i as usize + a].to_bits()))
+                .collect();
+            start = end as usize;
+            cell
+        })
+        .collect()
+}
+
+/// A distributed solve's `BODY.pvtu` in `dir` against the serial `whole`
+/// VTU: it lists `ranks` pieces, each there and declaring exactly the
+/// arrays the `.pvtu` declares; every cell of `whole` is in one piece, with
+/// the same cell data, and every piece point has `whole`'s point data at
+/// the same place (the displacement to the gluing's tolerance: a node on an
+/// interface between ranks takes its own subdomain's copy); no `BODY.vtu`
+/// beside it.
 pub fn assert_pieces(whole: &std::path::Path, dir: &std::path::Path, body: &str, ranks: usize) {
+    use std::collections::HashMap;
     let read = |p: &std::path::Path| {
         std::fs::read_to_string(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
     };
-    let count = |xml: &str| -> usize {
-        piece_attributes(xml, "NumberOfCells")
-            .iter()
-            .map(|n| n.parse::<usize>().expect("a count"))
-            .sum()
-    };
     let pvtu = read(&dir.join(format!("{body}.pvtu")));
     assert!(pvtu.contains("type=\"PUnstructuredGrid\""), "{body}.pvtu");
-    let sources = piece_attributes(&pvtu, "Source");
-    assert_eq!(sources.len(), ranks, "{body}: pieces {sources:?}");
-    let cells: usize = sources.iter().map(|s| count(&read(&dir.join(s)))).sum();
-    assert_eq!(cells, count(&read(whole)), "{body}: the pieces' cells");
     assert!(
         !dir.join(format!("{body}.vtu")).exists(),
         "{body}.vtu beside the pieces"
+    );
+    let sources = piece_attributes(&pvtu, "Source");
+    assert_eq!(sources.len(), ranks, "{body}: pieces {sources:?}");
+    let declared: Vec<(String, String, usize)> = arrays(&pvtu, "PDataArray")
+        .into_iter()
+        .map(|(n, t, c, _)| (n, t, c))
+        .collect();
+    let serial = read(whole);
+    let w = values(&serial);
+    let whole_cells = cells_by_points(&w);
+    let cell_of: HashMap<&Vec<[u64; 3]>, usize> = whole_cells
+        .iter()
+        .enumerate()
+        .map(|(i, c)| (c, i))
+        .collect();
+    let points = &w["Points"].1;
+    let point_of: HashMap<[u64; 3], usize> = (0..points.len() / 3)
+        .map(|k| (std::array::from_fn(|a| points[3 * k + a].to_bits()), k))
+        .collect();
+    let point_fields: Vec<String> = serial[serial.find("<PointData>").expect("point data")
+        ..serial.find("</PointData>").expect("point data")]
+        .split("Name=\"")
+        .skip(1)
+        .map(|s| s[..s.find('"').unwrap_or(0)].to_string())
+        .collect();
+    let umax = w["displacement"]
+        .1
+        .iter()
+        .fold(0.0_f64, |m, v| m.max(v.abs()));
+    let mut seen = vec![0; whole_cells.len()];
+    for source in &sources {
+        let text = read(&dir.join(source));
+        let mut own: Vec<(String, String, usize)> = arrays(&text, "DataArray")
+            .into_iter()
+            .filter(|(n, _, _, _)| !["connectivity", "offsets", "types"].contains(&n.as_str()))
+            .map(|(n, t, c, _)| (n, t, c))
+            .collect();
+        let mut decl = declared.clone();
+        own.sort();
+        decl.sort();
+        assert_eq!(own, decl, "{source}: its arrays against the .pvtu's");
+        let v = values(&text);
+        for (i, cell) in cells_by_points(&v).iter().enumerate() {
+            let c = *cell_of
+                .get(cell)
+                .unwrap_or_else(|| panic!("{source}: a cell not in {body}"));
+            seen[c] += 1;
+            for (name, (comps, data)) in &v {
+                if point_fields.contains(name)
+                    || ["Points", "connectivity", "offsets"].contains(&name.as_str())
+                {
+                    continue;
+                }
+                let (n, serial) = (&w[name].0, &w[name].1);
+                assert_eq!(comps, n);
+                assert_eq!(
+                    &data[comps * i..comps * (i + 1)],
+                    &serial[n * c..n * (c + 1)],
+                    "{source}: {name}"
+                );
+            }
+        }
+        let pp = &v["Points"].1;
+        for k in 0..pp.len() / 3 {
+            let at: [u64; 3] = std::array::from_fn(|a| pp[3 * k + a].to_bits());
+            let p = point_of[&at];
+            for name in &point_fields {
+                let ((comps, data), serial) = (&v[name], &w[name].1);
+                for a in 0..*comps {
+                    let (mine, theirs) = (data[comps * k + a], serial[comps * p + a]);
+                    if name == "displacement" {
+                        assert!((mine - theirs).abs() <= 1e-5 * umax, "{source}: {name}");
+                    } else {
+                        assert_eq!(mine.to_bits(), theirs.to_bits(), "{source}: {name}");
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        seen.iter().all(|&n| n == 1),
+        "{body}: every cell in one piece"
     );
 }

@@ -301,47 +301,68 @@ fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T>
 
 /// Distributed files: every rank writes its piece of each body's VTU
 /// (`BODY_pR.vtu`, the cells of its subdomains), rank 0 the `.pvtu` over
-/// them and the rest; between them the pieces hold every cell of the serial
-/// VTU once.
+/// them and the rest; the pieces hold every cell of the serial VTU once,
+/// with its fields (2D, 3D, friction).
 #[test]
 fn every_rank_writes_its_piece_and_rank_0_the_pvtu() {
     use cso::io::solve_files::{write_all, write_pieces, Layout};
-    let scene = example("two_blocks");
-    let design = scene.design_init();
-    let base = std::env::temp_dir().join(format!("cso-pieces-{}", std::process::id()));
-    let (serial_dir, dir) = (base.join("serial"), base.join("ranks"));
-    let _ = std::fs::remove_dir_all(&base);
-    let serial = cso::state::solve(&scene, &design, &mut |_| {}).expect("serial solve");
-    let report = Report::new(&scene, &serial);
-    write_all(&serial_dir, &scene, &serial, &report, None, Layout::Whole).expect("writes");
-    std::fs::create_dir_all(&dir).expect("a folder");
-    std::thread::scope(|s| {
-        for rank in thread_ranks(3) {
-            let (scene, design, dir) = (&scene, &design, &dir);
-            s.spawn(move || {
-                let options = cso::state::SolveOptions {
-                    comm: Some(Arc::new(rank)),
-                    ..Default::default()
-                };
-                let state = cso::state::solve_with(scene, design, &options, &mut |_| {})
-                    .expect("distributed solve");
-                write_pieces(dir, scene, &state).expect("a piece");
-                // Every rank: the report's sums are collective.
-                let report = Report::new(scene, &state);
-                let cluster = state.dual.cluster();
-                if cluster.comm().rank() == 0 {
-                    let layout = Layout::Pieces {
-                        bounds: cluster.bounds(),
-                    };
-                    write_all(dir, scene, &state, &report, None, layout).expect("writes");
-                }
-            });
+    for (name, p) in [("two_blocks", 3), ("semicoercive3d", 2), ("cattaneo2d", 2)] {
+        let scene = example(name);
+        let design = scene.design_init();
+        let base = std::env::temp_dir().join(format!("cso-pieces-{name}-{}", std::process::id()));
+        let (serial_dir, dir) = (base.join("serial"), base.join("ranks"));
+        let _ = std::fs::remove_dir_all(&base);
+        let serial = cso::state::solve(&scene, &design, &mut |_| {}).expect("serial solve");
+        let report = Report::new(&scene, &serial);
+        write_all(&serial_dir, &scene, &serial, &report, None, Layout::Whole).expect("writes");
+        std::fs::create_dir_all(&dir).expect("a folder");
+        // Each rank: its solve and report (collective), then its own writes;
+        // rank 0 returns the ranks' bounds.
+        let outcomes: Vec<Result<Option<Vec<usize>>, String>> = std::thread::scope(|s| {
+            let handles: Vec<_> = thread_ranks(p)
+                .into_iter()
+                .map(|rank| {
+                    let (scene, design, dir) = (&scene, &design, &dir);
+                    s.spawn(move || {
+                        let options = cso::state::SolveOptions {
+                            comm: Some(Arc::new(rank)),
+                            ..Default::default()
+                        };
+                        let state = cso::state::solve_with(scene, design, &options, &mut |_| {})
+                            .map_err(|e| e.to_string())?;
+                        let report = Report::new(scene, &state);
+                        write_pieces(dir, scene, &state).map_err(|e| e.to_string())?;
+                        let cluster = state.dual.cluster();
+                        if cluster.comm().rank() > 0 {
+                            return Ok(None);
+                        }
+                        let bounds = cluster.bounds().to_vec();
+                        let layout = Layout::Pieces { bounds: &bounds };
+                        write_all(dir, scene, &state, &report, None, layout)
+                            .map_err(|e| e.to_string())?;
+                        Ok(Some(bounds))
+                    })
+                })
+                .collect();
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("rank thread"))
+                .collect()
+        });
+        let bounds = outcomes
+            .into_iter()
+            .map(|o| o.unwrap_or_else(|e| panic!("{name}: {e}")))
+            .find_map(|b| b)
+            .expect("rank 0's bounds");
+        assert!(dir.join("report.json").exists());
+        for body in &serial.problem.bodies {
+            let mine = body.first_subdomain..body.first_subdomain + body.subdomains();
+            let ranks = (0..p)
+                .filter(|&r| bounds[r] < mine.end && bounds[r + 1] > mine.start)
+                .count();
+            let whole = serial_dir.join(format!("{}.vtu", body.name));
+            crate::fixture::assert_pieces(&whole, &dir, &body.name, ranks);
         }
-    });
-    // 16 subdomains of equal size on 3 ranks: 0..5, 5..11, 11..16; the
-    // base is 0..12, the punch 12..16.
-    crate::fixture::assert_pieces(&serial_dir.join("base.vtu"), &dir, "base", 3);
-    crate::fixture::assert_pieces(&serial_dir.join("punch.vtu"), &dir, "punch", 1);
-    assert!(dir.join("report.json").exists());
-    let _ = std::fs::remove_dir_all(&base);
+        let _ = std::fs::remove_dir_all(&base);
+    }
 }

@@ -55,6 +55,22 @@ pub fn together<T>(ranks: &Ranks, r: Result<T, u8>) -> Result<T, u8> {
     })
 }
 
+/// [`together`] for an I/O step every rank runs on its own (a probe of the
+/// output folder, a VTU piece): the lowest failing rank's message, printed
+/// by rank 0 as `error: MPI rank R: <message>`, and exit code `code`.
+pub fn together_io<T>(ranks: &Ranks, r: Result<T, String>, code: u8) -> Result<T, u8> {
+    let Some(comm) = ranks.as_ref().filter(|c| c.size() > 1) else {
+        return r.map_err(|m| {
+            errln!("error: {m}");
+            code
+        });
+    };
+    cso::tfeti::comm::agree(&**comm, r).map_err(|f| {
+        errln!("error: MPI rank {}: {}", f.rank, f.message);
+        code
+    })
+}
+
 /// Rank 0 prints, on stderr, each rank's time in collectives against the
 /// solve's wall time (unless `--quiet`; collective: every rank calls it,
 /// whatever it prints).

@@ -4,7 +4,7 @@
 use super::args::Solve;
 use super::job::{load, prepare, thread_pool, threads_per_rank};
 use super::print::{fail, fail_solve, Outcome, Progress, EXIT_IO, EXIT_SCENE};
-use super::ranks::{print_comm_stats, together, Ranks};
+use super::ranks::{print_comm_stats, together, together_io, Ranks};
 use cso::io::tables;
 use cso::lang::CheckOptions;
 use std::time::Instant;
@@ -35,6 +35,19 @@ impl Solve {
             Ok(())
         };
         together(ranks, prepared)?;
+        // Distributed, every rank writes its VTU pieces into the folder (which
+        // must be on a file system they share): each probes it now, not
+        // after the solve.
+        if let (Some(dir), Some(_)) = (self.out.as_deref(), ranks.as_ref().filter(|c| c.size() > 1))
+        {
+            let probed = if lead {
+                Ok(())
+            } else {
+                cso::io::atomic::prepare_dir(dir)
+                    .map_err(|e| format!("cannot write into {}: {e}", dir.display()))
+            };
+            together_io(ranks, probed, EXIT_IO)?;
+        }
         let threads = self
             .threads
             .or_else(|| ranks.as_ref().map(|_| threads_per_rank()));
@@ -96,19 +109,24 @@ fn write_files(
         fail(EXIT_IO, msg)
     };
     let cluster = state.dual.cluster();
-    let layout = if cluster.is_distributed() {
-        together(ranks, write_pieces(dir, scene, state).map_err(failed))?;
-        Layout::Pieces {
-            bounds: cluster.bounds(),
-        }
+    // A rank that cannot write its piece stops the command, after rank 0
+    // has written the rest (report.json, the pictures).
+    let (layout, pieces) = if cluster.is_distributed() {
+        let written = write_pieces(dir, scene, state)
+            .map_err(|e| format!("cannot write results to {}: {e}", dir.display()));
+        let pieces = together_io(ranks, written, EXIT_IO);
+        let bounds = cluster.bounds();
+        (Layout::Pieces { bounds }, pieces)
     } else {
-        Layout::Whole
+        (Layout::Whole, Ok(()))
     };
     if ranks.as_ref().is_none_or(|c| c.rank() == 0) {
         write_all(dir, scene, state, report, reference, layout).map_err(failed)?;
-        outln!("results written to {}", dir.display());
+        if pieces.is_ok() {
+            outln!("results written to {}", dir.display());
+        }
     }
-    Ok(())
+    pieces
 }
 
 /// With `--hertz`: Hertz's size and peak against the model's, printed, and

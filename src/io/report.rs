@@ -904,7 +904,9 @@ pub fn body_pvtu(
 type FieldsWriter<'a> = dyn Fn(&VtuMesh, &[(&str, Field)], &[(&str, Field)]) -> String + 'a;
 
 /// Body `b`'s fields on the cells of `subdomains` and the body nodes `nodes`
-/// (every node those cells use, ascending), written by `write`.
+/// (every node those cells use, ascending), written by `write`. The
+/// returned `disp` is per entry of `nodes`, `cells` in body node numbers:
+/// the whole body's fields where `nodes` is every node.
 fn piece_fields(
     scene: &Scene,
     design: &[f64],
