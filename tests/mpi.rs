@@ -133,13 +133,20 @@ fn bodies_from_mesh_files_on_2_and_3_ranks_give_the_serial_report_bitwise() {
         let dist = solve(Some(n), scene, &[], &scratch(&format!("ring-{n}")));
         assert_same(&serial, &dist, &format!("ring on {n} ranks"));
     }
-    let whole = scratch("ring-serial").join("ring.vtu");
-    let ranks = std::fs::read_to_string(scratch("ring-2").join("ring.pvtu")).expect("ring.pvtu");
+    pieces_as_serial("ring-serial", "ring-2", "ring");
+}
+
+/// [`assert_pieces`] for `body` of the distributed run in `scratch(dist)`
+/// against the serial one in `scratch(serial)`, as many pieces as its
+/// `.pvtu` lists (each checked against the serial VTU).
+fn pieces_as_serial(serial: &str, dist: &str, body: &str) {
+    let pvtu = std::fs::read_to_string(scratch(dist).join(format!("{body}.pvtu"))).expect("pvtu");
+    let whole = scratch(serial).join(format!("{body}.vtu"));
     assert_pieces(
         &whole,
-        &scratch("ring-2"),
-        "ring",
-        ranks.matches("<Piece ").count(),
+        &scratch(dist),
+        body,
+        pvtu.matches("<Piece ").count(),
     );
 }
 
@@ -152,14 +159,7 @@ fn coulomb_friction_on_2_ranks_gives_the_serial_report_bitwise() {
     let dist = solve(Some(2), scene, &[], &scratch("cattaneo-2"));
     assert_same(&serial, &dist, "cattaneo2d on 2 ranks");
     assert!(dist["solver"]["friction"]["solves"].as_u64() > Some(1));
-    let whole = scratch("cattaneo-serial").join("roller.vtu");
-    let pvtu = std::fs::read_to_string(scratch("cattaneo-2").join("roller.pvtu")).expect("pvtu");
-    assert_pieces(
-        &whole,
-        &scratch("cattaneo-2"),
-        "roller",
-        pvtu.matches("<Piece ").count(),
-    );
+    pieces_as_serial("cattaneo-serial", "cattaneo-2", "roller");
 }
 
 #[test]
