@@ -201,6 +201,29 @@ fn a_failing_rank_stops_every_rank_with_its_message() {
     );
 }
 
+/// A rank that cannot write its VTU piece (injected): every rank stops
+/// with that rank's message and the I/O exit code, after rank 0 wrote the
+/// report.
+#[test]
+fn a_rank_that_cannot_write_its_piece_stops_every_rank_with_its_message() {
+    let dir = scratch("write-fault");
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.to_str().expect("utf-8 path");
+    let env = [("CSO_MPI_FAIL_WRITE_RANK", "1")];
+    let (code, _, err) = run(
+        Some(2),
+        &env,
+        &["solve", "examples/two_blocks.cso", "-o", out],
+    );
+    assert_eq!(code, 2, "{err}");
+    assert!(
+        err.contains("MPI rank 1: cannot write results to") && err.contains("fault injected"),
+        "{err}"
+    );
+    assert!(dir.join("report.json").exists(), "rank 0 wrote the report");
+    assert!(dir.join("base_p0.vtu").exists() && !dir.join("base_p1.vtu").exists());
+}
+
 #[test]
 fn commands_that_are_not_distributed_say_so() {
     let (code, _, err) = run(Some(2), &[], &["compare", "examples/scont2d.cso"]);

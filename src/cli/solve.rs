@@ -112,7 +112,8 @@ fn write_files(
     // A rank that cannot write its piece stops the command, after rank 0
     // has written the rest (report.json, the pictures).
     let (layout, pieces) = if cluster.is_distributed() {
-        let written = write_pieces(dir, scene, state)
+        let written = injected_write_fault(cluster.comm().rank())
+            .and_then(|()| write_pieces(dir, scene, state))
             .map_err(|e| format!("cannot write results to {}: {e}", dir.display()));
         let pieces = together_io(ranks, written, EXIT_IO);
         let bounds = cluster.bounds();
@@ -127,6 +128,28 @@ fn write_files(
         }
     }
     pieces
+}
+
+/// A build with the test-only feature `fault-injection`: rank
+/// `CSO_MPI_FAIL_WRITE_RANK`'s VTU piece fails to write (the test of a rank
+/// that cannot write while the others can). Other builds never read it.
+#[cfg(feature = "fault-injection")]
+fn injected_write_fault(rank: usize) -> std::io::Result<()> {
+    let failing = std::env::var("CSO_MPI_FAIL_WRITE_RANK")
+        .ok()
+        .and_then(|v| v.trim().parse::<usize>().ok());
+    match failing {
+        Some(r) if r == rank => Err(std::io::Error::other(
+            "fault injected by CSO_MPI_FAIL_WRITE_RANK (a test of distributed failures)",
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// See the `fault-injection` build's version: no fault here.
+#[cfg(not(feature = "fault-injection"))]
+fn injected_write_fault(_rank: usize) -> std::io::Result<()> {
+    Ok(())
 }
 
 /// With `--hertz`: Hertz's size and peak against the model's, printed, and
