@@ -69,6 +69,9 @@ def parse_args(argv):
     p.add_argument("--energy-tol", type=float, default=1e-5)
     p.add_argument("--work", default=None, help="working directory (default: a temporary one)")
     p.add_argument("--json", default=None, help="write the rows here too")
+    p.add_argument("--plain", action="store_true",
+                   help="also cso without a preconditioner or a predicted active set "
+                        "(SMALBE + MPRGP alone, as PERMON 3.18's MPGP, which takes none)")
     return p.parse_args(argv)
 
 
@@ -88,8 +91,8 @@ def timed(cmd, env=None):
     return out, err, (int(peak[-1]) / 1024 if peak else float("nan")), wall
 
 
-def cso_solve(cso, scene, out):
-    _, _, peak, wall = timed([cso, "--quiet", "solve", scene, "--threads", "1", "-o", out])
+def cso_solve(cso, scene, out, extra=()):
+    _, _, peak, wall = timed([cso, "--quiet", "solve", scene, "--threads", "1", "-o", out, *extra])
     with open(os.path.join(out, "report.json")) as fh:
         rep = json.load(fh)
     return {
@@ -185,6 +188,24 @@ def table(rows):
     return "\n".join(lines)
 
 
+PLAIN = ["--preconditioner", "none", "--smalbe", "predict=off"]
+
+
+def plain_table(rows):
+    """cso with SMALBE + MPRGP alone (no preconditioner, no prediction)
+    against PERMON's SMALXE + MPGP: the same algorithm's counts."""
+    lines = ["| scene | cso plain Hessian | PERMON K+ solves | ratio | cso plain s | PERMON s | ratio |",
+             "|---|---|---|---|---|---|---|"]
+    for r in rows:
+        q, p = r["plain"], r["permon"]
+        solves = (p["kplus_setup"] or 0) + (p["kplus_solve"] or 0)
+        lines.append(
+            f"| {r['name']} | {q['hessian']} | {solves} | {solves / max(q['hessian'], 1):.1f} "
+            f"| {q['total']:.3f} | {p['total']:.3f} | {p['total'] / max(q['total'], 1e-9):.1f} |"
+        )
+    return "\n".join(lines)
+
+
 def main():
     args = parse_args(sys.argv[1:])
     if not (os.path.isfile(args.driver) and os.access(args.driver, os.X_OK)):
@@ -211,9 +232,12 @@ def main():
             path, qp_dir, tolerance = info[name]
             if variant == "cso":
                 return cso_solve(cso, path, qp_dir + "_solve")
+            if variant == "plain":
+                return cso_solve(cso, path, qp_dir + "_plain", PLAIN)
             return permon_solve(args.driver, qp_dir, tolerance)
 
-        best = least(args.reps, list(info), ["cso", "permon"], one)
+        variants = ["cso", "permon"] + (["plain"] if args.plain else [])
+        best = least(args.reps, list(info), variants, one)
     except Failed as e:
         print(e, file=sys.stderr)
         return 2
@@ -223,8 +247,11 @@ def main():
         diff = abs(c["energy"] - p["energy"]) / max(abs(p["energy"]), 1e-300)
         bad |= diff > args.energy_tol or not p["reason"].startswith("CONVERGED")
         rows.append({"name": name, "scene": path, **sizes(qp_dir), "cso": c, "permon": p,
-                     "energy_diff": diff})
+                     "energy_diff": diff, "plain": best.get((name, "plain"))})
     print(table(rows))
+    if args.plain:
+        print()
+        print(plain_table(rows))
     if args.json:
         with open(args.json, "w") as fh:
             json.dump(rows, fh, indent=1)
