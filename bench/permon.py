@@ -169,6 +169,12 @@ def sizes(qp_dir):
     }
 
 
+def kplus_solves(p):
+    """PERMON's solves with the factor of K, set-up and dual solve: its
+    applications of F."""
+    return (p["kplus_setup"] or 0) + (p["kplus_solve"] or 0)
+
+
 def table(rows):
     head = ("| scene | dim | primal | dual | subdomains | tolerance | cso Hessian | PERMON MPGP mults "
             "| PERMON K+ solves set-up / dual solve | ratio K+ solves | cso s | PERMON set-up s "
@@ -176,7 +182,7 @@ def table(rows):
     lines = [head, "|" + "---|" * (head.count("|") - 1)]
     for r in rows:
         c, p = r["cso"], r["permon"]
-        solves = (p["kplus_setup"] or 0) + (p["kplus_solve"] or 0)
+        solves = kplus_solves(p)
         lines.append(
             f"| {r['name']} | {r['dim']} | {r['primal']} | {r['dual']} | {r['subdomains']} "
             f"| {c['tolerance']:.0e} "
@@ -198,7 +204,7 @@ def plain_table(rows):
              "|---|---|---|---|---|---|---|"]
     for r in rows:
         q, p = r["plain"], r["permon"]
-        solves = (p["kplus_setup"] or 0) + (p["kplus_solve"] or 0)
+        solves = kplus_solves(p)
         lines.append(
             f"| {r['name']} | {q['hessian']} | {solves} | {solves / max(q['hessian'], 1):.1f} "
             f"| {q['total']:.3f} | {p['total']:.3f} | {p['total'] / max(q['total'], 1e-9):.1f} |"
