@@ -62,11 +62,13 @@ pub fn write_all(
     let p = &state.problem;
     let design = scene.design_init();
     // The whole bodies' fields: their VTU files, or the 2D picture.
-    let whole = matches!(layout, Layout::Whole) || p.dim == 2;
-    let fields: Vec<BodyFields> = (0..p.bodies.len())
-        .filter(|_| whole)
-        .map(|b| body_fields(scene, &design, state, b))
-        .collect();
+    let fields: Vec<BodyFields> = if matches!(layout, Layout::Whole) || p.dim == 2 {
+        (0..p.bodies.len())
+            .map(|b| body_fields(scene, &design, state, b))
+            .collect()
+    } else {
+        Vec::new()
+    };
     for (b, body) in p.bodies.iter().enumerate() {
         match layout {
             Layout::Whole => {

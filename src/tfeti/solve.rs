@@ -145,11 +145,12 @@ pub fn dual_solve_bounded(
     };
     // The power iterations for ||P F P|| are applications of the same F:
     // counted in the progress too, so that its last count is the solve's.
-    let mut counted = |i: &QpInfo| {
-        observer(&QpInfo {
+    let mut counted = |i: &QpInfo| match power {
+        0 => observer(i),
+        _ => observer(&QpInfo {
             hessian_applications: i.hessian_applications + power,
             ..i.clone()
-        })
+        }),
     };
     let (mut info, end) = smalbe::solve(
         &problem,
