@@ -35,6 +35,8 @@ pub fn norm<T: Scalar, const D: usize>(a: &[T; D]) -> T {
 /// Dot products and norms of slices (dual vectors, residuals), summed in
 /// order by `Iterator::sum`: the one copy every solver uses, so that their
 /// results stay bit for bit what they were.
+pub mod exact;
+
 pub mod vector {
     /// `a . b`.
     pub fn dot(a: &[f64], b: &[f64]) -> f64 {
