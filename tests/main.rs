@@ -28,6 +28,7 @@ mod search;
 mod sensitivity;
 mod sensitivity3d;
 mod solid;
+mod split;
 mod state;
 mod study;
 

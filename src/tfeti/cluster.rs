@@ -618,25 +618,46 @@ impl Cluster {
         let first = self.first;
         self.subs.par_iter().enumerate().for_each(|(i, sub)| {
             let mut guard = lock(&self.work[i]);
-            let w = &mut *guard;
-            let lr = &self.local[first + i];
-            if let Some(f) = &self.explicit[i] {
-                for (l, &row) in w.l.iter_mut().zip(&lr.rows) {
-                    *l = x[row];
-                }
-                let nr = w.y.len();
-                dense_product(
-                    f.as_ref().as_ref(),
-                    MatRef::from_column_major_slice(&w.l, nr, 1),
-                    MatMut::from_column_major_slice_mut(&mut w.y, nr, 1),
-                );
-                return;
-            }
-            lr.scatter_t(x, &mut w.x);
-            sub.apply_pinv(&mut w.x);
-            lr.gather(&w.x, &mut w.y);
+            let rows = &self.local[first + i].rows;
+            self.local_f(i, sub, &mut guard, |k| x[rows[k]]);
         });
         self.sum_work_rows(y);
+    }
+
+    /// `y = F_s l = B_s K_s^+ B_s^T l` of owned subdomain `s` on its local
+    /// rows (`l` and `y` one value per row of [`Self::local_rows`]): the
+    /// arithmetic of [`Self::apply_f`] for one subdomain, so the bits are its.
+    pub fn apply_local_f(&self, s: usize, l: &[f64], y: &mut [f64]) {
+        let i = s - self.first;
+        let mut guard = lock(&self.work[i]);
+        self.local_f(i, &self.subs[i], &mut guard, |k| l[k]);
+        y.copy_from_slice(&guard.y);
+    }
+
+    /// `w.y = F_s l` of the `i`-th owned subdomain, `value(k)` the input at
+    /// its `k`-th local row: by its dense `F_s` where it holds one, else by
+    /// `B_s^T`, its factor and `B_s`.
+    fn local_f(&self, i: usize, sub: &Subdomain, w: &mut Work, value: impl Fn(usize) -> f64) {
+        let lr = &self.local[self.first + i];
+        if let Some(f) = &self.explicit[i] {
+            for (k, l) in w.l.iter_mut().enumerate() {
+                *l = value(k);
+            }
+            let nr = w.y.len();
+            dense_product(
+                f.as_ref().as_ref(),
+                MatRef::from_column_major_slice(&w.l, nr, 1),
+                MatMut::from_column_major_slice_mut(&mut w.y, nr, 1),
+            );
+            return;
+        }
+        // B_s^T l, as `LocalRows::scatter_t` forms it.
+        w.x.iter_mut().for_each(|v| *v = 0.0);
+        for &(r, d, v) in &lr.entries {
+            w.x[d] += v * value(r);
+        }
+        sub.apply_pinv(&mut w.x);
+        lr.gather(&w.x, &mut w.y);
     }
 
     /// `y = sum_s` of the subdomains' local rows held in their work space,

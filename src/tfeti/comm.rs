@@ -5,9 +5,12 @@
 //! Only collectives that give bitwise the same result whatever the number of
 //! ranks: gathers of per-subdomain parts (the caller then sums them in
 //! subdomain order, exactly as the serial loop does) and integer reductions
-//! (exact in any order). Floating-point sums are never reduced across ranks,
-//! because MPI may add partial sums in any order and the rounding would then
-//! depend on the rank count.
+//! (exact in any order; wrapping, as MPI's, so that exact accumulators of
+//! doubles, `num::exact`, merge through them). Floating-point sums are never
+//! reduced across ranks, because MPI may add partial sums in any order and
+//! the rounding would then depend on the rank count. Point-to-point
+//! [`Comm::exchange`] moves values between neighbours (the split dual's
+//! interface rows) without any arithmetic.
 
 use std::sync::Arc;
 
@@ -28,6 +31,8 @@ pub struct Stats {
     pub seconds: f64,
     /// Bytes received.
     pub bytes: u64,
+    /// Point-to-point messages received ([`Comm::exchange`]).
+    pub messages: u64,
 }
 
 /// The collectives of a group of ranks that each own a contiguous range of
@@ -44,6 +49,13 @@ pub trait Comm: Send + Sync {
     fn all_reduce_u64(&self, x: &mut [u64], op: Op);
     /// `bytes` of rank `root` on every rank (resized as needed).
     fn broadcast(&self, root: usize, bytes: &mut Vec<u8>);
+    /// Point to point: sends each `(rank, values)` of `sends` and receives
+    /// `count` values from each `(rank, count)` of `receives`, returned in
+    /// that order. At most one message per pair of ranks and direction; the
+    /// plans must match (what `q` sends to `r` is what `r` expects from `q`).
+    /// Every rank calls it, with or without neighbours (thread ranks
+    /// synchronize the whole group).
+    fn exchange(&self, sends: &[(usize, Vec<f64>)], receives: &[(usize, usize)]) -> Vec<Vec<f64>>;
     /// The cost of the collectives so far.
     fn stats(&self) -> Stats;
 }
@@ -67,6 +79,19 @@ impl Comm for Serial {
     }
     fn all_reduce_u64(&self, _x: &mut [u64], _op: Op) {}
     fn broadcast(&self, _root: usize, _bytes: &mut Vec<u8>) {}
+    fn exchange(&self, sends: &[(usize, Vec<f64>)], receives: &[(usize, usize)]) -> Vec<Vec<f64>> {
+        // Only messages to itself.
+        receives
+            .iter()
+            .map(|&(from, n)| {
+                sends
+                    .iter()
+                    .find(|(to, _)| *to == from)
+                    .map(|(_, v)| v[..n.min(v.len())].to_vec())
+                    .unwrap_or_default()
+            })
+            .collect()
+    }
     fn stats(&self) -> Stats {
         Stats::default()
     }
@@ -84,6 +109,8 @@ pub fn serial() -> Arc<dyn Comm> {
 pub struct ThreadRank {
     rank: usize,
     shared: Arc<Shared>,
+    /// Counts as MPI's would be (no times: threads share the cores).
+    stats: std::sync::Mutex<Stats>,
 }
 
 struct Shared {
@@ -91,7 +118,12 @@ struct Shared {
     barrier: std::sync::Barrier,
     /// One slot per rank for the data of the collective under way.
     slots: std::sync::Mutex<Vec<Vec<u64>>>,
+    /// Point-to-point messages under way, by destination.
+    mail: std::sync::Mutex<Vec<Vec<Letter>>>,
 }
+
+/// A message between thread ranks: (source, values).
+type Letter = (usize, Vec<f64>);
 
 /// `p` thread ranks sharing one group.
 pub fn thread_ranks(p: usize) -> Vec<ThreadRank> {
@@ -99,18 +131,20 @@ pub fn thread_ranks(p: usize) -> Vec<ThreadRank> {
         size: p,
         barrier: std::sync::Barrier::new(p),
         slots: std::sync::Mutex::new(vec![Vec::new(); p]),
+        mail: std::sync::Mutex::new(vec![Vec::new(); p]),
     });
     (0..p)
         .map(|rank| ThreadRank {
             rank,
             shared: shared.clone(),
+            stats: std::sync::Mutex::new(Stats::default()),
         })
         .collect()
 }
 
 impl ThreadRank {
     /// Every rank's `mine`, in rank order (bits, so f64 passes unchanged).
-    fn exchange(&self, mine: Vec<u64>) -> Vec<Vec<u64>> {
+    fn share(&self, mine: Vec<u64>) -> Vec<Vec<u64>> {
         let lock = || match self.shared.slots.lock() {
             Ok(g) => g,
             Err(p) => p.into_inner(),
@@ -119,6 +153,9 @@ impl ThreadRank {
         self.shared.barrier.wait();
         let all = lock().clone();
         self.shared.barrier.wait();
+        let mut s = super::lock(&self.stats);
+        s.calls += 1;
+        s.bytes += 8 * all.iter().map(|v| v.len() as u64).sum::<u64>();
         all
     }
 }
@@ -131,29 +168,59 @@ impl Comm for ThreadRank {
         self.shared.size
     }
     fn all_gather(&self, local: &[f64], _counts: &[usize]) -> Vec<f64> {
-        let all = self.exchange(local.iter().map(|x| x.to_bits()).collect());
+        let all = self.share(local.iter().map(|x| x.to_bits()).collect());
         all.concat().into_iter().map(f64::from_bits).collect()
     }
     fn all_gather_u64(&self, local: &[u64], _counts: &[usize]) -> Vec<u64> {
-        self.exchange(local.to_vec()).concat()
+        self.share(local.to_vec()).concat()
     }
     fn all_reduce_u64(&self, x: &mut [u64], op: Op) {
-        let all = self.exchange(x.to_vec());
+        let all = self.share(x.to_vec());
         for (i, v) in x.iter_mut().enumerate() {
             let it = all.iter().map(|r| r[i]);
             *v = match op {
-                Op::Sum => it.sum(),
+                Op::Sum => it.fold(0u64, u64::wrapping_add),
                 Op::Min => it.min().unwrap_or(0),
                 Op::Max => it.max().unwrap_or(0),
             };
         }
     }
     fn broadcast(&self, root: usize, bytes: &mut Vec<u8>) {
-        let all = self.exchange(bytes.iter().map(|&b| b as u64).collect());
+        let all = self.share(bytes.iter().map(|&b| b as u64).collect());
         *bytes = all[root].iter().map(|&b| b as u8).collect();
     }
+    fn exchange(&self, sends: &[(usize, Vec<f64>)], receives: &[(usize, usize)]) -> Vec<Vec<f64>> {
+        let lock = || match self.shared.mail.lock() {
+            Ok(g) => g,
+            Err(p) => p.into_inner(),
+        };
+        {
+            let mut mail = lock();
+            for (to, v) in sends {
+                mail[*to].push((self.rank, v.clone()));
+            }
+        }
+        self.shared.barrier.wait();
+        let mut mine = std::mem::take(&mut lock()[self.rank]);
+        // Nobody posts the next round's messages before every rank took
+        // this round's.
+        self.shared.barrier.wait();
+        let out: Vec<Vec<f64>> = receives
+            .iter()
+            .map(|&(from, n)| {
+                let at = mine.iter().position(|(f, _)| *f == from);
+                let mut v = at.map(|i| mine.swap_remove(i).1).unwrap_or_default();
+                v.resize(n, f64::NAN);
+                v
+            })
+            .collect();
+        let mut s = super::lock(&self.stats);
+        s.messages += receives.len() as u64;
+        s.bytes += 8 * out.iter().map(|v| v.len() as u64).sum::<u64>();
+        out
+    }
     fn stats(&self) -> Stats {
-        Stats::default()
+        *super::lock(&self.stats)
     }
 }
 

@@ -346,6 +346,16 @@ impl Dual {
         ys
     }
 
+    /// `z <- (G G^T)^-1 z` (the split dual's projector).
+    pub(crate) fn coarse_solve(&self, z: &mut [f64]) {
+        self.coarse().solve(z);
+    }
+
+    /// Counts `n` applications of `F` made outside [`Self::apply_f`].
+    pub(crate) fn count_f_applications(&self, n: usize) {
+        self.f_applications.fetch_add(n, Ordering::Relaxed);
+    }
+
     /// `z <- L^-1 Q z` (`G~ = L^-1 Q G`).
     pub fn solve_l(&self, z: &mut [f64]) {
         self.coarse().solve_l(z);

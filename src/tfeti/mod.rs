@@ -35,6 +35,7 @@ pub mod settings;
 pub mod slip;
 pub mod solve;
 pub mod sparse;
+pub mod split;
 pub mod subdomain;
 
 /// A mutex's guard, also after a panic elsewhere poisoned it: the guarded

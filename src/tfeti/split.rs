@@ -1,0 +1,451 @@
+//! The dual split by row owner (issue 37 item 2, first part): each rank keeps
+//! the multipliers of the rows it owns, `F` and `G` exchange interface values
+//! with neighbouring ranks only, and dot products are exact sums merged by an
+//! integer all-reduce, so every result has the same bits for any rank count.
+//!
+//! Ownership: a row of `B` belongs to the rank of the lowest subdomain that
+//! touches it (ranks own contiguous ranges of subdomains). Every rank derives
+//! the same plan from the rows of all subdomains, which the lowering
+//! replicates: no negotiation.
+//!
+//! One application of `F` is two neighbour exchanges:
+//! 1. *halo*: each owner sends the values of its rows that a neighbour's
+//!    subdomains touch, so every rank holds its subdomains' rows;
+//! 2. *sum*: each rank applies `F_s = B_s K_s^+ B_s^T` of its subdomains and
+//!    sends every contribution to a row it does not own to the row's owner,
+//!    one value per (row, subdomain); the owner adds a row's contributions in
+//!    subdomain order from zero, the serial `Cluster::apply_f`'s order, so
+//!    `F` has the serial bits on every rank count.
+//!
+//! The projector `P = I - G^T (G G^T)^-1 G` takes the halo (for `G_s x`), a
+//! gather of the coarse vector (`G x`, kernel-sized: the coarse factor is
+//! still replicated) and the sum (for `G^T z`). Memory per rank for the dual
+//! vectors then grows with its own subdomains' rows.
+//!
+//! What uses it: [`projected_cg`], the equality-constrained dual solve, checked
+//! bitwise across rank counts on thread ranks. MPRGP and SMALBE still run on
+//! the replicated dual (`tfeti::dual`).
+
+use super::cluster::{g_block_t_times, Cluster};
+use super::comm::{Comm, Stats};
+use super::dual::Dual;
+use crate::num::exact::{ExactSum, WORDS};
+use std::sync::Arc;
+
+/// Where a rank's rows come from and go to.
+#[derive(Debug, Clone, Default)]
+struct Plan {
+    /// Global rows this rank owns, ascending.
+    owned: Vec<usize>,
+    /// Rows its subdomains touch (owned or not), ascending: the local frame.
+    touched: Vec<usize>,
+    /// Position in `touched` of each owned row.
+    owned_at: Vec<usize>,
+    /// Per owned subdomain, the position in `touched` of each local row.
+    sub_at: Vec<Vec<usize>>,
+    /// Halo, sending: per neighbour, positions in `owned` of the rows its
+    /// subdomains touch.
+    halo_send: Vec<(usize, Vec<usize>)>,
+    /// Halo, receiving: per neighbour, positions in `touched` of its rows
+    /// that this rank's subdomains touch.
+    halo_recv: Vec<(usize, Vec<usize>)>,
+    /// Sum, sending: per owner, positions in the contribution buffer (the
+    /// owned subdomains' local rows, concatenated) of what goes to it.
+    sum_send: Vec<(usize, Vec<usize>)>,
+    /// Sum, receiving: per neighbour, how many contributions it sends.
+    sum_recv: Vec<(usize, usize)>,
+    /// Per owned row, its contributions in subdomain order: positions in the
+    /// buffer of the local contributions followed by the received ones.
+    sources: Vec<Vec<usize>>,
+}
+
+impl Plan {
+    fn new(cluster: &Cluster) -> Plan {
+        let comm = cluster.comm();
+        let (me, n) = (comm.rank(), cluster.len());
+        let bounds = cluster.bounds();
+        let rank_of = |s: usize| bounds.partition_point(|&b| b <= s) - 1;
+        let m = cluster.multipliers();
+        // The subdomains of every row, ascending (subdomain order).
+        let mut row_subs: Vec<Vec<usize>> = vec![Vec::new(); m];
+        for s in 0..n {
+            for &r in &cluster.local_rows(s).rows {
+                row_subs[r].push(s);
+            }
+        }
+        let owner = |r: usize| row_subs[r].first().map(|&s| rank_of(s));
+        let mine = cluster.owned();
+        let mut touched: Vec<usize> = mine
+            .clone()
+            .flat_map(|s| cluster.local_rows(s).rows.iter().copied())
+            .collect();
+        touched.sort_unstable();
+        touched.dedup();
+        let at = |r: usize| touched.partition_point(|&t| t < r);
+        let owned: Vec<usize> = touched
+            .iter()
+            .copied()
+            .filter(|&r| owner(r) == Some(me))
+            .collect();
+        let owned_at = owned.iter().map(|&r| at(r)).collect();
+        let sub_at = mine
+            .clone()
+            .map(|s| cluster.local_rows(s).rows.iter().map(|&r| at(r)).collect())
+            .collect();
+        // Local contributions: subdomain s's k-th local row at start[s] + k.
+        let mut start = vec![0];
+        for s in mine.clone() {
+            start.push(start.last().copied().unwrap_or(0) + cluster.local_rows(s).rows.len());
+        }
+        let local_pos = |s: usize, r: usize| {
+            let rows = &cluster.local_rows(s).rows;
+            start[s - mine.start] + rows.partition_point(|&t| t < r)
+        };
+        let p = comm.size();
+        let mut halo_send = vec![Vec::new(); p];
+        let mut sum_recv = vec![0usize; p];
+        // Received contributions, per neighbour in row order: (row, subdomain).
+        let mut incoming: Vec<Vec<(usize, usize)>> = vec![Vec::new(); p];
+        for (j, &r) in owned.iter().enumerate() {
+            let mut last = usize::MAX;
+            for &s in &row_subs[r] {
+                let q = rank_of(s);
+                if q != me {
+                    if q != last {
+                        halo_send[q].push(j);
+                        last = q;
+                    }
+                    sum_recv[q] += 1;
+                    incoming[q].push((r, s));
+                }
+            }
+        }
+        let mut halo_recv = vec![Vec::new(); p];
+        let mut sum_send = vec![Vec::new(); p];
+        for (i, &r) in touched.iter().enumerate() {
+            let Some(o) = owner(r).filter(|&o| o != me) else {
+                continue;
+            };
+            halo_recv[o].push(i);
+            for &s in row_subs[r].iter().filter(|&&s| mine.contains(&s)) {
+                sum_send[o].push(local_pos(s, r));
+            }
+        }
+        // Sources of each owned row: local positions, or after the local
+        // buffer the received ones (neighbours in rank order).
+        let local_len = start.last().copied().unwrap_or(0);
+        let mut recv_start = vec![local_len; p + 1];
+        for q in 0..p {
+            recv_start[q + 1] = recv_start[q] + sum_recv[q];
+        }
+        let mut next = recv_start.clone();
+        let sources = owned
+            .iter()
+            .map(|&r| {
+                row_subs[r]
+                    .iter()
+                    .map(|&s| {
+                        let q = rank_of(s);
+                        if q == me {
+                            local_pos(s, r)
+                        } else {
+                            next[q] += 1;
+                            next[q] - 1
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let keep = |v: Vec<Vec<usize>>| -> Vec<(usize, Vec<usize>)> {
+            v.into_iter()
+                .enumerate()
+                .filter(|(_, l)| !l.is_empty())
+                .collect()
+        };
+        Plan {
+            owned,
+            owned_at,
+            sub_at,
+            halo_send: keep(halo_send),
+            halo_recv: keep(halo_recv),
+            sum_send: keep(sum_send),
+            sum_recv: sum_recv
+                .into_iter()
+                .enumerate()
+                .filter(|&(_, c)| c > 0)
+                .collect(),
+            sources,
+            touched,
+        }
+    }
+}
+
+/// The dual of a (possibly distributed) cluster, split by row owner.
+pub struct SplitDual<'a> {
+    dual: &'a Dual,
+    comm: Arc<dyn Comm>,
+    plan: Plan,
+}
+
+/// Per-rank counts of one operation, for the network model (issue 37 item 6).
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct Traffic {
+    /// Point-to-point messages received.
+    pub messages: u64,
+    /// Bytes received (messages and collectives).
+    pub bytes: u64,
+    /// Collective calls (gathers, all-reduces).
+    pub collectives: u64,
+}
+
+impl Traffic {
+    fn between(before: Stats, after: Stats) -> Traffic {
+        Traffic {
+            messages: after.messages - before.messages,
+            bytes: after.bytes - before.bytes,
+            collectives: after.calls - before.calls,
+        }
+    }
+}
+
+impl<'a> SplitDual<'a> {
+    /// The plan of this rank. Collective only in that every rank builds its
+    /// own from the same replicated rows (no communication).
+    pub fn new(dual: &'a Dual) -> Self {
+        let cluster = dual.cluster();
+        SplitDual {
+            dual,
+            comm: cluster.comm().clone(),
+            plan: Plan::new(cluster),
+        }
+    }
+
+    /// Global rows this rank owns, ascending: the layout of every split vector.
+    pub fn owned_rows(&self) -> &[usize] {
+        &self.plan.owned
+    }
+
+    /// Rows its subdomains touch (owned or not).
+    pub fn touched_rows(&self) -> usize {
+        self.plan.touched.len()
+    }
+
+    /// This rank's part of a replicated vector.
+    pub fn restrict(&self, x: &[f64]) -> Vec<f64> {
+        self.plan.owned.iter().map(|&r| x[r]).collect()
+    }
+
+    /// The whole vector on every rank (a gather: for tests and reports).
+    pub fn assemble(&self, x: &[f64]) -> Vec<f64> {
+        let counts = self.counts();
+        let values = self.comm.all_gather(x, &counts);
+        let rows: Vec<u64> = self.plan.owned.iter().map(|&r| r as u64).collect();
+        let rows = self.comm.all_gather_u64(&rows, &counts);
+        let mut out = vec![0.0; self.dual.multipliers()];
+        for (&r, v) in rows.iter().zip(values) {
+            out[r as usize] = v;
+        }
+        out
+    }
+
+    fn counts(&self) -> Vec<usize> {
+        let mut n = vec![0u64; self.comm.size()];
+        n[self.comm.rank()] = self.plan.owned.len() as u64;
+        self.comm.all_reduce_u64(&mut n, super::comm::Op::Sum);
+        n.into_iter().map(|c| c as usize).collect()
+    }
+
+    /// The values at every touched row from the owned ones (halo exchange).
+    fn halo(&self, x: &[f64]) -> Vec<f64> {
+        let plan = &self.plan;
+        let mut t = vec![0.0; plan.touched.len()];
+        for (&i, &v) in plan.owned_at.iter().zip(x) {
+            t[i] = v;
+        }
+        let sends: Vec<(usize, Vec<f64>)> = plan
+            .halo_send
+            .iter()
+            .map(|(q, js)| (*q, js.iter().map(|&j| x[j]).collect()))
+            .collect();
+        let receives: Vec<(usize, usize)> = plan
+            .halo_recv
+            .iter()
+            .map(|(q, is)| (*q, is.len()))
+            .collect();
+        let got = self.comm.exchange(&sends, &receives);
+        for ((_, is), vals) in plan.halo_recv.iter().zip(got) {
+            for (&i, v) in is.iter().zip(vals) {
+                t[i] = v;
+            }
+        }
+        t
+    }
+
+    /// The owned rows' sums of the subdomains' local contributions `c` (the
+    /// owned subdomains' local rows, concatenated), in subdomain order.
+    fn sum(&self, c: Vec<f64>) -> Vec<f64> {
+        let plan = &self.plan;
+        let sends: Vec<(usize, Vec<f64>)> = plan
+            .sum_send
+            .iter()
+            .map(|(q, ps)| (*q, ps.iter().map(|&p| c[p]).collect()))
+            .collect();
+        let got = self.comm.exchange(&sends, &plan.sum_recv);
+        let mut buf = c;
+        buf.extend(got.into_iter().flatten());
+        plan.sources
+            .iter()
+            .map(|src| src.iter().fold(0.0, |a, &p| a + buf[p]))
+            .collect()
+    }
+
+    /// `y = F x` on the owned rows.
+    pub fn apply_f(&self, x: &[f64]) -> Vec<f64> {
+        let cluster = self.dual.cluster();
+        let t = self.halo(x);
+        let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
+            let at = &self.plan.sub_at[s - cluster.owned().start];
+            let l: Vec<f64> = at.iter().map(|&i| t[i]).collect();
+            let mut y = vec![0.0; l.len()];
+            cluster.apply_local_f(s, &l, &mut y);
+            y
+        });
+        self.dual.count_f_applications(1);
+        self.sum(parts.concat())
+    }
+
+    /// `x <- P x = x - G^T (G G^T)^-1 G x` on the owned rows.
+    pub fn project(&self, x: &mut [f64]) {
+        let cluster = self.dual.cluster();
+        let t = self.halo(x);
+        // G x: every owned subdomain's kernel part, then gathered.
+        let mine: Vec<f64> = cluster
+            .map(|s, _| {
+                let at = &self.plan.sub_at[s - cluster.owned().start];
+                let k = cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+                let g = cluster.g_block(s);
+                let nr = at.len();
+                // The loop of `cluster::g_block_times`, on local values.
+                let mut acc = vec![-0.0f64; k];
+                for (r, &i) in at.iter().enumerate() {
+                    for (j, a) in acc.iter_mut().enumerate() {
+                        *a += g[j * nr + r] * t[i];
+                    }
+                }
+                acc
+            })
+            .concat();
+        let bounds = cluster.bounds();
+        let counts: Vec<usize> = bounds
+            .windows(2)
+            .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
+            .collect();
+        let mut z = self.comm.all_gather(&mine, &counts);
+        self.dual.coarse_solve(&mut z);
+        // G^T z: the owned subdomains' local rows, summed by the owners.
+        let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
+            let (o, e) = (cluster.kernel_offset(s), cluster.kernel_offset(s + 1));
+            let mut ts = vec![0.0; cluster.local_rows(s).rows.len()];
+            g_block_t_times(cluster.g_block(s), &z[o..e], &mut ts);
+            ts
+        });
+        let gtz = self.sum(parts.concat());
+        for (a, b) in x.iter_mut().zip(gtz) {
+            *a -= b;
+        }
+    }
+
+    /// Dot products of owned parts, exact and the same on every rank: one
+    /// all-reduce for all pairs.
+    pub fn dots(&self, pairs: &[(&[f64], &[f64])]) -> Vec<f64> {
+        let mut words: Vec<u64> = pairs
+            .iter()
+            .flat_map(|(a, b)| crate::num::exact::dot(a, b).to_words())
+            .collect();
+        self.comm.all_reduce_u64(&mut words, super::comm::Op::Sum);
+        words
+            .chunks_exact(WORDS)
+            .map(|w| ExactSum::from_words(w).value())
+            .collect()
+    }
+
+    /// `a . b`.
+    pub fn dot(&self, a: &[f64], b: &[f64]) -> f64 {
+        self.dots(&[(a, b)])[0]
+    }
+
+    /// What `f` cost this rank in communication.
+    pub fn traffic<T>(&self, f: impl FnOnce(&Self) -> T) -> (T, Traffic) {
+        let before = self.comm.stats();
+        let out = f(self);
+        (out, Traffic::between(before, self.comm.stats()))
+    }
+}
+
+/// What [`projected_cg`] did.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CgInfo {
+    pub iterations: usize,
+    /// Applications of `F`.
+    pub applications: usize,
+    /// `||r|| / ||b||` at the end.
+    pub relative_residual: f64,
+    pub converged: bool,
+}
+
+/// CG on `P F P x = b` (`b` in Im P, owned rows) from `x = 0` to `||r|| <=
+/// tol ||b||` or `max` applications, the unpreconditioned recurrence of the
+/// replicated `tfeti::solve` projected CG with exact kernels (directions
+/// applied unprojected, `F x` kept by the same recurrence). Returns `x` and
+/// `F x` on the owned rows.
+pub fn projected_cg(
+    split: &SplitDual,
+    b: &[f64],
+    tol: f64,
+    max: usize,
+) -> (Vec<f64>, Vec<f64>, CgInfo) {
+    let m = b.len();
+    let mut x = vec![0.0; m];
+    let mut fx = vec![0.0; m];
+    let mut r = b.to_vec();
+    let mut p = b.to_vec();
+    let bb = split.dot(b, b);
+    let bnorm = bb.sqrt();
+    let mut rr = bb;
+    let mut info = CgInfo {
+        iterations: 0,
+        applications: 0,
+        relative_residual: 0.0,
+        converged: true,
+    };
+    while rr.sqrt() > tol * bnorm {
+        if info.applications >= max {
+            info.converged = false;
+            break;
+        }
+        let fp = split.apply_f(&p);
+        let mut ap = fp.clone();
+        split.project(&mut ap);
+        info.applications += 1;
+        info.iterations += 1;
+        let pap = split.dot(&p, &ap);
+        if pap <= 0.0 || !pap.is_finite() {
+            info.converged = false;
+            break;
+        }
+        let alpha = rr / pap;
+        for k in 0..m {
+            x[k] += alpha * p[k];
+            fx[k] += alpha * fp[k];
+            r[k] -= alpha * ap[k];
+        }
+        let rr_new = split.dot(&r, &r);
+        let beta = rr_new / rr;
+        rr = rr_new;
+        for k in 0..m {
+            p[k] = r[k] + beta * p[k];
+        }
+    }
+    info.relative_residual = if bnorm > 0.0 { rr.sqrt() / bnorm } else { 0.0 };
+    (x, fx, info)
+}

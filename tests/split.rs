@@ -1,0 +1,139 @@
+//! The dual split by row owner (`cso::tfeti::split`) on thread ranks: its `F`
+//! and projector give the replicated dual's bits on every rank count, and its
+//! projected CG the same iterates, bit for bit, on 1 to 5 ranks (exact dot
+//! products), solving `P F P x = b` to its tolerance by the replicated
+//! operators' own residual.
+
+use crate::fixture::example;
+use cso::lang::Scene;
+use cso::tfeti::comm::{thread_ranks, Comm};
+use cso::tfeti::split::{projected_cg, SplitDual, Traffic};
+use std::sync::Arc;
+
+/// What one rank saw: `F v`, `P v` and the CG's solution (whole vectors, as
+/// bits), the CG's iterations, and the traffic of one `F` and one projection.
+struct Seen {
+    f: Vec<u64>,
+    p: Vec<u64>,
+    x: Vec<u64>,
+    iterations: usize,
+    f_traffic: Traffic,
+    p_traffic: Traffic,
+    owned: usize,
+}
+
+fn bits(v: &[f64]) -> Vec<u64> {
+    v.iter().map(|x| x.to_bits()).collect()
+}
+
+/// A fixed vector with every row nonzero.
+fn probe(m: usize) -> Vec<f64> {
+    (0..m)
+        .map(|i| ((i * 7919 % 1013) as f64 / 1013.0 - 0.37) * 1e-3)
+        .collect()
+}
+
+fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
+    let state = cso::state::solve_with(
+        scene,
+        &scene.design_init(),
+        &cso::state::SolveOptions {
+            comm,
+            ..Default::default()
+        },
+        &mut |_| {},
+    )
+    .expect("solves");
+    let split = SplitDual::new(&state.dual);
+    let v = probe(state.dual.multipliers());
+    let mine = split.restrict(&v);
+    let (fv, f_traffic) = split.traffic(|s| s.apply_f(&mine));
+    let (pv, p_traffic) = split.traffic(|s| {
+        let mut t = mine.clone();
+        s.project(&mut t);
+        t
+    });
+    let (x, _, info) = projected_cg(&split, &pv, 1e-10, 2000);
+    assert!(info.converged, "{info:?}");
+    Seen {
+        f: bits(&split.assemble(&fv)),
+        p: bits(&split.assemble(&pv)),
+        x: bits(&split.assemble(&x)),
+        iterations: info.iterations,
+        f_traffic,
+        p_traffic,
+        owned: split.owned_rows().len(),
+    }
+}
+
+#[test]
+fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
+    for name in ["two_blocks", "semicoercive3d"] {
+        let scene = example(name);
+        // The replicated dual's F and P (serial), the references.
+        let state = cso::state::solve(&scene, &scene.design_init(), &mut |_| {}).expect("solves");
+        let dual = &state.dual;
+        let m = dual.multipliers();
+        let v = probe(m);
+        let mut fv = vec![0.0; m];
+        dual.apply_f(&v, &mut fv);
+        let mut pv = v.clone();
+        dual.project(&mut pv);
+        let serial = on_rank(&scene, None);
+        assert_eq!(serial.f, bits(&fv), "{name}: F");
+        assert_eq!(serial.p, bits(&pv), "{name}: P");
+        assert_eq!(
+            serial.f_traffic,
+            Traffic::default(),
+            "{name}: no messages in one process"
+        );
+        // The CG's answer, by the replicated operators: P F P x = P v.
+        let x: Vec<f64> = serial.x.iter().map(|&b| f64::from_bits(b)).collect();
+        let mut r = vec![0.0; m];
+        dual.apply_f(&x, &mut r);
+        dual.project(&mut r);
+        let res = r
+            .iter()
+            .zip(&pv)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt();
+        let bn = pv.iter().map(|a| a * a).sum::<f64>().sqrt();
+        assert!(res <= 1e-9 * bn, "{name}: residual {res:e} of {bn:e}");
+        for p in [2, 3, 5] {
+            let seen: Vec<Seen> = std::thread::scope(|s| {
+                let scene = &scene;
+                let handles: Vec<_> = thread_ranks(p)
+                    .into_iter()
+                    .map(|r| s.spawn(move || on_rank(scene, Some(Arc::new(r)))))
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("rank"))
+                    .collect()
+            });
+            assert_eq!(
+                seen.iter().map(|s| s.owned).sum::<usize>(),
+                m,
+                "{name}: every row owned once"
+            );
+            for (rank, got) in seen.iter().enumerate() {
+                let at = format!("{name}, rank {rank} of {p}");
+                assert!(got.f == serial.f, "{at}: F differs");
+                assert!(got.p == serial.p, "{at}: P differs");
+                assert_eq!(got.iterations, serial.iterations, "{at}");
+                assert!(got.x == serial.x, "{at}: the CG's iterates differ");
+                // F: a halo and a sum exchange, each with the neighbours only
+                // (an owner receives the sums, a neighbour the halo).
+                let t = got.f_traffic;
+                assert!(
+                    (1..=2 * (p as u64 - 1)).contains(&t.messages),
+                    "{at}: {t:?}"
+                );
+                assert_eq!(t.collectives, 0, "{at}: {t:?}");
+                // P: the same two exchanges and one gather of G x.
+                assert_eq!(got.p_traffic.collectives, 1, "{at}: {:?}", got.p_traffic);
+            }
+        }
+    }
+}
