@@ -615,6 +615,12 @@ pub fn setup_reusing(
     setup_on(scene, design, previous, serial(), false, None)
 }
 
+/// [`setup`] on the ranks of `comm` (each builds its own subdomains; see
+/// [`setup_on`]). Collective.
+pub fn setup_with(scene: &Scene, design: &[f64], comm: Arc<dyn Comm>) -> Result<Setup, SolveError> {
+    setup_on(scene, design, None, comm, false, None)
+}
+
 /// [`setup_reusing`] on the ranks of `comm`: every rank lowers the scene (the
 /// same on all), then builds only the subdomains of its part of a balanced
 /// contiguous partition; a failure on any rank stops every rank with the

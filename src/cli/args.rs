@@ -59,7 +59,7 @@ pub enum Command {
     Compare(Compare),
     /// Benchmarks (not tests), each a Markdown table printed row by row:
     /// scaling, scaling3d, compare, coarse, coarse3d, sensitivity,
-    /// sensitivity3d, sensitivity-morph, optimize, hard; `bench scene` prints a scaling scene.
+    /// sensitivity3d, sensitivity-morph, optimize, hard, traffic; `bench scene` prints a scaling scene.
     Bench(Bench),
     /// Accuracy against cost of state solves: `cso study convergence` refines the
     /// mesh, `cso study tolerance` sweeps the solver's tolerance.
@@ -295,6 +295,21 @@ pub enum BenchCommand {
         out: Option<PathBuf>,
         #[command(flatten)]
         run: Run,
+    },
+    /// The split dual's communication per rank (messages, bytes, collectives
+    /// per application of F and of the projector) on thread ranks, on the 3D
+    /// weak-scaling scene (9 subdomains per rank), and a model of its time per
+    /// iteration on 100 Gb/s InfiniBand at --predict ranks.
+    Traffic {
+        /// Rank counts to measure (repeatable, or comma-separated).
+        #[arg(long, value_delimiter = ',', default_values_t = [1, 2, 4, 8, 16, 32])]
+        ranks: Vec<usize>,
+        /// Rank counts to predict (repeatable, or comma-separated).
+        #[arg(long, value_delimiter = ',', default_values_t = [100, 1000, 10000])]
+        predict: Vec<usize>,
+        /// Elements per subdomain side, H/h.
+        #[arg(long, default_value_t = 8)]
+        hh: usize,
     },
     /// Print the `.cso` text of one 2D scaling scene (one --hh, --max-cuts as
     /// its cut, --tolerance), so that other tools solve the same problem

@@ -25,6 +25,7 @@ impl Bench {
                 tolerance,
             } => return scene(hh, *max_cuts, *tolerance),
             B::Hard { out, run } => return hard(out.as_deref(), run),
+            B::Traffic { ranks, predict, hh } => return traffic(ranks, predict, *hh),
             B::Scaling { cuts, sweep, run } => {
                 table.cuts_2d(cuts).sweep(sweep).run(run);
                 Benchmark::Scaling
@@ -188,4 +189,32 @@ fn hard(out: Option<&Path>, run: &Run) -> Outcome {
         outln!("{md}");
         write_into(out, || output::hard_files(&sweeps, &md))
     })
+}
+
+/// `bench traffic`: the split dual's counts per rank count, then the model.
+fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
+    use cso::studies::traffic;
+    if hh == 0 || ranks.contains(&0) {
+        return Err(fail(
+            EXIT_IO,
+            "bench traffic takes --hh and --ranks of at least 1",
+        ));
+    }
+    let local = traffic::local_f_seconds(hh, 5).map_err(|e| fail(EXIT_SCENE, e))?;
+    let mut rows = Vec::new();
+    for &p in ranks {
+        let bar = Progress::spinner("bench traffic");
+        bar.update(|| format!("{p} thread ranks"));
+        let m = traffic::measure(p, hh).map_err(|e| fail(EXIT_SCENE, e))?;
+        bar.finish();
+        rows.push(m);
+    }
+    outln!("{}", traffic::measured_table(&rows));
+    outln!(
+        "local F per subdomain: {:.3} ms (one process, H/h = {hh})\n",
+        1e3 * local
+    );
+    let pred = traffic::predict(&rows, local, traffic::INFINIBAND, predict);
+    outln!("{}", traffic::predicted_table(&pred));
+    Ok(())
 }

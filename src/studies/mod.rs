@@ -19,6 +19,7 @@ pub mod refine;
 pub mod sensitivity;
 pub mod stability;
 pub mod tolerance;
+pub mod traffic;
 
 /// Free text (an error message, a formula with `|u|`) as one Markdown table
 /// cell: a bare `|` would end the cell and shift every column after it.

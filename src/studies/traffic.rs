@@ -1,0 +1,350 @@
+//! What the split dual ([`crate::tfeti::split`]) sends per application of
+//! `F` and of the projector, rank by rank, measured on thread ranks; and a
+//! model of its time per Hessian application on a real network at 100 to
+//! 10,000 ranks (issue 37 item 6), fed with those counts.
+//!
+//! The scene is BENCHMARKS.md's weak-scaling family: per rank 8 base
+//! subdomains of `hh^3` hexahedra and one punch subdomain, the scene growing
+//! in x with the ranks. Counts are exact (thread ranks count what MPI would
+//! move); times are not taken on thread ranks (they share this machine's
+//! cores) but from one process: the local `F` per subdomain and the
+//! replicated coarse solve.
+
+use crate::lang::{compile, CheckOptions, Scene};
+use crate::tfeti::comm::{thread_ranks, Comm, Op};
+use crate::tfeti::dual::Dual;
+use crate::tfeti::split::{SplitDual, Traffic};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// The weak-scaling scene on `p` ranks (BENCHMARKS.md, "Subdomains over MPI
+/// ranks"), subdomains of `hh^3` hexahedra.
+pub fn weak_scene(p: usize, hh: usize) -> String {
+    format!(
+        "scene weak{p} {{ dim = 3 }}
+material soft {{ E = 1000, nu = 0.3 }}
+body base {{ material = soft, x = 0 .. {p}, y = 0 .. 1, z = 0 .. 1, mesh = {bx} x {b} x {b}, subdomains = {sx} x 2 x 2 }}
+body punch {{ material = soft, x = 0 .. {p}, y = 0.1 .. 0.9, z = 1 .. 1.5, bottom = 1 + 0.05 * (y - 0.5)^2, mesh = {px} x {hh} x {ph}, subdomains = {p} x 1 x 1 }}
+fix base.bottom
+displace punch.top {{ ux = 0, uy = 0, uz = -0.01 }}
+contact seat {{ primary = base.top, secondary = punch.bottom }}
+",
+        bx = 2 * hh * p,
+        b = 2 * hh,
+        sx = 2 * p,
+        px = hh * p,
+        ph = (hh / 2).max(1),
+    )
+}
+
+/// One rank count's counts: the largest over the ranks where per rank.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct Measured {
+    pub ranks: usize,
+    pub subdomains: usize,
+    pub multipliers: usize,
+    /// Coarse unknowns (the kernel dimension).
+    pub coarse: usize,
+    /// Rows a rank owns (its part of every dual vector).
+    pub owned_rows: usize,
+    /// Rows its subdomains touch (owned and halo).
+    pub touched_rows: usize,
+    /// One application of `F`: messages and bytes received.
+    pub f: Traffic,
+    /// One projection: its two exchanges and the gather of `G x`.
+    pub projection: Traffic,
+    /// One dot product: bytes of its all-reduce.
+    pub dot_bytes: u64,
+    /// Seconds of one replicated coarse solve (`(G G^T)^-1 z`), on rank 0
+    /// while the others wait.
+    pub coarse_solve_s: f64,
+}
+
+/// A fixed vector with no zero row.
+fn probe(m: usize) -> Vec<f64> {
+    (0..m)
+        .map(|i| (i * 7919 % 1013) as f64 / 1013.0 - 0.37)
+        .collect()
+}
+
+/// What one rank saw.
+struct RankCounts {
+    owned: usize,
+    touched: usize,
+    f: Traffic,
+    projection: Traffic,
+    dot: Traffic,
+    coarse_solve_s: f64,
+    sizes: (usize, usize, usize),
+}
+
+fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
+    let setup = crate::state::setup_with(scene, &[], comm.clone()).map_err(|e| e.to_string())?;
+    let dual = Dual::new(setup.cluster).map_err(|e| format!("the coarse problem: {e:?}"))?;
+    let split = SplitDual::new(&dual);
+    let x = split.restrict(&probe(dual.multipliers()));
+    let (_, f) = split.traffic(|s| s.apply_f(&x));
+    let (_, projection) = split.traffic(|s| s.project(&mut x.clone()));
+    let (_, dot) = split.traffic(|s| s.dot(&x, &x));
+    // The coarse solve, timed alone on rank 0 (the others wait in the
+    // all-reduce after it).
+    let mut coarse_solve_s = 0.0;
+    if comm.rank() == 0 {
+        let mut z = probe(dual.kernel_dim());
+        let reps = 20;
+        let t = Instant::now();
+        for _ in 0..reps {
+            dual.coarse_solve(&mut z);
+        }
+        coarse_solve_s = t.elapsed().as_secs_f64() / reps as f64;
+    }
+    comm.all_reduce_u64(&mut [0], Op::Max);
+    Ok(RankCounts {
+        owned: split.owned_rows().len(),
+        touched: split.touched_rows(),
+        f,
+        projection,
+        dot,
+        coarse_solve_s,
+        sizes: (dual.cluster().len(), dual.multipliers(), dual.kernel_dim()),
+    })
+}
+
+fn max_traffic(all: &[RankCounts], get: impl Fn(&RankCounts) -> Traffic) -> Traffic {
+    all.iter()
+        .map(&get)
+        .fold(Traffic::default(), |a, t| Traffic {
+            messages: a.messages.max(t.messages),
+            bytes: a.bytes.max(t.bytes),
+            collectives: a.collectives.max(t.collectives),
+        })
+}
+
+/// The counts of the weak scene on `p` thread ranks.
+pub fn measure(p: usize, hh: usize) -> Result<Measured, String> {
+    let src = weak_scene(p, hh);
+    let scene = compile(&src, &CheckOptions::default())
+        .map_err(|d| format!("the weak scene does not check: {d:?}"))?;
+    let all: Vec<RankCounts> = std::thread::scope(|s| {
+        let scene = &scene;
+        let handles: Vec<_> = thread_ranks(p)
+            .into_iter()
+            .map(|r| s.spawn(move || on_rank(scene, Arc::new(r))))
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().unwrap_or_else(|_| Err("a rank panicked".into())))
+            .collect::<Result<_, String>>()
+    })?;
+    let (subdomains, multipliers, coarse) = all[0].sizes;
+    Ok(Measured {
+        ranks: p,
+        subdomains,
+        multipliers,
+        coarse,
+        owned_rows: all.iter().map(|r| r.owned).max().unwrap_or(0),
+        touched_rows: all.iter().map(|r| r.touched).max().unwrap_or(0),
+        f: max_traffic(&all, |r| r.f),
+        projection: max_traffic(&all, |r| r.projection),
+        dot_bytes: all.iter().map(|r| r.dot.bytes).max().unwrap_or(0),
+        coarse_solve_s: all[0].coarse_solve_s,
+    })
+}
+
+/// Seconds of one local `F` per subdomain: one process, the weak scene on one
+/// rank, the mean of `reps` applications.
+pub fn local_f_seconds(hh: usize, reps: usize) -> Result<f64, String> {
+    let scene = compile(&weak_scene(1, hh), &CheckOptions::default())
+        .map_err(|d| format!("the weak scene does not check: {d:?}"))?;
+    let setup = crate::state::setup(&scene, &[]).map_err(|e| e.to_string())?;
+    let dual = Dual::new(setup.cluster).map_err(|e| format!("the coarse problem: {e:?}"))?;
+    let x = probe(dual.multipliers());
+    let mut y = vec![0.0; x.len()];
+    dual.apply_f(&x, &mut y);
+    let t = Instant::now();
+    for _ in 0..reps {
+        dual.apply_f(&x, &mut y);
+    }
+    Ok(t.elapsed().as_secs_f64() / (reps * dual.cluster().len()) as f64)
+}
+
+/// A network: per message latency and bandwidth.
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct Network {
+    /// Seconds per message.
+    pub latency: f64,
+    /// Bytes per second per rank.
+    pub bandwidth: f64,
+}
+
+/// 100 Gb/s InfiniBand, the estimate of BENCHMARKS.md's weak-scaling section.
+pub const INFINIBAND: Network = Network {
+    latency: 1.5e-6,
+    bandwidth: 12.5e9,
+};
+
+/// The model's time per iteration of the split projected CG (one `F`, one
+/// projection, two dot products) at one rank count, by part.
+#[derive(Debug, Clone, Copy, Default, serde::Serialize)]
+pub struct Predicted {
+    pub ranks: usize,
+    /// The local `F` of the rank's subdomains.
+    pub local_s: f64,
+    /// The four neighbour exchanges (halo and sum of `F` and of `P`).
+    pub exchange_s: f64,
+    /// The gather of `G x` (the whole coarse vector to every rank).
+    pub gather_s: f64,
+    /// The replicated coarse solve.
+    pub coarse_s: f64,
+    /// Two all-reduces of exact accumulators.
+    pub dots_s: f64,
+    pub total_s: f64,
+}
+
+/// Extrapolates the measured counts to `ranks` (weak scaling: the subdomains
+/// per rank of the last row). Per-rank exchanges are taken at their largest
+/// measured values (a rank's neighbours and interface do not grow with P);
+/// the coarse vector grows with the subdomains; the coarse solve follows the
+/// power law of the last two measured rows in the coarse size.
+pub fn predict(
+    measured: &[Measured],
+    f_per_subdomain_s: f64,
+    net: Network,
+    ranks: &[usize],
+) -> Vec<Predicted> {
+    let Some(last) = measured.last() else {
+        return Vec::new();
+    };
+    let per_rank = last.subdomains as f64 / last.ranks as f64;
+    let coarse_per_sub = last.coarse as f64 / last.subdomains as f64;
+    let messages = measured
+        .iter()
+        .map(|m| m.f.messages + m.projection.messages)
+        .max()
+        .unwrap_or(0) as f64;
+    // The projection's bytes less its gather (the whole coarse vector).
+    let bytes = measured
+        .iter()
+        .map(|m| m.f.bytes + m.projection.bytes.saturating_sub(8 * m.coarse as u64))
+        .max()
+        .unwrap_or(0) as f64;
+    let dot_bytes = last.dot_bytes as f64 / last.ranks as f64;
+    // t = a n^b through the last two rows with a coarse solve measured.
+    let timed: Vec<&Measured> = measured.iter().filter(|m| m.coarse_solve_s > 0.0).collect();
+    let (b, a) = match timed.as_slice() {
+        [.., x, y] if y.coarse > x.coarse => {
+            let b = (y.coarse_solve_s / x.coarse_solve_s).ln()
+                / (y.coarse as f64 / x.coarse as f64).ln();
+            (
+                b.max(1.0),
+                y.coarse_solve_s / (y.coarse as f64).powf(b.max(1.0)),
+            )
+        }
+        [.., y] => (1.0, y.coarse_solve_s / y.coarse as f64),
+        [] => (1.0, 0.0),
+    };
+    ranks
+        .iter()
+        .map(|&p| {
+            let pf = p as f64;
+            let coarse = coarse_per_sub * per_rank * pf;
+            let log = pf.log2().ceil().max(1.0);
+            let local_s = per_rank * f_per_subdomain_s;
+            let exchange_s = messages * net.latency + bytes / net.bandwidth;
+            let gather_s = log * net.latency + 8.0 * coarse / net.bandwidth;
+            let coarse_s = a * coarse.powf(b);
+            let dots_s = 2.0 * log * (net.latency + dot_bytes / net.bandwidth);
+            Predicted {
+                ranks: p,
+                local_s,
+                exchange_s,
+                gather_s,
+                coarse_s,
+                dots_s,
+                total_s: local_s + exchange_s + gather_s + coarse_s + dots_s,
+            }
+        })
+        .collect()
+}
+
+/// The measured counts as a Markdown table.
+pub fn measured_table(rows: &[Measured]) -> String {
+    let mut s = String::from(
+        "| ranks | subdomains | multipliers | coarse | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms |\n|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    for m in rows {
+        s += &format!(
+            "| {} | {} | {} | {} | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} |\n",
+            m.ranks,
+            m.subdomains,
+            m.multipliers,
+            m.coarse,
+            m.owned_rows,
+            m.touched_rows,
+            m.f.messages,
+            m.f.bytes as f64 / 1e3,
+            m.projection.messages,
+            m.projection.bytes as f64 / 1e3,
+            m.projection.collectives,
+            m.dot_bytes,
+            1e3 * m.coarse_solve_s,
+        );
+    }
+    s
+}
+
+/// The model's table, milliseconds per iteration.
+pub fn predicted_table(rows: &[Predicted]) -> String {
+    let mut s = String::from(
+        "| ranks | local F ms | exchanges ms | gather of G x ms | coarse solve ms | dots ms | total ms | local share |\n|---|---|---|---|---|---|---|---|\n",
+    );
+    for p in rows {
+        s += &format!(
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.0} % |\n",
+            p.ranks,
+            1e3 * p.local_s,
+            1e3 * p.exchange_s,
+            1e3 * p.gather_s,
+            1e3 * p.coarse_s,
+            1e3 * p.dots_s,
+            1e3 * p.total_s,
+            100.0 * p.local_s / p.total_s,
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn neighbours_only_exchange_and_the_model_adds_up() {
+        let rows: Vec<Measured> = [1, 2, 4]
+            .iter()
+            .map(|&p| measure(p, 2).expect("measures"))
+            .collect();
+        // One process sends nothing; on more ranks a rank's traffic per F
+        // stays with its neighbours: at most a halo and a sum message from
+        // each other rank, and far less than the replicated dual's gather of
+        // every subdomain's rows (about 2 m doubles to every rank).
+        assert_eq!(rows[0].f, Traffic::default());
+        for m in &rows[1..] {
+            assert!((1..=2 * (m.ranks as u64 - 1)).contains(&m.f.messages), "{m:?}");
+            assert_eq!(m.f.collectives, 0, "{m:?}");
+            assert_eq!(m.projection.collectives, 1, "{m:?}");
+            assert_eq!(m.subdomains, 9 * m.ranks);
+            assert!(m.f.bytes < 8 * m.multipliers as u64, "{m:?}");
+        }
+        let pred = predict(&rows, 1e-3, INFINIBAND, &[100, 10_000]);
+        for p in &pred {
+            let sum = p.local_s + p.exchange_s + p.gather_s + p.coarse_s + p.dots_s;
+            assert!((p.total_s - sum).abs() <= 1e-15 * sum.max(1.0));
+            assert!((p.local_s - 9e-3).abs() < 1e-12, "{p:?}");
+        }
+        // The coarse vector grows with P: its gather at 10,000 ranks exceeds
+        // that at 100.
+        assert!(pred[1].gather_s > pred[0].gather_s);
+        assert!(measured_table(&rows).lines().count() == 5);
+    }
+}
