@@ -22,9 +22,10 @@ fn main() -> ExitCode {
         Command::Solve(c) => c.run(&opts, &ranks),
         Command::Sensitivity(c) => c.run(&opts, &ranks),
         Command::Optimize(c) => c.run(&opts, &ranks),
+        Command::Bench(c) if c.runs_distributed(&ranks) => c.run_on(&ranks),
         _ if ranks.as_ref().is_some_and(|c| c.size() > 1) => Err(fail(
             EXIT_IO,
-            "only `cso solve`, `cso sensitivity` and `cso optimize` run distributed over MPI ranks; run this command without mpirun",
+            "only `cso solve`, `cso sensitivity`, `cso optimize` and `cso bench traffic` run distributed over MPI ranks; run this command without mpirun",
         )),
         Command::Check(c) => c.run(&opts),
         Command::Compare(c) => c.run(&opts),

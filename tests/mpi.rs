@@ -229,7 +229,7 @@ fn commands_that_are_not_distributed_say_so() {
     let (code, _, err) = run(Some(2), &[], &["compare", "examples/scont2d.cso"]);
     assert_eq!(code, 2, "{err}");
     assert!(
-        err.contains("only `cso solve`, `cso sensitivity` and `cso optimize` run distributed"),
+        err.contains("only `cso solve`, `cso sensitivity`, `cso optimize` and `cso bench traffic` run distributed"),
         "{err}"
     );
     let (code, _, err) = run(
@@ -380,4 +380,36 @@ fn a_rank_failing_mid_optimization_stops_every_rank_and_keeps_the_best() {
     let best = std::fs::read_to_string(dir.join("best.cso")).expect("rank 0 wrote the best design");
     assert!(best.contains("design"), "{best}");
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The row of `ranks` in a `cso bench traffic` table, split into cells.
+fn traffic_row(table: &str, ranks: usize) -> Vec<String> {
+    let line = table
+        .lines()
+        .find(|l| l.starts_with(&format!("| {ranks} |")))
+        .unwrap_or_else(|| panic!("no row of {ranks} ranks in\n{table}"));
+    line.split('|').map(|c| c.trim().to_string()).collect()
+}
+
+/// The split dual over MPI's immediate sends and receives (`cso bench
+/// traffic` under `mpirun -n 3`): its `F` and projector give the replicated
+/// dual's bits, and every count (messages, bytes, collectives per rank) is
+/// the one the thread ranks measure.
+#[test]
+fn the_split_dual_over_mpi_gives_the_replicated_bits_and_the_thread_ranks_counts() {
+    let args = ["--quiet", "bench", "traffic", "--hh", "2"];
+    let (code, mpi, err) = run(Some(3), &[], &args);
+    assert_eq!(code, 0, "{mpi}\n{err}");
+    let (code, threads, err) = run(None, &[], &[&args[..], &["--ranks", "3"]].concat());
+    assert_eq!(code, 0, "{threads}\n{err}");
+    let (mut a, mut b) = (traffic_row(&mpi, 3), traffic_row(&threads, 3));
+    assert_eq!(a.len(), 13, "{a:?}");
+    assert_eq!(
+        a[11], "yes",
+        "the split F and P differ from the replicated ones: {mpi}"
+    );
+    // Every column but the coarse solve's time.
+    a.remove(10);
+    b.remove(10);
+    assert_eq!(a, b, "MPI:\n{mpi}\nthread ranks:\n{threads}");
 }

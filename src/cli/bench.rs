@@ -5,6 +5,7 @@
 use super::args::{Bench, BenchCommand, Cuts2d, Cuts3d, FactorOrdering, LocalFs, Run, Sweep};
 use super::job::{prepare, thread_pool, write_into};
 use super::print::{fail, Outcome, Progress, EXIT_IO, EXIT_SCENE};
+use super::ranks::Ranks;
 use cso::lang::scene::{LocalF, Preconditioner};
 use cso::qp::SmalbeOverrides;
 use cso::studies::bench::{self, Benchmark};
@@ -217,4 +218,29 @@ fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
     let pred = traffic::predict(&rows, local, traffic::INFINIBAND, predict);
     outln!("{}", traffic::predicted_table(&pred));
     Ok(())
+}
+
+impl Bench {
+    /// Whether this benchmark runs on the ranks of an MPI launch (`traffic`
+    /// does: it measures MPI's own messages).
+    pub fn runs_distributed(&self, ranks: &Ranks) -> bool {
+        matches!(self.which, BenchCommand::Traffic { .. })
+            && ranks.as_ref().is_some_and(|c| c.size() > 1)
+    }
+
+    /// `bench traffic` under `mpirun`: the counts of this launch's ranks (and
+    /// whether the split operators gave the replicated dual's bits), printed
+    /// by rank 0. Collective.
+    pub fn run_on(&self, ranks: &Ranks) -> Outcome {
+        let (BenchCommand::Traffic { hh, .. }, Some(comm)) = (&self.which, ranks) else {
+            return self.run();
+        };
+        if *hh == 0 {
+            return Err(fail(EXIT_IO, "bench traffic takes --hh of at least 1"));
+        }
+        let m = cso::studies::traffic::measure_on(comm.clone(), *hh)
+            .map_err(|e| fail(EXIT_SCENE, e))?;
+        outln!("{}", cso::studies::traffic::measured_table(&[m]));
+        Ok(())
+    }
 }

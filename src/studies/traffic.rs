@@ -58,6 +58,9 @@ pub struct Measured {
     /// Seconds of one replicated coarse solve (`(G G^T)^-1 z`), on rank 0
     /// while the others wait.
     pub coarse_solve_s: f64,
+    /// Whether the split `F` and projector gave the replicated dual's bits
+    /// on every rank.
+    pub same_bits: bool,
 }
 
 /// A fixed vector with no zero row.
@@ -76,16 +79,77 @@ struct RankCounts {
     dot: Traffic,
     coarse_solve_s: f64,
     sizes: (usize, usize, usize),
+    same_bits: bool,
+}
+
+impl RankCounts {
+    const WORDS: usize = 16;
+
+    /// As integers, for a gather.
+    fn to_words(&self) -> [u64; Self::WORDS] {
+        let t = |t: Traffic| [t.messages, t.bytes, t.collectives];
+        let [a, b, c] = t(self.f);
+        let [d, e, f] = t(self.projection);
+        let [g, h, i] = t(self.dot);
+        [
+            self.owned as u64,
+            self.touched as u64,
+            a,
+            b,
+            c,
+            d,
+            e,
+            f,
+            g,
+            h,
+            i,
+            self.coarse_solve_s.to_bits(),
+            self.sizes.0 as u64,
+            self.sizes.1 as u64,
+            self.sizes.2 as u64,
+            self.same_bits as u64,
+        ]
+    }
+
+    fn from_words(w: &[u64]) -> RankCounts {
+        let t = |i: usize| Traffic {
+            messages: w[i],
+            bytes: w[i + 1],
+            collectives: w[i + 2],
+        };
+        RankCounts {
+            owned: w[0] as usize,
+            touched: w[1] as usize,
+            f: t(2),
+            projection: t(5),
+            dot: t(8),
+            coarse_solve_s: f64::from_bits(w[11]),
+            sizes: (w[12] as usize, w[13] as usize, w[14] as usize),
+            same_bits: w[15] == 1,
+        }
+    }
 }
 
 fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
     let setup = crate::state::setup_with(scene, &[], comm.clone()).map_err(|e| e.to_string())?;
     let dual = Dual::new(setup.cluster).map_err(|e| format!("the coarse problem: {e:?}"))?;
     let split = SplitDual::new(&dual);
-    let x = split.restrict(&probe(dual.multipliers()));
-    let (_, f) = split.traffic(|s| s.apply_f(&x));
-    let (_, projection) = split.traffic(|s| s.project(&mut x.clone()));
+    let whole = probe(dual.multipliers());
+    let x = split.restrict(&whole);
+    let (fx, f) = split.traffic(|s| s.apply_f(&x));
+    let (px, projection) = split.traffic(|s| {
+        let mut t = x.clone();
+        s.project(&mut t);
+        t
+    });
     let (_, dot) = split.traffic(|s| s.dot(&x, &x));
+    // The replicated dual's F and P of the same vector (collective).
+    let mut want_f = vec![0.0; whole.len()];
+    dual.apply_f(&whole, &mut want_f);
+    let mut want_p = whole;
+    dual.project(&mut want_p);
+    let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
+    let same_bits = same(&split.restrict(&want_f), &fx) && same(&split.restrict(&want_p), &px);
     // The coarse solve, timed alone on rank 0 (the others wait in the
     // all-reduce after it).
     let mut coarse_solve_s = 0.0;
@@ -107,6 +171,7 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         dot,
         coarse_solve_s,
         sizes: (dual.cluster().len(), dual.multipliers(), dual.kernel_dim()),
+        same_bits,
     })
 }
 
@@ -120,11 +185,29 @@ fn max_traffic(all: &[RankCounts], get: impl Fn(&RankCounts) -> Traffic) -> Traf
         })
 }
 
+fn weak(p: usize, hh: usize) -> Result<Scene, String> {
+    compile(&weak_scene(p, hh), &CheckOptions::default())
+        .map_err(|d| format!("the weak scene does not check: {d:?}"))
+}
+
+/// The counts of the weak scene on the ranks of `comm` (an MPI launch), the
+/// same on every rank. Collective.
+pub fn measure_on(comm: Arc<dyn Comm>, hh: usize) -> Result<Measured, String> {
+    let p = comm.size();
+    let scene = weak(p, hh)?;
+    let mine = on_rank(&scene, comm.clone());
+    let agreed = crate::tfeti::comm::agree(&*comm, mine).map_err(|f| f.message)?;
+    let words = comm.all_gather_u64(&agreed.to_words(), &vec![RankCounts::WORDS; p]);
+    let all: Vec<RankCounts> = words
+        .chunks_exact(RankCounts::WORDS)
+        .map(RankCounts::from_words)
+        .collect();
+    Ok(combine(p, &all))
+}
+
 /// The counts of the weak scene on `p` thread ranks.
 pub fn measure(p: usize, hh: usize) -> Result<Measured, String> {
-    let src = weak_scene(p, hh);
-    let scene = compile(&src, &CheckOptions::default())
-        .map_err(|d| format!("the weak scene does not check: {d:?}"))?;
+    let scene = weak(p, hh)?;
     let all: Vec<RankCounts> = std::thread::scope(|s| {
         let scene = &scene;
         let handles: Vec<_> = thread_ranks(p)
@@ -136,26 +219,31 @@ pub fn measure(p: usize, hh: usize) -> Result<Measured, String> {
             .map(|h| h.join().unwrap_or_else(|_| Err("a rank panicked".into())))
             .collect::<Result<_, String>>()
     })?;
+    Ok(combine(p, &all))
+}
+
+/// Every rank's counts as one row: the largest where per rank.
+fn combine(p: usize, all: &[RankCounts]) -> Measured {
     let (subdomains, multipliers, coarse) = all[0].sizes;
-    Ok(Measured {
+    Measured {
         ranks: p,
         subdomains,
         multipliers,
         coarse,
         owned_rows: all.iter().map(|r| r.owned).max().unwrap_or(0),
         touched_rows: all.iter().map(|r| r.touched).max().unwrap_or(0),
-        f: max_traffic(&all, |r| r.f),
-        projection: max_traffic(&all, |r| r.projection),
+        f: max_traffic(all, |r| r.f),
+        projection: max_traffic(all, |r| r.projection),
         dot_bytes: all.iter().map(|r| r.dot.bytes).max().unwrap_or(0),
         coarse_solve_s: all[0].coarse_solve_s,
-    })
+        same_bits: all.iter().all(|r| r.same_bits),
+    }
 }
 
 /// Seconds of one local `F` per subdomain: one process, the weak scene on one
 /// rank, the mean of `reps` applications.
 pub fn local_f_seconds(hh: usize, reps: usize) -> Result<f64, String> {
-    let scene = compile(&weak_scene(1, hh), &CheckOptions::default())
-        .map_err(|d| format!("the weak scene does not check: {d:?}"))?;
+    let scene = weak(1, hh)?;
     let setup = crate::state::setup(&scene, &[]).map_err(|e| e.to_string())?;
     let dual = Dual::new(setup.cluster).map_err(|e| format!("the coarse problem: {e:?}"))?;
     let x = probe(dual.multipliers());
@@ -228,7 +316,7 @@ pub fn predict(
         .map(|m| m.f.bytes + m.projection.bytes.saturating_sub(8 * m.coarse as u64))
         .max()
         .unwrap_or(0) as f64;
-    let dot_bytes = last.dot_bytes as f64 / last.ranks as f64;
+    let dot_bytes = last.dot_bytes as f64;
     // t = a n^b through the last two rows with a coarse solve measured.
     let timed: Vec<&Measured> = measured.iter().filter(|m| m.coarse_solve_s > 0.0).collect();
     let (b, a) = match timed.as_slice() {
@@ -270,11 +358,11 @@ pub fn predict(
 /// The measured counts as a Markdown table.
 pub fn measured_table(rows: &[Measured]) -> String {
     let mut s = String::from(
-        "| ranks | subdomains | multipliers | coarse | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms |\n|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ranks | subdomains | multipliers | coarse | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in rows {
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} |\n",
+            "| {} | {} | {} | {} | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} | {} |\n",
             m.ranks,
             m.subdomains,
             m.multipliers,
@@ -288,6 +376,7 @@ pub fn measured_table(rows: &[Measured]) -> String {
             m.projection.collectives,
             m.dot_bytes,
             1e3 * m.coarse_solve_s,
+            if m.same_bits { "yes" } else { "NO" },
         );
     }
     s
@@ -330,11 +419,16 @@ mod tests {
         // every subdomain's rows (about 2 m doubles to every rank).
         assert_eq!(rows[0].f, Traffic::default());
         for m in &rows[1..] {
-            assert!((1..=2 * (m.ranks as u64 - 1)).contains(&m.f.messages), "{m:?}");
+            assert!(
+                (1..=2 * (m.ranks as u64 - 1)).contains(&m.f.messages),
+                "{m:?}"
+            );
             assert_eq!(m.f.collectives, 0, "{m:?}");
             assert_eq!(m.projection.collectives, 1, "{m:?}");
             assert_eq!(m.subdomains, 9 * m.ranks);
             assert!(m.f.bytes < 8 * m.multipliers as u64, "{m:?}");
+            assert!(m.same_bits, "{m:?}");
+            assert_eq!(m.dot_bytes, 8 * crate::num::exact::WORDS as u64);
         }
         let pred = predict(&rows, 1e-3, INFINIBAND, &[100, 10_000]);
         for p in &pred {

@@ -153,10 +153,14 @@ impl ThreadRank {
         self.shared.barrier.wait();
         let all = lock().clone();
         self.shared.barrier.wait();
+        all
+    }
+
+    /// Counts one collective that received `bytes`, as MPI's would.
+    fn count(&self, bytes: usize) {
         let mut s = super::lock(&self.stats);
         s.calls += 1;
-        s.bytes += 8 * all.iter().map(|v| v.len() as u64).sum::<u64>();
-        all
+        s.bytes += bytes as u64;
     }
 }
 
@@ -169,12 +173,17 @@ impl Comm for ThreadRank {
     }
     fn all_gather(&self, local: &[f64], _counts: &[usize]) -> Vec<f64> {
         let all = self.share(local.iter().map(|x| x.to_bits()).collect());
-        all.concat().into_iter().map(f64::from_bits).collect()
+        let all: Vec<f64> = all.concat().into_iter().map(f64::from_bits).collect();
+        self.count(8 * all.len());
+        all
     }
     fn all_gather_u64(&self, local: &[u64], _counts: &[usize]) -> Vec<u64> {
-        self.share(local.to_vec()).concat()
+        let all = self.share(local.to_vec()).concat();
+        self.count(8 * all.len());
+        all
     }
     fn all_reduce_u64(&self, x: &mut [u64], op: Op) {
+        self.count(8 * x.len());
         let all = self.share(x.to_vec());
         for (i, v) in x.iter_mut().enumerate() {
             let it = all.iter().map(|r| r[i]);
@@ -188,6 +197,7 @@ impl Comm for ThreadRank {
     fn broadcast(&self, root: usize, bytes: &mut Vec<u8>) {
         let all = self.share(bytes.iter().map(|&b| b as u64).collect());
         *bytes = all[root].iter().map(|&b| b as u8).collect();
+        self.count(bytes.len());
     }
     fn exchange(&self, sends: &[(usize, Vec<f64>)], receives: &[(usize, usize)]) -> Vec<Vec<f64>> {
         let lock = || match self.shared.mail.lock() {

@@ -57,12 +57,19 @@ impl Mpi {
         SimpleCommunicator::world()
     }
 
+    /// A collective, timed and counted.
     fn timed<T>(&self, bytes: usize, f: impl FnOnce() -> T) -> T {
+        self.counted(1, 0, bytes, f)
+    }
+
+    /// `f`, timed, counted as `calls` collectives and `messages` messages.
+    fn counted<T>(&self, calls: u64, messages: u64, bytes: usize, f: impl FnOnce() -> T) -> T {
         let t = Instant::now();
         let out = f();
         let dt = t.elapsed().as_secs_f64();
         let mut s = lock(&self.stats);
-        s.calls += 1;
+        s.calls += calls;
+        s.messages += messages;
         s.seconds += dt;
         s.bytes += bytes as u64;
         out
@@ -134,7 +141,7 @@ impl Comm for Mpi {
         let world = self.world();
         let mut out: Vec<Vec<f64>> = receives.iter().map(|&(_, n)| vec![0.0; n]).collect();
         let bytes = 8 * receives.iter().map(|r| r.1).sum::<usize>();
-        self.timed(bytes, || {
+        self.counted(0, receives.len() as u64, bytes, || {
             mpi::request::scope(|scope| {
                 let recv: Vec<_> = out
                     .iter_mut()
@@ -161,7 +168,6 @@ impl Comm for Mpi {
                 }
             });
         });
-        lock(&self.stats).messages += receives.len() as u64;
         out
     }
 
