@@ -3,10 +3,10 @@
 //! with neighbouring ranks only, and dot products are exact sums merged by an
 //! integer all-reduce, so every result has the same bits for any rank count.
 //!
-//! Ownership: a row of `B` belongs to the rank of the lowest subdomain that
-//! touches it (ranks own contiguous ranges of subdomains). Every rank derives
-//! the same plan from the rows of all subdomains, which the lowering
-//! replicates: no negotiation.
+//! Ownership: a row of `B` belongs to one of the ranks whose subdomains touch
+//! it, taken in turn by row number (so two neighbours own half of their
+//! interface each). Every rank derives the same plan from the rows of all
+//! subdomains, which the lowering replicates: no negotiation.
 //!
 //! One application of `F` is two neighbour exchanges:
 //! 1. *halo*: each owner sends the values of its rows that a neighbour's
@@ -73,7 +73,14 @@ impl Plan {
                 row_subs[r].push(s);
             }
         }
-        let owner = |r: usize| row_subs[r].first().map(|&s| rank_of(s));
+        // The ranks that touch a row, ascending; its owner one of them, in
+        // turn by row number so that neighbours share their interface rows
+        // evenly (the sums' order is the subdomains', whoever owns the row).
+        let owner = |r: usize| {
+            let mut ranks: Vec<usize> = row_subs[r].iter().map(|&s| rank_of(s)).collect();
+            ranks.dedup();
+            (!ranks.is_empty()).then(|| ranks[r % ranks.len()])
+        };
         let mine = cluster.owned();
         let mut touched: Vec<usize> = mine
             .clone()
