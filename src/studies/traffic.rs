@@ -45,6 +45,8 @@ pub struct Measured {
     pub multipliers: usize,
     /// Coarse unknowns (the kernel dimension).
     pub coarse: usize,
+    /// Values of the coarse factor (every rank holds it).
+    pub coarse_nonzeros: usize,
     /// Rows a rank owns (its part of every dual vector).
     pub owned_rows: usize,
     /// Rows its subdomains touch (owned and halo).
@@ -79,11 +81,12 @@ struct RankCounts {
     dot: Traffic,
     coarse_solve_s: f64,
     sizes: (usize, usize, usize),
+    coarse_nonzeros: usize,
     same_bits: bool,
 }
 
 impl RankCounts {
-    const WORDS: usize = 16;
+    const WORDS: usize = 17;
 
     /// As integers, for a gather.
     fn to_words(&self) -> [u64; Self::WORDS] {
@@ -108,6 +111,7 @@ impl RankCounts {
             self.sizes.1 as u64,
             self.sizes.2 as u64,
             self.same_bits as u64,
+            self.coarse_nonzeros as u64,
         ]
     }
 
@@ -126,6 +130,7 @@ impl RankCounts {
             coarse_solve_s: f64::from_bits(w[11]),
             sizes: (w[12] as usize, w[13] as usize, w[14] as usize),
             same_bits: w[15] == 1,
+            coarse_nonzeros: w[16] as usize,
         }
     }
 }
@@ -150,8 +155,9 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
     dual.project(&mut want_p);
     let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
     let same_bits = same(&split.restrict(&want_f), &fx) && same(&split.restrict(&want_p), &px);
-    // The coarse solve, timed alone on rank 0 (the others wait in the
-    // all-reduce after it).
+    // The coarse solve, timed alone on rank 0 once every rank is done (the
+    // others wait in the all-reduce after it).
+    comm.all_reduce_u64(&mut [0], Op::Max);
     let mut coarse_solve_s = 0.0;
     if comm.rank() == 0 {
         let mut z = probe(dual.kernel_dim());
@@ -171,6 +177,7 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         dot,
         coarse_solve_s,
         sizes: (dual.cluster().len(), dual.multipliers(), dual.kernel_dim()),
+        coarse_nonzeros: dual.coarse_stats().factor_nonzeros,
         same_bits,
     })
 }
@@ -230,6 +237,7 @@ fn combine(p: usize, all: &[RankCounts]) -> Measured {
         subdomains,
         multipliers,
         coarse,
+        coarse_nonzeros: all[0].coarse_nonzeros,
         owned_rows: all.iter().map(|r| r.owned).max().unwrap_or(0),
         touched_rows: all.iter().map(|r| r.touched).max().unwrap_or(0),
         f: max_traffic(all, |r| r.f),
@@ -292,8 +300,9 @@ pub struct Predicted {
 /// Extrapolates the measured counts to `ranks` (weak scaling: the subdomains
 /// per rank of the last row). Per-rank exchanges are taken at their largest
 /// measured values (a rank's neighbours and interface do not grow with P);
-/// the coarse vector grows with the subdomains; the coarse solve follows the
-/// power law of the last two measured rows in the coarse size.
+/// the coarse vector grows with the subdomains; the coarse factor's values
+/// follow the power law of the last two rows, and its solve takes the time
+/// per value measured on the last.
 pub fn predict(
     measured: &[Measured],
     f_per_subdomain_s: f64,
@@ -317,20 +326,18 @@ pub fn predict(
         .max()
         .unwrap_or(0) as f64;
     let dot_bytes = last.dot_bytes as f64;
-    // t = a n^b through the last two rows with a coarse solve measured.
-    let timed: Vec<&Measured> = measured.iter().filter(|m| m.coarse_solve_s > 0.0).collect();
-    let (b, a) = match timed.as_slice() {
-        [.., x, y] if y.coarse > x.coarse => {
-            let b = (y.coarse_solve_s / x.coarse_solve_s).ln()
+    // The coarse factor's values grow as c n^b (n its unknowns; b from the
+    // last two rows, exact counts); a solve reads each value twice, at the
+    // rate measured on the largest one.
+    let (b, c) = match measured {
+        [.., x, y] if y.coarse > x.coarse && x.coarse_nonzeros > 0 => {
+            let b = (y.coarse_nonzeros as f64 / x.coarse_nonzeros as f64).ln()
                 / (y.coarse as f64 / x.coarse as f64).ln();
-            (
-                b.max(1.0),
-                y.coarse_solve_s / (y.coarse as f64).powf(b.max(1.0)),
-            )
+            (b, y.coarse_nonzeros as f64 / (y.coarse as f64).powf(b))
         }
-        [.., y] => (1.0, y.coarse_solve_s / y.coarse as f64),
-        [] => (1.0, 0.0),
+        _ => (1.0, last.coarse_nonzeros as f64 / last.coarse.max(1) as f64),
     };
+    let per_value = last.coarse_solve_s / last.coarse_nonzeros.max(1) as f64;
     ranks
         .iter()
         .map(|&p| {
@@ -340,7 +347,7 @@ pub fn predict(
             let local_s = per_rank * f_per_subdomain_s;
             let exchange_s = messages * net.latency + bytes / net.bandwidth;
             let gather_s = log * net.latency + 8.0 * coarse / net.bandwidth;
-            let coarse_s = a * coarse.powf(b);
+            let coarse_s = per_value * c * coarse.powf(b);
             let dots_s = 2.0 * log * (net.latency + dot_bytes / net.bandwidth);
             Predicted {
                 ranks: p,
@@ -358,15 +365,16 @@ pub fn predict(
 /// The measured counts as a Markdown table.
 pub fn measured_table(rows: &[Measured]) -> String {
     let mut s = String::from(
-        "| ranks | subdomains | multipliers | coarse | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in rows {
         s += &format!(
-            "| {} | {} | {} | {} | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} | {} |\n",
+            "| {} | {} | {} | {} ({}) | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} | {} |\n",
             m.ranks,
             m.subdomains,
             m.multipliers,
             m.coarse,
+            m.coarse_nonzeros,
             m.owned_rows,
             m.touched_rows,
             m.f.messages,
