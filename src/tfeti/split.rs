@@ -62,17 +62,10 @@ struct Plan {
 impl Plan {
     fn new(cluster: &Cluster) -> Plan {
         let comm = cluster.comm();
-        let (me, n) = (comm.rank(), cluster.len());
+        let me = comm.rank();
         let bounds = cluster.bounds();
         let rank_of = |s: usize| bounds.partition_point(|&b| b <= s) - 1;
-        let m = cluster.multipliers();
-        // The subdomains of every row, ascending (subdomain order).
-        let mut row_subs: Vec<Vec<usize>> = vec![Vec::new(); m];
-        for s in 0..n {
-            for &r in &cluster.local_rows(s).rows {
-                row_subs[r].push(s);
-            }
-        }
+        let row_subs = subdomains_of_rows(cluster);
         // The ranks that touch a row, ascending; its owner one of them, in
         // turn by row number so that neighbours share their interface rows
         // evenly (the sums' order is the subdomains', whoever owns the row).
@@ -111,8 +104,6 @@ impl Plan {
         let p = comm.size();
         let mut halo_send = vec![Vec::new(); p];
         let mut sum_recv = vec![0usize; p];
-        // Received contributions, per neighbour in row order: (row, subdomain).
-        let mut incoming: Vec<Vec<(usize, usize)>> = vec![Vec::new(); p];
         for (j, &r) in owned.iter().enumerate() {
             let mut last = usize::MAX;
             for &s in &row_subs[r] {
@@ -123,7 +114,6 @@ impl Plan {
                         last = q;
                     }
                     sum_recv[q] += 1;
-                    incoming[q].push((r, s));
                 }
             }
         }
@@ -163,19 +153,13 @@ impl Plan {
                     .collect()
             })
             .collect();
-        let keep = |v: Vec<Vec<usize>>| -> Vec<(usize, Vec<usize>)> {
-            v.into_iter()
-                .enumerate()
-                .filter(|(_, l)| !l.is_empty())
-                .collect()
-        };
         Plan {
             owned,
             owned_at,
             sub_at,
-            halo_send: keep(halo_send),
-            halo_recv: keep(halo_recv),
-            sum_send: keep(sum_send),
+            halo_send: by_rank(halo_send),
+            halo_recv: by_rank(halo_recv),
+            sum_send: by_rank(sum_send),
             sum_recv: sum_recv
                 .into_iter()
                 .enumerate()
@@ -185,6 +169,26 @@ impl Plan {
             touched,
         }
     }
+}
+
+/// The subdomains of every row of `B`, ascending (subdomain order).
+fn subdomains_of_rows(cluster: &Cluster) -> Vec<Vec<usize>> {
+    let mut row_subs: Vec<Vec<usize>> = vec![Vec::new(); cluster.multipliers()];
+    for s in 0..cluster.len() {
+        for &r in &cluster.local_rows(s).rows {
+            row_subs[r].push(s);
+        }
+    }
+    row_subs
+}
+
+/// The nonempty lists, with their rank.
+fn by_rank(lists: Vec<Vec<usize>>) -> Vec<(usize, Vec<usize>)> {
+    lists
+        .into_iter()
+        .enumerate()
+        .filter(|(_, l)| !l.is_empty())
+        .collect()
 }
 
 /// The dual of a (possibly distributed) cluster, split by row owner.
