@@ -61,7 +61,7 @@ pub struct Measured {
     /// while the others wait.
     pub coarse_solve_s: f64,
     /// Whether the split `F` and projector gave the replicated dual's bits
-    /// on every rank.
+    /// on every rank, and the split dot product the exact one.
     pub same_bits: bool,
 }
 
@@ -147,14 +147,19 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         s.project(&mut t);
         t
     });
-    let (_, dot) = split.traffic(|s| s.dot(&x, &x));
-    // The replicated dual's F and P of the same vector (collective).
+    let (xfx, dot) = split.traffic(|s| s.dot(&x, &fx));
+    // The replicated dual's F and P of the same vector (collective), and the
+    // exact dot product of the whole vectors (terms of both signs: the
+    // accumulators' negative limbs wrap in the all-reduce).
     let mut want_f = vec![0.0; whole.len()];
     dual.apply_f(&whole, &mut want_f);
+    let want_dot = crate::num::exact::dot(&whole, &want_f).value();
     let mut want_p = whole;
     dual.project(&mut want_p);
     let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
-    let same_bits = same(&split.restrict(&want_f), &fx) && same(&split.restrict(&want_p), &px);
+    let same_bits = same(&split.restrict(&want_f), &fx)
+        && same(&split.restrict(&want_p), &px)
+        && xfx.to_bits() == want_dot.to_bits();
     // The coarse solve, timed alone on rank 0 once every rank is done (the
     // others wait in the all-reduce after it).
     comm.all_reduce_u64(&mut [0], Op::Max);
@@ -365,7 +370,7 @@ pub fn predict(
 /// The measured counts as a Markdown table.
 pub fn measured_table(rows: &[Measured]) -> String {
     let mut s = String::from(
-        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P, dot bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in rows {
         s += &format!(
