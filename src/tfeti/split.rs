@@ -26,7 +26,7 @@
 //! bitwise across rank counts on thread ranks. MPRGP and SMALBE still run on
 //! the replicated dual (`tfeti::dual`).
 
-use super::cluster::{g_block_t_times, Cluster};
+use super::cluster::{g_block_t_times, g_block_times, Cluster};
 use super::comm::{Comm, Stats};
 use super::dual::Dual;
 use crate::num::exact::{ExactSum, WORDS};
@@ -334,16 +334,10 @@ impl<'a> SplitDual<'a> {
             .map(|s, _| {
                 let at = &self.plan.sub_at[s - cluster.owned().start];
                 let k = cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
-                let g = cluster.g_block(s);
-                let nr = at.len();
-                // The loop of `cluster::g_block_times`, on local values.
-                let mut acc = vec![-0.0f64; k];
-                for (r, &i) in at.iter().enumerate() {
-                    for (j, a) in acc.iter_mut().enumerate() {
-                        *a += g[j * nr + r] * t[i];
-                    }
-                }
-                acc
+                // The replicated `G x`'s loop, reading the halo by position.
+                let mut z = vec![0.0; k];
+                g_block_times(cluster.g_block(s), at, &t, &mut z);
+                z
             })
             .concat();
         let bounds = cluster.bounds();
