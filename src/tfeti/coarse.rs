@@ -95,98 +95,162 @@ impl Gram {
 /// `(s, t)` is `sum_r G_s[i, r] G_t[j, r]` over the shared rows `r` in
 /// increasing order, the dense assembly's order.
 fn sparse_gram(cluster: &Cluster, active: Option<&[bool]>) -> UpperCsc {
-    let n = cluster.len();
-    let m = cluster.multipliers();
-    // Owners of each row, (subdomain, local row), subdomains in order (CSR).
-    let mut start = vec![0usize; m + 1];
-    for s in 0..n {
-        for &row in &cluster.local_rows(s).rows {
-            start[row + 1] += 1;
-        }
-    }
-    for r in 0..m {
-        start[r + 1] += start[r];
-    }
-    let mut fill = start.clone();
-    let mut owners = vec![(0usize, 0usize); start[m]];
-    for s in 0..n {
-        for (k, &row) in cluster.local_rows(s).rows.iter().enumerate() {
-            owners[fill[row]] = (s, k);
-            fill[row] += 1;
-        }
-    }
-    let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
-    // Block column t: its columns' row indices and values, column by column.
-    let columns: Vec<(Vec<usize>, Vec<usize>, Vec<f64>)> = (0..n)
+    let owners = RowOwners::new(cluster);
+    let columns: Vec<Vec<f64>> = (0..cluster.len())
         .into_par_iter()
         .map(|t| {
-            let kt = kdim(t);
-            let lt = cluster.local_rows(t);
-            let nt = lt.rows.len();
-            let gt = cluster.g_block(t);
-            // (s, block kdim(s) x kt row-major), s <= t, the diagonal block first.
-            let mut blocks: Vec<(usize, Vec<f64>)> = vec![(t, vec![0.0; kt * kt])];
-            for (kt_row, &row) in lt.rows.iter().enumerate() {
-                if active.is_some_and(|a| !a[row]) {
-                    continue;
-                }
-                for &(s, ks) in &owners[start[row]..start[row + 1]] {
-                    if s > t {
-                        continue;
-                    }
-                    let b = match blocks.iter().position(|(u, _)| *u == s) {
-                        Some(b) => b,
-                        None => {
-                            blocks.push((s, vec![0.0; kdim(s) * kt]));
-                            blocks.len() - 1
-                        }
-                    };
-                    let ls = cluster.local_rows(s).rows.len();
-                    let gs = cluster.g_block(s);
-                    let block = &mut blocks[b].1;
-                    for i in 0..kdim(s) {
-                        for j in 0..kt {
-                            block[i * kt + j] += gs[i * ls + ks] * gt[j * nt + kt_row];
-                        }
-                    }
-                }
-            }
-            blocks.sort_by_key(|(s, _)| *s);
-            let mut len = Vec::with_capacity(kt);
-            let mut rows = Vec::new();
-            let mut values = Vec::new();
-            for j in 0..kt {
-                let before = rows.len();
-                for (s, block) in &blocks {
-                    let ks = if *s == t { j + 1 } else { kdim(*s) };
-                    for i in 0..ks {
-                        rows.push(cluster.kernel_offset(*s) + i);
-                        values.push(block[i * kt + j]);
-                    }
-                }
-                len.push(rows.len() - before);
-            }
-            (len, rows, values)
+            let blocks = owners.column_blocks(cluster, t, active);
+            owners.column_values(cluster, t, active, &blocks, &|s| cluster.g_block(s))
         })
         .collect();
-    let dim = cluster.kernel_dim();
-    let mut col_ptr = Vec::with_capacity(dim + 1);
-    col_ptr.push(0);
-    let nnz = columns.iter().map(|c| c.1.len()).sum();
-    let mut row_idx = Vec::with_capacity(nnz);
-    let mut values = Vec::with_capacity(nnz);
-    for (len, rows, vals) in columns {
-        for l in len {
-            col_ptr.push(col_ptr[col_ptr.len() - 1] + l);
+    owners.upper(cluster, active, columns)
+}
+
+/// The subdomains of every row of `B` with the row's position among their
+/// local rows, subdomains in order (compressed by row): what the blocks of
+/// `G G^T` are made of. Built from the rows alone (replicated), so every
+/// rank can lay out any block column without holding its `G` blocks.
+pub(crate) struct RowOwners {
+    start: Vec<usize>,
+    owners: Vec<(usize, usize)>,
+}
+
+impl RowOwners {
+    pub(crate) fn new(cluster: &Cluster) -> RowOwners {
+        let n = cluster.len();
+        let m = cluster.multipliers();
+        let mut start = vec![0usize; m + 1];
+        for s in 0..n {
+            for &row in &cluster.local_rows(s).rows {
+                start[row + 1] += 1;
+            }
         }
-        row_idx.extend(rows);
-        values.extend(vals);
+        for r in 0..m {
+            start[r + 1] += start[r];
+        }
+        let mut fill = start.clone();
+        let mut owners = vec![(0usize, 0usize); start[m]];
+        for s in 0..n {
+            for (k, &row) in cluster.local_rows(s).rows.iter().enumerate() {
+                owners[fill[row]] = (s, k);
+                fill[row] += 1;
+            }
+        }
+        RowOwners { start, owners }
     }
-    UpperCsc {
-        n: dim,
-        col_ptr,
-        row_idx,
-        values,
+
+    fn of(&self, row: usize) -> &[(usize, usize)] {
+        &self.owners[self.start[row]..self.start[row + 1]]
+    }
+
+    /// The subdomains `s <= t` of block column `t`, ascending (`t` always).
+    pub(crate) fn column_blocks(
+        &self,
+        cluster: &Cluster,
+        t: usize,
+        active: Option<&[bool]>,
+    ) -> Vec<usize> {
+        let mut blocks = vec![t];
+        for &row in &cluster.local_rows(t).rows {
+            if active.is_some_and(|a| !a[row]) {
+                continue;
+            }
+            blocks.extend(self.of(row).iter().map(|&(s, _)| s).filter(|&s| s < t));
+        }
+        blocks.sort_unstable();
+        blocks.dedup();
+        blocks
+    }
+
+    /// The values of block column `t` in storage order (column by column,
+    /// the blocks ascending, the upper triangle of the diagonal block), from
+    /// the `G` blocks that `g` gives (those of `blocks`).
+    pub(crate) fn column_values<'g>(
+        &self,
+        cluster: &Cluster,
+        t: usize,
+        active: Option<&[bool]>,
+        blocks: &[usize],
+        g: &dyn Fn(usize) -> &'g [f64],
+    ) -> Vec<f64> {
+        let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+        let kt = kdim(t);
+        let lt = cluster.local_rows(t);
+        let nt = lt.rows.len();
+        let gt = g(t);
+        // Block (s, t), kdim(s) x kt row-major, in the order of `blocks`.
+        let mut values: Vec<Vec<f64>> = blocks.iter().map(|&s| vec![0.0; kdim(s) * kt]).collect();
+        for (kt_row, &row) in lt.rows.iter().enumerate() {
+            if active.is_some_and(|a| !a[row]) {
+                continue;
+            }
+            for &(s, ks) in self.of(row) {
+                if s > t {
+                    continue;
+                }
+                let Ok(b) = blocks.binary_search(&s) else {
+                    continue;
+                };
+                let ls = cluster.local_rows(s).rows.len();
+                let gs = g(s);
+                let block = &mut values[b];
+                for i in 0..kdim(s) {
+                    for j in 0..kt {
+                        block[i * kt + j] += gs[i * ls + ks] * gt[j * nt + kt_row];
+                    }
+                }
+            }
+        }
+        let mut out = Vec::new();
+        for j in 0..kt {
+            for (&s, block) in blocks.iter().zip(&values) {
+                let ks = if s == t { j + 1 } else { kdim(s) };
+                out.extend((0..ks).map(|i| block[i * kt + j]));
+            }
+        }
+        out
+    }
+
+    /// How many values block column `t` stores.
+    pub(crate) fn column_len(cluster: &Cluster, t: usize, blocks: &[usize]) -> usize {
+        let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+        let kt = kdim(t);
+        let off: usize = blocks.iter().filter(|&&s| s != t).map(|&s| kdim(s)).sum();
+        kt * off + kt * (kt + 1) / 2
+    }
+
+    /// The upper triangle from every block column's values (in subdomain
+    /// order), its pattern laid out again from the rows.
+    pub(crate) fn upper(
+        &self,
+        cluster: &Cluster,
+        active: Option<&[bool]>,
+        columns: Vec<Vec<f64>>,
+    ) -> UpperCsc {
+        let dim = cluster.kernel_dim();
+        let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        col_ptr.push(0);
+        let nnz = columns.iter().map(Vec::len).sum();
+        let mut row_idx = Vec::with_capacity(nnz);
+        let mut values = Vec::with_capacity(nnz);
+        for (t, vals) in columns.into_iter().enumerate() {
+            let blocks = self.column_blocks(cluster, t, active);
+            for j in 0..kdim(t) {
+                for &s in &blocks {
+                    let ks = if s == t { j + 1 } else { kdim(s) };
+                    row_idx.extend((0..ks).map(|i| cluster.kernel_offset(s) + i));
+                }
+                col_ptr.push(row_idx.len());
+            }
+            values.extend(vals);
+        }
+        UpperCsc {
+            n: dim,
+            col_ptr,
+            row_idx,
+            values,
+        }
     }
 }
 
