@@ -20,6 +20,12 @@ struct Seen {
     f_traffic: Traffic,
     p_traffic: Traffic,
     owned: usize,
+    /// The same with the coarse problem on rank 0: `P v`, the CG's solution,
+    /// one projection's traffic, the coarse factor's values on this rank.
+    root_p: Vec<u64>,
+    root_x: Vec<u64>,
+    root_p_traffic: Traffic,
+    root_values: usize,
 }
 
 fn bits(v: &[f64]) -> Vec<u64> {
@@ -55,7 +61,18 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
     });
     let (x, _, info) = projected_cg(&split, &pv, 1e-10, 2000);
     assert!(info.converged, "{info:?}");
+    let root = SplitDual::with_root_coarse(&state.dual).expect("factorizes");
+    let (root_pv, root_p_traffic) = root.traffic(|s| {
+        let mut t = mine.clone();
+        s.project(&mut t);
+        t
+    });
+    let (root_x, _, _) = projected_cg(&root, &root_pv, 1e-10, 2000);
     Seen {
+        root_p: bits(&root.assemble(&root_pv)),
+        root_x: bits(&root.assemble(&root_x)),
+        root_p_traffic,
+        root_values: root.coarse_values(),
         f: bits(&split.assemble(&fv)),
         p: bits(&split.assemble(&pv)),
         x: bits(&split.assemble(&x)),
@@ -85,6 +102,7 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
         let serial = on_rank(&scene, None);
         assert_eq!(serial.f, bits(&fv), "{name}: F");
         assert_eq!(serial.p, bits(&pv), "{name}: P");
+        assert_eq!(serial.root_p, bits(&pv), "{name}: P (root coarse)");
         assert_eq!(
             serial.f_traffic,
             Traffic::default(),
@@ -136,6 +154,17 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
                 assert_eq!(t.collectives, 0, "{at}: {t:?}");
                 // P: the same two exchanges and one gather of G x.
                 assert_eq!(got.p_traffic.collectives, 1, "{at}: {:?}", got.p_traffic);
+                // The coarse problem on rank 0: the same bits, its factor on
+                // rank 0 alone, no collective, and at most one message up and
+                // one down the tree per round.
+                assert!(got.root_p == serial.p, "{at}: P (root coarse) differs");
+                assert!(got.root_x == serial.x, "{at}: CG (root coarse) differs");
+                let values = dual.coarse_stats().factor_nonzeros;
+                assert_eq!(got.root_values, if rank == 0 { values } else { 0 }, "{at}");
+                let rounds = (p as f64).log2().ceil() as u64;
+                let t = got.root_p_traffic;
+                assert_eq!(t.collectives, 0, "{at}: {t:?}");
+                assert!(t.messages <= 2 * (p as u64 - 1) + 2 * rounds, "{at}: {t:?}");
             }
         }
     }

@@ -683,7 +683,7 @@ impl SparseLower {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::qp::Equality;
     use crate::tfeti::dual::{Dual, Orthonormal};
@@ -706,7 +706,7 @@ mod tests {
     /// `nx x ny` unit squares of 2 x 2 elements glued along their sides (both
     /// components of every shared node), the left side of the first column
     /// held when `held`; `skip` (if any) is a subdomain left without rows.
-    fn patch(nx: usize, ny: usize, held: bool, skip: Option<usize>) -> Cluster {
+    pub(crate) fn patch(nx: usize, ny: usize, held: bool, skip: Option<usize>) -> Cluster {
         let id = |a: usize, b: usize| b * nx + a;
         let subs: Vec<Arc<Subdomain>> = (0..nx * ny)
             .map(|s| {

@@ -272,6 +272,63 @@ pub fn agree<T, E: std::fmt::Display>(comm: &dyn Comm, r: Result<T, E>) -> Resul
     })
 }
 
+/// Every rank's `mine` (`counts[r]` values on rank `r`) on rank 0, in rank
+/// order, by a binomial tree of point-to-point messages: `ceil(log2 P)`
+/// rounds, every rank sending once and rank 0 receiving at most once a round,
+/// so the latency grows with `log P` (where a linear gather would have rank 0
+/// receive `P - 1` messages). The other ranks get an empty vector.
+/// Collective.
+pub fn gather_to_root(comm: &dyn Comm, mine: Vec<f64>, counts: &[usize]) -> Vec<f64> {
+    let (me, p) = (comm.rank(), comm.size());
+    let mut held = mine;
+    let mut step = 1;
+    while step < p {
+        let mut sends = Vec::new();
+        let mut receives = Vec::new();
+        if me % (2 * step) == step {
+            sends.push((me - step, std::mem::take(&mut held)));
+        } else if me % (2 * step) == 0 && me + step < p {
+            let n = counts[me + step..(me + 2 * step).min(p)].iter().sum();
+            receives.push((me + step, n));
+        }
+        for part in comm.exchange(&sends, &receives) {
+            held.extend(part);
+        }
+        step *= 2;
+    }
+    held
+}
+
+/// The inverse of [`gather_to_root`]: rank 0's `whole` (every rank's part in
+/// rank order, `counts[r]` values for rank `r`; empty elsewhere) cut into
+/// the ranks' parts down the same binomial tree. Returns this rank's part.
+/// Collective.
+pub fn scatter_from_root(comm: &dyn Comm, whole: Vec<f64>, counts: &[usize]) -> Vec<f64> {
+    let (me, p) = (comm.rank(), comm.size());
+    let mut step = 1;
+    while step < p {
+        step *= 2;
+    }
+    let mut held = if me == 0 { whole } else { Vec::new() };
+    step /= 2;
+    while step >= 1 {
+        let mut sends = Vec::new();
+        let mut receives = Vec::new();
+        if me % (2 * step) == 0 && me + step < p {
+            let keep = counts[me..me + step].iter().sum::<usize>().min(held.len());
+            sends.push((me + step, held.split_off(keep)));
+        } else if me % (2 * step) == step {
+            let n = counts[me..(me + step).min(p)].iter().sum();
+            receives.push((me - step, n));
+        }
+        for part in comm.exchange(&sends, &receives) {
+            held = part;
+        }
+        step /= 2;
+    }
+    held
+}
+
 /// Why subdomains cannot be spread over the ranks.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct PartitionError {
@@ -380,6 +437,30 @@ mod tests {
             assert_eq!(all, vec![10.0, 20.0, 21.0]);
             assert_eq!(x, [6, 18]);
             assert_eq!(m, [7]);
+        }
+    }
+
+    #[test]
+    fn the_tree_gathers_to_rank_0_and_scatters_back_in_log_p_messages() {
+        for p in 1..=9 {
+            let counts: Vec<usize> = (0..p).map(|r| (r * 3) % 4).collect();
+            let out = on_threads(p, |c| {
+                let r = c.rank();
+                let mine: Vec<f64> = (0..counts[r]).map(|i| (100 * r + i) as f64).collect();
+                let before = c.stats();
+                let all = gather_to_root(c, mine.clone(), &counts);
+                let back = scatter_from_root(c, all.iter().map(|v| v + 0.5).collect(), &counts);
+                let sent = c.stats().messages - before.messages;
+                (r, mine, all, back, sent)
+            });
+            let whole: Vec<f64> = out.iter().flat_map(|o| o.1.clone()).collect();
+            let rounds = (p as f64).log2().ceil() as u64;
+            for (r, mine, all, back, received) in out {
+                assert_eq!(all, if r == 0 { whole.clone() } else { vec![] }, "p {p}");
+                let want: Vec<f64> = mine.iter().map(|v| v + 0.5).collect();
+                assert_eq!(back, want, "p {p} rank {r}");
+                assert!(received <= 2 * rounds, "p {p} rank {r}: {received}");
+            }
         }
     }
 

@@ -81,7 +81,12 @@ fn nanos(t: Instant) -> u64 {
 
 /// `G G^T` assembled and factorized, or the rigid modes that no row touches.
 fn factor_coarse(cluster: &Cluster, form: CoarseForm) -> Result<CoarseFactor, CoarseError> {
-    let ggt = Gram::assemble(cluster, None, form);
+    factor_checked(Gram::assemble(cluster, None, form), cluster)
+}
+
+/// The factor of `ggt`, the `G G^T` of `cluster`'s rows, or the rigid modes
+/// that no row touches (a zero diagonal) or that the rows do not determine.
+pub(crate) fn factor_checked(ggt: Gram, cluster: &Cluster) -> Result<CoarseFactor, CoarseError> {
     let diag = ggt.diagonal();
     let scale = diag.iter().copied().fold(0.0f64, f64::max).max(1e-300);
     let free: Vec<(usize, usize)> = (0..cluster.kernel_dim())

@@ -36,6 +36,7 @@ pub mod slip;
 pub mod solve;
 pub mod sparse;
 pub mod split;
+pub mod split_coarse;
 pub mod subdomain;
 
 /// A mutex's guard, also after a panic elsewhere poisoned it: the guarded

@@ -27,8 +27,9 @@
 //! the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
-use super::comm::{Comm, Stats};
+use super::comm::{Comm, RankFailure, Stats};
 use super::dual::Dual;
+use super::split_coarse::RootCoarse;
 use crate::num::exact::{ExactSum, WORDS};
 use std::sync::Arc;
 
@@ -196,6 +197,8 @@ pub struct SplitDual<'a> {
     dual: &'a Dual,
     comm: Arc<dyn Comm>,
     plan: Plan,
+    /// The coarse problem on rank 0 only; `None`: the dual's, replicated.
+    root: Option<RootCoarse>,
 }
 
 /// Per-rank counts of one operation, for the network model (issue 37 item 6).
@@ -228,6 +231,26 @@ impl<'a> SplitDual<'a> {
             dual,
             comm: cluster.comm().clone(),
             plan: Plan::new(cluster),
+            root: None,
+        }
+    }
+
+    /// The same with its coarse problem assembled, factorized and solved on
+    /// rank 0 only ([`RootCoarse`]): the same bits, no coarse factor on the
+    /// other ranks. Collective.
+    pub fn with_root_coarse(dual: &'a Dual) -> Result<Self, RankFailure> {
+        let root = RootCoarse::new(dual.cluster())?;
+        Ok(SplitDual {
+            root: Some(root),
+            ..SplitDual::new(dual)
+        })
+    }
+
+    /// Values of the coarse factor this rank holds.
+    pub fn coarse_values(&self) -> usize {
+        match &self.root {
+            Some(r) => r.factor_values(),
+            None => self.dual.coarse_stats().factor_nonzeros,
         }
     }
 
@@ -340,16 +363,14 @@ impl<'a> SplitDual<'a> {
                 z
             })
             .concat();
-        let bounds = cluster.bounds();
-        let counts: Vec<usize> = bounds
-            .windows(2)
-            .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
-            .collect();
-        let mut z = self.comm.all_gather(&mine, &counts);
-        self.dual.coarse_solve(&mut z);
+        let z = self.coarse_solve(mine);
         // G^T z: the owned subdomains' local rows, summed by the owners.
+        let first = cluster.kernel_offset(cluster.owned().start);
         let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
-            let (o, e) = (cluster.kernel_offset(s), cluster.kernel_offset(s + 1));
+            let (o, e) = (
+                cluster.kernel_offset(s) - first,
+                cluster.kernel_offset(s + 1) - first,
+            );
             let mut ts = vec![0.0; cluster.local_rows(s).rows.len()];
             g_block_t_times(cluster.g_block(s), &z[o..e], &mut ts);
             ts
@@ -358,6 +379,24 @@ impl<'a> SplitDual<'a> {
         for (a, b) in x.iter_mut().zip(gtz) {
             *a -= b;
         }
+    }
+
+    /// `(G G^T)^-1 z` on this rank's coarse unknowns from its part `mine`:
+    /// on rank 0 ([`RootCoarse`]), or gathered and solved on every rank.
+    fn coarse_solve(&self, mine: Vec<f64>) -> Vec<f64> {
+        let cluster = self.dual.cluster();
+        if let Some(root) = &self.root {
+            return root.solve(&*self.comm, mine);
+        }
+        let bounds = cluster.bounds();
+        let counts: Vec<usize> = bounds
+            .windows(2)
+            .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
+            .collect();
+        let mut z = self.comm.all_gather(&mine, &counts);
+        self.dual.coarse_solve(&mut z);
+        let own = cluster.owned();
+        z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)].to_vec()
     }
 
     /// Dot products of owned parts, exact and the same on every rank: one

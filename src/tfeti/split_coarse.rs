@@ -1,0 +1,204 @@
+//! The split dual's coarse problem on one rank (issue 37 item 2): `G G^T`
+//! assembled by block columns where the subdomains live, factorized on rank 0
+//! only, and solved there; the other ranks hold no part of it.
+//!
+//! Set-up: each rank computes the block columns `(s, t)`, `s <= t`, of its own
+//! subdomains `t`, reading the `G_s` of a neighbour's subdomains from one
+//! neighbour exchange (not from a replicated `G`), and sends them up a binomial
+//! tree to rank 0, which lays out the pattern from the (replicated) rows and
+//! factorizes. Every value is the same sum, in the same order, as the
+//! replicated assembly's ([`super::coarse::Gram::assemble`]), so the factor and
+//! every solve have the replicated coarse problem's bits.
+//!
+//! A solve: the ranks' parts of `G x` go up the tree to rank 0, which solves,
+//! and each rank's part of `(G G^T)^-1 G x` comes back down: `2 ceil(log2 P)`
+//! rounds of messages, the whole coarse vector through rank 0. Against the
+//! replicated coarse problem (an all-gather and a solve on every rank) this
+//! takes the same solve time and one more tree, and memory: the factor lives
+//! on one rank instead of all of them.
+
+use super::cluster::Cluster;
+use super::coarse::{CoarseFactor, Gram, RowOwners};
+use super::comm::{agree, gather_to_root, scatter_from_root, Comm, RankFailure};
+use super::dual::factor_checked;
+use std::collections::BTreeMap;
+
+/// `(G G^T)^-1` held by rank 0.
+pub struct RootCoarse {
+    /// The factor on rank 0; `None` elsewhere.
+    factor: Option<CoarseFactor>,
+    /// Coarse unknowns of each rank's subdomains (the tree's counts).
+    counts: Vec<usize>,
+}
+
+impl RootCoarse {
+    /// Assembles and factorizes `G G^T` on rank 0. Collective; fails on every
+    /// rank with rank 0's message when a rigid motion is left free.
+    pub fn new(cluster: &Cluster) -> Result<RootCoarse, RankFailure> {
+        let comm = cluster.comm();
+        let owners = RowOwners::new(cluster);
+        let blocks: Vec<Vec<usize>> = (0..cluster.len())
+            .map(|t| owners.column_blocks(cluster, t, None))
+            .collect();
+        let halo = g_halo(cluster, &blocks);
+        let mine = cluster.owned();
+        let g = |s: usize| -> &[f64] {
+            if mine.contains(&s) {
+                cluster.g_block(s)
+            } else {
+                halo.get(&s).map_or(&[], Vec::as_slice)
+            }
+        };
+        let values: Vec<f64> = mine
+            .clone()
+            .flat_map(|t| owners.column_values(cluster, t, None, &blocks[t], &g))
+            .collect();
+        let bounds = cluster.bounds();
+        let per_rank = |len: &dyn Fn(usize) -> usize| -> Vec<usize> {
+            bounds
+                .windows(2)
+                .map(|w| (w[0]..w[1]).map(len).sum())
+                .collect()
+        };
+        let lens = per_rank(&|t| RowOwners::column_len(cluster, t, &blocks[t]));
+        let gathered = gather_to_root(&**comm, values, &lens);
+        let factor = if comm.rank() == 0 {
+            let mut columns = Vec::with_capacity(cluster.len());
+            let mut at = 0;
+            for (t, b) in blocks.iter().enumerate() {
+                let len = RowOwners::column_len(cluster, t, b);
+                columns.push(gathered[at..at + len].to_vec());
+                at += len;
+            }
+            let upper = owners.upper(cluster, None, columns);
+            let gram = match cluster.coarse_form().resolve(cluster.kernel_dim()) {
+                super::coarse::CoarseForm::Dense => Gram::Dense(Gram::Sparse(upper).to_dense()),
+                _ => Gram::Sparse(upper),
+            };
+            factor_checked(gram, cluster).map(Some).map_err(|e| {
+                format!(
+                    "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
+                    e.free_modes
+                )
+            })
+        } else {
+            Ok(None)
+        };
+        let factor = agree(&**comm, factor)?;
+        let counts = per_rank(&|s| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s));
+        Ok(RootCoarse { factor, counts })
+    }
+
+    /// `(G G^T)^-1 z` on this rank's coarse unknowns, `mine` its part of `z`
+    /// (its subdomains' kernels in order). Collective.
+    pub fn solve(&self, comm: &dyn Comm, mine: Vec<f64>) -> Vec<f64> {
+        let mut z = gather_to_root(comm, mine, &self.counts);
+        if let Some(f) = &self.factor {
+            f.solve(&mut z);
+        }
+        scatter_from_root(comm, z, &self.counts)
+    }
+
+    /// Values of the coarse factor this rank holds (all on rank 0, none
+    /// elsewhere).
+    pub fn factor_values(&self) -> usize {
+        self.factor.as_ref().map_or(0, CoarseFactor::nonzeros)
+    }
+}
+
+/// The `G_s` of other ranks' subdomains `s` that this rank's block columns
+/// read (`s` in `blocks[t]` of an own `t`), by one neighbour exchange: each
+/// rank sends its `G_s` to the ranks whose columns read it, in subdomain
+/// order, as the receivers expect them.
+fn g_halo(cluster: &Cluster, blocks: &[Vec<usize>]) -> BTreeMap<usize, Vec<f64>> {
+    let comm = cluster.comm();
+    let me = comm.rank();
+    let bounds = cluster.bounds();
+    let rank_of = |s: usize| bounds.partition_point(|&b| b <= s) - 1;
+    let mine = cluster.owned();
+    let len = |s: usize| {
+        (cluster.kernel_offset(s + 1) - cluster.kernel_offset(s)) * cluster.local_rows(s).rows.len()
+    };
+    // (reader rank, s) for every foreign read of an own block, and the
+    // foreign blocks this rank reads; both in subdomain order per rank.
+    let mut sends: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    let mut reads: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
+    for (t, b) in blocks.iter().enumerate() {
+        let q = rank_of(t);
+        for &s in b.iter().filter(|&&s| s != t) {
+            let o = rank_of(s);
+            if o == me && q != me {
+                sends.entry(q).or_default().push(s);
+            } else if q == me && o != me {
+                reads.entry(o).or_default().push(s);
+            }
+        }
+    }
+    for list in sends.values_mut().chain(reads.values_mut()) {
+        list.sort_unstable();
+        list.dedup();
+    }
+    let sends: Vec<(usize, Vec<f64>)> = sends
+        .into_iter()
+        .map(|(q, ss)| {
+            let values = ss
+                .iter()
+                .flat_map(|&s| cluster.g_block(s).to_vec())
+                .collect();
+            (q, values)
+        })
+        .collect();
+    let receives: Vec<(usize, usize)> = reads
+        .iter()
+        .map(|(&o, ss)| (o, ss.iter().map(|&s| len(s)).sum()))
+        .collect();
+    let got = comm.exchange(&sends, &receives);
+    let mut halo = BTreeMap::new();
+    for ((_, ss), values) in reads.iter().zip(got) {
+        let mut at = 0;
+        for &s in ss {
+            halo.insert(s, values[at..at + len(s)].to_vec());
+            at += len(s);
+        }
+    }
+    debug_assert!(halo.keys().all(|s| !mine.contains(s)));
+    halo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tfeti::coarse::tests::patch;
+    use crate::tfeti::coarse::CoarseForm;
+    use crate::tfeti::comm::serial;
+    use crate::tfeti::dual::Dual;
+
+    #[test]
+    fn the_root_coarse_problem_is_the_replicated_one_and_names_free_modes() {
+        // Dense and sparse: the same factor as the dual's, so the same bits.
+        for form in [CoarseForm::Dense, CoarseForm::Sparse] {
+            let mut cluster = patch(6, 5, true, None);
+            cluster.set_coarse_form(form);
+            let root = RootCoarse::new(&cluster).expect("held patch");
+            let dual = Dual::with_coarse(patch(6, 5, true, None), form).expect("held patch");
+            let z: Vec<f64> = (0..dual.kernel_dim())
+                .map(|i| (i as f64 * 0.37).sin())
+                .collect();
+            let mut want = z.clone();
+            dual.coarse_solve(&mut want);
+            let got = root.solve(&*serial(), z);
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&got), bits(&want), "{form:?}");
+            assert_eq!(root.factor_values(), dual.coarse_stats().factor_nonzeros);
+        }
+        // A subdomain without rows: its three modes, named.
+        let e = RootCoarse::new(&patch(4, 3, true, Some(7)))
+            .err()
+            .expect("singular coarse problem refused");
+        assert!(
+            e.message.contains("[(7, 0), (7, 1), (7, 2)]"),
+            "{}",
+            e.message
+        );
+    }
+}
