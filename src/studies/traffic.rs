@@ -55,13 +55,20 @@ pub struct Measured {
     pub f: Traffic,
     /// One projection: its two exchanges and the gather of `G x`.
     pub projection: Traffic,
+    /// One projection with the coarse problem on rank 0: the two exchanges
+    /// and the tree to rank 0 and back.
+    pub root_projection: Traffic,
+    /// Values of the coarse factor on the ranks other than 0 with the coarse
+    /// problem on rank 0 (the largest; 0 when it is rank 0's alone).
+    pub root_values_elsewhere: usize,
     /// One dot product: bytes of its all-reduce.
     pub dot_bytes: u64,
     /// Seconds of one replicated coarse solve (`(G G^T)^-1 z`), on rank 0
     /// while the others wait.
     pub coarse_solve_s: f64,
-    /// Whether the split `F` and projector gave the replicated dual's bits
-    /// on every rank, and the split dot product the exact one.
+    /// Whether the split `F` and projectors (either coarse problem) gave the
+    /// replicated dual's bits on every rank, and the split dot product the
+    /// exact one.
     pub same_bits: bool,
 }
 
@@ -78,6 +85,8 @@ struct RankCounts {
     touched: usize,
     f: Traffic,
     projection: Traffic,
+    root_projection: Traffic,
+    root_values: usize,
     dot: Traffic,
     coarse_solve_s: f64,
     sizes: (usize, usize, usize),
@@ -86,7 +95,7 @@ struct RankCounts {
 }
 
 impl RankCounts {
-    const WORDS: usize = 17;
+    const WORDS: usize = 21;
 
     /// As integers, for a gather.
     fn to_words(&self) -> [u64; Self::WORDS] {
@@ -94,6 +103,7 @@ impl RankCounts {
         let [a, b, c] = t(self.f);
         let [d, e, f] = t(self.projection);
         let [g, h, i] = t(self.dot);
+        let [j, k, l] = t(self.root_projection);
         [
             self.owned as u64,
             self.touched as u64,
@@ -112,6 +122,10 @@ impl RankCounts {
             self.sizes.2 as u64,
             self.same_bits as u64,
             self.coarse_nonzeros as u64,
+            j,
+            k,
+            l,
+            self.root_values as u64,
         ]
     }
 
@@ -131,6 +145,8 @@ impl RankCounts {
             sizes: (w[12] as usize, w[13] as usize, w[14] as usize),
             same_bits: w[15] == 1,
             coarse_nonzeros: w[16] as usize,
+            root_projection: t(17),
+            root_values: w[20] as usize,
         }
     }
 }
@@ -148,6 +164,12 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         t
     });
     let (xfx, dot) = split.traffic(|s| s.dot(&x, &fx));
+    let root = SplitDual::with_root_coarse(&dual).map_err(|f| f.message)?;
+    let (root_px, root_projection) = root.traffic(|s| {
+        let mut t = x.clone();
+        s.project(&mut t);
+        t
+    });
     // The replicated dual's F and P of the same vector (collective), and the
     // exact dot product of the whole vectors (terms of both signs: the
     // accumulators' negative limbs wrap in the all-reduce).
@@ -159,6 +181,7 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
     let same = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits());
     let same_bits = same(&split.restrict(&want_f), &fx)
         && same(&split.restrict(&want_p), &px)
+        && same(&px, &root_px)
         && xfx.to_bits() == want_dot.to_bits();
     // The coarse solve, timed alone on rank 0 once every rank is done (the
     // others wait in the all-reduce after it).
@@ -179,6 +202,8 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         touched: split.touched_rows(),
         f,
         projection,
+        root_projection,
+        root_values: root.coarse_values(),
         dot,
         coarse_solve_s,
         sizes: (dual.cluster().len(), dual.multipliers(), dual.kernel_dim()),
@@ -247,6 +272,8 @@ fn combine(p: usize, all: &[RankCounts]) -> Measured {
         touched_rows: all.iter().map(|r| r.touched).max().unwrap_or(0),
         f: max_traffic(all, |r| r.f),
         projection: max_traffic(all, |r| r.projection),
+        root_projection: max_traffic(all, |r| r.root_projection),
+        root_values_elsewhere: all[1..].iter().map(|r| r.root_values).max().unwrap_or(0),
         dot_bytes: all.iter().map(|r| r.dot.bytes).max().unwrap_or(0),
         coarse_solve_s: all[0].coarse_solve_s,
         same_bits: all.iter().all(|r| r.same_bits),
@@ -295,11 +322,20 @@ pub struct Predicted {
     pub exchange_s: f64,
     /// The gather of `G x` (the whole coarse vector to every rank).
     pub gather_s: f64,
-    /// The replicated coarse solve.
+    /// With the coarse problem on rank 0: `G x` up the tree and the
+    /// solution down.
+    pub tree_s: f64,
+    /// The coarse solve (replicated, or on rank 0: the same time).
     pub coarse_s: f64,
     /// Two all-reduces of exact accumulators.
     pub dots_s: f64,
+    /// With the replicated coarse problem.
     pub total_s: f64,
+    /// With the coarse problem on rank 0.
+    pub root_total_s: f64,
+    /// Megabytes of the coarse factor (values and row indices) on every rank
+    /// when replicated; on rank 0 alone otherwise.
+    pub coarse_mb: f64,
 }
 
 /// Extrapolates the measured counts to `ranks` (weak scaling: the subdomains
@@ -352,16 +388,23 @@ pub fn predict(
             let local_s = per_rank * f_per_subdomain_s;
             let exchange_s = messages * net.latency + bytes / net.bandwidth;
             let gather_s = log * net.latency + 8.0 * coarse / net.bandwidth;
-            let coarse_s = per_value * c * coarse.powf(b);
+            // Up and down the binomial tree: a latency a round each way,
+            // the whole coarse vector through rank 0 each way.
+            let tree_s = 2.0 * (log * net.latency + 8.0 * coarse / net.bandwidth);
+            let values = c * coarse.powf(b);
+            let coarse_s = per_value * values;
             let dots_s = 2.0 * log * (net.latency + dot_bytes / net.bandwidth);
             Predicted {
                 ranks: p,
                 local_s,
                 exchange_s,
                 gather_s,
+                tree_s,
                 coarse_s,
                 dots_s,
                 total_s: local_s + exchange_s + gather_s + coarse_s + dots_s,
+                root_total_s: local_s + exchange_s + tree_s + coarse_s + dots_s,
+                coarse_mb: 16.0 * values / 1e6,
             }
         })
         .collect()
@@ -370,11 +413,11 @@ pub fn predict(
 /// The measured counts as a Markdown table.
 pub fn measured_table(rows: &[Measured]) -> String {
     let mut s = String::from(
-        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | dot: B / rank | coarse solve ms | F, P, dot bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | P, coarse on rank 0: messages, KB, collectives / rank | factor values off rank 0 | dot: B / rank | coarse solve ms | F, P, dot bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in rows {
         s += &format!(
-            "| {} | {} | {} | {} ({}) | {} | {} | {}, {:.1} | {}, {:.1}, {} | {} | {:.3} | {} |\n",
+            "| {} | {} | {} | {} ({}) | {} | {} | {}, {:.1} | {}, {:.1}, {} | {}, {:.1}, {} | {} | {} | {:.3} | {} |\n",
             m.ranks,
             m.subdomains,
             m.multipliers,
@@ -387,6 +430,10 @@ pub fn measured_table(rows: &[Measured]) -> String {
             m.projection.messages,
             m.projection.bytes as f64 / 1e3,
             m.projection.collectives,
+            m.root_projection.messages,
+            m.root_projection.bytes as f64 / 1e3,
+            m.root_projection.collectives,
+            m.root_values_elsewhere,
             m.dot_bytes,
             1e3 * m.coarse_solve_s,
             if m.same_bits { "yes" } else { "NO" },
@@ -398,19 +445,22 @@ pub fn measured_table(rows: &[Measured]) -> String {
 /// The model's table, milliseconds per iteration.
 pub fn predicted_table(rows: &[Predicted]) -> String {
     let mut s = String::from(
-        "| ranks | local F ms | exchanges ms | gather of G x ms | coarse solve ms | dots ms | total ms | local share |\n|---|---|---|---|---|---|---|---|\n",
+        "| ranks | local F ms | exchanges ms | gather of G x ms | tree to rank 0 and back ms | coarse solve ms | dots ms | total ms, replicated coarse | total ms, coarse on rank 0 | local share | coarse factor MB |\n|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for p in rows {
         s += &format!(
-            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.0} % |\n",
+            "| {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.3} | {:.0} % | {:.1} |\n",
             p.ranks,
             1e3 * p.local_s,
             1e3 * p.exchange_s,
             1e3 * p.gather_s,
+            1e3 * p.tree_s,
             1e3 * p.coarse_s,
             1e3 * p.dots_s,
             1e3 * p.total_s,
+            1e3 * p.root_total_s,
             100.0 * p.local_s / p.total_s,
+            p.coarse_mb,
         );
     }
     s
@@ -438,6 +488,9 @@ mod tests {
             );
             assert_eq!(m.f.collectives, 0, "{m:?}");
             assert_eq!(m.projection.collectives, 1, "{m:?}");
+            // On rank 0: no collective, the factor nowhere else.
+            assert_eq!(m.root_projection.collectives, 0, "{m:?}");
+            assert_eq!(m.root_values_elsewhere, 0, "{m:?}");
             assert_eq!(m.subdomains, 9 * m.ranks);
             assert!(m.f.bytes < 8 * m.multipliers as u64, "{m:?}");
             assert!(m.same_bits, "{m:?}");
@@ -447,6 +500,8 @@ mod tests {
         for p in &pred {
             let sum = p.local_s + p.exchange_s + p.gather_s + p.coarse_s + p.dots_s;
             assert!((p.total_s - sum).abs() <= 1e-15 * sum.max(1.0));
+            let root = sum - p.gather_s + p.tree_s;
+            assert!((p.root_total_s - root).abs() <= 1e-15 * root.max(1.0));
             assert!((p.local_s - 9e-3).abs() < 1e-12, "{p:?}");
         }
         // The coarse vector grows with P: its gather at 10,000 ranks exceeds
