@@ -612,13 +612,25 @@ pub fn setup_reusing(
     design: &[f64],
     previous: Option<&State>,
 ) -> Result<Setup, SolveError> {
-    setup_on(scene, design, previous, serial(), false, None)
+    setup_on(scene, design, previous, serial(), false, None, true)
 }
 
 /// [`setup`] on the ranks of `comm` (each builds its own subdomains; see
 /// [`setup_on`]). Collective.
 pub fn setup_with(scene: &Scene, design: &[f64], comm: Arc<dyn Comm>) -> Result<Setup, SolveError> {
-    setup_on(scene, design, None, comm, false, None)
+    setup_on(scene, design, None, comm, false, None, true)
+}
+
+/// [`setup_with`] for the split dual (`tfeti::split`): the cluster keeps
+/// only its own subdomains' `G_s` ([`Cluster::distributed_own_g`]), so
+/// nothing of `G` is gathered. The replicated dual cannot run on it.
+/// Collective.
+pub fn setup_split(
+    scene: &Scene,
+    design: &[f64],
+    comm: Arc<dyn Comm>,
+) -> Result<Setup, SolveError> {
+    setup_on(scene, design, None, comm, false, None, false)
 }
 
 /// [`setup_reusing`] on the ranks of `comm`: every rank lowers the scene (the
@@ -634,6 +646,7 @@ fn setup_on(
     comm: Arc<dyn Comm>,
     defer_precheck: bool,
     phases: Option<Phases>,
+    all_g: bool,
 ) -> Result<Setup, SolveError> {
     let t0 = Instant::now();
     let tell = |p: Phase| tell(phases, p);
@@ -663,13 +676,13 @@ fn setup_on(
         problem.subdomains.len(),
         problem.rows.iter().map(|r| r.entries.iter().copied()),
     );
-    let mut cluster = Cluster::distributed(
-        subs.into_iter().map(|(s, _)| s).collect(),
-        &bounds,
-        local,
-        problem.rows.len(),
-        comm,
-    );
+    let subs = subs.into_iter().map(|(s, _)| s).collect();
+    let m = problem.rows.len();
+    let mut cluster = if all_g {
+        Cluster::distributed(subs, &bounds, local, m, comm)
+    } else {
+        Cluster::distributed_own_g(subs, &bounds, local, m, comm)
+    };
     // Dense local F where it moves fewer bytes; unchanged subdomains of the
     // previous design keep theirs.
     cluster.set_local_f(scene.solver.local_f, previous.map(|p| p.dual.cluster()));
@@ -1106,6 +1119,7 @@ fn solve_on(
         comm,
         first_on_active_set,
         phases,
+        true,
     )?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;

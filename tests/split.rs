@@ -26,6 +26,8 @@ struct Seen {
     root_x: Vec<u64>,
     root_p_traffic: Traffic,
     root_values: usize,
+    /// Values of `G` held: (split, replicated).
+    g_values: (usize, usize),
 }
 
 fn bits(v: &[f64]) -> Vec<u64> {
@@ -61,7 +63,16 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
     });
     let (x, _, info) = projected_cg(&split, &pv, 1e-10, 2000);
     assert!(info.converged, "{info:?}");
-    let root = SplitDual::with_root_coarse(&state.dual).expect("factorizes");
+    // The split set-up: each rank holds its own subdomains' G_s only (the
+    // split dual reads no other, or the cluster would panic).
+    let own = cso::state::setup_split(
+        scene,
+        &scene.design_init(),
+        state.dual.cluster().comm().clone(),
+    )
+    .expect("sets up")
+    .cluster;
+    let root = SplitDual::with_root_coarse(&own).expect("factorizes");
     let (root_pv, root_p_traffic) = root.traffic(|s| {
         let mut t = mine.clone();
         s.project(&mut t);
@@ -73,6 +84,7 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
         root_x: bits(&root.assemble(&root_x)),
         root_p_traffic,
         root_values: root.coarse_values(),
+        g_values: (own.g_values(), state.dual.cluster().g_values()),
         f: bits(&split.assemble(&fv)),
         p: bits(&split.assemble(&pv)),
         x: bits(&split.assemble(&x)),
@@ -138,6 +150,11 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
                 m,
                 "{name}: every row owned once"
             );
+            assert_eq!(
+                seen.iter().map(|s| s.g_values.0).sum::<usize>(),
+                serial.g_values.1,
+                "{name}: every G_s held once"
+            );
             for (rank, got) in seen.iter().enumerate() {
                 let at = format!("{name}, rank {rank} of {p}");
                 assert!(got.f == serial.f, "{at}: F differs");
@@ -161,6 +178,11 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
                 assert!(got.root_x == serial.x, "{at}: CG (root coarse) differs");
                 let values = dual.coarse_stats().factor_nonzeros;
                 assert_eq!(got.root_values, if rank == 0 { values } else { 0 }, "{at}");
+                assert!(
+                    got.g_values.0 < got.g_values.1,
+                    "{at}: G values {:?}",
+                    got.g_values
+                );
                 let rounds = (p as f64).log2().ceil() as u64;
                 let t = got.root_p_traffic;
                 assert_eq!(t.collectives, 0, "{at}: {t:?}");

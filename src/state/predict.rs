@@ -224,7 +224,7 @@ contact seat { primary = floor, secondary = b.bottom }
         let scene =
             crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
         let design = scene.design_init();
-        let setup = setup_on(&scene, &design, None, serial(), false, None).expect("sets up");
+        let setup = setup_on(&scene, &design, None, serial(), false, None, true).expect("sets up");
         let ops = Operators::of(&scene, setup, false).expect("operators");
         let problem = &ops.problem;
         let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();

@@ -61,6 +61,11 @@ pub struct Measured {
     /// Values of the coarse factor on the ranks other than 0 with the coarse
     /// problem on rank 0 (the largest; 0 when it is rank 0's alone).
     pub root_values_elsewhere: usize,
+    /// Values of `G` on every rank of the replicated dual (all of it).
+    pub g_values: usize,
+    /// Values of `G` per rank of the split dual (its subdomains' blocks; the
+    /// largest).
+    pub own_g_values: usize,
     /// One dot product: bytes of its all-reduce.
     pub dot_bytes: u64,
     /// Seconds of one replicated coarse solve (`(G G^T)^-1 z`), on rank 0
@@ -87,6 +92,7 @@ struct RankCounts {
     projection: Traffic,
     root_projection: Traffic,
     root_values: usize,
+    g_values: (usize, usize),
     dot: Traffic,
     coarse_solve_s: f64,
     sizes: (usize, usize, usize),
@@ -95,7 +101,7 @@ struct RankCounts {
 }
 
 impl RankCounts {
-    const WORDS: usize = 21;
+    const WORDS: usize = 23;
 
     /// As integers, for a gather.
     fn to_words(&self) -> [u64; Self::WORDS] {
@@ -126,6 +132,8 @@ impl RankCounts {
             k,
             l,
             self.root_values as u64,
+            self.g_values.0 as u64,
+            self.g_values.1 as u64,
         ]
     }
 
@@ -147,6 +155,7 @@ impl RankCounts {
             coarse_nonzeros: w[16] as usize,
             root_projection: t(17),
             root_values: w[20] as usize,
+            g_values: (w[21] as usize, w[22] as usize),
         }
     }
 }
@@ -164,7 +173,9 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         t
     });
     let (xfx, dot) = split.traffic(|s| s.dot(&x, &fx));
-    let root = SplitDual::with_root_coarse(&dual).map_err(|f| f.message)?;
+    // The split dual's own cluster: G_s of its subdomains only.
+    let own = dual.cluster().own_g_only();
+    let root = SplitDual::with_root_coarse(&own).map_err(|f| f.message)?;
     let (root_px, root_projection) = root.traffic(|s| {
         let mut t = x.clone();
         s.project(&mut t);
@@ -204,6 +215,7 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
         projection,
         root_projection,
         root_values: root.coarse_values(),
+        g_values: (dual.cluster().g_values(), own.g_values()),
         dot,
         coarse_solve_s,
         sizes: (dual.cluster().len(), dual.multipliers(), dual.kernel_dim()),
@@ -274,6 +286,8 @@ fn combine(p: usize, all: &[RankCounts]) -> Measured {
         projection: max_traffic(all, |r| r.projection),
         root_projection: max_traffic(all, |r| r.root_projection),
         root_values_elsewhere: all[1..].iter().map(|r| r.root_values).max().unwrap_or(0),
+        g_values: all[0].g_values.0,
+        own_g_values: all.iter().map(|r| r.g_values.1).max().unwrap_or(0),
         dot_bytes: all.iter().map(|r| r.dot.bytes).max().unwrap_or(0),
         coarse_solve_s: all[0].coarse_solve_s,
         same_bits: all.iter().all(|r| r.same_bits),
@@ -413,11 +427,11 @@ pub fn predict(
 /// The measured counts as a Markdown table.
 pub fn measured_table(rows: &[Measured]) -> String {
     let mut s = String::from(
-        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | P, coarse on rank 0: messages, KB, collectives / rank | factor values off rank 0 | dot: B / rank | coarse solve ms | F, P, dot bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ranks | subdomains | multipliers | coarse (factor values) | owned rows / rank | touched rows / rank | F: messages, KB / rank | P: messages, KB, collectives / rank | P, coarse on rank 0: messages, KB, collectives / rank | factor values off rank 0 | G values / rank: replicated, own | dot: B / rank | coarse solve ms | F, P, dot bits as replicated |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for m in rows {
         s += &format!(
-            "| {} | {} | {} | {} ({}) | {} | {} | {}, {:.1} | {}, {:.1}, {} | {}, {:.1}, {} | {} | {} | {:.3} | {} |\n",
+            "| {} | {} | {} | {} ({}) | {} | {} | {}, {:.1} | {}, {:.1}, {} | {}, {:.1}, {} | {} | {}, {} | {} | {:.3} | {} |\n",
             m.ranks,
             m.subdomains,
             m.multipliers,
@@ -434,6 +448,8 @@ pub fn measured_table(rows: &[Measured]) -> String {
             m.root_projection.bytes as f64 / 1e3,
             m.root_projection.collectives,
             m.root_values_elsewhere,
+            m.g_values,
+            m.own_g_values,
             m.dot_bytes,
             1e3 * m.coarse_solve_s,
             if m.same_bits { "yes" } else { "NO" },
@@ -491,6 +507,7 @@ mod tests {
             // On rank 0: no collective, the factor nowhere else.
             assert_eq!(m.root_projection.collectives, 0, "{m:?}");
             assert_eq!(m.root_values_elsewhere, 0, "{m:?}");
+            assert!(m.own_g_values < m.g_values, "{m:?}");
             assert_eq!(m.subdomains, 9 * m.ranks);
             assert!(m.f.bytes < 8 * m.multipliers as u64, "{m:?}");
             assert!(m.same_bits, "{m:?}");

@@ -52,8 +52,11 @@ pub struct Cluster {
     /// Rows of every subdomain.
     local: Vec<LocalRows>,
     /// Per subdomain (every one) `G_s = R_s^T B_s^T`: kdim x (local rows),
-    /// row-major.
+    /// row-major; only the owned ones (others empty) when not `all_g`.
     g: Vec<Vec<f64>>,
+    /// Whether `g` holds every subdomain's block (gathered at set-up), as the
+    /// replicated dual needs; the split dual needs its own only.
+    all_g: bool,
     /// Where each subdomain's kernel starts in the coarse space (`N + 1` entries).
     offset: Vec<usize>,
     /// Where each subdomain's local rows start in a gathered row vector.
@@ -73,6 +76,29 @@ pub struct Cluster {
     /// How the coarse problems of this cluster's duals are stored
     /// (`SolverSettings::coarse`); carried to clusters derived from it.
     coarse: CoarseForm,
+}
+
+/// Every subdomain's `G_s` on every rank, from each rank's `owned` blocks.
+fn gather_g(
+    comm: &dyn Comm,
+    bounds: &[usize],
+    local: &[LocalRows],
+    kdim: &[usize],
+    owned: Vec<Vec<f64>>,
+) -> Vec<Vec<f64>> {
+    let len = |s: usize| kdim[s] * local[s].rows.len();
+    let counts: Vec<usize> = bounds
+        .windows(2)
+        .map(|w| (w[0]..w[1]).map(len).sum())
+        .collect();
+    let flat = comm.all_gather(&owned.concat(), &counts);
+    let mut at = 0;
+    (0..local.len())
+        .map(|s| {
+            at += len(s);
+            flat[at - len(s)..at].to_vec()
+        })
+        .collect()
 }
 
 /// The entries of each local row, `(dof, coefficient bits)`: two rows with the
@@ -157,7 +183,33 @@ impl Cluster {
         m: usize,
         comm: Arc<dyn Comm>,
     ) -> Self {
+        Cluster::set_up(subs, bounds, local, m, comm, true)
+    }
+
+    /// [`Cluster::distributed`] keeping only the owned subdomains' `G_s`
+    /// (nothing of `G` is gathered): the cluster of the split dual
+    /// ([`super::split`]), whose memory per rank grows with its own
+    /// subdomains. The replicated dual cannot run on it. Collective.
+    pub fn distributed_own_g(
+        subs: Vec<Arc<Subdomain>>,
+        bounds: &[usize],
+        local: Vec<LocalRows>,
+        m: usize,
+        comm: Arc<dyn Comm>,
+    ) -> Self {
+        Cluster::set_up(subs, bounds, local, m, comm, false)
+    }
+
+    fn set_up(
+        subs: Vec<Arc<Subdomain>>,
+        bounds: &[usize],
+        local: Vec<LocalRows>,
+        m: usize,
+        comm: Arc<dyn Comm>,
+        all_g: bool,
+    ) -> Self {
         let rank = comm.rank();
+        let comm_size_one = comm.size() == 1;
         let first = bounds[rank];
         let n = local.len();
         let owned: Vec<Vec<f64>> = subs
@@ -185,19 +237,15 @@ impl Cluster {
                 .step_by(2)
                 .map(|&k| k as usize)
                 .collect();
-            let len = |s: usize| kdim[s] * local[s].rows.len();
-            let counts: Vec<usize> = bounds
-                .windows(2)
-                .map(|w| (w[0]..w[1]).map(len).sum())
-                .collect();
-            let flat = comm.all_gather(&owned.concat(), &counts);
-            let mut at = 0;
-            let g = (0..n)
-                .map(|s| {
-                    at += len(s);
-                    flat[at - len(s)..at].to_vec()
-                })
-                .collect();
+            let g = if all_g {
+                gather_g(&*comm, bounds, &local, &kdim, owned)
+            } else {
+                let mut g = vec![Vec::new(); n];
+                for (i, block) in owned.into_iter().enumerate() {
+                    g[first + i] = block;
+                }
+                g
+            };
             (dofs, kdim, g)
         };
         let mut offset = vec![0];
@@ -231,6 +279,7 @@ impl Cluster {
             dofs,
             local,
             g,
+            all_g: all_g || comm_size_one,
             offset,
             row_start,
             m,
@@ -265,12 +314,35 @@ impl Cluster {
         self.with_local_rows(local, m)
     }
 
+    /// The same cluster (sharing its factorizations and dense `F_s`) holding
+    /// only its own subdomains' `G_s`: the split dual's. Collective.
+    pub fn own_g_only(&self) -> Cluster {
+        let mut c = Cluster::set_up(
+            self.subs.clone(),
+            &self.bounds,
+            self.local.clone(),
+            self.m,
+            self.comm.clone(),
+            false,
+        );
+        c.coarse = self.coarse;
+        c.explicit = self.explicit.clone();
+        c.local_f = LocalFStats { ..self.local_f };
+        c
+    }
+
     /// [`Cluster::with_rows`] with `m` rows in all (trailing rows may touch no
     /// subdomain). Dense `F_s` of this cluster carry over where every row of
     /// the new one is one of this one's (a submatrix).
     pub fn with_local_rows(&self, local: Vec<LocalRows>, m: usize) -> Cluster {
-        let mut c =
-            Cluster::distributed(self.subs.clone(), &self.bounds, local, m, self.comm.clone());
+        let mut c = Cluster::set_up(
+            self.subs.clone(),
+            &self.bounds,
+            local,
+            m,
+            self.comm.clone(),
+            self.all_g,
+        );
         c.coarse = self.coarse;
         for (i, f) in self.explicit.iter().enumerate() {
             let s = self.first + i;
@@ -759,7 +831,7 @@ impl Cluster {
     pub fn apply_g(&self, x: &[f64], z: &mut [f64]) {
         for (s, lr) in self.local.iter().enumerate() {
             let zs = &mut z[self.offset[s]..self.offset[s] + self.kdim(s)];
-            g_block_times(&self.g[s], &lr.rows, x, zs);
+            g_block_times(self.g_block(s), &lr.rows, x, zs);
         }
     }
 
@@ -770,7 +842,7 @@ impl Cluster {
         for (s, lr) in self.local.iter().enumerate() {
             t.resize(lr.rows.len(), 0.0);
             let zs = &z[self.offset[s]..self.offset[s] + self.kdim(s)];
-            g_block_t_times(&self.g[s], zs, &mut t);
+            g_block_t_times(self.g_block(s), zs, &mut t);
             for (&row, v) in lr.rows.iter().zip(&t) {
                 x[row] += v;
             }
@@ -780,7 +852,16 @@ impl Cluster {
     /// `G_s = R_s^T B_s^T` of subdomain `s` (any subdomain): kdim x (its
     /// local rows), row-major.
     pub fn g_block(&self, s: usize) -> &[f64] {
+        assert!(
+            self.all_g || self.owned().contains(&s),
+            "G_{s} is held by its rank only: this cluster is the split dual's"
+        );
         &self.g[s]
+    }
+
+    /// Values of `G` this rank holds: all of it, or its subdomains' blocks.
+    pub fn g_values(&self) -> usize {
+        self.g.iter().map(Vec::len).sum()
     }
 
     /// `G G^T` over the rows where `active` holds (all rows when None): block
@@ -807,7 +888,7 @@ impl Cluster {
                     for i in 0..self.kdim(s) {
                         for j in 0..self.kdim(t) {
                             ggt[(self.offset[s] + i, self.offset[t] + j)] +=
-                                self.g[s][i * ns + ks] * self.g[t][j * nt + kt];
+                                self.g_block(s)[i * ns + ks] * self.g_block(t)[j * nt + kt];
                         }
                     }
                 }

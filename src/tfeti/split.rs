@@ -17,10 +17,14 @@
 //!    subdomain order from zero, the serial `Cluster::apply_f`'s order, so
 //!    `F` has the serial bits on every rank count.
 //!
-//! The projector `P = I - G^T (G G^T)^-1 G` takes the halo (for `G_s x`), a
-//! gather of the coarse vector (`G x`, kernel-sized: the coarse factor is
-//! still replicated) and the sum (for `G^T z`). Memory per rank for the dual
-//! vectors then grows with its own subdomains' rows.
+//! The projector `P = I - G^T (G G^T)^-1 G` takes the halo (for `G_s x`),
+//! the coarse solve, and the sum (for `G^T z`). The coarse problem is either
+//! the replicated dual's (a gather of `G x` to every rank, solved on each) or
+//! [`RootCoarse`]'s (`G x` up a binomial tree to rank 0, solved there, the
+//! parts sent back down; no factor elsewhere, and no `G_s` read but the
+//! rank's own, so the cluster may hold its own only:
+//! [`Cluster::distributed_own_g`]). Memory per rank for the dual vectors and
+//! `G` then grows with its own subdomains.
 //!
 //! What uses it: [`projected_cg`], the equality-constrained dual solve, checked
 //! bitwise across rank counts on thread ranks. MPRGP and SMALBE still run on
@@ -31,6 +35,7 @@ use super::comm::{Comm, RankFailure, Stats};
 use super::dual::Dual;
 use super::split_coarse::RootCoarse;
 use crate::num::exact::{ExactSum, WORDS};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
 /// Where a rank's rows come from and go to.
@@ -194,11 +199,20 @@ fn by_rank(lists: Vec<Vec<usize>>) -> Vec<(usize, Vec<usize>)> {
 
 /// The dual of a (possibly distributed) cluster, split by row owner.
 pub struct SplitDual<'a> {
-    dual: &'a Dual,
+    cluster: &'a Cluster,
     comm: Arc<dyn Comm>,
     plan: Plan,
-    /// The coarse problem on rank 0 only; `None`: the dual's, replicated.
-    root: Option<RootCoarse>,
+    coarse: Coarse<'a>,
+    /// Applications of `F` so far.
+    applications: AtomicUsize,
+}
+
+/// Where `(G G^T)^-1` is.
+enum Coarse<'a> {
+    /// The replicated dual's, on every rank.
+    Replicated(&'a Dual),
+    /// On rank 0 only.
+    Root(RootCoarse),
 }
 
 /// Per-rank counts of one operation, for the network model (issue 37 item 6).
@@ -226,32 +240,40 @@ impl<'a> SplitDual<'a> {
     /// The plan of this rank. Collective only in that every rank builds its
     /// own from the same replicated rows (no communication).
     pub fn new(dual: &'a Dual) -> Self {
-        let cluster = dual.cluster();
-        SplitDual {
-            dual,
-            comm: cluster.comm().clone(),
-            plan: Plan::new(cluster),
-            root: None,
-        }
+        SplitDual::on(dual.cluster(), Coarse::Replicated(dual))
     }
 
-    /// The same with its coarse problem assembled, factorized and solved on
-    /// rank 0 only ([`RootCoarse`]): the same bits, no coarse factor on the
-    /// other ranks. Collective.
-    pub fn with_root_coarse(dual: &'a Dual) -> Result<Self, RankFailure> {
-        let root = RootCoarse::new(dual.cluster())?;
-        Ok(SplitDual {
-            root: Some(root),
-            ..SplitDual::new(dual)
-        })
+    /// The split dual of `cluster` with its coarse problem assembled,
+    /// factorized and solved on rank 0 only ([`RootCoarse`]): the replicated
+    /// bits, no coarse factor on the other ranks, and no `G_s` but its own
+    /// read on any rank (so `cluster` may be [`Cluster::distributed_own_g`]).
+    /// Collective.
+    pub fn with_root_coarse(cluster: &'a Cluster) -> Result<Self, RankFailure> {
+        let root = RootCoarse::new(cluster)?;
+        Ok(SplitDual::on(cluster, Coarse::Root(root)))
+    }
+
+    fn on(cluster: &'a Cluster, coarse: Coarse<'a>) -> Self {
+        SplitDual {
+            cluster,
+            comm: cluster.comm().clone(),
+            plan: Plan::new(cluster),
+            coarse,
+            applications: AtomicUsize::new(0),
+        }
     }
 
     /// Values of the coarse factor this rank holds.
     pub fn coarse_values(&self) -> usize {
-        match &self.root {
-            Some(r) => r.factor_values(),
-            None => self.dual.coarse_stats().factor_nonzeros,
+        match &self.coarse {
+            Coarse::Root(r) => r.factor_values(),
+            Coarse::Replicated(d) => d.coarse_stats().factor_nonzeros,
         }
+    }
+
+    /// Applications of `F` so far.
+    pub fn f_applications(&self) -> usize {
+        self.applications.load(Ordering::Relaxed)
     }
 
     /// Global rows this rank owns, ascending: the layout of every split vector.
@@ -275,7 +297,7 @@ impl<'a> SplitDual<'a> {
         let values = self.comm.all_gather(x, &counts);
         let rows: Vec<u64> = self.plan.owned.iter().map(|&r| r as u64).collect();
         let rows = self.comm.all_gather_u64(&rows, &counts);
-        let mut out = vec![0.0; self.dual.multipliers()];
+        let mut out = vec![0.0; self.cluster.multipliers()];
         for (&r, v) in rows.iter().zip(values) {
             out[r as usize] = v;
         }
@@ -335,7 +357,7 @@ impl<'a> SplitDual<'a> {
 
     /// `y = F x` on the owned rows.
     pub fn apply_f(&self, x: &[f64]) -> Vec<f64> {
-        let cluster = self.dual.cluster();
+        let cluster = self.cluster;
         let t = self.halo(x);
         let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
             let at = &self.plan.sub_at[s - cluster.owned().start];
@@ -344,13 +366,16 @@ impl<'a> SplitDual<'a> {
             cluster.apply_local_f(s, &l, &mut y);
             y
         });
-        self.dual.count_f_applications(1);
+        self.applications.fetch_add(1, Ordering::Relaxed);
+        if let Coarse::Replicated(dual) = &self.coarse {
+            dual.count_f_applications(1);
+        }
         self.sum(parts.concat())
     }
 
     /// `x <- P x = x - G^T (G G^T)^-1 G x` on the owned rows.
     pub fn project(&self, x: &mut [f64]) {
-        let cluster = self.dual.cluster();
+        let cluster = self.cluster;
         let t = self.halo(x);
         // G x: every owned subdomain's kernel part, then gathered.
         let mine: Vec<f64> = cluster
@@ -384,17 +409,18 @@ impl<'a> SplitDual<'a> {
     /// `(G G^T)^-1 z` on this rank's coarse unknowns from its part `mine`:
     /// on rank 0 ([`RootCoarse`]), or gathered and solved on every rank.
     fn coarse_solve(&self, mine: Vec<f64>) -> Vec<f64> {
-        let cluster = self.dual.cluster();
-        if let Some(root) = &self.root {
-            return root.solve(&*self.comm, mine);
-        }
+        let cluster = self.cluster;
+        let dual = match &self.coarse {
+            Coarse::Root(root) => return root.solve(&*self.comm, mine),
+            Coarse::Replicated(dual) => dual,
+        };
         let bounds = cluster.bounds();
         let counts: Vec<usize> = bounds
             .windows(2)
             .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
             .collect();
         let mut z = self.comm.all_gather(&mine, &counts);
-        self.dual.coarse_solve(&mut z);
+        dual.coarse_solve(&mut z);
         let own = cluster.owned();
         z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)].to_vec()
     }
