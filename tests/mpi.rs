@@ -410,6 +410,10 @@ fn the_split_dual_over_mpi_gives_the_replicated_bits_and_the_thread_ranks_counts
         "the split F and P (either coarse problem) differ from the replicated ones: {mpi}"
     );
     assert_eq!(a[10], "0", "the coarse factor off rank 0: {mpi}");
+    assert!(
+        mpi.contains("model check, 3 ranks:"),
+        "no model check under MPI: {mpi}"
+    );
     // Every column but the coarse solve's time.
     a.remove(13);
     b.remove(13);

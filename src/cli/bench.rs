@@ -192,6 +192,9 @@ fn hard(out: Option<&Path>, run: &Run) -> Outcome {
     })
 }
 
+/// CG iterations timed for the model check under `mpirun`.
+const CHECK_ITERATIONS: usize = 30;
+
 /// `bench traffic`: the split dual's counts per rank count, then the model.
 fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
     use cso::studies::traffic;
@@ -217,6 +220,10 @@ fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
     );
     let pred = traffic::predict(&rows, local, traffic::INFINIBAND, predict);
     outln!("{}", traffic::predicted_table(&pred));
+    // The model against the one run that thread ranks can time: one process.
+    let (_, check) = traffic::check_on(cso::tfeti::comm::serial(), hh, CHECK_ITERATIONS)
+        .map_err(|e| fail(EXIT_SCENE, e))?;
+    outln!("{}", traffic::check_line(&check));
     Ok(())
 }
 
@@ -238,9 +245,11 @@ impl Bench {
         if *hh == 0 {
             return Err(fail(EXIT_IO, "bench traffic takes --hh of at least 1"));
         }
-        let m = cso::studies::traffic::measure_on(comm.clone(), *hh)
+        use cso::studies::traffic;
+        let (m, check) = traffic::check_on(comm.clone(), *hh, CHECK_ITERATIONS)
             .map_err(|e| fail(EXIT_SCENE, e))?;
-        outln!("{}", cso::studies::traffic::measured_table(&[m]));
+        outln!("{}", traffic::measured_table(&[m]));
+        outln!("{}", traffic::check_line(&check));
         Ok(())
     }
 }

@@ -482,6 +482,134 @@ pub fn predicted_table(rows: &[Predicted]) -> String {
     s
 }
 
+/// The model against a run that fits here: one launch's time per split CG
+/// iteration (coarse problem on rank 0) beside the model's, fed with this
+/// launch's own counts, local `F` and network (issue 37 item 6's check).
+#[derive(Debug, Clone, Copy, serde::Serialize)]
+pub struct ModelCheck {
+    pub ranks: usize,
+    /// Seconds per CG iteration, measured (the slowest rank).
+    pub measured_s: f64,
+    /// Seconds per CG iteration, the model's (`root_total_s`).
+    pub predicted_s: f64,
+    /// The local `F` of the slowest rank's subdomains, measured in the run.
+    pub local_f_s: f64,
+    /// This launch's network, by ping-pong between ranks 0 and 1 (none on
+    /// one rank).
+    pub network: Network,
+}
+
+/// Times of one rank: its local `F` (the mean of `reps`), and a split CG
+/// (coarse problem on rank 0) of `iterations` iterations, seconds per
+/// iteration. Collective.
+fn timed_cg(split: &SplitDual, iterations: usize) -> (f64, f64) {
+    let cluster = split.cluster();
+    let x = vec![1e-3; split.owned_rows().len()];
+    let reps = 5;
+    let t = Instant::now();
+    for _ in 0..reps {
+        let _ = cluster.map(|s, _| {
+            let n = cluster.local_rows(s).rows.len();
+            let mut y = vec![0.0; n];
+            cluster.apply_local_f(s, &vec![1e-3; n], &mut y);
+            y
+        });
+    }
+    let local = t.elapsed().as_secs_f64() / reps as f64;
+    let mut b = split.apply_f(&x);
+    split.project(&mut b);
+    split.comm().all_reduce_u64(&mut [0], Op::Max);
+    let t = Instant::now();
+    let (_, _, info) = crate::tfeti::split::projected_cg(split, &b, 0.0, iterations);
+    let per = t.elapsed().as_secs_f64() / info.iterations.max(1) as f64;
+    (local, per)
+}
+
+/// Latency and bandwidth between ranks 0 and 1 by simultaneous exchanges
+/// (the shape of the split dual's), the same on every rank; `None` on one
+/// rank. Collective.
+fn ping_pong(comm: &dyn Comm) -> Option<Network> {
+    if comm.size() < 2 {
+        return None;
+    }
+    let me = comm.rank();
+    let round = |n: usize| {
+        let peer = match me {
+            0 => Some(1),
+            1 => Some(0),
+            _ => None,
+        };
+        let sends: Vec<(usize, Vec<f64>)> = peer.map(|q| (q, vec![1.0; n])).into_iter().collect();
+        let receives: Vec<(usize, usize)> = peer.map(|q| (q, n)).into_iter().collect();
+        comm.exchange(&sends, &receives);
+    };
+    let time = |n: usize, reps: usize| {
+        round(n);
+        let t = Instant::now();
+        for _ in 0..reps {
+            round(n);
+        }
+        t.elapsed().as_secs_f64() / reps as f64
+    };
+    let latency = time(1, 200);
+    let big = 1 << 20;
+    let bulk = time(big, 10);
+    let mut w = [latency.to_bits(), bulk.to_bits()];
+    comm.all_reduce_u64(&mut w, Op::Max);
+    let (latency, bulk) = (f64::from_bits(w[0]), f64::from_bits(w[1]));
+    Some(Network {
+        latency,
+        bandwidth: 8.0 * big as f64 / (bulk - latency).max(1e-12),
+    })
+}
+
+/// The counts of the weak scene on this launch's ranks, and the model
+/// against the launch's own time per CG iteration. Collective.
+pub fn check_on(
+    comm: Arc<dyn Comm>,
+    hh: usize,
+    iterations: usize,
+) -> Result<(Measured, ModelCheck), String> {
+    let p = comm.size();
+    let measured = measure_on(comm.clone(), hh)?;
+    let scene = weak(p, hh)?;
+    let setup = crate::state::setup_split(&scene, &[], comm.clone()).map_err(|e| e.to_string());
+    let setup = crate::tfeti::comm::agree(&*comm, setup).map_err(|f| f.message)?;
+    let split = SplitDual::with_root_coarse(&setup.cluster).map_err(|f| f.message)?;
+    let network = ping_pong(&*comm).unwrap_or(Network {
+        latency: 0.0,
+        bandwidth: f64::INFINITY,
+    });
+    let (local, per) = timed_cg(&split, iterations);
+    let mut w = [local.to_bits(), per.to_bits()];
+    comm.all_reduce_u64(&mut w, Op::Max);
+    let (local_f_s, measured_s) = (f64::from_bits(w[0]), f64::from_bits(w[1]));
+    let per_sub = local_f_s / (measured.subdomains as f64 / p as f64);
+    let predicted = predict(std::slice::from_ref(&measured), per_sub, network, &[p]);
+    let check = ModelCheck {
+        ranks: p,
+        measured_s,
+        predicted_s: predicted.first().map_or(0.0, |q| q.root_total_s),
+        local_f_s,
+        network,
+    };
+    Ok((measured, check))
+}
+
+/// One line for [`ModelCheck`].
+pub fn check_line(c: &ModelCheck) -> String {
+    format!(
+        "model check, {} rank{}: {:.3} ms per CG iteration measured, {:.3} ms by the model (local F {:.3} ms measured; network by ping-pong: {:.2} us, {:.2} GB/s)",
+        c.ranks,
+        if c.ranks == 1 { "" } else { "s" },
+        1e3 * c.measured_s,
+        1e3 * c.predicted_s,
+        1e3 * c.local_f_s,
+        1e6 * c.network.latency,
+        c.network.bandwidth / 1e9,
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -263,6 +263,16 @@ impl<'a> SplitDual<'a> {
         }
     }
 
+    /// The cluster whose dual this is.
+    pub fn cluster(&self) -> &Cluster {
+        self.cluster
+    }
+
+    /// Its ranks.
+    pub fn comm(&self) -> &dyn Comm {
+        &*self.comm
+    }
+
     /// Values of the coarse factor this rank holds.
     pub fn coarse_values(&self) -> usize {
         match &self.coarse {
