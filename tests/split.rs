@@ -78,7 +78,8 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
         s.project(&mut t);
         t
     });
-    let (root_x, _, _) = projected_cg(&root, &root_pv, 1e-10, 2000);
+    let (root_x, _, root_info) = projected_cg(&root, &root_pv, 1e-10, 2000);
+    assert_eq!(root.f_applications(), root_info.applications);
     Seen {
         root_p: bits(&root.assemble(&root_pv)),
         root_x: bits(&root.assemble(&root_x)),

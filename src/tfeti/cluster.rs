@@ -92,8 +92,13 @@ fn gather_g(
         .map(|w| (w[0]..w[1]).map(len).sum())
         .collect();
     let flat = comm.all_gather(&owned.concat(), &counts);
+    cut(&flat, local.len(), len)
+}
+
+/// `flat` cut into `n` consecutive pieces of `len(s)` values.
+fn cut(flat: &[f64], n: usize, len: impl Fn(usize) -> usize) -> Vec<Vec<f64>> {
     let mut at = 0;
-    (0..local.len())
+    (0..n)
         .map(|s| {
             at += len(s);
             flat[at - len(s)..at].to_vec()
@@ -528,13 +533,7 @@ impl Cluster {
             return mine;
         }
         let flat = self.gather(&mine.concat(), &len);
-        let mut at = 0;
-        (0..self.len())
-            .map(|s| {
-                at += len(s);
-                flat[at - len(s)..at].to_vec()
-            })
-            .collect()
+        cut(&flat, self.len(), len)
     }
 
     /// Per subdomain the Gram matrix `N_s = M_s^T M_s` (kdim x kdim,
