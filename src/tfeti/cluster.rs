@@ -493,6 +493,11 @@ impl Cluster {
         self.first..self.first + self.subs.len()
     }
 
+    /// The rank that owns subdomain `s`.
+    pub fn rank_of(&self, s: usize) -> usize {
+        self.bounds.partition_point(|&b| b <= s) - 1
+    }
+
     /// Where each rank's subdomains start: rank `r` owns
     /// `bounds[r]..bounds[r + 1]`.
     pub fn bounds(&self) -> &[usize] {

@@ -49,12 +49,18 @@ impl Gram {
     /// `G G^T` over the rows where `active` holds (all when None), in `form`
     /// (`Auto` resolved by size).
     pub fn assemble(cluster: &Cluster, active: Option<&[bool]>, form: CoarseForm) -> Gram {
-        match form.resolve(cluster.kernel_dim()) {
-            // The sparse blocks, spread out: the same bits as the entrywise
-            // assembly (`Cluster::coarse_gram`, kept as the tests' reference),
-            // several times faster.
-            CoarseForm::Dense => Gram::Dense(Gram::Sparse(sparse_gram(cluster, active)).to_dense()),
-            _ => Gram::Sparse(sparse_gram(cluster, active)),
+        // The sparse blocks (spread out when dense): the same bits as the
+        // entrywise assembly (`Cluster::coarse_gram`, kept as the tests'
+        // reference), several times faster.
+        Gram::in_form(sparse_gram(cluster, active), form)
+    }
+
+    /// The sparse upper triangle `upper`, kept sparse or spread out dense
+    /// as `form` (`Auto` resolved by size) says.
+    pub(crate) fn in_form(upper: UpperCsc, form: CoarseForm) -> Gram {
+        match form.resolve(upper.n) {
+            CoarseForm::Dense => Gram::Dense(Gram::Sparse(upper).to_dense()),
+            _ => Gram::Sparse(upper),
         }
     }
 
@@ -96,14 +102,15 @@ impl Gram {
 /// increasing order, the dense assembly's order.
 fn sparse_gram(cluster: &Cluster, active: Option<&[bool]>) -> UpperCsc {
     let owners = RowOwners::new(cluster);
-    let columns: Vec<Vec<f64>> = (0..cluster.len())
+    let (blocks, columns): (Vec<Vec<usize>>, Vec<Vec<f64>>) = (0..cluster.len())
         .into_par_iter()
         .map(|t| {
             let blocks = owners.column_blocks(cluster, t, active);
-            owners.column_values(cluster, t, active, &blocks, &|s| cluster.g_block(s))
+            let values = owners.column_values(cluster, t, active, &blocks, &|s| cluster.g_block(s));
+            (blocks, values)
         })
-        .collect();
-    owners.upper(cluster, active, columns)
+        .unzip();
+    RowOwners::upper(cluster, &blocks, columns.concat())
 }
 
 /// The subdomains of every row of `B` with the row's position among their
@@ -219,31 +226,23 @@ impl RowOwners {
         kt * off + kt * (kt + 1) / 2
     }
 
-    /// The upper triangle from every block column's values (in subdomain
-    /// order), its pattern laid out again from the rows.
-    pub(crate) fn upper(
-        &self,
-        cluster: &Cluster,
-        active: Option<&[bool]>,
-        columns: Vec<Vec<f64>>,
-    ) -> UpperCsc {
+    /// The upper triangle of the block columns whose blocks are `blocks`
+    /// (per column, [`RowOwners::column_blocks`]) and whose values,
+    /// concatenated in subdomain order, are `values`.
+    pub(crate) fn upper(cluster: &Cluster, blocks: &[Vec<usize>], values: Vec<f64>) -> UpperCsc {
         let dim = cluster.kernel_dim();
         let kdim = |s: usize| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
         let mut col_ptr = Vec::with_capacity(dim + 1);
         col_ptr.push(0);
-        let nnz = columns.iter().map(Vec::len).sum();
-        let mut row_idx = Vec::with_capacity(nnz);
-        let mut values = Vec::with_capacity(nnz);
-        for (t, vals) in columns.into_iter().enumerate() {
-            let blocks = self.column_blocks(cluster, t, active);
+        let mut row_idx = Vec::with_capacity(values.len());
+        for (t, column) in blocks.iter().enumerate() {
             for j in 0..kdim(t) {
-                for &s in &blocks {
+                for &s in column {
                     let ks = if s == t { j + 1 } else { kdim(s) };
                     row_idx.extend((0..ks).map(|i| cluster.kernel_offset(s) + i));
                 }
                 col_ptr.push(row_idx.len());
             }
-            values.extend(vals);
         }
         UpperCsc {
             n: dim,

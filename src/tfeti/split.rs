@@ -69,8 +69,7 @@ impl Plan {
     fn new(cluster: &Cluster) -> Plan {
         let comm = cluster.comm();
         let me = comm.rank();
-        let bounds = cluster.bounds();
-        let rank_of = |s: usize| bounds.partition_point(|&b| b <= s) - 1;
+        let rank_of = |s: usize| cluster.rank_of(s);
         let row_subs = subdomains_of_rows(cluster);
         // The ranks that touch a row, ascending; its owner one of them, in
         // turn by row number so that neighbours share their interface rows

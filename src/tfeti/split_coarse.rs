@@ -63,18 +63,8 @@ impl RootCoarse {
         let lens = per_rank(&|t| RowOwners::column_len(cluster, t, &blocks[t]));
         let gathered = gather_to_root(&**comm, values, &lens);
         let factor = if comm.rank() == 0 {
-            let mut columns = Vec::with_capacity(cluster.len());
-            let mut at = 0;
-            for (t, b) in blocks.iter().enumerate() {
-                let len = RowOwners::column_len(cluster, t, b);
-                columns.push(gathered[at..at + len].to_vec());
-                at += len;
-            }
-            let upper = owners.upper(cluster, None, columns);
-            let gram = match cluster.coarse_form().resolve(cluster.kernel_dim()) {
-                super::coarse::CoarseForm::Dense => Gram::Dense(Gram::Sparse(upper).to_dense()),
-                _ => Gram::Sparse(upper),
-            };
+            let upper = RowOwners::upper(cluster, &blocks, gathered);
+            let gram = Gram::in_form(upper, cluster.coarse_form());
             factor_checked(gram, cluster).map(Some).map_err(|e| {
                 format!(
                     "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
@@ -113,8 +103,7 @@ impl RootCoarse {
 fn g_halo(cluster: &Cluster, blocks: &[Vec<usize>]) -> BTreeMap<usize, Vec<f64>> {
     let comm = cluster.comm();
     let me = comm.rank();
-    let bounds = cluster.bounds();
-    let rank_of = |s: usize| bounds.partition_point(|&b| b <= s) - 1;
+    let rank_of = |s: usize| cluster.rank_of(s);
     let mine = cluster.owned();
     let len = |s: usize| {
         (cluster.kernel_offset(s + 1) - cluster.kernel_offset(s)) * cluster.local_rows(s).rows.len()
