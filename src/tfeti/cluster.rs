@@ -516,7 +516,7 @@ impl Cluster {
     /// Every rank's part of a vector with `len(s)` entries per subdomain,
     /// `mine` being this rank's (its subdomains in order): the whole vector,
     /// subdomains in order, on every rank.
-    fn gather(&self, mine: &[f64], len: impl Fn(usize) -> usize) -> Vec<f64> {
+    pub(crate) fn gather(&self, mine: &[f64], len: impl Fn(usize) -> usize) -> Vec<f64> {
         let counts: Vec<usize> = self
             .bounds
             .windows(2)

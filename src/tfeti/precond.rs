@@ -1,23 +1,31 @@
-//! Dual preconditioners: lumped `M = W (sum_s B_s K_s B_s^T) W` and Dirichlet
-//! `M = W (sum_s B_s S_s B_s^T) W` (`S_s` the Schur complement of `K_s` on the
-//! dofs that `B_s` touches), used projected, `P M P`.
+//! Dual preconditioners: lumped `M = W (sum_s B_s A_s^-1 K_s A_s^-1 B_s^T) W`
+//! and Dirichlet `M = W (sum_s B_s A_s^-1 S_s A_s^-1 B_s^T) W` (`S_s` the
+//! Schur complement of `K_s` on the dofs that `B_s` touches), used projected,
+//! `P M P`.
 //!
-//! # Scaling where more than two subdomains meet
+//! # Scaling
 //! The gluing rows of a node with `k` copies are a chain of `k - 1` rows
 //! (`u_1 - u_2`, `u_2 - u_3`, ...; see `model::rows`), each normalized to unit
 //! norm, so neighbouring rows of a chain overlap (`B B^T` has `-1/2` off the
 //! diagonal), and so do a Dirichlet row and the gluing rows of the copy it
 //! holds. Instead of multiplicity scaling (which fits fully redundant Boolean
-//! gluing, not these chains) we use the rows' orthonormality: with
-//! `T = (B_E B_E^T)^{-1/2}` the rows `T B_E` are orthonormal and span the same
-//! constraints, and the lumped/Dirichlet preconditioner for orthonormal rows
-//! needs no scaling; written in our multipliers it is `W B S B^T W` with
-//! `W = (B_E B_E^T)^{-1}` (Rixen and Farhat's `B B^T` scaling). `B_E B_E^T` is
+//! gluing, not these chains) the equality rows are scaled as a whole: with a
+//! diagonal `A > 0` over all subdomains' dofs, `W = (B_E A^-1 B_E^T)^-1` and
+//! the scaled rows `W B_E A^-1` (Rixen and Farhat's scaling). With `A = I`
+//! the rows `(B_E B_E^T)^{-1/2} B_E` are orthonormal and span the same
+//! constraints ([`Weights::Rows`]). With `A` the diagonal of `K`
+//! ([`Weights::Stiffness`], the default) a row between two copies takes
+//! `a_t / (a_s + a_t)` of subdomain `s`'s side, so a stiff subdomain glued to
+//! a soft one carries the interface: where the material jumps (bodies of two
+//! materials glued), that is what keeps the iterations from growing with the
+//! jump (a layered scene with a 1000:1 jump: 121 -> 35 Dirichlet-preconditioned
+//! applications, BENCHMARKS.md); alike subdomains on a regular cut have equal
+//! diagonals on both sides, and both readings agree. `B_E A^-1 B_E^T` is
 //! block diagonal by node (plus ties), so its sparse Cholesky factor is small
-//! and replicated like the coarse factor. Contact rows keep weight 1: they are
-//! bound-constrained, and on the interfaces we mesh they do not overlap gluing
-//! rows except at the few nodes where a contact face meets a subdomain corner.
-//! Where only two subdomains meet, `W = I` and both readings agree.
+//! and replicated like the coarse factor. Contact rows keep weight 1 (no
+//! `W`, no `A`): they are bound-constrained, and on the interfaces we mesh
+//! they do not overlap gluing rows except at the few nodes where a contact
+//! face meets a subdomain corner.
 //!
 //! # Reference
 //! D. Rixen, C. Farhat, *A simple and efficient extension of a class of
@@ -56,8 +64,9 @@ pub struct Built {
     /// Subdomains lumped: all of them for `lumped`; for `dirichlet`, those whose
     /// interior block is singular (the rows touch too few of their dofs).
     pub lumped: usize,
-    /// Whether the equality rows are scaled by `(B_E B_E^T)^-1` (false when that
-    /// Gram matrix is singular: redundant equality rows).
+    /// Whether the equality rows are scaled by `W = (B_E A^-1 B_E^T)^-1`
+    /// (false when that matrix is singular: redundant equality rows; then
+    /// `A = I` too).
     pub scaled: bool,
 }
 
@@ -137,13 +146,13 @@ impl Block {
     }
 }
 
-/// `W = (B_E B_E^T)^-1` on the first `n` (equality) rows.
+/// `W = (B_E A^-1 B_E^T)^-1` on the first `n` (equality) rows.
 ///
-/// Most rows overlap no other (a dof shared by two subdomains, normalized:
-/// `W = 1` there), so only the rows that do are solved for: the Cholesky
-/// factor is of `B_E B_E^T` restricted to them (its other rows and columns are
-/// those of the identity, up to round-off in the unit diagonal), and a
-/// product gathers and scatters just those rows.
+/// Most rows overlap no other (a dof shared by two subdomains: `W` is the
+/// inverse of the row's diagonal there), so only the rows that do are solved
+/// for: the Cholesky factor is of `B_E A^-1 B_E^T` restricted to them (its
+/// other rows and columns are diagonal), and a product gathers and scatters
+/// just those rows.
 struct Scaling {
     /// The rows that overlap another (global row of each factor row).
     coupled: Vec<usize>,
@@ -157,33 +166,40 @@ struct Scaling {
 }
 
 impl Scaling {
-    /// From the cluster's rows; None when `B_E B_E^T` is not positive definite.
-    fn new(cluster: &Cluster, n: usize) -> Option<Scaling> {
+    /// From the cluster's rows and the weight `1 / a` of each entry (per
+    /// subdomain, in [`Cluster::local_rows`]' order); None when
+    /// `B_E A^-1 B_E^T` is not positive definite.
+    fn new(cluster: &Cluster, n: usize, weights: &[Vec<f64>]) -> Option<Scaling> {
         if n == 0 {
             return None;
         }
-        // B_E B_E^T = sum_s B_s B_s^T: rows overlap only through a shared dof
+        // B_E A^-1 B_E^T = sum_s B_s A_s^-1 B_s^T: rows overlap only through a shared dof
         // of one subdomain. The diagonal summed in place, the few products
         // off it sorted; both in subdomain order (the sort is stable), the
         // order of the sums of a full sort.
         let mut diagonal = vec![0.0; n];
         let mut products: Vec<(usize, usize, f64)> = Vec::new();
-        let mut by_dof: Vec<(usize, usize, f64)> = Vec::new();
+        let mut by_dof: Vec<(usize, usize, f64, f64)> = Vec::new();
         for s in 0..cluster.len() {
             let lr = cluster.local_rows(s);
             by_dof.clear();
-            by_dof.extend(lr.entries.iter().filter_map(|&(k, d, v)| {
-                let row = lr.rows[k];
-                (row < n).then_some((d, row, v))
-            }));
+            by_dof.extend(
+                lr.entries
+                    .iter()
+                    .zip(&weights[s])
+                    .filter_map(|(&(k, d, v), &w)| {
+                        let row = lr.rows[k];
+                        (row < n).then_some((d, row, v, w))
+                    }),
+            );
             by_dof.sort_by_key(|e| e.0);
             for list in by_dof.chunk_by(|a, b| a.0 == b.0) {
-                for &(_, r1, v1) in list {
-                    for &(_, r2, v2) in list {
+                for &(_, r1, v1, w) in list {
+                    for &(_, r2, v2, _) in list {
                         if r1 == r2 {
-                            diagonal[r1] += v1 * v2;
+                            diagonal[r1] += v1 * v2 * w;
                         } else if r1 < r2 {
-                            products.push((r1, r2, v1 * v2));
+                            products.push((r1, r2, v1 * v2 * w));
                         }
                     }
                 }
@@ -202,6 +218,7 @@ impl Scaling {
         if diagonal.contains(&0.0) {
             return None;
         }
+        let probe_values = diagonal.clone();
         // Upper triangle in row-major order, as the full sort gave it.
         let mut entries: Vec<((usize, usize), f64)> = Vec::with_capacity(n + off.len());
         let mut rest = off.into_iter().peekable();
@@ -240,8 +257,8 @@ impl Scaling {
             let (l_values, _) = llt_numeric(&symbolic, a, 1).ok()?;
             (Some(symbolic), l_values)
         };
-        // The rows are normalized, so the diagonal is 1; a pivot far below it
-        // means dependent rows, and W would amplify round-off.
+        // A pivot far below the diagonal means dependent rows, and W would
+        // amplify round-off.
         let work = Mutex::new((
             vec![0.0; coupled.len()],
             match &symbolic {
@@ -256,13 +273,15 @@ impl Scaling {
             scale,
             work,
         };
-        let mut probe = vec![vec![1.0; n]];
+        // `W` times the diagonal of `B_E A^-1 B_E^T`: 1 on a row that
+        // overlaps none, of order 1 on a chain, whatever the weights' scale.
+        let mut probe = vec![probe_values];
         scaling.solve_block(&mut probe);
         let worst = probe[0].iter().fold(0.0f64, |m, v| m.max(v.abs()));
         (worst.is_finite() && worst < 1e6).then_some(scaling)
     }
 
-    /// `x_c[..n] <- (B_E B_E^T)^-1 x_c[..n]` of every column, one pass over
+    /// `x_c[..n] <- (B_E A^-1 B_E^T)^-1 x_c[..n]` of every column, one pass over
     /// the factor.
     fn solve_block<X: AsRef<[f64]> + AsMut<[f64]>>(&self, xs: &mut [X]) {
         for x in xs.iter_mut() {
@@ -304,6 +323,56 @@ impl Scaling {
     }
 }
 
+/// How the equality rows' copies are weighed against each other (see the
+/// module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Weights {
+    /// `A` the diagonal of the stiffness (the default): a stiff copy
+    /// carries more of a row than a soft one.
+    #[default]
+    Stiffness,
+    /// `A = I`: the rows' orthonormality alone (`W = (B_E B_E^T)^-1`), what
+    /// cso did before; kept for benchmarks and tests.
+    Rows,
+}
+
+/// The weight of every entry of every subdomain's rows (subdomains in order,
+/// entries as in [`Cluster::local_rows`]): `1 / K_s[d, d]` on the first
+/// `n` (equality) rows with stiffness weights, else 1. Gathered from the
+/// ranks that own the subdomains, so every rank holds the same.
+fn entry_weights(cluster: &Cluster, n: usize, weights: Weights) -> Vec<Vec<f64>> {
+    let len = |s: usize| cluster.local_rows(s).entries.len();
+    if weights == Weights::Rows {
+        return (0..cluster.len()).map(|s| vec![1.0; len(s)]).collect();
+    }
+    let mine: Vec<f64> = cluster
+        .map(|s, sub| {
+            let lr = cluster.local_rows(s);
+            let diagonal = sub.diagonal();
+            lr.entries
+                .iter()
+                .map(|&(k, d, _)| {
+                    if lr.rows[k] < n {
+                        1.0 / diagonal[d]
+                    } else {
+                        1.0
+                    }
+                })
+                .collect::<Vec<f64>>()
+        })
+        .concat();
+    let all = cluster.gather(&mine, len);
+    let mut at = 0;
+    (0..cluster.len())
+        .map(|s| {
+            let piece = all[at..at + len(s)].to_vec();
+            at += len(s);
+            piece
+        })
+        .collect()
+}
+
 /// Distributed clusters: how to gather every subdomain's block product.
 struct Spread {
     comm: Arc<dyn Comm>,
@@ -327,8 +396,19 @@ pub struct DualPreconditioner {
 
 impl DualPreconditioner {
     /// Builds every subdomain's block (in parallel) and the scaling of the
-    /// first `n_equality` rows.
+    /// first `n_equality` rows, weighed by stiffness.
     pub fn new(cluster: &Cluster, kind: Kind, n_equality: usize, form: SchurForm) -> Self {
+        Self::weighed(cluster, kind, n_equality, form, Weights::default())
+    }
+
+    /// [`DualPreconditioner::new`] with the rows weighed as `weights` says.
+    pub fn weighed(
+        cluster: &Cluster,
+        kind: Kind,
+        n_equality: usize,
+        form: SchurForm,
+        weights: Weights,
+    ) -> Self {
         let first = cluster.owned().start;
         let boundaries: Vec<Vec<usize>> =
             cluster.owned().map(|s| cluster.touched_dofs(s)).collect();
@@ -362,6 +442,14 @@ impl DualPreconditioner {
             })
             .collect();
         let symbolic = SymbolicCache::default();
+        let n_eq = n_equality.min(cluster.multipliers());
+        let mut entry_w = entry_weights(cluster, n_eq, weights);
+        let scaling = Scaling::new(cluster, n_eq, &entry_w);
+        if scaling.is_none() && weights != Weights::Rows {
+            // Stiffness weights without `W` would leave `A^-1 S A^-1`
+            // unscaled: where `W` cannot be formed, `A` is not used either.
+            entry_w = entry_weights(cluster, n_eq, Weights::Rows);
+        }
         let blocks: Vec<Block> = cluster.map(|s, sub| {
             let lr = cluster.local_rows(s);
             let boundary = &boundaries[s - first];
@@ -369,7 +457,8 @@ impl DualPreconditioner {
             let entries = lr
                 .entries
                 .iter()
-                .map(|&(k, d, v)| (k, boundary.partition_point(|&b| b < d), v))
+                .zip(&entry_w[s])
+                .map(|(&(k, d, v), &w)| (k, boundary.partition_point(|&b| b < d), v * w))
                 .collect();
             let op = match kind {
                 Kind::Lumped => Local::Lumped(sub.boundary_stiffness(boundary)),
@@ -390,7 +479,6 @@ impl DualPreconditioner {
                 }),
             }
         });
-        let scaling = Scaling::new(cluster, n_equality.min(cluster.multipliers()));
         let mut built = Built {
             scaled: scaling.is_some(),
             ..Built::default()
