@@ -942,7 +942,8 @@ impl PreconditionerChoice {
     pub fn of(scene: &Scene, cluster: &crate::tfeti::cluster::Cluster) -> PreconditionerChoice {
         match scene.solver.preconditioner {
             crate::lang::scene::Preconditioner::Auto => {
-                let (kind, estimate) = crate::tfeti::precond_choice::choose(cluster);
+                let (kind, estimate) =
+                    crate::tfeti::precond_choice::choose(cluster, scene.glue_jump());
                 PreconditionerChoice {
                     kind,
                     auto: Some(estimate),

@@ -362,6 +362,11 @@ impl Report {
         let precond = match (&v.preconditioner.kind, &v.preconditioner.auto) {
             (None, _) => String::new(),
             (Some(_), None) => format!(", {} preconditioner", v.preconditioner.name()),
+            (Some(_), Some(e)) if e.jump >= crate::tfeti::precond_choice::JUMP => format!(
+                ", {} preconditioner by auto (moduli {}:1 across a glue)",
+                v.preconditioner.name(),
+                n.num(e.jump)
+            ),
             (Some(_), Some(_)) => format!(", {} preconditioner by auto", v.preconditioner.name()),
         };
         let predicted = match &v.active_set {

@@ -181,6 +181,22 @@ impl Scene {
     pub fn design_init(&self) -> Vec<f64> {
         self.design.iter().map(|d| d.init).collect()
     }
+
+    /// The largest ratio of Young's moduli across a `glue` (1 without one,
+    /// or where every glue ties alike materials): how far the stiffness
+    /// jumps across an equality row.
+    pub fn glue_jump(&self) -> f64 {
+        let young = |sel: &Selection| {
+            let body = self.bodies.get(sel.body)?;
+            Some(self.materials.get(body.material)?.young)
+        };
+        self.glues
+            .iter()
+            .filter_map(|g| Some((young(&g.primary)?, young(&g.secondary)?)))
+            .map(|(a, b)| a.max(b) / a.min(b))
+            .filter(|r| r.is_finite())
+            .fold(1.0, f64::max)
+    }
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]

@@ -25,6 +25,13 @@
 //! it where eight to thirty-six do (0.75-0.85x); a set-up term with a fixed
 //! count of applications would lose those to save this one.
 //!
+//! Where the stiffness jumps across a glue (bodies of materials [`JUMP`]
+//! times apart or more), the unpreconditioned iterations grow with the jump
+//! and the estimate's fixed ratio does not hold: Dirichlet, whose rows are
+//! weighed by the stiffness, takes a fraction of none's applications there
+//! (a layered scene at 1000:1: 276 -> 35 in 2D, where its `S_s` is as large
+//! as the dense `F_s`; BENCHMARKS.md), so `auto` takes it wherever it fits.
+//!
 //! The estimate is summed in whole nanoseconds over the subdomains of every
 //! rank (an exact integer all-reduce), so every rank decides alike.
 
@@ -40,6 +47,10 @@ use serde::Serialize;
 /// measured (0.63), so that a close call stays with none.
 pub const RATIO: f64 = 0.65;
 
+/// The ratio of Young's moduli across a glue from which `auto` takes
+/// Dirichlet wherever it fits the memory budget.
+pub const JUMP: f64 = 10.0;
+
 /// What `auto` weighed, per application of the whole cluster (seconds at the
 /// rates of [`super::local_f`]): `F`, the dense Schur complements, and their
 /// one-time set-up.
@@ -53,24 +64,27 @@ pub struct Estimate {
     pub fits: bool,
     /// Subdomains whose `F_s` is held dense.
     pub dense_f: usize,
+    /// The largest ratio of Young's moduli across a glue (1: none).
+    pub jump: f64,
 }
 
 impl Estimate {
     /// Whether Dirichlet is predicted to take less time than none over a
-    /// solve of [`PAYBACK`] applications. Not where any `F_s` is dense: its
+    /// solve of [`PAYBACK`] applications, or the stiffness jumps by
+    /// [`JUMP`] or more. Otherwise not where any `F_s` is dense: its
     /// `S_s` is as large (one row per touched dof, about), so an application
     /// costs twice and the count must halve, which it does not reliably
     /// (2D at H/h = 48, 7 of 9 blocks dense: none 0.17 s, Dirichlet 0.21 s;
     /// the rates of the sum overrate the few implicit ones beside them).
     pub fn dirichlet_pays(&self) -> bool {
-        self.fits
-            && self.dense_f == 0
-            && RATIO * (self.f + self.schur) * PAYBACK + self.setup < self.f * PAYBACK
+        let cheaper = RATIO * (self.f + self.schur) * PAYBACK + self.setup < self.f * PAYBACK;
+        self.fits && (self.jump >= JUMP || (self.dense_f == 0 && cheaper))
     }
 }
 
-/// The estimate for `cluster` (collective on a distributed one).
-pub fn estimate(cluster: &Cluster) -> Estimate {
+/// The estimate for `cluster` (collective on a distributed one), whose
+/// materials jump by `jump` across a glue.
+pub fn estimate(cluster: &Cluster, jump: f64) -> Estimate {
     let ns = |s: f64| (s * 1e9).round() as u64;
     let mut sums = [0u64; 5];
     let mut held = cluster.local_f_held();
@@ -90,12 +104,13 @@ pub fn estimate(cluster: &Cluster) -> Estimate {
         setup: s(sums[2]),
         fits: sums[3] == 0,
         dense_f: sums[4] as usize,
+        jump,
     }
 }
 
 /// The preconditioner `auto` takes on `cluster`, and why.
-pub fn choose(cluster: &Cluster) -> (Option<Kind>, Estimate) {
-    let e = estimate(cluster);
+pub fn choose(cluster: &Cluster, jump: f64) -> (Option<Kind>, Estimate) {
+    let e = estimate(cluster, jump);
     (e.dirichlet_pays().then_some(Kind::Dirichlet), e)
 }
 
@@ -110,6 +125,7 @@ mod tests {
             setup,
             fits: true,
             dense_f: 0,
+            jump: 1.0,
         }
     }
 
@@ -131,5 +147,22 @@ mod tests {
             ..estimate(1.0, 0.2, 1.0)
         };
         assert!(!dense.dirichlet_pays());
+        // A jump across a glue takes it even there, and against the times,
+        // but not beyond the memory budget.
+        let jump = Estimate {
+            jump: JUMP,
+            ..dense
+        };
+        assert!(jump.dirichlet_pays());
+        assert!(Estimate {
+            jump: JUMP,
+            ..estimate(1.0, 1.0, 0.0)
+        }
+        .dirichlet_pays());
+        assert!(!Estimate {
+            fits: false,
+            ..jump
+        }
+        .dirichlet_pays());
     }
 }
