@@ -8,6 +8,21 @@ use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
 use cso::sens::{Gradient, GradientError, GradientOptions};
 
+/// Three layers glued, the middle one 1000 times stiffer (2D, dense `F_s`,
+/// where `auto` otherwise takes none).
+pub const LAYERS_2D: &str = "scene layers { dim = 2 }
+material soft { E = 1 GPa, nu = 0.3 }
+material hard { E = 1000 GPa, nu = 0.3 }
+body a { material = soft, x = 0 .. 40 mm, y = 0 .. 10 mm, mesh = 16 x 4, subdomains = 4 x 1 }
+body b { material = hard, x = 0 .. 40 mm, y = 10 mm .. 20 mm, mesh = 16 x 4, subdomains = 4 x 1 }
+body c { material = soft, x = 0 .. 40 mm, y = 20 mm .. 30 mm, mesh = 16 x 4, subdomains = 4 x 1 }
+fix a.bottom
+glue ab { primary = a.top, secondary = b.bottom }
+glue bc { primary = b.top, secondary = c.bottom }
+traction c.top = (10 MPa, -20 MPa)
+solver { tolerance = 1e-8 }
+";
+
 /// A 2D block on a rigid floor cut into two subdomains at H/h = 64, whose
 /// `F_s` are applied by factor solves: where `preconditioner = auto` takes
 /// Dirichlet.

@@ -55,6 +55,12 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
         ("two_blocks", example("two_blocks"), vec![2, 3, 5]),
         ("semicoercive3d", example("semicoercive3d"), vec![2, 4]),
         ("semicoercive3d dirichlet", dirichlet, vec![3]),
+        // Dirichlet by auto, the rows weighed by stiffness across ranks.
+        (
+            "layers 1000:1",
+            compile(crate::fixture::LAYERS_2D, &options()).expect("checks"),
+            vec![2, 3],
+        ),
     ] {
         let serial = outcome(&scene, None).expect("serial solve");
         // The 3D scenes solve through a predicted active set, kept.

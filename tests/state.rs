@@ -459,21 +459,6 @@ fn auto_takes_dirichlet_only_where_f_is_applied_by_factor_solves() {
     assert_eq!(state.preconditioner.kind, None);
 }
 
-/// Three layers glued, the middle one 1000 times stiffer (2D, dense `F_s`,
-/// where `auto` otherwise takes none).
-const LAYERS_2D: &str = "scene layers { dim = 2 }
-material soft { E = 1 GPa, nu = 0.3 }
-material hard { E = 1000 GPa, nu = 0.3 }
-body a { material = soft, x = 0 .. 40 mm, y = 0 .. 10 mm, mesh = 16 x 4, subdomains = 4 x 1 }
-body b { material = hard, x = 0 .. 40 mm, y = 10 mm .. 20 mm, mesh = 16 x 4, subdomains = 4 x 1 }
-body c { material = soft, x = 0 .. 40 mm, y = 20 mm .. 30 mm, mesh = 16 x 4, subdomains = 4 x 1 }
-fix a.bottom
-glue ab { primary = a.top, secondary = b.bottom }
-glue bc { primary = b.top, secondary = c.bottom }
-traction c.top = (10 MPa, -20 MPa)
-solver { tolerance = 1e-8 }
-";
-
 /// Where the moduli jump by 10 or more across a glue, `auto` takes
 /// Dirichlet even on dense `F_s`, says why in the summary, and takes a
 /// fraction of none's applications for none's energy; alike moduli (the
@@ -482,7 +467,7 @@ solver { tolerance = 1e-8 }
 fn auto_takes_dirichlet_where_the_moduli_jump_across_a_glue() {
     use cso::lang::scene::Preconditioner;
     use cso::tfeti::precond::Kind;
-    let layers = scene(LAYERS_2D);
+    let layers = scene(crate::fixture::LAYERS_2D);
     let auto = solve_with(&layers, Preconditioner::Auto, 1e-8);
     assert_eq!(auto.preconditioner.kind, Some(Kind::Dirichlet));
     assert_eq!(auto.preconditioner.auto.expect("weighed").jump, 1000.0);
@@ -499,7 +484,7 @@ fn auto_takes_dirichlet_where_the_moduli_jump_across_a_glue() {
     assert!(3 * a < n, "{a} against {n}");
     let (ea, en) = (auto.energy(), none.energy());
     assert!((ea - en).abs() <= 1e-6 * en.abs(), "{ea} against {en}");
-    let alike = scene(&LAYERS_2D.replace("1000 GPa", "4 GPa"));
+    let alike = scene(&crate::fixture::LAYERS_2D.replace("1000 GPa", "4 GPa"));
     let state = solve_with(&alike, Preconditioner::Auto, 1e-8);
     assert_eq!(state.preconditioner.kind, None);
 }
