@@ -325,8 +325,7 @@ impl Scaling {
 
 /// How the equality rows' copies are weighed against each other (see the
 /// module doc).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize)]
-#[serde(rename_all = "snake_case")]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Weights {
     /// `A` the diagonal of the stiffness (the default): a stiff copy
     /// carries more of a row than a soft one.
@@ -340,11 +339,14 @@ pub enum Weights {
 /// The weight of every entry of every subdomain's rows (subdomains in order,
 /// entries as in [`Cluster::local_rows`]): `1 / K_s[d, d]` on the first
 /// `n` (equality) rows with stiffness weights, else 1. Gathered from the
-/// ranks that own the subdomains, so every rank holds the same.
+/// ranks that own the subdomains, so every rank holds the same (and takes
+/// the rows' weights alike where a diagonal is not positive: no stiffness
+/// to weigh by).
 fn entry_weights(cluster: &Cluster, n: usize, weights: Weights) -> Vec<Vec<f64>> {
     let len = |s: usize| cluster.local_rows(s).entries.len();
+    let ones = || (0..cluster.len()).map(|s| vec![1.0; len(s)]).collect();
     if weights == Weights::Rows {
-        return (0..cluster.len()).map(|s| vec![1.0; len(s)]).collect();
+        return ones();
     }
     let mine: Vec<f64> = cluster
         .map(|s, sub| {
@@ -363,6 +365,9 @@ fn entry_weights(cluster: &Cluster, n: usize, weights: Weights) -> Vec<Vec<f64>>
         })
         .concat();
     let all = cluster.gather(&mine, len);
+    if !all.iter().all(|w| w.is_finite() && *w > 0.0) {
+        return ones();
+    }
     let mut at = 0;
     (0..cluster.len())
         .map(|s| {
