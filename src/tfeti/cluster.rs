@@ -516,7 +516,7 @@ impl Cluster {
     /// Every rank's part of a vector with `len(s)` entries per subdomain,
     /// `mine` being this rank's (its subdomains in order): the whole vector,
     /// subdomains in order, on every rank.
-    pub(crate) fn gather(&self, mine: &[f64], len: impl Fn(usize) -> usize) -> Vec<f64> {
+    fn gather(&self, mine: &[f64], len: impl Fn(usize) -> usize) -> Vec<f64> {
         let counts: Vec<usize> = self
             .bounds
             .windows(2)
@@ -533,7 +533,11 @@ impl Cluster {
 
     /// One vector of length `len(s)` per subdomain, the owned ones given:
     /// every subdomain's, on every rank.
-    fn gather_each(&self, mine: Vec<Vec<f64>>, len: impl Fn(usize) -> usize) -> Vec<Vec<f64>> {
+    pub(crate) fn gather_each(
+        &self,
+        mine: Vec<Vec<f64>>,
+        len: impl Fn(usize) -> usize,
+    ) -> Vec<Vec<f64>> {
         if !self.is_distributed() {
             return mine;
         }

@@ -348,34 +348,25 @@ fn entry_weights(cluster: &Cluster, n: usize, weights: Weights) -> Vec<Vec<f64>>
     if weights == Weights::Rows {
         return ones();
     }
-    let mine: Vec<f64> = cluster
-        .map(|s, sub| {
-            let lr = cluster.local_rows(s);
-            let diagonal = sub.diagonal();
-            lr.entries
-                .iter()
-                .map(|&(k, d, _)| {
-                    if lr.rows[k] < n {
-                        1.0 / diagonal[d]
-                    } else {
-                        1.0
-                    }
-                })
-                .collect::<Vec<f64>>()
-        })
-        .concat();
-    let all = cluster.gather(&mine, len);
-    if !all.iter().all(|w| w.is_finite() && *w > 0.0) {
+    let mine = cluster.map(|s, sub| {
+        let lr = cluster.local_rows(s);
+        let diagonal = sub.diagonal();
+        lr.entries
+            .iter()
+            .map(|&(k, d, _)| {
+                if lr.rows[k] < n {
+                    1.0 / diagonal[d]
+                } else {
+                    1.0
+                }
+            })
+            .collect()
+    });
+    let all = cluster.gather_each(mine, len);
+    if !all.iter().flatten().all(|w| w.is_finite() && *w > 0.0) {
         return ones();
     }
-    let mut at = 0;
-    (0..cluster.len())
-        .map(|s| {
-            let piece = all[at..at + len(s)].to_vec();
-            at += len(s);
-            piece
-        })
-        .collect()
+    all
 }
 
 /// Distributed clusters: how to gather every subdomain's block product.
