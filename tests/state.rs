@@ -489,6 +489,51 @@ fn auto_takes_dirichlet_where_the_moduli_jump_across_a_glue() {
     assert_eq!(state.preconditioner.kind, None);
 }
 
+/// Where `F_s` is applied by its factor, the prediction's SMALBE runs on the
+/// factors rounded to single precision by default; the equality solves and
+/// the KKT check after it are in double precision, so the state is the one
+/// predicted in double precision to the tolerance (energy, multipliers, KKT
+/// residuals). Where every `F_s` is held dense it stays in double.
+#[test]
+fn a_prediction_in_single_precision_ends_in_the_double_precision_state() {
+    let mut single = example("scont3d");
+    single.solver.local_f = cso::lang::scene::LocalF::Implicit;
+    let mut double = single.clone();
+    double.solver.smalbe.single_prediction = Some(false);
+    let design = single.design_init();
+    let s = solve(&single, &design, &mut |_| {}).expect("solves");
+    let d = solve(&double, &design, &mut |_| {}).expect("solves");
+    let (hs, hd) = (
+        s.prediction.expect("predicted"),
+        d.prediction.expect("predicted"),
+    );
+    assert!(hs.single_precision && !hd.single_precision, "{hs:?} {hd:?}");
+    assert!(hs.kept && hd.kept, "{hs:?} {hd:?}");
+    assert!(s.converged() && d.converged());
+    let tol = single.solver.tolerance;
+    let k = &s.kkt;
+    assert!(
+        k.equilibrium <= tol && k.penetration <= tol && k.sign <= tol,
+        "{k:?}"
+    );
+    let (es, ed) = (s.energy(), d.energy());
+    assert!((es - ed).abs() <= 1e-6 * ed.abs(), "{es} against {ed}");
+    let top = d.lambda.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let worst = d
+        .lambda
+        .iter()
+        .zip(&s.lambda)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(
+        worst <= 1e-4 * top,
+        "multipliers differ by {worst} of {top}"
+    );
+    let mut dense = example("scont3d");
+    dense.solver.local_f = cso::lang::scene::LocalF::Explicit;
+    let e = solve(&dense, &design, &mut |_| {}).expect("solves");
+    assert!(!e.prediction.expect("predicted").single_precision);
+}
+
 /// A cold 3D contact solve predicts its active set (SMALBE at 1e-1, then
 /// equality solves on it) by default and not with `predict=off`; forced on
 /// in 2D it works there too. Either way the state is SMALBE's alone to the

@@ -372,7 +372,12 @@ impl Report {
         let predicted = match &v.active_set {
             None => String::new(),
             Some(p) => format!(
-                "; active set predicted by SMALBE at {} in {}, {} equality solve{} on it{}",
+                "; active set predicted by SMALBE{} at {} in {}, {} equality solve{} on it{}",
+                if p.single_precision {
+                    " in single precision"
+                } else {
+                    ""
+                },
                 n.num(p.tolerance),
                 p.smalbe_applications,
                 p.equality_solves,

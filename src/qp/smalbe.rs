@@ -133,6 +133,12 @@ pub struct SmalbeSettings {
     /// module): `Some(true)` in any dimension, `Some(false)` never, `None`
     /// (default) in 3D. Read by the state solve, not by SMALBE itself.
     pub predict: Option<bool>,
+    /// Whether the prediction's SMALBE applies `F` by the factors rounded to
+    /// single precision (where they fit the memory budget beside the
+    /// double ones): its answer is only a guess of the active set, which
+    /// the equality solves and the KKT check then take in double
+    /// precision. Default `true`.
+    pub single_prediction: bool,
     /// Projected CG (equality-only duals) stops early where its mean rate
     /// so far forecasts the budget `max_hessian` spent before the
     /// tolerance: the predicted active set's solves, whose budget is small
@@ -155,6 +161,7 @@ impl Default for SmalbeSettings {
             lagrangian_before_update: true,
             face_metric: true,
             predict: None,
+            single_prediction: true,
             forecast: false,
             tolerance: 1e-6,
             max_outer: 100,
@@ -170,7 +177,8 @@ impl Default for SmalbeSettings {
 /// `rho_factor`, `m0_factor`, `eta_factor`, `lag` is
 /// `lagrangian_before_update`. For benchmarks (`cso bench scaling --smalbe`),
 /// not for scenes. `metric` is `face_metric` (`on` or `off`); `predict` is
-/// `predict` (`on`, `off` or `auto`).
+/// `predict` (`on`, `off` or `auto`); `prediction` is `single_prediction`
+/// (`single` or `double`).
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct SmalbeOverrides {
     pub rho_factor: Option<f64>,
@@ -182,6 +190,8 @@ pub struct SmalbeOverrides {
     /// `Some(None)`: `predict=auto`; serialized as `on`, `off` or `auto`.
     #[serde(serialize_with = "predict_word")]
     pub predict: Option<Option<bool>>,
+    /// `single_prediction`: `prediction=single` or `double`.
+    pub single_prediction: Option<bool>,
 }
 
 /// `predict` as its word in the settings string (`null` where not set).
@@ -218,6 +228,9 @@ impl SmalbeOverrides {
         if let Some(v) = self.predict {
             settings.predict = v;
         }
+        if let Some(v) = self.single_prediction {
+            settings.single_prediction = v;
+        }
     }
 
     /// No override set.
@@ -231,7 +244,7 @@ impl std::str::FromStr for SmalbeOverrides {
 
     fn from_str(s: &str) -> Result<Self, String> {
         const EXPECTED: &str = "expected `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off,\
-             predict=on|off|auto` (any of them, comma-separated) or `default`";
+             predict=on|off|auto,prediction=single|double` (any of them, comma-separated) or `default`";
         let mut o = Self::default();
         if s.trim() == "default" {
             return Ok(o);
@@ -299,6 +312,18 @@ impl std::str::FromStr for SmalbeOverrides {
                     };
                     o.predict.replace(on).is_some()
                 }
+                "prediction" => {
+                    let single = match value {
+                        "single" => true,
+                        "double" => false,
+                        _ => {
+                            return Err(format!(
+                                "`prediction={value}`: prediction is `single` or `double` (the precision of its factor solves)"
+                            ))
+                        }
+                    };
+                    o.single_prediction.replace(single).is_some()
+                }
                 _ => return Err(format!("unknown SMALBE setting `{key}`: {EXPECTED}")),
             };
             if slot_taken {
@@ -335,6 +360,10 @@ impl std::fmt::Display for SmalbeOverrides {
                 None => "auto",
             };
             parts.push(format!("predict={v}"));
+        }
+        if let Some(single) = self.single_prediction {
+            let v = if single { "single" } else { "double" };
+            parts.push(format!("prediction={v}"));
         }
         if parts.is_empty() {
             f.write_str("default")

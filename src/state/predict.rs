@@ -43,6 +43,10 @@ pub const ATTEMPTS: usize = 4;
 pub struct Prediction {
     /// SMALBE's tolerance for it.
     pub tolerance: f64,
+    /// Whether that SMALBE applied `F` by the factors rounded to single
+    /// precision (`SmalbeSettings::single_prediction`, where some `F_s` is
+    /// applied by its factor and the rounded factors fit).
+    pub single_precision: bool,
     /// SMALBE's Hessian applications to it (over every search round).
     pub smalbe_applications: usize,
     /// Equality-only solves on it and its corrections (every round's).
@@ -109,7 +113,15 @@ impl Operators {
             loose_info = i.clone();
             observer(i)
         };
-        let first = match self.solve(f, c, &loose, None, &mut seen) {
+        // The guess in single precision where its rounded factors fit.
+        let cluster = self.system.dual().cluster();
+        let single = settings.single_prediction
+            && cluster.local_f_stats().explicit < cluster.len()
+            && cluster.single_precision_fits();
+        cluster.set_single_precision(single);
+        let first = self.solve(f, c, &loose, None, &mut seen);
+        cluster.set_single_precision(false);
+        let first = match first {
             Ok(first) => first,
             Err(_) => {
                 let mut after = |i: &QpInfo| observer(&loose_info.followed_by(i));
@@ -121,6 +133,7 @@ impl Operators {
         let spent = first.info.hessian_applications;
         let mut prediction = Prediction {
             tolerance: TOLERANCE,
+            single_precision: single,
             smalbe_applications: spent,
             equality_solves: 0,
             kept: false,

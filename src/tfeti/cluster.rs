@@ -25,6 +25,7 @@ use super::subdomain::Subdomain;
 use faer::{Accum, Mat, MatMut, MatRef, Par};
 use rayon::prelude::*;
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
@@ -76,6 +77,9 @@ pub struct Cluster {
     /// How the coarse problems of this cluster's duals are stored
     /// (`SolverSettings::coarse`); carried to clusters derived from it.
     coarse: CoarseForm,
+    /// Whether `F` is applied by the factors rounded to single precision
+    /// ([`Cluster::set_single_precision`]).
+    single: AtomicBool,
 }
 
 /// Every subdomain's `G_s` on every rank, from each rank's `owned` blocks.
@@ -277,6 +281,7 @@ impl Cluster {
             explicit: vec![None; subs.len()],
             local_f: LocalFStats::default(),
             coarse: CoarseForm::Auto,
+            single: AtomicBool::new(false),
             subs,
             first,
             comm,
@@ -441,6 +446,35 @@ impl Cluster {
     /// holds dense.
     pub fn local_f_stats(&self) -> LocalFStats {
         self.local_f
+    }
+
+    /// Applies `F` (in [`Self::apply_f`] and what calls it; not the loads,
+    /// the primal solution or the block products) by the subdomains'
+    /// factors rounded to single precision, or again in double (which frees
+    /// the rounded factors). For iterations whose answer is checked in
+    /// double precision after: see [`Subdomain::apply_pinv_single`].
+    pub fn set_single_precision(&self, on: bool) {
+        self.single.store(on, Ordering::Relaxed);
+        if !on {
+            self.subs.iter().for_each(|s| s.release_single());
+        }
+    }
+
+    /// Whether the rounded factors of every rank (of the subdomains whose
+    /// `F_s` is not held dense) fit beside its dense `F_s` in the memory
+    /// budget of [`budget`]. Collective: every rank answers
+    /// alike.
+    pub fn single_precision_fits(&self) -> bool {
+        let rounded: usize = self
+            .subs
+            .iter()
+            .zip(&self.explicit)
+            .filter(|(_, f)| f.is_none())
+            .map(|(s, _)| s.single_bytes())
+            .sum();
+        let mut over = [u64::from(self.local_f_held() + rounded > budget())];
+        self.comm.all_reduce_u64(&mut over, Op::Sum);
+        over[0] == 0
     }
 
     /// Bytes of the dense `F_s` this process holds (its own subdomains).
@@ -736,7 +770,11 @@ impl Cluster {
         for &(r, d, v) in &lr.entries {
             w.x[d] += v * value(r);
         }
-        sub.apply_pinv(&mut w.x);
+        if self.single.load(Ordering::Relaxed) {
+            sub.apply_pinv_single(&mut w.x);
+        } else {
+            sub.apply_pinv(&mut w.x);
+        }
         lr.gather(&w.x, &mut w.y);
     }
 

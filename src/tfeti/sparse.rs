@@ -266,6 +266,28 @@ pub fn llt_solve(
     llt_solve_block(symbolic, l_values, x, 1, buf);
 }
 
+/// [`llt_solve`] with the factor's values rounded to `f32` (a factor made in
+/// `f64` and rounded: the same symbolic structure, half the bytes).
+pub fn llt_solve_single(
+    symbolic: &SymbolicCholesky<usize>,
+    l_values: &[f32],
+    x: &mut [f32],
+    buf: &mut MemBuffer,
+) {
+    let n = x.len();
+    LltRef::<usize, f32>::new(symbolic, l_values).solve_in_place_with_conj(
+        Conj::No,
+        MatMut::from_column_major_slice_mut(x, n, 1),
+        Par::Seq,
+        MemStack::new(buf),
+    );
+}
+
+/// A work buffer for [`llt_solve_single`].
+pub fn solve_scratch_single(symbolic: &SymbolicCholesky<usize>) -> MemBuffer {
+    MemBuffer::new(symbolic.solve_in_place_scratch::<f32>(1, Par::Seq))
+}
+
 /// A work buffer for solves with `cols` right-hand sides on `symbolic`.
 pub fn solve_scratch(symbolic: &SymbolicCholesky<usize>, cols: usize) -> MemBuffer {
     MemBuffer::new(symbolic.solve_in_place_scratch::<f64>(cols.max(1), Par::Seq))

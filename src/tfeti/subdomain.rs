@@ -29,7 +29,8 @@ pub use super::sparse::SymbolicCache;
 use super::sparse::SymbolicKey;
 use super::sparse::{
     ldlt_solve, ldlt_solve_block, llt_forward_rows, llt_numeric, llt_solve, llt_solve_block,
-    lower_gram, mirror_lower, solve_scratch, symbolic_best, FactorShape, UpperCsc,
+    llt_solve_single, lower_gram, mirror_lower, solve_scratch, solve_scratch_single, symbolic_best,
+    FactorShape, UpperCsc,
 };
 use crate::fem::{Element, Section};
 use crate::model::SubdomainMesh;
@@ -90,6 +91,17 @@ pub enum Kind {
 struct Work {
     buf: MemBuffer,
     x: Vec<f64>,
+    /// The factor in single precision, its solve's right-hand side and work
+    /// space: made on the first [`Subdomain::apply_pinv_single`], freed by
+    /// [`Subdomain::release_single`].
+    single: Option<Single>,
+}
+
+/// `K_rr`'s factor rounded to `f32` (the same symbolic factorization).
+struct Single {
+    l_values: Vec<f32>,
+    x: Vec<f32>,
+    buf: MemBuffer,
 }
 
 /// How `K_s^+` was obtained.
@@ -405,6 +417,7 @@ impl Subdomain {
             work: Mutex::new(Work {
                 buf,
                 x: vec![0.0; next],
+                single: None,
             }),
             schurs: Mutex::new(Vec::new()),
         })
@@ -443,6 +456,7 @@ impl Subdomain {
             work: Mutex::new(Work {
                 buf: reg.buf,
                 x: vec![0.0; n],
+                single: None,
             }),
             schurs: Mutex::new(Vec::new()),
         })
@@ -570,6 +584,55 @@ impl Subdomain {
         }
         memo.push((boundary.to_vec(), form, s.clone()));
         Ok(s)
+    }
+
+    /// `x <- K^+ x` by the factor rounded to single precision (about half
+    /// the bytes read, so up to twice as fast where the solve is bound by
+    /// memory traffic), accurate to about `cond(K_rr) * 6e-8` relative: for
+    /// iterations whose answer is checked in double precision after (the
+    /// predicted active set's SMALBE). The rounded factor is made on first
+    /// use and kept until [`Self::release_single`]. Classical FETI's
+    /// regularized factor is applied in double precision.
+    pub fn apply_pinv_single(&self, x: &mut [f64]) {
+        let Factor::Fixed {
+            reduced,
+            symbolic,
+            l_values,
+            ..
+        } = &self.factor
+        else {
+            return self.apply_pinv(x);
+        };
+        let mut guard = lock(&self.work);
+        let work = &mut *guard;
+        let single = work.single.get_or_insert_with(|| Single {
+            l_values: l_values.iter().map(|&v| v as f32).collect(),
+            x: vec![0.0; work.x.len()],
+            buf: solve_scratch_single(symbolic),
+        });
+        to_reduced(reduced, x, &mut work.x);
+        for (s, &d) in single.x.iter_mut().zip(&work.x) {
+            *s = d as f32;
+        }
+        llt_solve_single(symbolic, &single.l_values, &mut single.x, &mut single.buf);
+        for (d, &s) in work.x.iter_mut().zip(&single.x) {
+            *d = f64::from(s);
+        }
+        from_reduced(reduced, &work.x, x);
+    }
+
+    /// Frees the single-precision factor of [`Self::apply_pinv_single`].
+    pub fn release_single(&self) {
+        lock(&self.work).single = None;
+    }
+
+    /// Bytes the single-precision factor would hold (none for classical
+    /// FETI's, applied in double precision).
+    pub fn single_bytes(&self) -> usize {
+        match &self.factor {
+            Factor::Fixed { l_values, .. } => l_values.len() * std::mem::size_of::<f32>(),
+            Factor::Regularized { .. } => 0,
+        }
     }
 
     /// `x <- K^+ x`.

@@ -161,6 +161,36 @@ fn f_equals_the_assembled_b_kplus_bt_implicit_and_explicit() {
     }
 }
 
+/// `F` by the factors rounded to single precision is `B K^+ B^T` to
+/// single precision's rounding (and no closer: the rounded factors are
+/// used), and switching back gives double precision's bits again.
+#[test]
+fn f_in_single_precision_is_b_kplus_bt_to_its_rounding() {
+    let (cluster, rows, _) = glued_pair();
+    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
+    let b = dense_b(&rows, n0, n0 + n1);
+    let kp = block_diag(
+        &dense_pinv(cluster.subdomain(0)),
+        &dense_pinv(cluster.subdomain(1)),
+    );
+    let f_ref = &b * &kp * b.transpose();
+    let before = dense_f(&cluster);
+    cluster.set_single_precision(true);
+    let err = max_abs(&(&dense_f(&cluster) - &f_ref)) / max_abs(&f_ref);
+    assert!(
+        err > 1e-10 && err < 1e-5,
+        "single: ||F - B K+ B^T|| / ||F|| = {err:e}"
+    );
+    cluster.set_single_precision(false);
+    let after = dense_f(&cluster);
+    assert_eq!(
+        max_abs(&(&after - &before)),
+        0.0,
+        "double precision's bits again"
+    );
+    assert!(cluster.single_precision_fits());
+}
+
 #[test]
 fn dense_local_f_carries_over_to_fewer_rows_and_to_the_next_cluster() {
     let (four, rows) = four_blocks();
