@@ -63,9 +63,14 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
         ),
     ] {
         let serial = outcome(&scene, None).expect("serial solve");
-        // The 3D scenes solve through a predicted active set, kept.
+        // The 3D scenes solve through a predicted active set, kept, guessed
+        // in single precision (each rank rounds its own factors).
         if name.starts_with("semicoercive3d") {
             assert_eq!(serial["solver"]["active_set"]["kept"], true, "{name}");
+            assert_eq!(
+                serial["solver"]["active_set"]["single_precision"], true,
+                "{name}"
+            );
         }
         for p in ranks {
             for (r, got) in on_ranks(&scene, p).into_iter().enumerate() {
