@@ -109,9 +109,10 @@ pub struct Solve {
     /// Dense or implicit local F (default: the scene's `solver { local_f }`).
     #[arg(long, value_enum)]
     pub local_f: Option<LocalF>,
-    /// SMALBE's tuning, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off`
-    /// (any of them), for benchmarks: `metric=off` is the solver before the
-    /// face metric.
+    /// SMALBE's tuning, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off,
+    /// predict=on|off|auto,prediction=single|double` (any of them), for
+    /// benchmarks: `metric=off` is the solver before the face metric,
+    /// `prediction=double` before the single-precision prediction.
     #[arg(long, value_name = "SETTINGS", value_parser = parse_smalbe)]
     pub smalbe: Option<SmalbeOverrides>,
     #[command(flatten)]
@@ -359,9 +360,9 @@ pub struct Sweep {
     /// repeatable, or comma-separated).
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [LocalF::Auto])]
     pub local_f: Vec<LocalF>,
-    /// SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off` (any of
-    /// them; rho, m0 relative to ||PFP||, eta to ||b||) or `default`
-    /// (repeatable).
+    /// SMALBE's parameters, `rho=F,m0=F,beta=F,eta=F,lag=before|after,metric=on|off,
+    /// predict=on|off|auto,prediction=single|double` (any of them; rho, m0
+    /// relative to ||PFP||, eta to ||b||) or `default` (repeatable).
     #[arg(long, value_name = "SETTINGS", default_value = "default", value_parser = parse_smalbe)]
     pub smalbe: Vec<SmalbeOverrides>,
 }

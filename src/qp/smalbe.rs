@@ -1448,6 +1448,14 @@ mod tests {
                 ..SmalbeSettings::default()
             }
         );
+        // The prediction's precision, and back from its words.
+        let o: SmalbeOverrides = "predict=on,prediction=double".parse().unwrap();
+        let mut s = SmalbeSettings::default();
+        assert!(s.single_prediction);
+        o.apply(&mut s);
+        assert_eq!((s.predict, s.single_prediction), (Some(true), false));
+        assert_eq!(o.to_string(), "predict=on,prediction=double");
+        assert_eq!(o.to_string().parse::<SmalbeOverrides>(), Ok(o));
         let none: SmalbeOverrides = "default".parse().unwrap();
         assert!(none.is_empty() && !o.is_empty());
         assert_eq!(none.to_string(), "default");
@@ -1460,6 +1468,7 @@ mod tests {
             ("eta=inf", "eta must be a positive number"),
             ("beta=1", "beta must be a number above 1"),
             ("lag=sometimes", "`before` or `after`"),
+            ("prediction=half", "`single` or `double`"),
             ("gamma=1", "unknown SMALBE setting `gamma`"),
             ("rho=1,rho=2", "`rho` is given twice"),
         ] {

@@ -13,6 +13,14 @@
 //! projected CG with it solves the same scene glued in 20. Predicting and
 //! then solving on the active set takes 56 there (BENCHMARKS.md, "A
 //! predicted active set").
+//!
+//! The prediction is a guess that the equality solves and the KKT check
+//! then take in double precision, so its SMALBE applies `F` by the factors
+//! rounded to single precision (`SmalbeSettings::single_prediction`): half
+//! the bytes of a memory-bound solve, an `F` accurate to about `1e-5`
+//! against a tolerance of `1e-1`. On the 3D scaling scene the same counts
+//! and residuals follow (BENCHMARKS.md, "The prediction in single
+//! precision").
 
 use super::active_set::{self, Outcome, Plan};
 use super::{Attempt, Operators};
