@@ -510,24 +510,9 @@ fn a_prediction_in_single_precision_ends_in_the_double_precision_state() {
     assert!(hs.single_precision && !hd.single_precision, "{hs:?} {hd:?}");
     assert!(hs.kept && hd.kept, "{hs:?} {hd:?}");
     assert!(s.converged() && d.converged());
-    let tol = single.solver.tolerance;
-    let k = &s.kkt;
-    assert!(
-        k.equilibrium <= tol && k.penetration <= tol && k.sign <= tol,
-        "{k:?}"
-    );
     let (es, ed) = (s.energy(), d.energy());
     assert!((es - ed).abs() <= 1e-6 * ed.abs(), "{es} against {ed}");
-    let top = d.lambda.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-    let worst = d
-        .lambda
-        .iter()
-        .zip(&s.lambda)
-        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-    assert!(
-        worst <= 1e-4 * top,
-        "multipliers differ by {worst} of {top}"
-    );
+    same_state_to_the_tolerance("single", &d, &s, single.solver.tolerance);
     let mut dense = example("scont3d");
     dense.solver.local_f = cso::lang::scene::LocalF::Explicit;
     let e = solve(&dense, &design, &mut |_| {}).expect("solves");
@@ -571,21 +556,31 @@ fn a_predicted_active_set_gives_smalbes_state_in_fewer_applications() {
             (ea - ep).abs() <= 1e-5 * ea.abs(),
             "{name}: {ep} against {ea}"
         );
-        let top = alone.lambda.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        let worst = alone
-            .lambda
-            .iter()
-            .zip(&predicted.lambda)
-            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
-        assert!(
-            worst <= 1e-4 * top,
-            "{name}: multipliers differ by {worst} of {top}"
-        );
-        let tol = scene.solver.tolerance;
-        let k = &predicted.kkt;
-        assert!(
-            k.equilibrium <= tol && k.penetration <= tol && k.sign <= tol,
-            "{name}: {k:?}"
-        );
+        same_state_to_the_tolerance(name, &alone, &predicted, scene.solver.tolerance);
     }
+}
+
+/// `got`'s multipliers are `reference`'s to 1e-4 of the largest, and its
+/// KKT residuals (equilibrium, penetration, sign) within `tol`.
+fn same_state_to_the_tolerance(
+    name: &str,
+    reference: &cso::state::State,
+    got: &cso::state::State,
+    tol: f64,
+) {
+    let top = reference.lambda.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let worst = reference
+        .lambda
+        .iter()
+        .zip(&got.lambda)
+        .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+    assert!(
+        worst <= 1e-4 * top,
+        "{name}: multipliers differ by {worst} of {top}"
+    );
+    let k = &got.kkt;
+    assert!(
+        k.equilibrium <= tol && k.penetration <= tol && k.sign <= tol,
+        "{name}: {k:?}"
+    );
 }

@@ -132,16 +132,21 @@ fn dense_f(cluster: &Cluster) -> Mat<f64> {
     f
 }
 
-#[test]
-fn f_equals_the_assembled_b_kplus_bt_implicit_and_explicit() {
-    let (mut cluster, rows, _) = glued_pair();
+/// `B K^+ B^T` of [`glued_pair`]'s two subdomains, assembled dense.
+fn assembled_f(cluster: &Cluster, rows: &[Row]) -> Mat<f64> {
     let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
-    let b = dense_b(&rows, n0, n0 + n1);
+    let b = dense_b(rows, n0, n0 + n1);
     let kp = block_diag(
         &dense_pinv(cluster.subdomain(0)),
         &dense_pinv(cluster.subdomain(1)),
     );
-    let f_ref = &b * &kp * b.transpose();
+    &b * &kp * b.transpose()
+}
+
+#[test]
+fn f_equals_the_assembled_b_kplus_bt_implicit_and_explicit() {
+    let (mut cluster, rows, _) = glued_pair();
+    let f_ref = assembled_f(&cluster, &rows);
     let err = max_abs(&(&dense_f(&cluster) - &f_ref)) / max_abs(&f_ref);
     assert!(err < 1e-10, "implicit: ||F - B K+ B^T|| / ||F|| = {err:e}");
     let stats = cluster.set_local_f(LocalF::Explicit, None);
@@ -167,13 +172,7 @@ fn f_equals_the_assembled_b_kplus_bt_implicit_and_explicit() {
 #[test]
 fn f_in_single_precision_is_b_kplus_bt_to_its_rounding() {
     let (cluster, rows, _) = glued_pair();
-    let (n0, n1) = (cluster.dofs(0), cluster.dofs(1));
-    let b = dense_b(&rows, n0, n0 + n1);
-    let kp = block_diag(
-        &dense_pinv(cluster.subdomain(0)),
-        &dense_pinv(cluster.subdomain(1)),
-    );
-    let f_ref = &b * &kp * b.transpose();
+    let f_ref = assembled_f(&cluster, &rows);
     let before = dense_f(&cluster);
     cluster.set_single_precision(true);
     let err = max_abs(&(&dense_f(&cluster) - &f_ref)) / max_abs(&f_ref);
