@@ -144,6 +144,11 @@ pub struct SmalbeSettings {
     /// tolerance: the predicted active set's solves, whose budget is small
     /// and whose failure SMALBE takes over. Default `false`.
     pub forecast: bool,
+    /// Projected CG (equality-only duals) on a predicted active set whose
+    /// rows from this index on are contacts held: it stops early where
+    /// one of them clearly pulls ([`crate::tfeti::solve`]), for the active
+    /// set step to let it go. Default `None`.
+    pub pull_check: Option<usize>,
     /// Inner MPRGP parameters. Its `tolerance` is not used: the inner
     /// tolerance is SMALBE's adaptive `min(M ||G x||, eta)`; its
     /// `max_iterations` caps each inner solve, and its `abar_factor` is
@@ -163,6 +168,7 @@ impl Default for SmalbeSettings {
             predict: None,
             single_prediction: true,
             forecast: false,
+            pull_check: None,
             tolerance: 1e-6,
             max_outer: 100,
             max_hessian: 20_000,

@@ -31,7 +31,7 @@ use crate::tfeti::error::SolveError;
 use crate::tfeti::kkt::{gap_scale, kkt, Kkt};
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
-use crate::tfeti::solve::SlipBounds;
+use crate::tfeti::solve::{pulling, SlipBounds, PULL_RESIDUAL};
 use crate::tfeti::solve::{DualSolution, DualStart};
 use std::sync::Arc;
 
@@ -111,7 +111,10 @@ pub(crate) fn kept_preconditioner(scene: &Scene) -> Option<Kind> {
 
 /// Solves the state on the rows `problem` holds as equalities and the contact
 /// rows with a positive multiplier in `previous` (one per row of `problem`),
-/// correcting that set where the KKT conditions on every row of `dual` fail;
+/// correcting that set where the KKT conditions on every row of `dual` fail
+/// (a cold solve's prediction, `plan.predicted`, also where its equality
+/// solve stops early on a held contact that clearly pulls: that row is let
+/// go, [`crate::tfeti::solve::PULL_RESIDUAL`]);
 /// keeps the first solution whose sign, penetration and equilibrium
 /// residuals are within the tolerance of `settings`; at most `plan.attempts`
 /// sets within `plan.budget` Hessian applications. The dual preconditioner
@@ -150,11 +153,12 @@ pub(super) fn solve(
         if hessian >= budget {
             break;
         }
+        let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
         let settings = SmalbeSettings {
             max_hessian: budget - hessian,
+            pull_check: plan.predicted.then(|| kept.partition_point(|&i| i < n_eq)),
             ..settings.clone()
         };
-        let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
         // Rigid motions that only the contacts left out would hold: not
         // this way.
         let Some((system, solved)) =
@@ -174,12 +178,23 @@ pub(super) fn solve(
         };
         hessian += sol.info.hessian_applications;
         inner += sol.info.inner_iterations;
-        if sol.info.status != Status::Converged {
-            break;
-        }
         let mut lambda = vec![0.0; m];
         for (k, &i) in kept.iter().enumerate() {
             lambda[i] = sol.lambda[k];
+        }
+        if sol.info.status != Status::Converged {
+            // Stopped early where a held contact clearly pulls: let it go.
+            let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
+            let pulls = match settings.pull_check {
+                Some(first) if stopped => pulling(&sol.lambda, first),
+                _ => Vec::new(),
+            };
+            if pulls.is_empty() {
+                break;
+            }
+            pulls.iter().for_each(|&k| held[kept[k]] = false);
+            start = feasible(&lambda, n_eq);
+            continue;
         }
         last = Some(feasible(&lambda, n_eq));
         // The held rows (gluing, supports, held contacts) hold to the CG's
