@@ -245,21 +245,26 @@ contact seat { primary = floor, secondary = b.bottom }
         (sol, attempt, how, rows)
     }
 
+    /// The block's operators and SMALBE settings.
+    fn block() -> (Operators, SmalbeSettings) {
+        let scene =
+            crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
+        let design = scene.design_init();
+        let setup = setup_on(&scene, &design, None, serial(), false, None, true).expect("sets up");
+        let ops = Operators::of(&scene, setup, false).expect("operators");
+        (ops, smalbe_settings(&scene))
+    }
+
     /// [`solved`], with the Hessian applications the progress observer saw.
     fn observed(
         attempts: Option<usize>,
     ) -> (DualSolution, Attempt, Option<Prediction>, usize, Vec<usize>) {
         let mut seen = Vec::new();
         let mut observer = |i: &QpInfo| seen.push(i.hessian_applications);
-        let scene =
-            crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
-        let design = scene.design_init();
-        let setup = setup_on(&scene, &design, None, serial(), false, None, true).expect("sets up");
-        let ops = Operators::of(&scene, setup, false).expect("operators");
+        let (ops, settings) = block();
         let problem = &ops.problem;
         let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
         let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
-        let settings = smalbe_settings(&scene);
         let contact_rows = problem.rows.len() - problem.n_equality;
         match attempts {
             Some(attempts) => {
@@ -284,15 +289,10 @@ contact seat { primary = floor, secondary = b.bottom }
     /// than where the wrong set is solved out (a warm start's plan).
     #[test]
     fn a_held_row_that_pulls_stops_its_equality_solve_early() {
-        let scene =
-            crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
-        let design = scene.design_init();
-        let setup = setup_on(&scene, &design, None, serial(), false, None, true).expect("sets up");
-        let ops = Operators::of(&scene, setup, false).expect("operators");
+        let (ops, settings) = block();
         let problem = &ops.problem;
         let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
         let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
-        let settings = smalbe_settings(&scene);
         let smalbe = ops
             .solve(&f, &c, &settings, None, &mut |_| {})
             .expect("solves");
