@@ -2,12 +2,17 @@
 //! and projector give the replicated dual's bits on every rank count, and its
 //! projected CG the same iterates, bit for bit, on 1 to 16 ranks (exact dot
 //! products), solving `P F P x = b` to its tolerance by the replicated
-//! operators' own residual.
+//! operators' own residual; MPRGP over it the same iterates on 1 to 7 ranks,
+//! at the replicated MPRGP's minimum; SMALBE over it the same multipliers on
+//! 1 to 4 ranks, `cso solve`'s to the tolerance.
 
 use crate::fixture::example;
 use cso::lang::Scene;
+use cso::qp::{mprgp_over, MprgpSettings, Operator};
 use cso::tfeti::comm::{thread_ranks, Comm};
-use cso::tfeti::split::{projected_cg, SplitDual, Traffic};
+use cso::tfeti::dual::ProjectedF;
+use cso::tfeti::split::{projected_cg, SplitDual, SplitProjectedF, Traffic};
+use cso::tfeti::split_solve::smalbe_solve;
 use std::sync::Arc;
 
 /// What one rank saw: `F v`, `P v` and the CG's solution (whole vectors, as
@@ -188,6 +193,254 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
                 let t = got.root_p_traffic;
                 assert_eq!(t.collectives, 0, "{at}: {t:?}");
                 assert!(t.messages <= 2 * (p as u64 - 1) + 2 * rounds, "{at}: {t:?}");
+            }
+        }
+    }
+}
+
+/// What one rank's MPRGP on the split dual gave: the whole solution (bits),
+/// the counts, and whether every rank agreed on the projected gradient.
+struct Solved {
+    x: Vec<u64>,
+    iterations: usize,
+    applications: usize,
+    steps: (usize, usize, usize),
+    gp: u64,
+}
+
+/// The test QP: `min 1/2 x^T P F P x - b^T x` with `b = P v` and the contact
+/// rows at or above zero (the gluing rows free), and a start off the bounds
+/// that CG steps cross (so that expansions bind rows). Bounded: `b` is
+/// orthogonal to the kernel `Im G^T` of `P F P`.
+fn bound_qp(dual: &cso::tfeti::dual::Dual, n_eq: usize) -> [Vec<f64>; 3] {
+    let m = dual.multipliers();
+    let v = probe(m);
+    let mut b = v.clone();
+    dual.project(&mut b);
+    // The length of a gradient step along b: the solution's scale.
+    let mut ab = vec![0.0; m];
+    ProjectedF::new(dual, 1.0).apply(&b, &mut ab);
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let step = dot(&b, &b) / dot(&b, &ab);
+    let glued = |i: usize, a: f64, c: f64| if i < n_eq { a } else { c };
+    let lower = (0..m).map(|i| glued(i, f64::NEG_INFINITY, 0.0)).collect();
+    let start = (0..m).map(|i| glued(i, 0.0, v[i].abs() * step)).collect();
+    [b, lower, start]
+}
+
+fn mprgp_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Solved {
+    let state = cso::state::solve_with(
+        scene,
+        &scene.design_init(),
+        &cso::state::SolveOptions {
+            comm,
+            ..Default::default()
+        },
+        &mut |_| {},
+    )
+    .expect("solves");
+    let split = SplitDual::new(&state.dual);
+    let [b, lower, start] = bound_qp(&state.dual, state.problem.n_equality);
+    let (b, lower) = (split.restrict(&b), split.restrict(&lower));
+    let mut x = split.restrict(&start);
+    let settings = MprgpSettings {
+        tolerance: 1e-8 * split.dot(&b, &b).sqrt(),
+        ..Default::default()
+    };
+    let a = SplitProjectedF::new(&split, 1.0);
+    let info = mprgp_over(&a, &b, &lower, &mut x, &settings, None, &split);
+    assert_eq!(info.status, cso::qp::Status::Converged, "{info:?}");
+    Solved {
+        x: bits(&split.assemble(&x)),
+        iterations: info.inner_iterations,
+        applications: info.hessian_applications,
+        steps: (
+            info.steps.cg,
+            info.steps.expansions,
+            info.steps.proportioning,
+        ),
+        gp: info.projected_gradient.to_bits(),
+    }
+}
+
+/// `1/2 x^T A x - b^T x` and `||g^P||` by the replicated operators.
+fn objective(dual: &cso::tfeti::dual::Dual, b: &[f64], lower: &[f64], x: &[f64]) -> (f64, f64) {
+    let a = ProjectedF::new(dual, 1.0);
+    let mut ax = vec![0.0; x.len()];
+    a.apply(x, &mut ax);
+    let mut f = 0.0;
+    let mut gp2 = 0.0;
+    for i in 0..x.len() {
+        f += 0.5 * x[i] * ax[i] - b[i] * x[i];
+        let g = ax[i] - b[i];
+        let gp = if x[i] > lower[i] { g } else { g.min(0.0) };
+        gp2 += gp * gp;
+    }
+    (f, gp2.sqrt())
+}
+
+#[test]
+fn mprgp_on_the_split_dual_gives_the_same_bits_on_every_rank_count() {
+    for (name, ranks) in [
+        ("two_blocks", vec![2, 3, 5]),
+        ("semicoercive3d", vec![2, 7]),
+    ] {
+        let scene = example(name);
+        let serial = mprgp_on_rank(&scene, None);
+        // The same QP on the replicated dual by the one-process MPRGP (plain
+        // sums): the same minimum, and the split's answer is a minimizer.
+        let state = cso::state::solve(&scene, &scene.design_init(), &mut |_| {}).expect("solves");
+        let dual = &state.dual;
+        let [b, lower, mut y] = bound_qp(dual, state.problem.n_equality);
+        let bn = b.iter().map(|v| v * v).sum::<f64>().sqrt();
+        let settings = MprgpSettings {
+            tolerance: 1e-8 * bn,
+            ..Default::default()
+        };
+        let info = cso::qp::mprgp(
+            &ProjectedF::new(dual, 1.0),
+            &b,
+            &lower,
+            &mut y,
+            &settings,
+            None,
+        );
+        assert_eq!(info.status, cso::qp::Status::Converged, "{name}: {info:?}");
+        let x: Vec<f64> = serial.x.iter().map(|&v| f64::from_bits(v)).collect();
+        let (fx, gpx) = objective(dual, &b, &lower, &x);
+        let (fy, _) = objective(dual, &b, &lower, &y);
+        assert!(
+            fy < 0.0,
+            "{name}: a QP whose minimum is not trivial ({fy:e})"
+        );
+        assert!(
+            (fx - fy).abs() <= 1e-9 * fy.abs(),
+            "{name}: minimum {fx:e} (split) against {fy:e} (replicated)"
+        );
+        assert!(gpx <= 1e-7 * bn, "{name}: ||g^P|| {gpx:e} of {bn:e}");
+        assert!(
+            x.iter().zip(&lower).all(|(x, l)| x >= l),
+            "{name}: feasible"
+        );
+        let active = x.iter().zip(&lower).filter(|(x, l)| x == l).count();
+        assert!(active > 0, "{name}: no bound met ({:?})", serial.steps);
+        assert!(
+            serial.steps.1 > 0,
+            "{name}: no expansion ({:?})",
+            serial.steps
+        );
+        for p in ranks {
+            let seen: Vec<Solved> = std::thread::scope(|s| {
+                let scene = &scene;
+                let handles: Vec<_> = thread_ranks(p)
+                    .into_iter()
+                    .map(|r| s.spawn(move || mprgp_on_rank(scene, Some(Arc::new(r)))))
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("rank"))
+                    .collect()
+            });
+            for (rank, got) in seen.iter().enumerate() {
+                let at = format!("{name}, rank {rank} of {p}");
+                assert_eq!(got.iterations, serial.iterations, "{at}");
+                assert_eq!(got.applications, serial.applications, "{at}");
+                assert_eq!(got.steps, serial.steps, "{at}");
+                assert_eq!(got.gp, serial.gp, "{at}");
+                assert!(got.x == serial.x, "{at}: MPRGP's iterates differ");
+            }
+        }
+    }
+}
+
+/// What one rank's SMALBE on the split dual gave: the whole multipliers
+/// (bits) and the counts.
+struct Smalbe {
+    lambda: Vec<u64>,
+    counts: (usize, usize, usize),
+}
+
+fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f64>) {
+    let state = cso::state::solve_with(
+        scene,
+        &scene.design_init(),
+        &cso::state::SolveOptions {
+            comm,
+            ..Default::default()
+        },
+        &mut |_| {},
+    )
+    .expect("solves");
+    let problem = &state.problem;
+    let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
+    let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+    let settings = cso::qp::SmalbeSettings {
+        tolerance: scene.solver.tolerance,
+        max_outer: 1000,
+        ..Default::default()
+    };
+    let sol = smalbe_solve(
+        &state.dual,
+        &f,
+        &c,
+        problem.n_equality,
+        &settings,
+        &mut |_| {},
+    );
+    assert_eq!(
+        sol.info.status,
+        cso::qp::Status::Converged,
+        "{:?}",
+        sol.info
+    );
+    let split = SplitDual::new(&state.dual);
+    let i = &sol.info;
+    let seen = Smalbe {
+        lambda: bits(&split.assemble(&sol.lambda)),
+        counts: (
+            i.outer_iterations,
+            i.inner_iterations,
+            i.hessian_applications,
+        ),
+    };
+    (seen, state.lambda.clone())
+}
+
+#[test]
+fn smalbe_on_the_split_dual_gives_the_solves_multipliers_on_every_rank_count() {
+    for (name, ranks) in [("two_blocks", vec![2, 3]), ("semicoercive3d", vec![4])] {
+        let scene = example(name);
+        let (serial, reference) = smalbe_on_rank(&scene, None);
+        // The replicated solve's multipliers (its default path: prediction,
+        // preconditioner), to the tolerance.
+        let lambda: Vec<f64> = serial.lambda.iter().map(|&v| f64::from_bits(v)).collect();
+        let diff = lambda
+            .iter()
+            .zip(&reference)
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            .sqrt();
+        let size = reference.iter().map(|v| v * v).sum::<f64>().sqrt();
+        assert!(diff <= 1e-5 * size, "{name}: {diff:e} of {size:e}");
+        for p in ranks {
+            let seen: Vec<Smalbe> = std::thread::scope(|s| {
+                let scene = &scene;
+                let handles: Vec<_> = thread_ranks(p)
+                    .into_iter()
+                    .map(|r| s.spawn(move || smalbe_on_rank(scene, Some(Arc::new(r))).0))
+                    .collect();
+                handles
+                    .into_iter()
+                    .map(|h| h.join().expect("rank"))
+                    .collect()
+            });
+            for (rank, got) in seen.iter().enumerate() {
+                let at = format!("{name}, rank {rank} of {p}");
+                assert_eq!(got.counts, serial.counts, "{at}");
+                assert!(
+                    got.lambda == serial.lambda,
+                    "{at}: SMALBE's multipliers differ"
+                );
             }
         }
     }

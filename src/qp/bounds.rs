@@ -270,6 +270,10 @@ fn disc_step(y: [f64; 2], q: [f64; 2], r: f64) -> f64 {
 }
 
 impl Set for Blocks<'_> {
+    type Reduce = super::reduce::Whole;
+    fn reduce(&self) -> &Self::Reduce {
+        &super::reduce::Whole
+    }
     fn project(&self, x: &mut [f64]) {
         for (i, l, u) in self.scalars() {
             if x[i] < l {
@@ -551,7 +555,7 @@ mod tests {
             let g: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
             let p: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
             let ap: Vec<f64> = (0..n).map(|_| rng.symmetric()).collect();
-            let old = Lower(&lower);
+            let old = Lower::whole(&lower);
             let new = Blocks::new(n, &lower, Some(&upper), &[]).expect("valid");
             let a_bar = 0.3;
             let (s, t) = (old.split(&x, &g, a_bar), new.split(&x, &g, a_bar));

@@ -88,6 +88,9 @@ pub enum Breakdown {
     BlockCgCurvature,
     /// Block CG: the search block lost its rank before every column converged.
     BlockRankLost,
+    /// SMALBE over ranks: upper bounds and discs (friction) need MPGP's
+    /// blocks, which run in one process only so far.
+    BlocksOnRanks,
     /// SMALBE: the inner MPRGP run broke down in an outer iteration.
     Smalbe {
         inner: Box<Breakdown>,
@@ -197,6 +200,10 @@ impl fmt::Display for Breakdown {
                 f,
                 "the search block lost its rank before the residuals converged"
             ),
+            Breakdown::BlocksOnRanks => write!(
+                f,
+                "upper bounds and discs (friction) are not solved over split ranks yet"
+            ),
             Breakdown::Smalbe {
                 inner,
                 outer_iteration,
@@ -289,6 +296,10 @@ mod tests {
             (
                 Breakdown::BlockRankLost,
                 "the search block lost its rank before the residuals converged",
+            ),
+            (
+                Breakdown::BlocksOnRanks,
+                "upper bounds and discs (friction) are not solved over split ranks yet",
             ),
             (
                 Breakdown::Smalbe {

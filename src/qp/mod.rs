@@ -11,12 +11,14 @@ mod bounds;
 mod breakdown;
 mod face_metric;
 mod mprgp;
+pub mod reduce;
 mod set;
 pub mod smalbe;
 
 pub use bounds::Disc;
 pub use breakdown::{Breakdown, MprgpStep};
-pub use mprgp::{estimate_norm, mpgp, mprgp, MprgpSettings};
+pub use mprgp::{estimate_norm, mpgp, mprgp, mprgp_over, MprgpSettings};
+pub use reduce::{Reduce, Whole};
 pub use smalbe::{FeasibilityTest, SmalbeOverrides, SmalbeSettings, SmalbeWarm};
 
 /// A symmetric positive semidefinite operator, applied matrix-free: `y = A x`.

@@ -26,6 +26,7 @@
 //! constraints with applications*, Math. Program. 135 (2012) (MPGP).
 
 use super::bounds::{Blocks, Disc};
+use super::reduce::{Reduce, Terms, Whole};
 pub(super) use super::set::{Set, Split};
 use super::{Breakdown, MprgpStep, Operator, QpInfo, Status};
 
@@ -94,7 +95,36 @@ pub fn mprgp(
         info.status = Status::Breakdown(why);
         return info;
     }
-    minimize(a, b, &Lower(lower), x, settings, norm_a, info)
+    minimize(a, b, &Lower::whole(lower), x, settings, norm_a, info)
+}
+
+/// [`mprgp`] on a vector split over ranks: `a`, `b`, `lower` and `x` are this
+/// rank's rows, and `reduce` forms the sums and minima across the ranks (the
+/// split dual's, `tfeti::split`). Collective: every rank calls it, and every
+/// rank's iterates are the parts of one iteration, whose bits do not depend
+/// on the split where `reduce`'s sums are exact.
+pub fn mprgp_over<R: Reduce>(
+    a: &dyn Operator,
+    b: &[f64],
+    lower: &[f64],
+    x: &mut [f64],
+    settings: &MprgpSettings,
+    norm_a: Option<f64>,
+    reduce: &R,
+) -> QpInfo {
+    let mut info = QpInfo::fresh();
+    let bad = check_dimensions(a.dim(), b, lower, x);
+    // Every rank stops, or none: the check is local.
+    if !reduce.all(bad.is_none()) {
+        info.status = Status::Breakdown(bad.unwrap_or(Breakdown::Dimensions {
+            operator: a.dim(),
+            b: b.len(),
+            lower: lower.len(),
+            x: x.len(),
+        }));
+        return info;
+    }
+    minimize(a, b, &Lower::over(lower, reduce), x, settings, norm_a, info)
 }
 
 /// Minimizes `1/2 x^T A x - b^T x` over boxes `lower_i <= x_i <= upper_i`
@@ -144,8 +174,14 @@ fn minimize<S: Set>(
     let norm = match norm_a {
         Some(v) => v,
         None => {
-            start_vector(&mut ws.p);
-            let (v, used) = estimate_norm(a, &mut ws.p, &mut ws.ap, settings.power_iterations);
+            set.reduce().start_vector(&mut ws.p);
+            let (v, used) = estimate_norm_over(
+                a,
+                &mut ws.p,
+                &mut ws.ap,
+                settings.power_iterations,
+                set.reduce(),
+            );
             info.hessian_applications += used;
             v
         }
@@ -158,7 +194,7 @@ fn minimize<S: Set>(
             return info;
         }
     };
-    let b_norm = norm2(b);
+    let b_norm = set.reduce().norm(b);
     let scale = if b_norm > 0.0 { b_norm } else { 1.0 };
     let capacity = (settings.max_iterations / HISTORY_EVERY + 2).min(MAX_HISTORY);
     let mut history = Vec::with_capacity(capacity);
@@ -269,34 +305,59 @@ pub(super) struct Run {
 
 /// Lower bounds `x_i >= lower_i` only: MPRGP's own loops, unchanged (the
 /// chopped gradient `min(g, 0)` is its reduced form, and moving along it
-/// never leaves the set).
-pub(super) struct Lower<'a>(pub(super) &'a [f64]);
+/// never leaves the set). Its sums and minima are taken by `R`: over the
+/// whole vector ([`Whole`], the default), or over ranks.
+pub(super) struct Lower<'a, R = Whole> {
+    lower: &'a [f64],
+    reduce: &'a R,
+}
 
-impl Set for Lower<'_> {
+impl<'a> Lower<'a> {
+    /// Lower bounds on a whole vector.
+    pub(super) fn whole(lower: &'a [f64]) -> Self {
+        Lower {
+            lower,
+            reduce: &Whole,
+        }
+    }
+}
+
+impl<'a, R: Reduce> Lower<'a, R> {
+    pub(super) fn over(lower: &'a [f64], reduce: &'a R) -> Self {
+        Lower { lower, reduce }
+    }
+}
+
+impl<R: Reduce> Set for Lower<'_, R> {
+    type Reduce = R;
+    fn reduce(&self) -> &R {
+        self.reduce
+    }
     fn project(&self, x: &mut [f64]) {
-        project(x, self.0);
+        project(x, self.lower);
     }
     fn split(&self, x: &[f64], g: &[f64], a_bar: f64) -> Split {
-        split(x, self.0, g, a_bar)
+        split(x, self.lower, g, a_bar, self.reduce)
     }
     fn free_gradient(&self, x: &[f64], g: &[f64], p: &mut [f64]) {
-        free_gradient(x, self.0, g, p);
+        free_gradient(x, self.lower, g, p);
     }
     fn chop(&self, x: &[f64], z: &mut [f64]) {
-        for ((zi, &xi), &li) in z.iter_mut().zip(x).zip(self.0) {
+        for ((zi, &xi), &li) in z.iter_mut().zip(x).zip(self.lower) {
             if xi <= li {
                 *zi = 0.0;
             }
         }
     }
     fn conjugate(&self, x: &[f64], g: &[f64], ap: &[f64], pap: f64, p: &mut [f64]) {
-        let lower = self.0;
-        let mut phi_ap = 0.0;
+        let lower = self.lower;
+        let mut phi_ap = R::Sum::default();
         for (((&xi, &li), &gi), &api) in x.iter().zip(lower).zip(g.iter()).zip(ap.iter()) {
             if xi > li {
-                phi_ap += gi * api;
+                phi_ap.add(gi * api);
             }
         }
+        let [phi_ap] = self.reduce.totals([phi_ap]);
         let c = phi_ap / pap;
         for (((pi, &xi), &li), &gi) in p.iter_mut().zip(x.iter()).zip(lower).zip(g.iter()) {
             let phi = if xi > li { gi } else { 0.0 };
@@ -304,22 +365,23 @@ impl Set for Lower<'_> {
         }
     }
     fn feasible_step(&self, x: &[f64], p: &[f64]) -> (f64, usize) {
-        feasible_step(x, self.0, p)
+        let (t, i) = feasible_step(x, self.lower, p);
+        self.reduce.least(t, i)
     }
     fn bind(&self, x: &mut [f64], _p: &[f64], blocking: usize) {
         if blocking < x.len() {
-            x[blocking] = self.0[blocking];
+            x[blocking] = self.lower[blocking];
         }
     }
     fn expand(&self, x: &mut [f64], g: &[f64], a_bar: f64) {
-        for ((xi, &li), &gi) in x.iter_mut().zip(self.0).zip(g.iter()) {
+        for ((xi, &li), &gi) in x.iter_mut().zip(self.lower).zip(g.iter()) {
             if *xi > li {
                 *xi = (*xi - a_bar * gi).max(li);
             }
         }
     }
     fn chopped(&self, x: &[f64], g: &[f64], _a_bar: f64, beta2: f64, d: &mut [f64]) -> f64 {
-        for (((pi, &xi), &li), &gi) in d.iter_mut().zip(x.iter()).zip(self.0).zip(g.iter()) {
+        for (((pi, &xi), &li), &gi) in d.iter_mut().zip(x.iter()).zip(self.lower).zip(g.iter()) {
             *pi = if xi > li { 0.0 } else { gi.min(0.0) };
         }
         // g^T d = ||min(g, 0)||^2 on the active set.
@@ -329,32 +391,37 @@ impl Set for Lower<'_> {
         (step, usize::MAX)
     }
     fn contains_origin(&self) -> bool {
-        self.0.iter().all(|&l| l <= 0.0)
+        self.reduce.all(self.lower.iter().all(|&l| l <= 0.0))
     }
     fn origin_distance(&self) -> f64 {
-        let p0: f64 = self.0.iter().map(|&l| l.max(0.0).powi(2)).sum();
+        let mut p0 = R::Sum::default();
+        for &l in self.lower {
+            p0.add(l.max(0.0).powi(2));
+        }
+        let [p0] = self.reduce.totals([p0]);
         p0.sqrt()
     }
 }
 
-fn split(x: &[f64], lower: &[f64], g: &[f64], a_bar: f64) -> Split {
-    let mut beta2 = 0.0;
-    let mut phit_phi = 0.0;
+fn split<R: Reduce>(x: &[f64], lower: &[f64], g: &[f64], a_bar: f64, reduce: &R) -> Split {
+    let mut beta2 = R::Sum::default();
+    let mut phit_phi = R::Sum::default();
     for ((&xi, &li), &gi) in x.iter().zip(lower).zip(g) {
         if xi > li {
             let reduced = ((xi - li) / a_bar).min(gi);
-            phit_phi += reduced * gi;
+            phit_phi.add(reduced * gi);
         } else {
             let chopped = gi.min(0.0);
-            beta2 += chopped * chopped;
+            beta2.add(chopped * chopped);
         }
     }
-    let mut phi2 = 0.0;
+    let mut phi2 = R::Sum::default();
     for ((&xi, &li), &gi) in x.iter().zip(lower).zip(g) {
         if xi > li {
-            phi2 += gi * gi;
+            phi2.add(gi * gi);
         }
     }
+    let [beta2, phit_phi, phi2] = reduce.totals([beta2, phit_phi, phi2]);
     Split {
         beta2,
         phit_phi,
@@ -385,7 +452,7 @@ fn precondition<S: Set>(
     set.free_gradient(x, g, r);
     m.apply(r, z);
     set.chop(x, z);
-    let descent = dot(r, z);
+    let descent = set.reduce().dot(r, z);
     if !(descent > 0.0 && descent.is_finite()) {
         z.copy_from_slice(r);
     }
@@ -536,16 +603,17 @@ fn cg_step<S: Set>(
 ) -> Result<(), Breakdown> {
     q.a.apply(&ws.p, &mut ws.ap);
     out.applications += 1;
-    let pap = dot(&ws.p, &ws.ap);
+    let r = q.set.reduce();
+    let pap = r.dot(&ws.p, &ws.ap);
     if pap.is_nan() || pap <= 0.0 {
         return Err(Breakdown::Curvature {
             step: MprgpStep::Cg,
             curvature: pap,
-            direction_norm: norm2(&ws.p),
+            direction_norm: r.norm(&ws.p),
             mprgp_step: out.iterations,
         });
     }
-    let a_cg = dot(&ws.g, &ws.p) / pap;
+    let a_cg = r.dot(&ws.g, &ws.p) / pap;
     let (a_f, blocking) = q.set.feasible_step(x, &ws.p);
     if a_cg <= a_f {
         axpy(-a_cg, &ws.p, x);
@@ -584,7 +652,7 @@ fn conjugate_direction<S: Set>(q: &Fixed<S>, x: &[f64], pap: f64, ws: &mut Works
     let Workspace { g, p, ap, z, r } = ws;
     if let Some(m) = q.precond {
         precondition(m, x, q.set, g, r, z);
-        let c = dot(z, ap) / pap;
+        let c = q.set.reduce().dot(z, ap) / pap;
         for (pi, &zi) in p.iter_mut().zip(z.iter()) {
             *pi = zi - c * *pi;
         }
@@ -628,12 +696,11 @@ fn expansion_step<S: Set>(
         if !q.guard || applications > GUARD_HALVINGS {
             break;
         }
-        let change: f64 = x
-            .iter()
-            .zip(ap.iter())
-            .zip(g.iter().zip(p.iter()))
-            .map(|((y, x0), (gy, g0))| 0.5 * (gy + g0) * (y - x0))
-            .sum();
+        let mut change = <S::Reduce as Reduce>::Sum::default();
+        for ((y, x0), (gy, g0)) in x.iter().zip(ap.iter()).zip(g.iter().zip(p.iter())) {
+            change.add(0.5 * (gy + g0) * (y - x0));
+        }
+        let [change] = q.set.reduce().totals([change]);
         if change <= 0.0 || change.is_nan() {
             break;
         }
@@ -667,12 +734,12 @@ fn proportioning_step<S: Set>(
     let gd = q.set.chopped(x, g, q.a_bar, beta2, p);
     q.a.apply(p, ap);
     out.applications += 1;
-    let pap = dot(p, ap);
+    let pap = q.set.reduce().dot(p, ap);
     if pap.is_nan() || pap <= 0.0 {
         return Err(Breakdown::Curvature {
             step: MprgpStep::Proportioning,
             curvature: pap,
-            direction_norm: norm2(p),
+            direction_norm: q.set.reduce().norm(p),
             mprgp_step: out.iterations,
         });
     }
@@ -712,19 +779,6 @@ pub(super) fn axpy(alpha: f64, x: &[f64], y: &mut [f64]) {
 
 pub(super) use crate::num::vector::{dot, norm as norm2};
 
-/// A deterministic start vector for the power method: positive, with entries
-/// varying pseudo-randomly so that it is not orthogonal to the dominant
-/// eigenvector of a structured (e.g. symmetric) operator.
-pub(super) fn start_vector(v: &mut [f64]) {
-    let mut state: u64 = 0x9E37_79B9_7F4A_7C15;
-    for vi in v.iter_mut() {
-        state = state
-            .wrapping_mul(6_364_136_223_846_793_005)
-            .wrapping_add(1_442_695_040_888_963_407);
-        *vi = 0.5 + (state >> 11) as f64 / (1u64 << 53) as f64;
-    }
-}
-
 /// Estimates `||A||` by `iterations` power iterations (at least one) from the
 /// vector in `v`, which holds the last normalized iterate on return (a warm
 /// start for a later estimate). Returns the estimate `||A v||` with `||v|| = 1`,
@@ -739,9 +793,20 @@ pub fn estimate_norm(
     w: &mut [f64],
     iterations: usize,
 ) -> (f64, usize) {
+    estimate_norm_over(a, v, w, iterations, &Whole)
+}
+
+/// [`estimate_norm`] with the norms taken by `reduce` (split vectors: collective).
+pub(super) fn estimate_norm_over<R: Reduce>(
+    a: &dyn Operator,
+    v: &mut [f64],
+    w: &mut [f64],
+    iterations: usize,
+    reduce: &R,
+) -> (f64, usize) {
     let mut estimate = 0.0;
     let mut used = 0;
-    let nv = norm2(v);
+    let nv = reduce.norm(v);
     if nv.is_nan() || nv <= 0.0 || !nv.is_finite() {
         return (f64::NAN, used);
     }
@@ -749,7 +814,7 @@ pub fn estimate_norm(
     for _ in 0..iterations.max(1) {
         a.apply(v, w);
         used += 1;
-        estimate = norm2(w);
+        estimate = reduce.norm(w);
         if estimate.is_nan() || estimate <= 0.0 || !estimate.is_finite() {
             break;
         }
@@ -1065,7 +1130,7 @@ pub(super) mod tests {
             let lower = random_lower(n, 0.3, &mut rng);
             let exact = enumerate_bounds(&a, &b, &lower);
             let mut ws = Workspace::new(n);
-            start_vector(&mut ws.p);
+            Whole.start_vector(&mut ws.p);
             let (norm, _) = estimate_norm(&a, &mut ws.p, &mut ws.ap, 30);
             let params = Params {
                 guard_expansion: true,
@@ -1084,7 +1149,7 @@ pub(super) mod tests {
             let out = run(
                 &a,
                 &b,
-                &Lower(&lower),
+                &Lower::whole(&lower),
                 &mut x,
                 &params,
                 &mut ws,

@@ -18,6 +18,9 @@ pub(super) struct Split {
 /// strictly inside it, active otherwise; `phi` is `g` on the free blocks.
 /// Implementations allocate nothing here.
 pub(super) trait Set {
+    /// Where its sums and minima are taken (one process, or ranks).
+    type Reduce: super::reduce::Reduce;
+    fn reduce(&self) -> &Self::Reduce;
     /// `x = P(x)`, the projection onto the set.
     fn project(&self, x: &mut [f64]);
     /// `||beta~||^2`, `phi~^T phi` and `||g^P||` at `x` (see [`Split`]).

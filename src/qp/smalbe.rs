@@ -51,9 +51,10 @@ use std::cell::Cell;
 use super::bounds::{Blocks, Disc};
 use super::face_metric::FaceMetric;
 use super::mprgp::{
-    self, axpy, check_dimensions, dot, estimate_norm, norm2, start_vector, step_length, Lower,
+    self, axpy, check_dimensions, dot, estimate_norm_over, norm2, step_length, Lower,
     MprgpSettings, Params, Set, Workspace,
 };
+use super::reduce::{Reduce, Whole};
 use super::{Breakdown, Equality, Operator, QpInfo, Status};
 
 /// Parameters of [`solve`]. Scale-dependent ones are relative to `||A||`
@@ -542,6 +543,22 @@ pub fn solve(
     start: Option<&SmalbeWarm>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> (QpInfo, SmalbeWarm) {
+    solve_on_ranks(problem, x, settings, start, observer, &Whole)
+}
+
+/// [`solve`] on a vector split over ranks: `problem`'s `A`, `b`, `lower`
+/// and `x` are this rank's rows, `G x` is whole on every rank (the split
+/// dual's `SplitOrthonormal`), and `reduce` forms the sums and minima
+/// across ranks. Collective; lower bounds only (no upper bounds or discs
+/// yet) and no face metric (it needs `G`'s columns in one process).
+pub fn solve_on_ranks<R: Reduce>(
+    problem: &Problem,
+    x: &mut [f64],
+    settings: &SmalbeSettings,
+    start: Option<&SmalbeWarm>,
+    observer: &mut dyn FnMut(&QpInfo),
+    reduce: &R,
+) -> (QpInfo, SmalbeWarm) {
     let mut end = SmalbeWarm::default();
     let mut info = QpInfo {
         status: Status::MaxIterations,
@@ -556,15 +573,24 @@ pub fn solve(
         per_outer: Vec::new(),
     };
     let n = problem.a.dim();
-    if let Some(why) = check_dimensions(n, problem.b, problem.lower, x) {
-        info.status = Status::Breakdown(why);
+    let bad = check_dimensions(n, problem.b, problem.lower, x);
+    // Every rank stops, or none: the check is local.
+    if !reduce.all(bad.is_none()) {
+        info.status = Status::Breakdown(bad.unwrap_or(Breakdown::Dimensions {
+            operator: n,
+            b: problem.b.len(),
+            lower: problem.lower.len(),
+            x: x.len(),
+        }));
         return (info, end);
     }
     if problem.upper.is_none() && problem.discs.is_empty() {
-        let set = Lower(problem.lower);
+        let set = Lower::over(problem.lower, reduce);
         solve_over(
             problem, &set, x, settings, start, observer, &mut info, &mut end,
         );
+    } else if !R::WHOLE {
+        info.status = Status::Breakdown(Breakdown::BlocksOnRanks);
     } else {
         match Blocks::new(n, problem.lower, problem.upper, problem.discs) {
             Ok(set) => solve_over(
@@ -589,7 +615,7 @@ fn solve_over<S: Set>(
     end: &mut SmalbeWarm,
 ) {
     let n = problem.a.dim();
-    let b_norm = norm2(problem.b);
+    let b_norm = set.reduce().norm(problem.b);
     if b_norm == 0.0 && set.contains_origin() {
         x.fill(0.0);
         info.status = Status::Converged;
@@ -642,8 +668,9 @@ impl<'a> Setup<'a> {
         let norm_a = match known {
             Some((norm_a, _)) => norm_a,
             None => {
-                start_vector(&mut ws.p);
-                let (norm_a, used) = estimate_norm(problem.a, &mut ws.p, &mut ws.ap, power);
+                set.reduce().start_vector(&mut ws.p);
+                let (norm_a, used) =
+                    estimate_norm_over(problem.a, &mut ws.p, &mut ws.ap, power, set.reduce());
                 info.hessian_applications += used;
                 norm_a
             }
@@ -661,7 +688,8 @@ impl<'a> Setup<'a> {
         let norm_h = match known {
             Some((_, norm_h)) => norm_h,
             None => {
-                let (norm_h, used) = estimate_norm(&hessian, &mut ws.p, &mut ws.ap, power);
+                let (norm_h, used) =
+                    estimate_norm_over(&hessian, &mut ws.p, &mut ws.ap, power, set.reduce());
                 info.hessian_applications += used;
                 norm_h
             }
@@ -674,7 +702,7 @@ impl<'a> Setup<'a> {
                 return None;
             }
         };
-        let b_norm = norm2(problem.b);
+        let b_norm = set.reduce().norm(problem.b);
         let scale = if b_norm > 0.0 {
             b_norm
         } else {
@@ -748,8 +776,9 @@ impl Multipliers {
     /// `M /= beta` where the Lagrangian did not increase enough (the test of
     /// the module docs, its penalty `rho/2 ||G x||_W^2`).
     #[allow(clippy::too_many_arguments)]
-    fn update(
+    fn update<R: Reduce>(
         &mut self,
+        reduce: &R,
         problem: &Problem,
         setup: &Setup,
         settings: &SmalbeSettings,
@@ -761,7 +790,7 @@ impl Multipliers {
         let rho = setup.rho;
         // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T W G) x - b~,
         // at mu = mu_k here and at mu_{k+1} after the update.
-        let lagrangian_before = 0.5 * (dot(x, g) - dot(x, &self.b_tilde));
+        let lagrangian_before = 0.5 * (reduce.dot(x, g) - reduce.dot(x, &self.b_tilde));
         self.wgx.copy_from_slice(&self.gx);
         let penalty = match setup.hessian.metric.borrow().as_ref() {
             Some(w) => {
@@ -777,7 +806,7 @@ impl Multipliers {
         let lagrangian = if settings.lagrangian_before_update {
             lagrangian_before
         } else {
-            0.5 * (dot(x, g) - dot(x, &self.b_tilde))
+            0.5 * (reduce.dot(x, g) - reduce.dot(x, &self.b_tilde))
         };
         if k > 0 && lagrangian < self.lagrangian_prev + 0.5 * rho * penalty {
             self.big_m /= settings.beta;
@@ -893,7 +922,7 @@ fn outer_loop<S: Set>(
     set.project(x);
 
     for k in 0..settings.max_outer {
-        if k > 0 && face_metric(problem, setup, settings, x) {
+        if k > 0 && S::Reduce::WHOLE && face_metric(problem, setup, settings, x) {
             g_ready = false;
         }
         let params = Params {
@@ -977,7 +1006,16 @@ fn outer_loop<S: Set>(
             observer(info);
             return;
         }
-        own.update(problem, setup, settings, k, x, &mut ws.g, feasibility);
+        own.update(
+            set.reduce(),
+            problem,
+            setup,
+            settings,
+            k,
+            x,
+            &mut ws.g,
+            feasibility,
+        );
         observer(info);
     }
     info.status = Status::MaxIterations;

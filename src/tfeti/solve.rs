@@ -263,7 +263,7 @@ fn slip_sets(
 
 /// `||P F P||`: the start's, or by power iteration from a deterministic
 /// start; with the applications that took (0 for the start's).
-fn projected_norm(
+pub(crate) fn projected_norm(
     dual: &Dual,
     settings: &SmalbeSettings,
     start: Option<&DualStart>,

@@ -31,10 +31,12 @@
 //! the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
-use super::comm::{Comm, RankFailure, Stats};
+use super::comm::{Comm, Op, RankFailure, Stats};
 use super::dual::Dual;
 use super::split_coarse::RootCoarse;
 use crate::num::exact::{ExactSum, WORDS};
+use crate::qp::reduce::{order_key, start_values, Reduce};
+use crate::qp::{Equality, Operator};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
@@ -316,7 +318,7 @@ impl<'a> SplitDual<'a> {
     fn counts(&self) -> Vec<usize> {
         let mut n = vec![0u64; self.comm.size()];
         n[self.comm.rank()] = self.plan.owned.len() as u64;
-        self.comm.all_reduce_u64(&mut n, super::comm::Op::Sum);
+        self.comm.all_reduce_u64(&mut n, Op::Sum);
         n.into_iter().map(|c| c as usize).collect()
     }
 
@@ -384,21 +386,34 @@ impl<'a> SplitDual<'a> {
 
     /// `x <- P x = x - G^T (G G^T)^-1 G x` on the owned rows.
     pub fn project(&self, x: &mut [f64]) {
+        let z = self.coarse_solve(self.g_times(x));
+        let gtz = self.gt_times(&z);
+        for (a, b) in x.iter_mut().zip(gtz) {
+            *a -= b;
+        }
+    }
+
+    /// This rank's part of `G x` (its subdomains' coarse unknowns) from the
+    /// owned rows of `x`: the halo, then the replicated `G x`'s loop per
+    /// subdomain, reading the halo by position.
+    fn g_times(&self, x: &[f64]) -> Vec<f64> {
         let cluster = self.cluster;
         let t = self.halo(x);
-        // G x: every owned subdomain's kernel part, then gathered.
-        let mine: Vec<f64> = cluster
+        cluster
             .map(|s, _| {
                 let at = &self.plan.sub_at[s - cluster.owned().start];
                 let k = cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
-                // The replicated `G x`'s loop, reading the halo by position.
                 let mut z = vec![0.0; k];
                 g_block_times(cluster.g_block(s), at, &t, &mut z);
                 z
             })
-            .concat();
-        let z = self.coarse_solve(mine);
-        // G^T z: the owned subdomains' local rows, summed by the owners.
+            .concat()
+    }
+
+    /// `G^T z` on the owned rows from this rank's part `z` of a coarse
+    /// vector: the owned subdomains' local rows, summed by the owners.
+    fn gt_times(&self, z: &[f64]) -> Vec<f64> {
+        let cluster = self.cluster;
         let first = cluster.kernel_offset(cluster.owned().start);
         let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
             let (o, e) = (
@@ -409,10 +424,17 @@ impl<'a> SplitDual<'a> {
             g_block_t_times(cluster.g_block(s), &z[o..e], &mut ts);
             ts
         });
-        let gtz = self.sum(parts.concat());
-        for (a, b) in x.iter_mut().zip(gtz) {
-            *a -= b;
-        }
+        self.sum(parts.concat())
+    }
+
+    /// Coarse unknowns per rank.
+    fn coarse_counts(&self) -> Vec<usize> {
+        let cluster = self.cluster;
+        cluster
+            .bounds()
+            .windows(2)
+            .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
+            .collect()
     }
 
     /// `(G G^T)^-1 z` on this rank's coarse unknowns from its part `mine`:
@@ -423,12 +445,7 @@ impl<'a> SplitDual<'a> {
             Coarse::Root(root) => return root.solve(&*self.comm, mine),
             Coarse::Replicated(dual) => dual,
         };
-        let bounds = cluster.bounds();
-        let counts: Vec<usize> = bounds
-            .windows(2)
-            .map(|w| cluster.kernel_offset(w[1]) - cluster.kernel_offset(w[0]))
-            .collect();
-        let mut z = self.comm.all_gather(&mine, &counts);
+        let mut z = self.comm.all_gather(&mine, &self.coarse_counts());
         dual.coarse_solve(&mut z);
         let own = cluster.owned();
         z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)].to_vec()
@@ -441,7 +458,7 @@ impl<'a> SplitDual<'a> {
             .iter()
             .flat_map(|(a, b)| crate::num::exact::dot(a, b).to_words())
             .collect();
-        self.comm.all_reduce_u64(&mut words, super::comm::Op::Sum);
+        self.comm.all_reduce_u64(&mut words, Op::Sum);
         words
             .chunks_exact(WORDS)
             .map(|w| ExactSum::from_words(w).value())
@@ -458,6 +475,144 @@ impl<'a> SplitDual<'a> {
         let before = self.comm.stats();
         let out = f(self);
         (out, Traffic::between(before, self.comm.stats()))
+    }
+}
+
+/// The split vectors' reductions for the QP solvers ([`crate::qp::mprgp_over`]):
+/// exact sums merged by one integer all-reduce, minima by two (the value,
+/// then the lowest global row that has it), so every rank count gives the
+/// same bits.
+impl Reduce for SplitDual<'_> {
+    type Sum = ExactSum;
+    const WHOLE: bool = false;
+    fn dot(&self, a: &[f64], b: &[f64]) -> f64 {
+        SplitDual::dot(self, a, b)
+    }
+    fn norm(&self, a: &[f64]) -> f64 {
+        SplitDual::dot(self, a, a).sqrt()
+    }
+    fn totals<const N: usize>(&self, parts: [ExactSum; N]) -> [f64; N] {
+        let mut words: Vec<u64> = parts.iter().flat_map(|p| p.to_words()).collect();
+        self.comm.all_reduce_u64(&mut words, Op::Sum);
+        let mut out = [0.0; N];
+        for (o, w) in out.iter_mut().zip(words.chunks_exact(WORDS)) {
+            *o = ExactSum::from_words(w).value();
+        }
+        out
+    }
+    fn least(&self, t: f64, local: usize) -> (f64, usize) {
+        // NaN never blocks (`t < a_f` is false for it in the loops).
+        let key = if local == usize::MAX || t.is_nan() {
+            u64::MAX
+        } else {
+            order_key(t)
+        };
+        let mut k = [key];
+        self.comm.all_reduce_u64(&mut k, Op::Min);
+        if k[0] == u64::MAX {
+            return (f64::INFINITY, usize::MAX);
+        }
+        let global = |i: usize| self.plan.owned[i] as u64;
+        let mut row = [if key == k[0] { global(local) } else { u64::MAX }];
+        self.comm.all_reduce_u64(&mut row, Op::Min);
+        let here = (key == k[0] && global(local) == row[0]).then_some(local);
+        // Every rank's least `t` with that key is the same double.
+        let t = f64::from_bits(if k[0] >> 63 == 1 {
+            k[0] & !(1 << 63)
+        } else {
+            !k[0]
+        });
+        (t, here.unwrap_or(usize::MAX))
+    }
+    fn all(&self, yes: bool) -> bool {
+        let mut k = [u64::from(yes)];
+        self.comm.all_reduce_u64(&mut k, Op::Min);
+        k[0] == 1
+    }
+    fn start_vector(&self, v: &mut [f64]) {
+        let owned = &self.plan.owned;
+        let mut at = 0;
+        start_values(self.cluster.multipliers(), |i, x| {
+            if at < owned.len() && owned[at] == i {
+                v[at] = x;
+                at += 1;
+            }
+        });
+    }
+}
+
+/// `scale P F P`, the SMALBE and MPRGP Hessian of the replicated dual
+/// (`dual::ProjectedF`), on the owned rows: the same operations in the same
+/// order, so the same bits.
+pub struct SplitProjectedF<'s, 'a> {
+    split: &'s SplitDual<'a>,
+    scale: f64,
+}
+
+impl<'s, 'a> SplitProjectedF<'s, 'a> {
+    pub fn new(split: &'s SplitDual<'a>, scale: f64) -> Self {
+        SplitProjectedF { split, scale }
+    }
+}
+
+impl Operator for SplitProjectedF<'_, '_> {
+    fn dim(&self) -> usize {
+        self.split.owned_rows().len()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let mut t = x.to_vec();
+        self.split.project(&mut t);
+        let mut f = self.split.apply_f(&t);
+        self.split.project(&mut f);
+        for (yi, fi) in y.iter_mut().zip(f) {
+            *yi = fi * self.scale;
+        }
+    }
+}
+
+/// `G~ = L^-1 G` with orthonormal rows (`G G^T = L L^T`), SMALBE's equality
+/// on the split dual: `G~ x` is a coarse vector, whole and the same bits on
+/// every rank (a gather of the ranks' `G_s x`, then `L^-1` on each), and
+/// `G~^T y` comes back to the owned rows by the sum exchange. It needs the
+/// replicated coarse factor ([`SplitDual::new`]); the coarse problem on
+/// rank 0 alone has no half solves yet.
+pub struct SplitOrthonormal<'s, 'a> {
+    split: &'s SplitDual<'a>,
+    dual: &'a Dual,
+}
+
+impl<'s, 'a> SplitOrthonormal<'s, 'a> {
+    /// None where the split dual's coarse problem is on rank 0 alone.
+    pub fn new(split: &'s SplitDual<'a>) -> Option<Self> {
+        match split.coarse {
+            Coarse::Replicated(dual) => Some(SplitOrthonormal { split, dual }),
+            Coarse::Root(_) => None,
+        }
+    }
+}
+
+impl Equality for SplitOrthonormal<'_, '_> {
+    fn rows(&self) -> usize {
+        self.dual.kernel_dim()
+    }
+
+    fn apply(&self, x: &[f64], y: &mut [f64]) {
+        let split = self.split;
+        let mine = split.g_times(x);
+        let z = split.comm.all_gather(&mine, &split.coarse_counts());
+        y.copy_from_slice(&z);
+        self.dual.solve_l(y);
+    }
+
+    fn apply_t(&self, y: &[f64], x: &mut [f64]) {
+        let split = self.split;
+        let cluster = split.cluster;
+        let mut z = y.to_vec();
+        self.dual.solve_lt(&mut z);
+        let own = cluster.owned();
+        let z = &z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)];
+        x.copy_from_slice(&split.gt_times(z));
     }
 }
 

@@ -1,0 +1,80 @@
+//! The contact dual solved by SMALBE with MPRGP on the split dual (issue 37
+//! item 2): the replicated solve's homogenized problem (`l~`, `b`, the
+//! bounds, `||P F P||`, all replicated and the same bits on every rank), each
+//! rank's part of it, and SMALBE over the ranks' rows ([`solve_on_ranks`]:
+//! exact sums, the equality `G~` whole on every rank). The multipliers then
+//! have the same bits on any rank count, and agree with the replicated solve
+//! to the tolerance (their sums differ in rounding, so their paths do).
+//!
+//! What it does not do yet: the preconditioners, the active-set prediction,
+//! friction's boxes and discs, warm starts, the feasibility test of the
+//! subdomains' balance in the caller's terms, and the reconstruction of `u`;
+//! and `l~`, `b` and `||P F P||` are formed on the replicated dual first.
+
+use super::dual::Dual;
+use super::solve::{homogenized_rhs, particular, projected_norm};
+use super::split::{SplitDual, SplitOrthonormal, SplitProjectedF};
+use crate::qp::smalbe::{self, solve_on_ranks};
+use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm};
+
+/// This rank's multipliers and what the solve did.
+pub struct SplitSolution {
+    /// `lambda` on the rank's owned rows ([`SplitDual::owned_rows`]).
+    pub lambda: Vec<f64>,
+    pub info: QpInfo,
+}
+
+/// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
+/// `n_equality` on `>= 0`) on the split dual, from zero. Collective.
+pub fn smalbe_solve(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> SplitSolution {
+    let split = SplitDual::new(dual);
+    let l_tilde = particular(dual, f);
+    let loads = dual.cluster().loads_less(f, &l_tilde);
+    let cancellation = dual.cluster().cancellation(f, &l_tilde);
+    let (_, b) = homogenized_rhs(dual, loads, (c, &l_tilde), cancellation);
+    let lower: Vec<f64> = (0..dual.multipliers())
+        .map(|i| {
+            if i < n_equality {
+                f64::NEG_INFINITY
+            } else {
+                -l_tilde[i]
+            }
+        })
+        .collect();
+    // The Hessian is P F P / ||P F P||, as in the replicated solve.
+    let (pfp, power) = projected_norm(dual, settings, None);
+    let scale = if pfp > 0.0 && pfp.is_finite() {
+        1.0 / pfp
+    } else {
+        1.0
+    };
+    let start = SmalbeWarm {
+        norms: (scale != 1.0).then_some((1.0, settings.rho_factor.max(1.0))),
+        ..SmalbeWarm::default()
+    };
+    let b: Vec<f64> = split.restrict(&b).iter().map(|x| x * scale).collect();
+    let lower = split.restrict(&lower);
+    let a = SplitProjectedF::new(&split, scale);
+    let g = SplitOrthonormal::new(&split).unwrap_or_else(|| unreachable!("replicated coarse"));
+    let problem = smalbe::Problem::new(&a, &b, &lower, &g);
+    let settings = SmalbeSettings {
+        face_metric: false,
+        ..settings.clone()
+    };
+    let mut x = vec![0.0; b.len()];
+    let (mut info, _) = solve_on_ranks(&problem, &mut x, &settings, Some(&start), observer, &split);
+    info.hessian_applications += power;
+    let lambda = x
+        .iter()
+        .zip(split.restrict(&l_tilde))
+        .map(|(a, b)| a + b)
+        .collect();
+    SplitSolution { lambda, info }
+}
