@@ -1006,6 +1006,11 @@ pub struct SolveOptions<'a> {
     /// Told when each phase starts (and each subdomain factorized), for
     /// progress on long solves; may be called from the thread pool.
     pub phases: Option<Phases<'a>>,
+    /// Solve the dual on the split dual (`tfeti::split_solve`: each rank
+    /// iterates on its own rows, exact sums): the same bits on any number of
+    /// ranks, the replicated solve's answer to the tolerance. Cold, TFETI,
+    /// without friction or a preconditioner so far (refused otherwise).
+    pub split_dual: bool,
 }
 
 /// A phase of the state solve, for progress reports: before the dual
@@ -1041,6 +1046,7 @@ impl Default for SolveOptions<'_> {
             comm: None,
             search_rounds: MAX_SEARCH_ROUNDS,
             phases: None,
+            split_dual: false,
         }
     }
 }
@@ -1093,6 +1099,8 @@ struct Round<'a> {
     refactor: Refactor,
     warm: WarmStart,
     phases: Option<Phases<'a>>,
+    /// [`SolveOptions::split_dual`].
+    split_dual: bool,
 }
 
 /// One state solve on the rows lowering gives (no search loop).
@@ -1108,6 +1116,7 @@ fn solve_on(
         refactor,
         warm,
         phases,
+        split_dual,
     } = round;
     let tell = |p: Phase| tell(phases, p);
     let t0 = Instant::now();
@@ -1127,7 +1136,7 @@ fn solve_on(
 
     let t = Instant::now();
     tell(Phase::Coarse);
-    let ops = Operators::of(scene, setup, first_on_active_set)?;
+    let ops = Operators::of(scene, setup, first_on_active_set, split_dual)?;
     times.coarse = t.elapsed().as_secs_f64();
     let t = Instant::now();
     let problem = &ops.problem;
@@ -1313,12 +1322,19 @@ struct Operators {
     precond: PreconditionerChoice,
     /// The preconditioner of the solves on a predicted active set.
     kept_precond: Option<crate::tfeti::precond::Kind>,
+    /// Solve on the split dual ([`SolveOptions::split_dual`]).
+    split: bool,
 }
 
 impl Operators {
     /// The dual system of `setup` with the scene's preconditioner, its coarse
     /// problem left for first use where `deferred`.
-    fn of(scene: &Scene, setup: Setup, deferred: bool) -> Result<Operators, SolveError> {
+    fn of(
+        scene: &Scene,
+        setup: Setup,
+        deferred: bool,
+        split: bool,
+    ) -> Result<Operators, SolveError> {
         let mut system = if deferred {
             setup.dual_system_deferred()?
         } else {
@@ -1327,7 +1343,14 @@ impl Operators {
         // Weighed on the cluster the dual solves on (classical FETI: its
         // reduced one, without the held rows); built on first use where the
         // solve may not iterate (a warm start kept on its active set).
-        let precond = PreconditionerChoice::of(scene, system.dual().cluster());
+        let precond = if split {
+            PreconditionerChoice {
+                kind: None,
+                auto: None,
+            }
+        } else {
+            PreconditionerChoice::of(scene, system.dual().cluster())
+        };
         if deferred {
             system.defer_preconditioner(
                 precond.kind,
@@ -1364,6 +1387,7 @@ impl Operators {
             factorizations,
             precond,
             kept_precond: active_set::kept_preconditioner(scene),
+            split,
         })
     }
 
@@ -1396,6 +1420,13 @@ impl Operators {
         ),
         SolveError,
     > {
+        if self.split {
+            return Ok((
+                self.split_solve(scene, f, c, settings, start, observer)?,
+                None,
+                None,
+            ));
+        }
         if has_friction(&self.problem) {
             let (sol, done) = solve_with_friction(
                 scene,
@@ -1415,6 +1446,48 @@ impl Operators {
             }
             None => Ok((self.solve(f, c, settings, start, observer)?, None, None)),
         }
+    }
+
+    /// The dual solve on the split dual, where it applies: TFETI, no
+    /// friction, cold, and no preconditioner asked for by name.
+    fn split_solve(
+        &self,
+        scene: &Scene,
+        f: &[&[f64]],
+        c: &[f64],
+        settings: &SmalbeSettings,
+        start: Option<&DualStart>,
+        observer: &mut dyn FnMut(&QpInfo),
+    ) -> Result<DualSolution, SolveError> {
+        use crate::lang::scene::{Preconditioner, SolverMethod};
+        let refuse = |why: &str| {
+            Err(SolveError::Unsupported(format!(
+                "the split dual does not solve {why} yet; solve without --split-dual"
+            )))
+        };
+        if scene.solver.method == SolverMethod::Feti {
+            return refuse("classical FETI (`solver { method = feti }`)");
+        }
+        if has_friction(&self.problem) {
+            return refuse("friction");
+        }
+        if start.is_some() {
+            return refuse("from a warm start");
+        }
+        if !matches!(
+            scene.solver.preconditioner,
+            Preconditioner::Auto | Preconditioner::None
+        ) {
+            return refuse("with a preconditioner");
+        }
+        crate::tfeti::split_solve::dual_solve(
+            self.system.dual(),
+            f,
+            c,
+            self.problem.n_equality,
+            settings,
+            observer,
+        )
     }
 
     /// The dual solve by SMALBE on every row; rigid motions it leaves

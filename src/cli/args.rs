@@ -120,6 +120,11 @@ pub struct Solve {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
+    /// Iterate on the split dual: each MPI rank keeps its own rows, sums are
+    /// exact, so the answer has the same bits on any number of ranks (SMALBE
+    /// without preconditioner or prediction; TFETI without friction).
+    #[arg(long)]
+    pub split_dual: bool,
 }
 
 #[derive(Args, Debug)]

@@ -60,6 +60,7 @@ impl Solve {
             let options = cso::state::SolveOptions {
                 comm: ranks.clone(),
                 phases: Some(&phases),
+                split_dual: self.split_dual,
                 ..Default::default()
             };
             cso::state::solve_with(&scene, &scene.design_init(), &options, &mut observer)

@@ -251,7 +251,7 @@ contact seat { primary = floor, secondary = b.bottom }
             crate::lang::compile(BLOCK, &crate::lang::CheckOptions::default()).expect("checks");
         let design = scene.design_init();
         let setup = setup_on(&scene, &design, None, serial(), false, None, true).expect("sets up");
-        let ops = Operators::of(&scene, setup, false).expect("operators");
+        let ops = Operators::of(&scene, setup, false, false).expect("operators");
         (ops, smalbe_settings(&scene))
     }
 

@@ -327,7 +327,7 @@ fn inequality_start(
 /// contact force was off the load by 2e-5. So SMALBE also stops only when the
 /// primal equilibrium the KKT report measures holds to the tolerance:
 /// ||K u - f + B^T l|| <= eps max(||f||, ||B^T l||).
-fn balanced<'a>(
+pub(crate) fn balanced<'a>(
     dual: &'a Dual,
     f: &[&[f64]],
     l_tilde: &'a [f64],

@@ -7,12 +7,16 @@
 //! to the tolerance (their sums differ in rounding, so their paths do).
 //!
 //! What it does not do yet: the preconditioners, the active-set prediction,
-//! friction's boxes and discs, warm starts, the feasibility test of the
-//! subdomains' balance in the caller's terms, and the reconstruction of `u`;
-//! and `l~`, `b` and `||P F P||` are formed on the replicated dual first.
+//! friction's boxes and discs, warm starts; `l~`, `b` and `||P F P||` are
+//! formed on the replicated dual first, and the multipliers are gathered on
+//! every rank for the subdomains' balance test (where SMALBE would stop) and
+//! the reconstruction of `u`.
 
 use super::dual::Dual;
-use super::solve::{homogenized_rhs, particular, projected_norm};
+use super::error::SolveError;
+use super::reconstruct::reconstruct;
+use super::slip::SlipBounds;
+use super::solve::{balanced, homogenized_rhs, particular, projected_norm, DualSolution};
 use super::split::{SplitDual, SplitOrthonormal, SplitProjectedF};
 use crate::qp::smalbe::{self, solve_on_ranks};
 use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm};
@@ -22,6 +26,34 @@ pub struct SplitSolution {
     /// `lambda` on the rank's owned rows ([`SplitDual::owned_rows`]).
     pub lambda: Vec<f64>,
     pub info: QpInfo,
+}
+
+/// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
+/// `n_equality` on `>= 0`) on the split dual, from zero, and reconstructs
+/// the primal solution from the multipliers gathered on every rank (the
+/// reconstruction is the replicated one). Collective.
+pub fn dual_solve(
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<DualSolution, SolveError> {
+    let split = SplitDual::new(dual);
+    let (sol, l_tilde, d, b_norm) = solve(&split, dual, f, c, n_equality, settings, observer);
+    let lambda = split.assemble(&sol.lambda);
+    let lhat: Vec<f64> = lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
+    let none = SlipBounds::default();
+    let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)?;
+    Ok(DualSolution {
+        lambda,
+        u,
+        alpha,
+        info: sol.info,
+        b_norm,
+        end: None,
+    })
 }
 
 /// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
@@ -35,10 +67,25 @@ pub fn smalbe_solve(
     observer: &mut dyn FnMut(&QpInfo),
 ) -> SplitSolution {
     let split = SplitDual::new(dual);
+    solve(&split, dual, f, c, n_equality, settings, observer).0
+}
+
+/// [`smalbe_solve`] on `split`, with the replicated `l~`, `d` and the
+/// scaled `||b||`.
+#[allow(clippy::type_complexity)]
+fn solve(
+    split: &SplitDual,
+    dual: &Dual,
+    f: &[&[f64]],
+    c: &[f64],
+    n_equality: usize,
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> (SplitSolution, Vec<f64>, Vec<f64>, f64) {
     let l_tilde = particular(dual, f);
     let loads = dual.cluster().loads_less(f, &l_tilde);
     let cancellation = dual.cluster().cancellation(f, &l_tilde);
-    let (_, b) = homogenized_rhs(dual, loads, (c, &l_tilde), cancellation);
+    let (d, b) = homogenized_rhs(dual, loads, (c, &l_tilde), cancellation);
     let lower: Vec<f64> = (0..dual.multipliers())
         .map(|i| {
             if i < n_equality {
@@ -60,21 +107,42 @@ pub fn smalbe_solve(
         ..SmalbeWarm::default()
     };
     let b: Vec<f64> = split.restrict(&b).iter().map(|x| x * scale).collect();
+    let b_norm = crate::qp::Reduce::norm(split, &b);
     let lower = split.restrict(&lower);
-    let a = SplitProjectedF::new(&split, scale);
-    let g = SplitOrthonormal::new(&split).unwrap_or_else(|| unreachable!("replicated coarse"));
-    let problem = smalbe::Problem::new(&a, &b, &lower, &g);
+    let a = SplitProjectedF::new(split, scale);
+    let g = SplitOrthonormal::new(split).unwrap_or_else(|| unreachable!("replicated coarse"));
+    // The primal equilibrium to the tolerance as well (`solve::balanced`),
+    // on the multipliers gathered: only where SMALBE would stop otherwise.
+    let balanced = balanced(dual, f, &l_tilde, settings.tolerance);
+    let also = |x: &[f64]| balanced(&split.assemble(x));
+    let problem = smalbe::Problem {
+        also_feasible: Some(&also),
+        ..smalbe::Problem::new(&a, &b, &lower, &g)
+    };
     let settings = SmalbeSettings {
         face_metric: false,
         ..settings.clone()
     };
     let mut x = vec![0.0; b.len()];
-    let (mut info, _) = solve_on_ranks(&problem, &mut x, &settings, Some(&start), observer, &split);
+    let mut counted = |i: &QpInfo| {
+        observer(&QpInfo {
+            hessian_applications: i.hessian_applications + power,
+            ..i.clone()
+        })
+    };
+    let (mut info, _) = solve_on_ranks(
+        &problem,
+        &mut x,
+        &settings,
+        Some(&start),
+        &mut counted,
+        split,
+    );
     info.hessian_applications += power;
     let lambda = x
         .iter()
         .zip(split.restrict(&l_tilde))
         .map(|(a, b)| a + b)
         .collect();
-    SplitSolution { lambda, info }
+    (SplitSolution { lambda, info }, l_tilde.clone(), d, b_norm)
 }
