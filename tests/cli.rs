@@ -1249,3 +1249,30 @@ pressure block.top = 5 MPa
         let _ = std::fs::remove_file(&path);
     }
 }
+
+/// `--split-dual` solves what it can (the same answer as without, to the
+/// tolerance) and refuses, with what to do, what it cannot yet: friction
+/// and a preconditioner asked for by name.
+#[test]
+fn the_split_dual_solves_or_says_what_it_cannot_do_yet() {
+    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso", "--split-dual", "-q"]);
+    assert_eq!(code, 0, "{err}");
+    assert!(out.contains("converged"), "{out}");
+    for (args, what) in [
+        (vec!["examples/cattaneo2d.cso"], "friction"),
+        (
+            vec!["examples/two_blocks.cso", "--preconditioner", "lumped"],
+            "with a preconditioner",
+        ),
+    ] {
+        let mut all = vec!["solve", "--split-dual", "-q"];
+        all.extend(args);
+        let (code, _, err) = cso(&all);
+        assert_ne!(code, 0, "{all:?}");
+        assert!(
+            err.contains(&format!("the split dual does not solve {what} yet"))
+                && err.contains("without --split-dual"),
+            "{all:?}: {err}"
+        );
+    }
+}

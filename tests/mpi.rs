@@ -115,6 +115,19 @@ fn eight_ranks_give_the_serial_report_bitwise() {
     assert_same(&serial, &dist, "scont2d on 8 ranks");
 }
 
+/// The split dual (`--split-dual`, exact sums over each rank's rows): the
+/// one-process report on 2 and 3 MPI ranks, bit for bit.
+#[test]
+fn the_split_dual_on_2_and_3_ranks_gives_the_one_process_report_bitwise() {
+    let scene = "examples/semicoercive3d.cso";
+    let extra = ["--split-dual"];
+    let serial = solve(None, scene, &extra, &scratch("split-serial"));
+    for p in [2, 3] {
+        let dist = solve(Some(p), scene, &extra, &scratch(&format!("split-{p}")));
+        assert_same(&serial, &dist, &format!("semicoercive3d, split, {p} ranks"));
+    }
+}
+
 #[test]
 fn a_3d_scene_with_the_dirichlet_preconditioner_on_3_ranks_matches_serial() {
     let scene = "examples/semicoercive3d.cso";

@@ -11,18 +11,28 @@ use std::sync::Arc;
 
 /// The report as JSON without wall times, or the error's message.
 fn outcome(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Result<serde_json::Value, String> {
+    outcome_of(scene, comm, false)
+}
+
+/// [`outcome`], on the split dual where `split_dual`.
+fn outcome_of(
+    scene: &Scene,
+    comm: Option<Arc<dyn Comm>>,
+    split_dual: bool,
+) -> Result<serde_json::Value, String> {
     let design = scene.design_init();
     let state = match comm {
-        Some(c) => cso::state::solve_with(
+        None if !split_dual => cso::state::solve(scene, &design, &mut |_| {}),
+        comm => cso::state::solve_with(
             scene,
             &design,
             &cso::state::SolveOptions {
-                comm: Some(c),
+                comm,
+                split_dual,
                 ..Default::default()
             },
             &mut |_| {},
         ),
-        None => cso::state::solve(scene, &design, &mut |_| {}),
     }
     .map_err(|e| e.to_string())?;
     let mut v = serde_json::to_value(Report::new(scene, &state)).expect("report serializes");
@@ -78,6 +88,33 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
                 assert_eq!(serial["energy"], got["energy"], "{name}, rank {r} of {p}");
                 assert_eq!(serial["solver"], got["solver"], "{name}, rank {r} of {p}");
                 assert!(serial == got, "{name}, rank {r} of {p}: the report differs");
+            }
+        }
+    }
+}
+
+/// The split dual (`--split-dual`): every rank iterates on its own rows
+/// with exact sums, so 1, 2, 3 and 4 ranks give one report and state bit for
+/// bit; it is the replicated solve's to the tolerance.
+#[test]
+fn the_split_dual_gives_one_state_bitwise_on_every_rank_count() {
+    for (name, ranks) in [("two_blocks", vec![2, 3]), ("semicoercive3d", vec![4])] {
+        let scene = example(name);
+        let one = outcome_of(&scene, None, true).expect("split solve");
+        let replicated = outcome(&scene, None).expect("solve");
+        let energy = |v: &serde_json::Value| v["energy"].as_f64().expect("energy");
+        let (a, b) = (energy(&one), energy(&replicated));
+        assert!(
+            (a - b).abs() <= 1e-6 * b.abs(),
+            "{name}: energy {a} against {b}"
+        );
+        assert!(one["solver"]["preconditioner"]["kind"].is_null(), "{name}");
+        for p in ranks {
+            let seen = each_rank(p, |c| outcome_of(&scene, Some(c), true));
+            for (r, got) in seen.into_iter().enumerate() {
+                let got = got.unwrap_or_else(|e| panic!("{name}, rank {r} of {p}: {e}"));
+                assert_eq!(one["solver"], got["solver"], "{name}, rank {r} of {p}");
+                assert!(one == got, "{name}, rank {r} of {p}: the report differs");
             }
         }
     }

@@ -26,9 +26,12 @@
 //! [`Cluster::distributed_own_g`]). Memory per rank for the dual vectors and
 //! `G` then grows with its own subdomains.
 //!
-//! What uses it: [`projected_cg`], the equality-constrained dual solve, checked
-//! bitwise across rank counts on thread ranks. MPRGP and SMALBE still run on
-//! the replicated dual (`tfeti::dual`).
+//! What uses it: [`projected_cg`], the equality-constrained dual solve, and
+//! MPRGP and SMALBE through its [`Reduce`] (exact sums, minima by value then
+//! global row), [`SplitProjectedF`] and [`SplitOrthonormal`]
+//! (`tfeti::split_solve`, `cso solve --split-dual`), all checked bitwise
+//! across rank counts on thread ranks. The preconditioners and the
+//! active-set prediction still run on the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
 use super::comm::{Comm, Op, RankFailure, Stats};
