@@ -95,11 +95,17 @@ fn thread_ranks_give_the_serial_state_bitwise_in_2d_and_3d() {
 
 /// The split dual (`--split-dual`): every rank iterates on its own rows
 /// with exact sums, so 1, 2, 3 and 4 ranks give one report and state bit for
-/// bit; it is the replicated solve's to the tolerance.
+/// bit (SMALBE with contact, projected CG without); it is the replicated
+/// solve's to the tolerance.
 #[test]
 fn the_split_dual_gives_one_state_bitwise_on_every_rank_count() {
-    for (name, ranks) in [("two_blocks", vec![2, 3]), ("semicoercive3d", vec![4])] {
-        let scene = example(name);
+    let layers = compile(crate::fixture::LAYERS_2D, &options()).expect("checks");
+    for (name, scene, ranks) in [
+        ("two_blocks", example("two_blocks"), vec![2, 3]),
+        ("semicoercive3d", example("semicoercive3d"), vec![4]),
+        // Glued layers, no contact: the split projected CG.
+        ("layers", layers, vec![2]),
+    ] {
         let one = outcome_of(&scene, None, true).expect("split solve");
         let replicated = outcome(&scene, None).expect("solve");
         let energy = |v: &serde_json::Value| v["energy"].as_f64().expect("energy");

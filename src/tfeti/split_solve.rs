@@ -1,5 +1,6 @@
 //! The contact dual solved by SMALBE with MPRGP on the split dual (issue 37
-//! item 2): the replicated solve's homogenized problem (`l~`, `b`, the
+//! item 2; equalities only: by its projected CG): the replicated solve's
+//! homogenized problem (`l~`, `b`, the
 //! bounds, `||P F P||`, all replicated and the same bits on every rank), each
 //! rank's part of it, and SMALBE over the ranks' rows ([`solve_on_ranks`]:
 //! exact sums, the equality `G~` whole on every rank). The multipliers then
@@ -17,9 +18,9 @@ use super::error::SolveError;
 use super::reconstruct::reconstruct;
 use super::slip::SlipBounds;
 use super::solve::{balanced, homogenized_rhs, particular, projected_norm, DualSolution};
-use super::split::{SplitDual, SplitOrthonormal, SplitProjectedF};
+use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
 use crate::qp::smalbe::{self, solve_on_ranks};
-use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm};
+use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
 /// This rank's multipliers and what the solve did.
 pub struct SplitSolution {
@@ -86,6 +87,31 @@ fn solve(
     let loads = dual.cluster().loads_less(f, &l_tilde);
     let cancellation = dual.cluster().cancellation(f, &l_tilde);
     let (d, b) = homogenized_rhs(dual, loads, (c, &l_tilde), cancellation);
+    if n_equality == dual.multipliers() {
+        // Equalities only: projected CG, as the replicated solve.
+        let b = split.restrict(&b);
+        let (x, _, cg) = projected_cg(split, &b, settings.tolerance, settings.max_hessian);
+        let b_norm = crate::qp::Reduce::norm(split, &b);
+        let info = QpInfo {
+            status: if cg.converged {
+                Status::Converged
+            } else {
+                Status::MaxIterations
+            },
+            inner_iterations: cg.iterations,
+            hessian_applications: cg.applications,
+            projected_gradient: cg.relative_residual * b_norm,
+            feasibility: 0.0,
+            ..QpInfo::fresh()
+        };
+        observer(&info);
+        let lambda = x
+            .iter()
+            .zip(split.restrict(&l_tilde))
+            .map(|(a, b)| a + b)
+            .collect();
+        return (SplitSolution { lambda, info }, l_tilde, d, b_norm);
+    }
     let lower: Vec<f64> = (0..dual.multipliers())
         .map(|i| {
             if i < n_equality {
