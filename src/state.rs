@@ -1149,7 +1149,11 @@ fn solve_on(
     let mut friction = None;
     // On the previous active set first, where asked (TFETI, one process).
     let frictionless = !has_friction(problem);
-    let mut attempt = match (warm.on_active_set && frictionless, &start, &ops.system) {
+    let mut attempt = match (
+        warm.on_active_set && frictionless && !split_dual,
+        &start,
+        &ops.system,
+    ) {
         (true, Some(s), DualSystem::Total(full)) => Attempt::of(
             active_set::solve(
                 problem,

@@ -584,7 +584,8 @@ pub fn solve_on_ranks<R: Reduce>(
         }));
         return (info, end);
     }
-    if problem.upper.is_none() && problem.discs.is_empty() {
+    // Agreed, so that no rank returns while another iterates.
+    if reduce.all(problem.upper.is_none() && problem.discs.is_empty()) {
         let set = Lower::over(problem.lower, reduce);
         solve_over(
             problem, &set, x, settings, start, observer, &mut info, &mut end,

@@ -46,7 +46,19 @@ pub fn dual_solve(
     let lambda = split.assemble(&sol.lambda);
     let lhat: Vec<f64> = lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
     let none = SlipBounds::default();
-    let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)?;
+    let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)
+        .map_err(|e| match e {
+            SolveError::Undetermined { modes, names, .. }
+                if sol.info.status != Status::Converged =>
+            {
+                SolveError::Undetermined {
+                    modes,
+                    names,
+                    stopped: Some(sol.info.status.clone()),
+                }
+            }
+            e => e,
+        })?;
     Ok(DualSolution {
         lambda,
         u,
@@ -123,13 +135,10 @@ fn solve(
         .collect();
     // The Hessian is P F P / ||P F P||, as in the replicated solve.
     let (pfp, power) = projected_norm(dual, settings, None);
-    let scale = if pfp > 0.0 && pfp.is_finite() {
-        1.0 / pfp
-    } else {
-        1.0
-    };
+    let scaled = pfp > 0.0 && pfp.is_finite();
+    let scale = if scaled { 1.0 / pfp } else { 1.0 };
     let start = SmalbeWarm {
-        norms: (scale != 1.0).then_some((1.0, settings.rho_factor.max(1.0))),
+        norms: scaled.then_some((1.0, settings.rho_factor.max(1.0))),
         ..SmalbeWarm::default()
     };
     let b: Vec<f64> = split.restrict(&b).iter().map(|x| x * scale).collect();
