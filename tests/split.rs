@@ -12,7 +12,7 @@ use cso::qp::{mprgp_over, MprgpSettings, Operator};
 use cso::tfeti::comm::{thread_ranks, Comm};
 use cso::tfeti::dual::ProjectedF;
 use cso::tfeti::split::{projected_cg, SplitDual, SplitProjectedF, Traffic};
-use cso::tfeti::split_solve::smalbe_solve;
+use cso::tfeti::split_solve::dual_solve;
 use std::sync::Arc;
 
 /// What one rank saw: `F v`, `P v` and the CG's solution (whole vectors, as
@@ -379,24 +379,24 @@ fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f6
         max_outer: 1000,
         ..Default::default()
     };
-    let sol = smalbe_solve(
+    let sol = dual_solve(
         &state.dual,
         &f,
         &c,
         problem.n_equality,
         &settings,
         &mut |_| {},
-    );
+    )
+    .expect("reconstructs");
     assert_eq!(
         sol.info.status,
         cso::qp::Status::Converged,
         "{:?}",
         sol.info
     );
-    let split = SplitDual::new(&state.dual);
     let i = &sol.info;
     let seen = Smalbe {
-        lambda: bits(&split.assemble(&sol.lambda)),
+        lambda: bits(&sol.lambda),
         counts: (
             i.outer_iterations,
             i.inner_iterations,

@@ -90,12 +90,7 @@ pub fn mprgp(
     settings: &MprgpSettings,
     norm_a: Option<f64>,
 ) -> QpInfo {
-    let mut info = QpInfo::fresh();
-    if let Some(why) = check_dimensions(a.dim(), b, lower, x) {
-        info.status = Status::Breakdown(why);
-        return info;
-    }
-    minimize(a, b, &Lower::whole(lower), x, settings, norm_a, info)
+    mprgp_over(a, b, lower, x, settings, norm_a, &Whole)
 }
 
 /// [`mprgp`] on a vector split over ranks: `a`, `b`, `lower` and `x` are this
@@ -312,6 +307,7 @@ pub(super) struct Lower<'a, R = Whole> {
     reduce: &'a R,
 }
 
+#[cfg(test)]
 impl<'a> Lower<'a> {
     /// Lower bounds on a whole vector.
     pub(super) fn whole(lower: &'a [f64]) -> Self {

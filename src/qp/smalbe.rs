@@ -777,9 +777,9 @@ impl Multipliers {
     /// `M /= beta` where the Lagrangian did not increase enough (the test of
     /// the module docs, its penalty `rho/2 ||G x||_W^2`).
     #[allow(clippy::too_many_arguments)]
-    fn update<R: Reduce>(
+    fn update<S: Set>(
         &mut self,
-        reduce: &R,
+        set: &S,
         problem: &Problem,
         setup: &Setup,
         settings: &SmalbeSettings,
@@ -788,7 +788,7 @@ impl Multipliers {
         g: &mut [f64],
         feasibility: f64,
     ) {
-        let rho = setup.rho;
+        let (rho, reduce) = (setup.rho, set.reduce());
         // L(x_k, mu, rho) = 1/2 x^T (g - b~) with g = (A + rho G^T W G) x - b~,
         // at mu = mu_k here and at mu_{k+1} after the update.
         let lagrangian_before = 0.5 * (reduce.dot(x, g) - reduce.dot(x, &self.b_tilde));
@@ -1007,16 +1007,7 @@ fn outer_loop<S: Set>(
             observer(info);
             return;
         }
-        own.update(
-            set.reduce(),
-            problem,
-            setup,
-            settings,
-            k,
-            x,
-            &mut ws.g,
-            feasibility,
-        );
+        own.update(set, problem, setup, settings, k, x, &mut ws.g, feasibility);
         observer(info);
     }
     info.status = Status::MaxIterations;

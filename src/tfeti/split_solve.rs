@@ -22,13 +22,6 @@ use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
 use crate::qp::smalbe::{self, solve_on_ranks};
 use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
-/// This rank's multipliers and what the solve did.
-pub struct SplitSolution {
-    /// `lambda` on the rank's owned rows ([`SplitDual::owned_rows`]).
-    pub lambda: Vec<f64>,
-    pub info: QpInfo,
-}
-
 /// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
 /// `n_equality` on `>= 0`) on the split dual, from zero, and reconstructs
 /// the primal solution from the multipliers gathered on every rank (the
@@ -42,19 +35,18 @@ pub fn dual_solve(
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let split = SplitDual::new(dual);
-    let (sol, l_tilde, d, b_norm) = solve(&split, dual, f, c, n_equality, settings, observer);
-    let lambda = split.assemble(&sol.lambda);
+    let (mine, info, l_tilde, d, b_norm) =
+        solve(&split, dual, f, c, n_equality, settings, observer);
+    let lambda = split.assemble(&mine);
     let lhat: Vec<f64> = lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
     let none = SlipBounds::default();
     let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)
         .map_err(|e| match e {
-            SolveError::Undetermined { modes, names, .. }
-                if sol.info.status != Status::Converged =>
-            {
+            SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
                 SolveError::Undetermined {
                     modes,
                     names,
-                    stopped: Some(sol.info.status.clone()),
+                    stopped: Some(info.status.clone()),
                 }
             }
             e => e,
@@ -63,28 +55,14 @@ pub fn dual_solve(
         lambda,
         u,
         alpha,
-        info: sol.info,
+        info,
         b_norm,
         end: None,
     })
 }
 
-/// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
-/// `n_equality` on `>= 0`) on the split dual, from zero. Collective.
-pub fn smalbe_solve(
-    dual: &Dual,
-    f: &[&[f64]],
-    c: &[f64],
-    n_equality: usize,
-    settings: &SmalbeSettings,
-    observer: &mut dyn FnMut(&QpInfo),
-) -> SplitSolution {
-    let split = SplitDual::new(dual);
-    solve(&split, dual, f, c, n_equality, settings, observer).0
-}
-
-/// [`smalbe_solve`] on `split`, with the replicated `l~`, `d` and the
-/// scaled `||b||`.
+/// The dual solve on `split`: this rank's multipliers and what the solve
+/// did, with the replicated `l~`, `d` and the scaled `||b||`.
 #[allow(clippy::type_complexity)]
 fn solve(
     split: &SplitDual,
@@ -94,7 +72,7 @@ fn solve(
     n_equality: usize,
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
-) -> (SplitSolution, Vec<f64>, Vec<f64>, f64) {
+) -> (Vec<f64>, QpInfo, Vec<f64>, Vec<f64>, f64) {
     let l_tilde = particular(dual, f);
     let loads = dual.cluster().loads_less(f, &l_tilde);
     let cancellation = dual.cluster().cancellation(f, &l_tilde);
@@ -122,7 +100,7 @@ fn solve(
             .zip(split.restrict(&l_tilde))
             .map(|(a, b)| a + b)
             .collect();
-        return (SplitSolution { lambda, info }, l_tilde, d, b_norm);
+        return (lambda, info, l_tilde, d, b_norm);
     }
     let lower: Vec<f64> = (0..dual.multipliers())
         .map(|i| {
@@ -179,5 +157,5 @@ fn solve(
         .zip(split.restrict(&l_tilde))
         .map(|(a, b)| a + b)
         .collect();
-    (SplitSolution { lambda, info }, l_tilde.clone(), d, b_norm)
+    (lambda, info, l_tilde.clone(), d, b_norm)
 }
