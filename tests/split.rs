@@ -35,6 +35,32 @@ struct Seen {
     g_values: (usize, usize),
 }
 
+/// `f` on every rank of `p` thread ranks, each on its own thread.
+fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = thread_ranks(p)
+            .into_iter()
+            .map(|r| {
+                let f = &f;
+                s.spawn(move || f(Arc::new(r)))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("rank"))
+            .collect()
+    })
+}
+
+/// `||a - b||`.
+fn distance(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y) * (x - y))
+        .sum::<f64>()
+        .sqrt()
+}
+
 fn bits(v: &[f64]) -> Vec<u64> {
     v.iter().map(|x| x.to_bits()).collect()
 }
@@ -131,26 +157,11 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
         let mut r = vec![0.0; m];
         dual.apply_f(&x, &mut r);
         dual.project(&mut r);
-        let res = r
-            .iter()
-            .zip(&pv)
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f64>()
-            .sqrt();
+        let res = distance(&r, &pv);
         let bn = pv.iter().map(|a| a * a).sum::<f64>().sqrt();
         assert!(res <= 1e-9 * bn, "{name}: residual {res:e} of {bn:e}");
         for p in ranks {
-            let seen: Vec<Seen> = std::thread::scope(|s| {
-                let scene = &scene;
-                let handles: Vec<_> = thread_ranks(p)
-                    .into_iter()
-                    .map(|r| s.spawn(move || on_rank(scene, Some(Arc::new(r)))))
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| h.join().expect("rank"))
-                    .collect()
-            });
+            let seen: Vec<Seen> = each_rank(p, |c| on_rank(&scene, Some(c)));
             assert_eq!(
                 seen.iter().map(|s| s.owned).sum::<usize>(),
                 m,
@@ -330,17 +341,7 @@ fn mprgp_on_the_split_dual_gives_the_same_bits_on_every_rank_count() {
             serial.steps
         );
         for p in ranks {
-            let seen: Vec<Solved> = std::thread::scope(|s| {
-                let scene = &scene;
-                let handles: Vec<_> = thread_ranks(p)
-                    .into_iter()
-                    .map(|r| s.spawn(move || mprgp_on_rank(scene, Some(Arc::new(r)))))
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| h.join().expect("rank"))
-                    .collect()
-            });
+            let seen: Vec<Solved> = each_rank(p, |c| mprgp_on_rank(&scene, Some(c)));
             for (rank, got) in seen.iter().enumerate() {
                 let at = format!("{name}, rank {rank} of {p}");
                 assert_eq!(got.iterations, serial.iterations, "{at}");
@@ -414,26 +415,11 @@ fn smalbe_on_the_split_dual_gives_the_solves_multipliers_on_every_rank_count() {
         // The replicated solve's multipliers (its default path: prediction,
         // preconditioner), to the tolerance.
         let lambda: Vec<f64> = serial.lambda.iter().map(|&v| f64::from_bits(v)).collect();
-        let diff = lambda
-            .iter()
-            .zip(&reference)
-            .map(|(a, b)| (a - b) * (a - b))
-            .sum::<f64>()
-            .sqrt();
+        let diff = distance(&lambda, &reference);
         let size = reference.iter().map(|v| v * v).sum::<f64>().sqrt();
         assert!(diff <= 1e-5 * size, "{name}: {diff:e} of {size:e}");
         for p in ranks {
-            let seen: Vec<Smalbe> = std::thread::scope(|s| {
-                let scene = &scene;
-                let handles: Vec<_> = thread_ranks(p)
-                    .into_iter()
-                    .map(|r| s.spawn(move || smalbe_on_rank(scene, Some(Arc::new(r))).0))
-                    .collect();
-                handles
-                    .into_iter()
-                    .map(|h| h.join().expect("rank"))
-                    .collect()
-            });
+            let seen: Vec<Smalbe> = each_rank(p, |c| smalbe_on_rank(&scene, Some(c)).0);
             for (rank, got) in seen.iter().enumerate() {
                 let at = format!("{name}, rank {rank} of {p}");
                 assert_eq!(got.counts, serial.counts, "{at}");

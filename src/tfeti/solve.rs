@@ -162,18 +162,8 @@ pub fn dual_solve_bounded(
     info.hessian_applications += power;
     let lambda: Vec<f64> = lhat.iter().zip(&l_tilde).map(|(a, b)| a + b).collect();
 
-    let (u, alpha) = reconstruct(dual, f, (n_equality, slip), &lambda, (&lhat, None), &d).map_err(
-        |e| match e {
-            SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
-                SolveError::Undetermined {
-                    modes,
-                    names,
-                    stopped: Some(info.status.clone()),
-                }
-            }
-            e => e,
-        },
-    )?;
+    let (u, alpha) = reconstruct(dual, f, (n_equality, slip), &lambda, (&lhat, None), &d)
+        .map_err(|e| stopped_as(e, &info.status))?;
     Ok(DualSolution {
         lambda,
         u,
@@ -182,6 +172,21 @@ pub fn dual_solve_bounded(
         b_norm: norm(&b),
         end: Some((end, pfp)),
     })
+}
+
+/// An undetermined state named with how the dual solve stopped, where it
+/// did not converge (the rigid motions left free may be its doing).
+pub(crate) fn stopped_as(e: SolveError, status: &Status) -> SolveError {
+    match e {
+        SolveError::Undetermined { modes, names, .. } if *status != Status::Converged => {
+            SolveError::Undetermined {
+                modes,
+                names,
+                stopped: Some(status.clone()),
+            }
+        }
+        e => e,
+    }
 }
 
 /// Equalities only (SMALE): projected CG on the homogenized problem (`d`,

@@ -17,7 +17,9 @@ use super::dual::Dual;
 use super::error::SolveError;
 use super::reconstruct::reconstruct;
 use super::slip::SlipBounds;
-use super::solve::{balanced, homogenized_rhs, particular, projected_norm, DualSolution};
+use super::solve::{
+    balanced, homogenized_rhs, particular, projected_norm, stopped_as, DualSolution,
+};
 use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
 use crate::qp::smalbe::{self, solve_on_ranks};
 use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm, Status};
@@ -41,16 +43,7 @@ pub fn dual_solve(
     let lhat: Vec<f64> = lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
     let none = SlipBounds::default();
     let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)
-        .map_err(|e| match e {
-            SolveError::Undetermined { modes, names, .. } if info.status != Status::Converged => {
-                SolveError::Undetermined {
-                    modes,
-                    names,
-                    stopped: Some(info.status.clone()),
-                }
-            }
-            e => e,
-        })?;
+        .map_err(|e| stopped_as(e, &info.status))?;
     Ok(DualSolution {
         lambda,
         u,
