@@ -1009,7 +1009,7 @@ pub struct SolveOptions<'a> {
     /// Solve the dual on the split dual (`tfeti::split_solve`: each rank
     /// iterates on its own rows, exact sums): the same bits on any number of
     /// ranks, the replicated solve's answer to the tolerance. Cold, TFETI,
-    /// without friction or a preconditioner so far (refused otherwise).
+    /// with the scene's preconditioner; friction is refused so far.
     pub split_dual: bool,
 }
 
@@ -1347,14 +1347,7 @@ impl Operators {
         // Weighed on the cluster the dual solves on (classical FETI: its
         // reduced one, without the held rows); built on first use where the
         // solve may not iterate (a warm start kept on its active set).
-        let precond = if split {
-            PreconditionerChoice {
-                kind: None,
-                auto: None,
-            }
-        } else {
-            PreconditionerChoice::of(scene, system.dual().cluster())
-        };
+        let precond = PreconditionerChoice::of(scene, system.dual().cluster());
         if deferred {
             system.defer_preconditioner(
                 precond.kind,
@@ -1453,7 +1446,7 @@ impl Operators {
     }
 
     /// The dual solve on the split dual, where it applies: TFETI, no
-    /// friction, cold, and no preconditioner asked for by name.
+    /// friction, cold.
     fn split_solve(
         &self,
         scene: &Scene,
@@ -1463,7 +1456,7 @@ impl Operators {
         start: Option<&DualStart>,
         observer: &mut dyn FnMut(&QpInfo),
     ) -> Result<DualSolution, SolveError> {
-        use crate::lang::scene::{Preconditioner, SolverMethod};
+        use crate::lang::scene::SolverMethod;
         let refuse = |why: &str| {
             Err(SolveError::Unsupported(format!(
                 "the split dual does not solve {why} yet; solve without --split-dual"
@@ -1477,12 +1470,6 @@ impl Operators {
         }
         if start.is_some() {
             return refuse("from a warm start");
-        }
-        if !matches!(
-            scene.solver.preconditioner,
-            Preconditioner::Auto | Preconditioner::None
-        ) {
-            return refuse("with a preconditioner");
         }
         crate::tfeti::split_solve::dual_solve(
             self.system.dual(),

@@ -1251,20 +1251,21 @@ pressure block.top = 5 MPa
 }
 
 /// `--split-dual` solves what it can (the same answer as without, to the
-/// tolerance) and refuses, with what to do, what it cannot yet: friction
-/// and a preconditioner asked for by name.
+/// tolerance), with a preconditioner named too, and refuses, with what to
+/// do, what it cannot yet: friction.
 #[test]
 fn the_split_dual_solves_or_says_what_it_cannot_do_yet() {
-    let (code, out, err) = cso(&["solve", "examples/two_blocks.cso", "--split-dual", "-q"]);
-    assert_eq!(code, 0, "{err}");
-    assert!(out.contains("converged"), "{out}");
-    for (args, what) in [
-        (vec!["examples/cattaneo2d.cso"], "friction"),
-        (
-            vec!["examples/two_blocks.cso", "--preconditioner", "lumped"],
-            "with a preconditioner",
-        ),
-    ] {
+    for extra in [None, Some("lumped"), Some("dirichlet")] {
+        let mut args = vec!["solve", "examples/two_blocks.cso", "--split-dual", "-q"];
+        args.extend(extra.map(|k| ["--preconditioner", k]).into_iter().flatten());
+        let (code, out, err) = cso(&args);
+        assert_eq!(code, 0, "{args:?}: {err}");
+        assert!(out.contains("converged"), "{args:?}: {out}");
+        if let Some(kind) = extra {
+            assert!(out.contains(kind), "{args:?}: {out}");
+        }
+    }
+    for (args, what) in [(vec!["examples/cattaneo2d.cso"], "friction")] {
         let mut all = vec!["solve", "--split-dual", "-q"];
         all.extend(args);
         let (code, _, err) = cso(&all);

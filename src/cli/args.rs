@@ -122,7 +122,7 @@ pub struct Solve {
     pub threads: Option<usize>,
     /// Iterate on the split dual: each MPI rank keeps its own rows, sums are
     /// exact, so the answer has the same bits on any number of ranks (SMALBE
-    /// without preconditioner or prediction; TFETI without friction).
+    /// with the preconditioner, without the prediction; TFETI without friction).
     #[arg(long)]
     pub split_dual: bool,
 }

@@ -520,7 +520,7 @@ fn timed_cg(split: &SplitDual, iterations: usize) -> (f64, f64) {
     split.project(&mut b);
     split.comm().all_reduce_u64(&mut [0], Op::Max);
     let t = Instant::now();
-    let (_, _, info) = crate::tfeti::split::projected_cg(split, &b, 0.0, iterations);
+    let (_, _, info) = crate::tfeti::split::projected_cg(split, &b, 0.0, iterations, None);
     let per = t.elapsed().as_secs_f64() / info.iterations.max(1) as f64;
     (local, per)
 }

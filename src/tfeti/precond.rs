@@ -95,10 +95,16 @@ impl Block {
     /// `yl = B_s M_s B_s^T t` at the block's rows (`t` global).
     fn apply(&self, t: &[f64]) {
         let mut guard = lock(&self.work);
-        let BlockWork { xb, yb, yl } = &mut *guard;
+        self.apply_local(|k| t[self.rows[k]], &mut guard);
+    }
+
+    /// `yl = B_s M_s B_s^T t` at the block's rows, `t(k)` the value at its
+    /// `k`-th local row.
+    fn apply_local(&self, t: impl Fn(usize) -> f64, work: &mut BlockWork) {
+        let BlockWork { xb, yb, yl } = work;
         xb.iter_mut().for_each(|v| *v = 0.0);
         for &(k, j, v) in &self.entries {
-            xb[j] += v * t[self.rows[k]];
+            xb[j] += v * t(k);
         }
         match &self.op {
             Local::Lumped(k) => k.mul(xb, yb),
@@ -321,6 +327,56 @@ impl Scaling {
     fn solve(&self, x: &mut [f64]) {
         self.solve_block(&mut [x]);
     }
+
+    /// The coupled rows' solve alone, `block` their values in factor order
+    /// (a split vector's, gathered): the same operations as
+    /// [`Self::solve_block`]'s on them.
+    fn solve_coupled(&self, block: &mut [f64]) {
+        let Some(symbolic) = &self.symbolic else {
+            return;
+        };
+        let mut guard = lock(&self.work);
+        llt_solve_block(symbolic, &self.l_values, block, 1, &mut guard.1);
+    }
+}
+
+/// `W` on a split vector (`tfeti::split`: each rank holds its owned rows).
+/// A row that overlaps none is scaled where it is; the coupled rows (chains
+/// of three or more copies, a few per cross point) are gathered on every
+/// rank, solved there with the replicated factor, and each rank keeps its
+/// own: the replicated [`Scaling`]'s operations, so its bits.
+pub(crate) struct OwnedScaling<'p> {
+    scaling: &'p Scaling,
+    /// (owned position, `1 / d`) of the rows that overlap none.
+    diagonal: Vec<(usize, f64)>,
+    /// (owned position, factor row) of this rank's coupled rows.
+    mine: Vec<(usize, usize)>,
+    /// Coupled rows per rank, and the factor row of each gathered value.
+    counts: Vec<usize>,
+    order: Vec<usize>,
+}
+
+impl OwnedScaling<'_> {
+    /// `x <- W x` on the owned rows. Collective (one gather) where rows are
+    /// coupled.
+    pub(crate) fn solve(&self, comm: &dyn Comm, x: &mut [f64]) {
+        for &(j, s) in &self.diagonal {
+            x[j] *= s;
+        }
+        if self.order.is_empty() {
+            return;
+        }
+        let values: Vec<f64> = self.mine.iter().map(|&(j, _)| x[j]).collect();
+        let all = comm.all_gather(&values, &self.counts);
+        let mut block = vec![0.0; self.order.len()];
+        for (&k, v) in self.order.iter().zip(all) {
+            block[k] = v;
+        }
+        self.scaling.solve_coupled(&mut block);
+        for &(j, k) in &self.mine {
+            x[j] = block[k];
+        }
+    }
 }
 
 /// How the equality rows' copies are weighed against each other (see the
@@ -512,8 +568,68 @@ impl DualPreconditioner {
         self.kind
     }
 
+    /// `B_s M_s B_s^T l` of the `i`-th owned subdomain at its local rows
+    /// (`l` the values there, in [`Cluster::local_rows`]' order): the split
+    /// dual's local part of `M`.
+    pub(crate) fn apply_owned(&self, i: usize, l: &[f64]) -> Vec<f64> {
+        let block = &self.blocks[i];
+        let mut guard = lock(&block.work);
+        block.apply_local(|k| l[k], &mut guard);
+        guard.yl.clone()
+    }
+
+    /// The scaling `W` of the split vectors whose rows are `owned` (global,
+    /// ascending), None where the equality rows are not scaled. Collective
+    /// (an all-reduce and a gather) where they are.
+    pub(crate) fn owned_scaling(
+        &self,
+        owned: &[usize],
+        comm: &dyn Comm,
+    ) -> Option<OwnedScaling<'_>> {
+        let scaling = self.scaling.as_ref()?;
+        let diagonal = owned
+            .iter()
+            .enumerate()
+            .filter_map(|(j, r)| {
+                let at = scaling.scale.binary_search_by_key(r, |e| e.0).ok()?;
+                Some((j, scaling.scale[at].1))
+            })
+            .collect();
+        let mine: Vec<(usize, usize)> = owned
+            .iter()
+            .enumerate()
+            .filter_map(|(j, r)| Some((j, scaling.coupled.binary_search(r).ok()?)))
+            .collect();
+        let (mut counts, mut order) = (Vec::new(), Vec::new());
+        if !scaling.coupled.is_empty() {
+            let mut n = vec![0u64; comm.size()];
+            n[comm.rank()] = mine.len() as u64;
+            comm.all_reduce_u64(&mut n, Op::Sum);
+            counts = n.into_iter().map(|c| c as usize).collect();
+            let rows: Vec<u64> = mine.iter().map(|&(_, k)| k as u64).collect();
+            order = comm
+                .all_gather_u64(&rows, &counts)
+                .into_iter()
+                .map(|k| k as usize)
+                .collect();
+        }
+        Some(OwnedScaling {
+            scaling,
+            diagonal,
+            mine,
+            counts,
+            order,
+        })
+    }
+
     pub fn built(&self) -> &Built {
         &self.built
+    }
+
+    /// Equality rows that `W` couples to another (chains of three or more
+    /// copies): the rows a split vector's scaling gathers.
+    pub fn coupled_rows(&self) -> usize {
+        self.scaling.as_ref().map_or(0, |w| w.coupled.len())
     }
 
     /// `M x_c` of every column, one pass over each subdomain's operator for

@@ -369,22 +369,37 @@ impl<'a> SplitDual<'a> {
             .collect()
     }
 
-    /// `y = F x` on the owned rows.
-    pub fn apply_f(&self, x: &[f64]) -> Vec<f64> {
+    /// `sum_s B_s op_s(B_s^T x)` on the owned rows, `op(s, l)` a subdomain's
+    /// operator applied to the values `l` at its local rows: the halo, the
+    /// owned subdomains' `op` in parallel, the sum (in subdomain order).
+    pub(crate) fn local_sum(
+        &self,
+        x: &[f64],
+        op: impl Fn(usize, &[f64]) -> Vec<f64> + Sync + Send,
+    ) -> Vec<f64> {
         let cluster = self.cluster;
         let t = self.halo(x);
         let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
             let at = &self.plan.sub_at[s - cluster.owned().start];
             let l: Vec<f64> = at.iter().map(|&i| t[i]).collect();
+            op(s, &l)
+        });
+        self.sum(parts.concat())
+    }
+
+    /// `y = F x` on the owned rows.
+    pub fn apply_f(&self, x: &[f64]) -> Vec<f64> {
+        let cluster = self.cluster;
+        let y = self.local_sum(x, |s, l| {
             let mut y = vec![0.0; l.len()];
-            cluster.apply_local_f(s, &l, &mut y);
+            cluster.apply_local_f(s, l, &mut y);
             y
         });
         self.applications.fetch_add(1, Ordering::Relaxed);
         if let Coarse::Replicated(dual) = &self.coarse {
             dual.count_f_applications(1);
         }
-        self.sum(parts.concat())
+        y
     }
 
     /// `x <- P x = x - G^T (G G^T)^-1 G x` on the owned rows.
@@ -631,22 +646,42 @@ pub struct CgInfo {
 }
 
 /// CG on `P F P x = b` (`b` in Im P, owned rows) from `x = 0` to `||r|| <=
-/// tol ||b||` or `max` applications, the unpreconditioned recurrence of the
-/// replicated `tfeti::solve` projected CG with exact kernels (directions
-/// applied unprojected, `F x` kept by the same recurrence). Returns `x` and
+/// tol ||b||` or `max` applications, the recurrence of the replicated
+/// `tfeti::solve` projected CG with exact kernels (directions applied
+/// unprojected, `F x` kept by the same recurrence); with `precond` (`P M P`
+/// on Im P: [`crate::tfeti::split_precond::SplitProjectedM::on_image`]) the
+/// preconditioned one, the test still on the plain residual. Returns `x` and
 /// `F x` on the owned rows.
 pub fn projected_cg(
     split: &SplitDual,
     b: &[f64],
     tol: f64,
     max: usize,
+    precond: Option<&dyn Operator>,
 ) -> (Vec<f64>, Vec<f64>, CgInfo) {
     let m = b.len();
     let mut x = vec![0.0; m];
     let mut fx = vec![0.0; m];
     let mut r = b.to_vec();
-    let mut p = b.to_vec();
-    let bb = split.dot(b, b);
+    let mut z = b.to_vec();
+    // z = P M P r, or r when M gives no descent (round-off, semidefinite M);
+    // `r.r` and `r.z` in one all-reduce.
+    let precondition = |r: &[f64], z: &mut [f64]| -> (f64, f64) {
+        if let Some(pm) = precond {
+            pm.apply(r, z);
+            let [rr, rz] = split.dots(&[(r, r), (r, z)])[..] else {
+                unreachable!("two dots")
+            };
+            if rz > 0.0 && rz.is_finite() {
+                return (rr, rz);
+            }
+        }
+        z.copy_from_slice(r);
+        let rr = split.dot(r, r);
+        (rr, rr)
+    };
+    let (bb, mut rz) = precondition(&r, &mut z);
+    let mut p = z.clone();
     let bnorm = bb.sqrt();
     let mut rr = bb;
     let mut info = CgInfo {
@@ -670,17 +705,17 @@ pub fn projected_cg(
             info.converged = false;
             break;
         }
-        let alpha = rr / pap;
+        let alpha = rz / pap;
         for k in 0..m {
             x[k] += alpha * p[k];
             fx[k] += alpha * fp[k];
             r[k] -= alpha * ap[k];
         }
-        let rr_new = split.dot(&r, &r);
-        let beta = rr_new / rr;
-        rr = rr_new;
+        let (rr_new, rz_new) = precondition(&r, &mut z);
+        let beta = rz_new / rz;
+        (rr, rz) = (rr_new, rz_new);
         for k in 0..m {
-            p[k] = r[k] + beta * p[k];
+            p[k] = z[k] + beta * p[k];
         }
     }
     info.relative_residual = if bnorm > 0.0 { rr.sqrt() / bnorm } else { 0.0 };

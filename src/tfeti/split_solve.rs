@@ -7,7 +7,10 @@
 //! have the same bits on any rank count, and agree with the replicated solve
 //! to the tolerance (their sums differ in rounding, so their paths do).
 //!
-//! What it does not do yet: the preconditioners, the active-set prediction,
+//! The dual's preconditioner, where it has one, runs split too
+//! (`tfeti::split_precond`: the replicated `P M P`'s bits).
+//!
+//! What it does not do yet: the active-set prediction,
 //! friction's boxes and discs, warm starts; `l~`, `b` and `||P F P||` are
 //! formed on the replicated dual first, and the multipliers are gathered on
 //! every rank for the subdomains' balance test (where SMALBE would stop) and
@@ -21,8 +24,9 @@ use super::solve::{
     balanced, homogenized_rhs, particular, projected_norm, stopped_as, DualSolution,
 };
 use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
+use super::split_precond::SplitProjectedM;
 use crate::qp::smalbe::{self, solve_on_ranks};
-use crate::qp::{QpInfo, SmalbeSettings, SmalbeWarm, Status};
+use crate::qp::{Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
 
 /// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
 /// `n_equality` on `>= 0`) on the split dual, from zero, and reconstructs
@@ -73,7 +77,11 @@ fn solve(
     if n_equality == dual.multipliers() {
         // Equalities only: projected CG, as the replicated solve.
         let b = split.restrict(&b);
-        let (x, _, cg) = projected_cg(split, &b, settings.tolerance, settings.max_hessian);
+        let pm = dual
+            .preconditioner()
+            .map(|m| SplitProjectedM::on_image(split, m, 1.0));
+        let precond = pm.as_ref().map(|m| m as &dyn Operator);
+        let (x, _, cg) = projected_cg(split, &b, settings.tolerance, settings.max_hessian, precond);
         let b_norm = crate::qp::Reduce::norm(split, &b);
         let info = QpInfo {
             status: if cg.converged {
@@ -121,7 +129,13 @@ fn solve(
     // on the multipliers gathered: only where SMALBE would stop otherwise.
     let balanced = balanced(dual, f, &l_tilde, settings.tolerance);
     let also = |x: &[f64]| balanced(&split.assemble(x));
+    // The preconditioner approximates the inverse of the scaled Hessian:
+    // ||P F P|| P M P.
+    let pm = dual
+        .preconditioner()
+        .map(|m| SplitProjectedM::new(split, m, 1.0 / scale));
     let problem = smalbe::Problem {
+        precond: pm.as_ref().map(|m| m as &dyn Operator),
         also_feasible: Some(&also),
         ..smalbe::Problem::new(&a, &b, &lower, &g)
     };
