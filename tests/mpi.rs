@@ -116,15 +116,24 @@ fn eight_ranks_give_the_serial_report_bitwise() {
 }
 
 /// The split dual (`--split-dual`, exact sums over each rank's rows): the
-/// one-process report on 2 and 3 MPI ranks, bit for bit.
+/// one-process report on 2 and 3 MPI ranks, bit for bit, without and with
+/// the Dirichlet preconditioner (split too: its blocks where their
+/// subdomains are, `W`'s coupled rows gathered).
 #[test]
 fn the_split_dual_on_2_and_3_ranks_gives_the_one_process_report_bitwise() {
     let scene = "examples/semicoercive3d.cso";
-    let extra = ["--split-dual"];
-    let serial = solve(None, scene, &extra, &scratch("split-serial"));
-    for p in [2, 3] {
-        let dist = solve(Some(p), scene, &extra, &scratch(&format!("split-{p}")));
-        assert_same(&serial, &dist, &format!("semicoercive3d, split, {p} ranks"));
+    for (tag, extra) in [
+        ("split", &["--split-dual"][..]),
+        (
+            "split-dirichlet",
+            &["--split-dual", "--preconditioner", "dirichlet"],
+        ),
+    ] {
+        let serial = solve(None, scene, extra, &scratch(&format!("{tag}-serial")));
+        for p in [2, 3] {
+            let dist = solve(Some(p), scene, extra, &scratch(&format!("{tag}-{p}")));
+            assert_same(&serial, &dist, &format!("semicoercive3d, {tag}, {p} ranks"));
+        }
     }
 }
 

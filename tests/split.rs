@@ -9,11 +9,11 @@
 
 use crate::fixture::example;
 use cso::lang::Scene;
-use cso::qp::{mprgp_over, MprgpSettings, Operator};
+use cso::qp::{mprgp_over, Equality, MprgpSettings, Operator};
 use cso::tfeti::comm::{thread_ranks, Comm};
-use cso::tfeti::dual::{ProjectedF, ProjectedM};
+use cso::tfeti::dual::{Orthonormal, ProjectedF, ProjectedM};
 use cso::tfeti::precond::Kind;
-use cso::tfeti::split::{projected_cg, SplitDual, SplitProjectedF, Traffic};
+use cso::tfeti::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF, Traffic};
 use cso::tfeti::split_precond::SplitProjectedM;
 use cso::tfeti::split_solve::dual_solve;
 use std::sync::Arc;
@@ -34,6 +34,9 @@ struct Seen {
     root_x: Vec<u64>,
     root_p_traffic: Traffic,
     root_values: usize,
+    /// `G~ v` and `G~^T w` with the coarse problem on rank 0 (whole, bits).
+    root_gv: Vec<u64>,
+    root_gtw: Vec<u64>,
     /// Values of `G` held: (split, replicated).
     g_values: (usize, usize),
 }
@@ -114,7 +117,14 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
     });
     let (root_x, _, root_info) = projected_cg(&root, &root_pv, 1e-10, 2000, None);
     assert_eq!(root.f_applications(), root_info.applications);
+    let g = SplitOrthonormal::new(&root);
+    let mut gv = vec![0.0; g.rows()];
+    g.apply(&mine, &mut gv);
+    let mut gtw = vec![0.0; mine.len()];
+    g.apply_t(&probe(g.rows()), &mut gtw);
     Seen {
+        root_gv: bits(&gv),
+        root_gtw: bits(&root.assemble(&gtw)),
         root_p: bits(&root.assemble(&root_pv)),
         root_x: bits(&root.assemble(&root_x)),
         root_p_traffic,
@@ -146,6 +156,12 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
         dual.apply_f(&v, &mut fv);
         let mut pv = v.clone();
         dual.project(&mut pv);
+        // SMALBE's orthonormal equality G~ = L^-1 Q G and its transpose.
+        let rows = dual.kernel_dim();
+        let mut gv = vec![0.0; rows];
+        Orthonormal(dual).apply(&v, &mut gv);
+        let mut gtw = vec![0.0; m];
+        Orthonormal(dual).apply_t(&probe(rows), &mut gtw);
         let serial = on_rank(&scene, None);
         assert_eq!(serial.f, bits(&fv), "{name}: F");
         assert_eq!(serial.p, bits(&pv), "{name}: P");
@@ -196,6 +212,11 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
                 // one down the tree per round.
                 assert!(got.root_p == serial.p, "{at}: P (root coarse) differs");
                 assert!(got.root_x == serial.x, "{at}: CG (root coarse) differs");
+                assert!(got.root_gv == bits(&gv), "{at}: G~ v (root coarse) differs");
+                assert!(
+                    got.root_gtw == bits(&gtw),
+                    "{at}: G~^T w (root coarse) differs"
+                );
                 let values = dual.coarse_stats().factor_nonzeros;
                 assert_eq!(got.root_values, if rank == 0 { values } else { 0 }, "{at}");
                 assert!(

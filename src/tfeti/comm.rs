@@ -299,6 +299,33 @@ pub fn gather_to_root(comm: &dyn Comm, mine: Vec<f64>, counts: &[usize]) -> Vec<
     held
 }
 
+/// Rank 0's `whole` (`n` values; empty elsewhere) on every rank, down the
+/// binomial tree of [`scatter_from_root`] (each rank receives it once, from
+/// its parent). Collective.
+pub fn broadcast_from_root(comm: &dyn Comm, whole: Vec<f64>, n: usize) -> Vec<f64> {
+    let (me, p) = (comm.rank(), comm.size());
+    let mut step = 1;
+    while step < p {
+        step *= 2;
+    }
+    let mut held = if me == 0 { whole } else { Vec::new() };
+    step /= 2;
+    while step >= 1 {
+        let mut sends = Vec::new();
+        let mut receives = Vec::new();
+        if me % (2 * step) == 0 && me + step < p {
+            sends.push((me + step, held.clone()));
+        } else if me % (2 * step) == step {
+            receives.push((me - step, n));
+        }
+        for part in comm.exchange(&sends, &receives) {
+            held = part;
+        }
+        step /= 2;
+    }
+    held
+}
+
 /// The inverse of [`gather_to_root`]: rank 0's `whole` (every rank's part in
 /// rank order, `counts[r]` values for rank `r`; empty elsewhere) cut into
 /// the ranks' parts down the same binomial tree. Returns this rank's part.

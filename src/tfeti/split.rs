@@ -589,48 +589,56 @@ impl Operator for SplitProjectedF<'_, '_> {
     }
 }
 
-/// `G~ = L^-1 G` with orthonormal rows (`G G^T = L L^T`), SMALBE's equality
-/// on the split dual: `G~ x` is a coarse vector, whole and the same bits on
-/// every rank (a gather of the ranks' `G_s x`, then `L^-1` on each), and
-/// `G~^T y` comes back to the owned rows by the sum exchange. It needs the
-/// replicated coarse factor ([`SplitDual::new`]); the coarse problem on
-/// rank 0 alone has no half solves yet.
+/// `G~ = L^-1 Q G` with orthonormal rows (`G G^T = Q^T L L^T Q`), SMALBE's
+/// equality on the split dual: `G~ x` is a coarse vector, whole and the same
+/// bits on every rank, and `G~^T y` comes back to the owned rows by the sum
+/// exchange. With the replicated coarse factor, the ranks' `G_s x` are
+/// gathered and `L^-1` applied on each; with the coarse problem on rank 0
+/// ([`SplitDual::with_root_coarse`]), `G x` goes up the tree, rank 0 solves
+/// and sends `G~ x` down to every rank, and `L^-T y` is solved there and
+/// scattered. Either way the replicated `G~`'s bits.
 pub struct SplitOrthonormal<'s, 'a> {
     split: &'s SplitDual<'a>,
-    dual: &'a Dual,
 }
 
 impl<'s, 'a> SplitOrthonormal<'s, 'a> {
-    /// None where the split dual's coarse problem is on rank 0 alone.
-    pub fn new(split: &'s SplitDual<'a>) -> Option<Self> {
-        match split.coarse {
-            Coarse::Replicated(dual) => Some(SplitOrthonormal { split, dual }),
-            Coarse::Root(_) => None,
-        }
+    pub fn new(split: &'s SplitDual<'a>) -> Self {
+        SplitOrthonormal { split }
     }
 }
 
 impl Equality for SplitOrthonormal<'_, '_> {
     fn rows(&self) -> usize {
-        self.dual.kernel_dim()
+        self.split.cluster.kernel_dim()
     }
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let split = self.split;
         let mine = split.g_times(x);
-        let z = split.comm.all_gather(&mine, &split.coarse_counts());
+        let z = match &split.coarse {
+            Coarse::Replicated(dual) => {
+                let mut z = split.comm.all_gather(&mine, &split.coarse_counts());
+                dual.solve_l(&mut z);
+                z
+            }
+            Coarse::Root(root) => root.solve_l(&*split.comm, mine),
+        };
         y.copy_from_slice(&z);
-        self.dual.solve_l(y);
     }
 
     fn apply_t(&self, y: &[f64], x: &mut [f64]) {
         let split = self.split;
         let cluster = split.cluster;
-        let mut z = y.to_vec();
-        self.dual.solve_lt(&mut z);
-        let own = cluster.owned();
-        let z = &z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)];
-        x.copy_from_slice(&split.gt_times(z));
+        let z = match &split.coarse {
+            Coarse::Replicated(dual) => {
+                let mut z = y.to_vec();
+                dual.solve_lt(&mut z);
+                let own = cluster.owned();
+                z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)].to_vec()
+            }
+            Coarse::Root(root) => root.solve_lt(&*split.comm, y),
+        };
+        x.copy_from_slice(&split.gt_times(&z));
     }
 }
 

@@ -19,7 +19,9 @@
 
 use super::cluster::Cluster;
 use super::coarse::{CoarseFactor, Gram, RowOwners};
-use super::comm::{agree, gather_to_root, scatter_from_root, Comm, RankFailure};
+use super::comm::{
+    agree, broadcast_from_root, gather_to_root, scatter_from_root, Comm, RankFailure,
+};
 use super::dual::factor_checked;
 use std::collections::BTreeMap;
 
@@ -86,6 +88,32 @@ impl RootCoarse {
         if let Some(f) = &self.factor {
             f.solve(&mut z);
         }
+        scatter_from_root(comm, z, &self.counts)
+    }
+
+    /// `L^-1 Q z` (`G G^T = Q^T L L^T Q`), whole on every rank, from this
+    /// rank's part `mine` of `z`: up the tree, the forward solve on rank 0,
+    /// down the tree to every rank. The replicated `Dual::solve_l`'s bits.
+    /// Collective.
+    pub fn solve_l(&self, comm: &dyn Comm, mine: Vec<f64>) -> Vec<f64> {
+        let mut z = gather_to_root(comm, mine, &self.counts);
+        if let Some(f) = &self.factor {
+            f.solve_l(&mut z);
+        }
+        broadcast_from_root(comm, z, self.counts.iter().sum())
+    }
+
+    /// This rank's part of `Q^T L^-T y`, `y` whole (the same on every rank):
+    /// the backward solve on rank 0, the parts down the tree. Collective.
+    pub fn solve_lt(&self, comm: &dyn Comm, y: &[f64]) -> Vec<f64> {
+        let z = match &self.factor {
+            Some(f) => {
+                let mut z = y.to_vec();
+                f.solve_lt(&mut z);
+                z
+            }
+            None => Vec::new(),
+        };
         scatter_from_root(comm, z, &self.counts)
     }
 

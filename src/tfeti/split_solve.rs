@@ -124,7 +124,7 @@ fn solve(
     let b_norm = crate::qp::Reduce::norm(split, &b);
     let lower = split.restrict(&lower);
     let a = SplitProjectedF::new(split, scale);
-    let g = SplitOrthonormal::new(split).unwrap_or_else(|| unreachable!("replicated coarse"));
+    let g = SplitOrthonormal::new(split);
     // The primal equilibrium to the tolerance as well (`solve::balanced`),
     // on the multipliers gathered: only where SMALBE would stop otherwise.
     let balanced = balanced(dual, f, &l_tilde, settings.tolerance);
