@@ -1348,7 +1348,9 @@ impl Operators {
         // reduced one, without the held rows); built on first use where the
         // solve may not iterate (a warm start kept on its active set).
         let precond = PreconditionerChoice::of(scene, system.dual().cluster());
-        if deferred {
+        // The split solve may refuse the scene (friction, classical FETI):
+        // its preconditioner is built on first use.
+        if deferred || split {
             system.defer_preconditioner(
                 precond.kind,
                 setup.problem.n_equality,

@@ -5,7 +5,7 @@
 //! operators' own residual; MPRGP over it the same iterates on 1 to 7 ranks,
 //! at the replicated MPRGP's minimum; SMALBE over it the same multipliers on
 //! 1 to 4 ranks, `cso solve`'s to the tolerance; the lumped and Dirichlet
-//! preconditioners `P M P` on it the replicated bits on 1 to 5 ranks.
+//! preconditioners `P M P` on it the replicated bits on 1, 2, 3 and 5 ranks.
 
 use crate::fixture::example;
 use cso::lang::Scene;
@@ -164,6 +164,8 @@ fn the_split_dual_gives_the_same_bits_on_every_rank_count() {
         Orthonormal(dual).apply_t(&probe(rows), &mut gtw);
         let serial = on_rank(&scene, None);
         assert_eq!(serial.f, bits(&fv), "{name}: F");
+        assert_eq!(serial.root_gv, bits(&gv), "{name}: G~ v (root coarse)");
+        assert_eq!(serial.root_gtw, bits(&gtw), "{name}: G~^T w (root coarse)");
         assert_eq!(serial.p, bits(&pv), "{name}: P");
         assert_eq!(serial.root_p, bits(&pv), "{name}: P (root coarse)");
         assert_eq!(
@@ -456,8 +458,9 @@ fn smalbe_on_the_split_dual_gives_the_solves_multipliers_on_every_rank_count() {
     }
 }
 
-/// `scale P M P v` on one rank's split dual, per preconditioner (lumped,
-/// Dirichlet): the whole vector's bits, and the rows `W` couples.
+/// `scale P M P v` on one rank's split dual, then `scale P M (P v)` on Im P,
+/// per preconditioner (lumped, Dirichlet): the whole vectors' bits, and the
+/// rows `W` couples.
 fn preconditioned_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Vec<(Vec<u64>, usize)> {
     let mut state = cso::state::solve_with(
         scene,
@@ -480,6 +483,11 @@ fn preconditioned_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Vec<(Ve
         let v = split.restrict(&probe(dual.multipliers()));
         let mut y = vec![0.0; v.len()];
         pm.apply(&v, &mut y);
+        out.push((bits(&split.assemble(&y)), m.coupled_rows()));
+        // On Im P (projected CG's form): one projection fewer.
+        let mut pv = v.clone();
+        split.project(&mut pv);
+        SplitProjectedM::on_image(&split, m, 2.5).apply(&pv, &mut y);
         out.push((bits(&split.assemble(&y)), m.coupled_rows()));
     }
     out
@@ -505,6 +513,10 @@ fn the_split_preconditioners_give_the_replicated_bits_on_every_rank_count() {
             ProjectedM::new(dual, m, 2.5).apply(&v, &mut y);
             assert!(y.iter().any(|&a| a != 0.0), "{name}, {kind:?}");
             reference.push(bits(&y));
+            let mut pv = v.clone();
+            dual.project(&mut pv);
+            ProjectedM::on_image(dual, m, 2.5).apply(&pv, &mut y);
+            reference.push(bits(&y));
         }
         let serial = preconditioned_on_rank(&scene, None);
         for (k, (got, _)) in serial.iter().enumerate() {
@@ -515,7 +527,7 @@ fn the_split_preconditioners_give_the_replicated_bits_on_every_rank_count() {
         }
         if name == "semicoercive3d" {
             // Cross points: W's gather of its coupled rows is exercised.
-            assert!(serial[1].1 > 0, "{name}: no coupled rows");
+            assert!(serial[2].1 > 0, "{name}: no coupled rows");
         }
         for p in ranks {
             let seen = each_rank(p, |c| preconditioned_on_rank(&scene, Some(c)));

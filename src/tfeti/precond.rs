@@ -342,7 +342,8 @@ impl Scaling {
 
 /// `W` on a split vector (`tfeti::split`: each rank holds its owned rows).
 /// A row that overlaps none is scaled where it is; the coupled rows (chains
-/// of three or more copies, a few per cross point) are gathered on every
+/// of three or more copies along subdomain edges and at cross points,
+/// Dirichlet rows on a glued copy) are gathered on every
 /// rank, solved there with the replicated factor, and each rank keeps its
 /// own: the replicated [`Scaling`]'s operations, so its bits.
 pub(crate) struct OwnedScaling<'p> {
@@ -579,8 +580,9 @@ impl DualPreconditioner {
     }
 
     /// The scaling `W` of the split vectors whose rows are `owned` (global,
-    /// ascending), None where the equality rows are not scaled. Collective
-    /// (an all-reduce and a gather) where they are.
+    /// ascending), None where the equality rows are not scaled (alike on
+    /// every rank: `W` is built from replicated data). Collective (an
+    /// all-reduce and a gather) where `W` couples rows.
     pub(crate) fn owned_scaling(
         &self,
         owned: &[usize],
@@ -627,7 +629,8 @@ impl DualPreconditioner {
     }
 
     /// Equality rows that `W` couples to another (chains of three or more
-    /// copies): the rows a split vector's scaling gathers.
+    /// copies, Dirichlet rows on a glued copy): the rows a split vector's
+    /// scaling gathers.
     pub fn coupled_rows(&self) -> usize {
         self.scaling.as_ref().map_or(0, |w| w.coupled.len())
     }

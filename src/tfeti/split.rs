@@ -31,7 +31,7 @@
 //! global row), [`SplitProjectedF`] and [`SplitOrthonormal`]
 //! (`tfeti::split_solve`, `cso solve --split-dual`), all checked bitwise
 //! across rank counts on thread ranks; the preconditioners through
-//! [`SplitDual::local_sum`] (`tfeti::split_precond`). The active-set
+//! `SplitDual::local_sum` (`tfeti::split_precond`). The active-set
 //! prediction still runs on the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};

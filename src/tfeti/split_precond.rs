@@ -1,6 +1,6 @@
 //! The dual preconditioners (lumped, Dirichlet) on the split dual (issue 37
 //! items 2 and 3): `M = W (sum_s B_s M_s B_s^T) W` applied to a split vector
-//! by the same halo and sum exchanges as `F` ([`SplitDual::local_sum`]), the
+//! by the same halo and sum exchanges as `F` (`SplitDual::local_sum`), the
 //! subdomains' blocks where they are (`DualPreconditioner::apply_owned`), and
 //! `W` on the owned rows with its coupled rows gathered
 //! (`precond::OwnedScaling`). Every sum has the replicated preconditioner's
