@@ -78,8 +78,9 @@ fn probe(m: usize) -> Vec<f64> {
         .collect()
 }
 
-fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
-    let state = cso::state::solve_with(
+/// The scene's state solved on this rank (`None`: one process).
+fn state_on(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> cso::state::State {
+    cso::state::solve_with(
         scene,
         &scene.design_init(),
         &cso::state::SolveOptions {
@@ -88,7 +89,11 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
         },
         &mut |_| {},
     )
-    .expect("solves");
+    .expect("solves")
+}
+
+fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
+    let state = state_on(scene, comm);
     let split = SplitDual::new(&state.dual);
     let v = probe(state.dual.multipliers());
     let mine = split.restrict(&v);
@@ -266,16 +271,7 @@ fn bound_qp(dual: &cso::tfeti::dual::Dual, n_eq: usize) -> [Vec<f64>; 3] {
 }
 
 fn mprgp_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Solved {
-    let state = cso::state::solve_with(
-        scene,
-        &scene.design_init(),
-        &cso::state::SolveOptions {
-            comm,
-            ..Default::default()
-        },
-        &mut |_| {},
-    )
-    .expect("solves");
+    let state = state_on(scene, comm);
     let split = SplitDual::new(&state.dual);
     let [b, lower, start] = bound_qp(&state.dual, state.problem.n_equality);
     let (b, lower) = (split.restrict(&b), split.restrict(&lower));
@@ -388,16 +384,7 @@ struct Smalbe {
 }
 
 fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f64>) {
-    let state = cso::state::solve_with(
-        scene,
-        &scene.design_init(),
-        &cso::state::SolveOptions {
-            comm,
-            ..Default::default()
-        },
-        &mut |_| {},
-    )
-    .expect("solves");
+    let state = state_on(scene, comm);
     let problem = &state.problem;
     let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
     let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
@@ -462,16 +449,7 @@ fn smalbe_on_the_split_dual_gives_the_solves_multipliers_on_every_rank_count() {
 /// per preconditioner (lumped, Dirichlet): the whole vectors' bits, and the
 /// rows `W` couples.
 fn preconditioned_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Vec<(Vec<u64>, usize)> {
-    let mut state = cso::state::solve_with(
-        scene,
-        &scene.design_init(),
-        &cso::state::SolveOptions {
-            comm,
-            ..Default::default()
-        },
-        &mut |_| {},
-    )
-    .expect("solves");
+    let mut state = state_on(scene, comm);
     let n_eq = state.problem.n_equality;
     let mut out = Vec::new();
     for kind in [Kind::Lumped, Kind::Dirichlet] {

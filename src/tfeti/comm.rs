@@ -303,27 +303,7 @@ pub fn gather_to_root(comm: &dyn Comm, mine: Vec<f64>, counts: &[usize]) -> Vec<
 /// binomial tree of [`scatter_from_root`] (each rank receives it once, from
 /// its parent). Collective.
 pub fn broadcast_from_root(comm: &dyn Comm, whole: Vec<f64>, n: usize) -> Vec<f64> {
-    let (me, p) = (comm.rank(), comm.size());
-    let mut step = 1;
-    while step < p {
-        step *= 2;
-    }
-    let mut held = if me == 0 { whole } else { Vec::new() };
-    step /= 2;
-    while step >= 1 {
-        let mut sends = Vec::new();
-        let mut receives = Vec::new();
-        if me % (2 * step) == 0 && me + step < p {
-            sends.push((me + step, held.clone()));
-        } else if me % (2 * step) == step {
-            receives.push((me - step, n));
-        }
-        for part in comm.exchange(&sends, &receives) {
-            held = part;
-        }
-        step /= 2;
-    }
-    held
+    down_tree(comm, whole, |_, _, held| held.clone(), |_, _| n)
 }
 
 /// The inverse of [`gather_to_root`]: rank 0's `whole` (every rank's part in
@@ -331,6 +311,28 @@ pub fn broadcast_from_root(comm: &dyn Comm, whole: Vec<f64>, n: usize) -> Vec<f6
 /// the ranks' parts down the same binomial tree. Returns this rank's part.
 /// Collective.
 pub fn scatter_from_root(comm: &dyn Comm, whole: Vec<f64>, counts: &[usize]) -> Vec<f64> {
+    let p = comm.size();
+    down_tree(
+        comm,
+        whole,
+        |me, step, held| {
+            let keep = counts[me..me + step].iter().sum::<usize>().min(held.len());
+            held.split_off(keep)
+        },
+        |me, step| counts[me..(me + step).min(p)].iter().sum(),
+    )
+}
+
+/// Rank 0's binomial tree, downwards: in each round (largest step first) a
+/// rank `me` with a child `me + step` sends it `part(me, step, held)`, and a
+/// child receives `len(me, step)` values from `me - step`, which it holds
+/// from then on. Returns what this rank holds at the end.
+fn down_tree(
+    comm: &dyn Comm,
+    whole: Vec<f64>,
+    part: impl Fn(usize, usize, &mut Vec<f64>) -> Vec<f64>,
+    len: impl Fn(usize, usize) -> usize,
+) -> Vec<f64> {
     let (me, p) = (comm.rank(), comm.size());
     let mut step = 1;
     while step < p {
@@ -342,14 +344,12 @@ pub fn scatter_from_root(comm: &dyn Comm, whole: Vec<f64>, counts: &[usize]) -> 
         let mut sends = Vec::new();
         let mut receives = Vec::new();
         if me % (2 * step) == 0 && me + step < p {
-            let keep = counts[me..me + step].iter().sum::<usize>().min(held.len());
-            sends.push((me + step, held.split_off(keep)));
+            sends.push((me + step, part(me, step, &mut held)));
         } else if me % (2 * step) == step {
-            let n = counts[me..(me + step).min(p)].iter().sum();
-            receives.push((me - step, n));
+            receives.push((me - step, len(me, step)));
         }
-        for part in comm.exchange(&sends, &receives) {
-            held = part;
+        for got in comm.exchange(&sends, &receives) {
+            held = got;
         }
         step /= 2;
     }
