@@ -462,6 +462,9 @@ fn preconditioned_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Vec<(Ve
         let mut y = vec![0.0; v.len()];
         pm.apply(&v, &mut y);
         out.push((bits(&split.assemble(&y)), m.coupled_rows()));
+        // M itself by neighbour exchanges alone (W's coupled rows too).
+        let (_, t) = split.traffic(|_| pm.apply_m(&v));
+        assert_eq!(t.collectives, 0, "{t:?}");
         // On Im P (projected CG's form): one projection fewer.
         let mut pv = v.clone();
         split.project(&mut pv);

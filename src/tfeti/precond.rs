@@ -159,13 +159,18 @@ impl Block {
 /// for: the Cholesky factor is of `B_E A^-1 B_E^T` restricted to them (its
 /// other rows and columns are diagonal), and a product gathers and scatters
 /// just those rows.
-struct Scaling {
+pub(crate) struct Scaling {
     /// The rows that overlap another (global row of each factor row).
     coupled: Vec<usize>,
     symbolic: Option<SymbolicCholesky<usize>>,
     l_values: Vec<f64>,
     /// `1 / d` of the rows that overlap none, where `d` is not 1.
     scale: Vec<(usize, f64)>,
+    /// Per factor row, its connected component in `B_E A^-1 B_E^T` (the
+    /// least factor row of it): the copies of one node, with the rows tied
+    /// to them. The factor couples no two components, so a component's
+    /// solution depends on its own rows alone.
+    component: Vec<usize>,
     /// Work space of a one-column solve (the gathered rows, the factor's
     /// scratch).
     work: Mutex<(Vec<f64>, MemBuffer)>,
@@ -253,6 +258,13 @@ impl Scaling {
                 scale.push((r1, 1.0 / v));
             }
         }
+        let component = components(
+            coupled.len(),
+            triplets
+                .iter()
+                .map(|t| (t.row, t.col))
+                .filter(|(a, b)| a != b),
+        );
         let (symbolic, l_values) = if coupled.is_empty() {
             (None, Vec::new())
         } else {
@@ -277,6 +289,7 @@ impl Scaling {
             symbolic,
             l_values,
             scale,
+            component,
             work,
         };
         // `W` times the diagonal of `B_E A^-1 B_E^T`: 1 on a row that
@@ -328,10 +341,27 @@ impl Scaling {
         self.solve_block(&mut [x]);
     }
 
+    /// The rows that overlap another (global row of each factor row),
+    /// ascending.
+    pub(crate) fn coupled(&self) -> &[usize] {
+        &self.coupled
+    }
+
+    /// `(row, 1 / d)` of the rows that overlap none, where `d` is not 1,
+    /// ascending by row.
+    pub(crate) fn diagonal(&self) -> &[(usize, f64)] {
+        &self.scale
+    }
+
+    /// Per factor row, its component's least factor row.
+    pub(crate) fn components(&self) -> &[usize] {
+        &self.component
+    }
+
     /// The coupled rows' solve alone, `block` their values in factor order
     /// (a split vector's, gathered): the same operations as
     /// [`Self::solve_block`]'s on them.
-    fn solve_coupled(&self, block: &mut [f64]) {
+    pub(crate) fn solve_coupled(&self, block: &mut [f64]) {
         let Some(symbolic) = &self.symbolic else {
             return;
         };
@@ -340,44 +370,23 @@ impl Scaling {
     }
 }
 
-/// `W` on a split vector (`tfeti::split`: each rank holds its owned rows).
-/// A row that overlaps none is scaled where it is; the coupled rows (chains
-/// of three or more copies along subdomain edges and at cross points,
-/// Dirichlet rows on a glued copy) are gathered on every
-/// rank, solved there with the replicated factor, and each rank keeps its
-/// own: the replicated [`Scaling`]'s operations, so its bits.
-pub(crate) struct OwnedScaling<'p> {
-    scaling: &'p Scaling,
-    /// (owned position, `1 / d`) of the rows that overlap none.
-    diagonal: Vec<(usize, f64)>,
-    /// (owned position, factor row) of this rank's coupled rows.
-    mine: Vec<(usize, usize)>,
-    /// Coupled rows per rank, and the factor row of each gathered value.
-    counts: Vec<usize>,
-    order: Vec<usize>,
-}
-
-impl OwnedScaling<'_> {
-    /// `x <- W x` on the owned rows. Collective (one gather) where rows are
-    /// coupled.
-    pub(crate) fn solve(&self, comm: &dyn Comm, x: &mut [f64]) {
-        for &(j, s) in &self.diagonal {
-            x[j] *= s;
+/// Labels of the connected components of the graph on `n` vertices with
+/// `edges`: each vertex's least vertex of its component.
+fn components(n: usize, edges: impl Iterator<Item = (usize, usize)>) -> Vec<usize> {
+    let mut parent: Vec<usize> = (0..n).collect();
+    fn root(parent: &mut [usize], mut v: usize) -> usize {
+        while parent[v] != v {
+            parent[v] = parent[parent[v]];
+            v = parent[v];
         }
-        if self.order.is_empty() {
-            return;
-        }
-        let values: Vec<f64> = self.mine.iter().map(|&(j, _)| x[j]).collect();
-        let all = comm.all_gather(&values, &self.counts);
-        let mut block = vec![0.0; self.order.len()];
-        for (&k, v) in self.order.iter().zip(all) {
-            block[k] = v;
-        }
-        self.scaling.solve_coupled(&mut block);
-        for &(j, k) in &self.mine {
-            x[j] = block[k];
-        }
+        v
     }
+    for (a, b) in edges {
+        let (ra, rb) = (root(&mut parent, a), root(&mut parent, b));
+        // The lesser root stays: every root is its component's least vertex.
+        parent[ra.max(rb)] = ra.min(rb);
+    }
+    (0..n).map(|v| root(&mut parent, v)).collect()
 }
 
 /// How the equality rows' copies are weighed against each other (see the
@@ -579,49 +588,10 @@ impl DualPreconditioner {
         guard.yl.clone()
     }
 
-    /// The scaling `W` of the split vectors whose rows are `owned` (global,
-    /// ascending), None where the equality rows are not scaled (alike on
-    /// every rank: `W` is built from replicated data). Collective (an
-    /// all-reduce and a gather) where `W` couples rows.
-    pub(crate) fn owned_scaling(
-        &self,
-        owned: &[usize],
-        comm: &dyn Comm,
-    ) -> Option<OwnedScaling<'_>> {
-        let scaling = self.scaling.as_ref()?;
-        let diagonal = owned
-            .iter()
-            .enumerate()
-            .filter_map(|(j, r)| {
-                let at = scaling.scale.binary_search_by_key(r, |e| e.0).ok()?;
-                Some((j, scaling.scale[at].1))
-            })
-            .collect();
-        let mine: Vec<(usize, usize)> = owned
-            .iter()
-            .enumerate()
-            .filter_map(|(j, r)| Some((j, scaling.coupled.binary_search(r).ok()?)))
-            .collect();
-        let (mut counts, mut order) = (Vec::new(), Vec::new());
-        if !scaling.coupled.is_empty() {
-            let mut n = vec![0u64; comm.size()];
-            n[comm.rank()] = mine.len() as u64;
-            comm.all_reduce_u64(&mut n, Op::Sum);
-            counts = n.into_iter().map(|c| c as usize).collect();
-            let rows: Vec<u64> = mine.iter().map(|&(_, k)| k as u64).collect();
-            order = comm
-                .all_gather_u64(&rows, &counts)
-                .into_iter()
-                .map(|k| k as usize)
-                .collect();
-        }
-        Some(OwnedScaling {
-            scaling,
-            diagonal,
-            mine,
-            counts,
-            order,
-        })
+    /// The scaling `W` of the equality rows, None where they are not
+    /// scaled (alike on every rank: it is built from replicated data).
+    pub(crate) fn scaling(&self) -> Option<&Scaling> {
+        self.scaling.as_ref()
     }
 
     pub fn built(&self) -> &Built {
@@ -704,5 +674,22 @@ impl DualPreconditioner {
         if let Some(w) = &self.scaling {
             w.solve(y);
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::components;
+
+    #[test]
+    fn components_are_labelled_by_their_least_vertex() {
+        // 0-3-5, 1-4, 2 alone; edges in any order and direction.
+        let edges = [(5, 3), (4, 1), (3, 0)];
+        assert_eq!(
+            components(6, edges.into_iter()),
+            vec![0, 1, 2, 0, 1, 0],
+            "labels"
+        );
+        assert_eq!(components(3, std::iter::empty()), vec![0, 1, 2]);
     }
 }
