@@ -7,6 +7,8 @@ use crate::{options, root};
 use cso::lang::scene::Scheme;
 use cso::lang::{compile, Scene};
 use cso::sens::{Gradient, GradientError, GradientOptions};
+use cso::tfeti::comm::{thread_ranks, Comm};
+use std::sync::Arc;
 
 /// Three layers glued, the middle one 1000 times stiffer (2D, dense `F_s`,
 /// where `auto` otherwise takes none).
@@ -328,4 +330,22 @@ pub fn assert_pieces(whole: &std::path::Path, dir: &std::path::Path, body: &str,
         seen.iter().all(|&n| n == 1),
         "{body}: every cell in one piece"
     );
+}
+
+/// `f` on each of `p` thread ranks, each on its own thread: every rank's
+/// answer, in rank order.
+pub fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T> {
+    std::thread::scope(|s| {
+        let handles: Vec<_> = thread_ranks(p)
+            .into_iter()
+            .map(|r| {
+                let f = &f;
+                s.spawn(move || f(Arc::new(r)))
+            })
+            .collect();
+        handles
+            .into_iter()
+            .map(|h| h.join().expect("rank thread"))
+            .collect()
+    })
 }

@@ -2,7 +2,7 @@
 //! (`cso::tfeti::comm::thread_ranks`): the code paths `mpirun` takes, without
 //! MPI, bitwise against the serial solve.
 
-use crate::fixture::example;
+use crate::fixture::{each_rank, example};
 use crate::options;
 use cso::io::report::Report;
 use cso::lang::{compile, Scene};
@@ -350,24 +350,6 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
             assert!(g == serial, "rank {r} of {p}: the iterates differ");
         }
     }
-}
-
-/// `f` on each of `p` thread ranks, each on its own thread: every rank's
-/// answer.
-fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T> {
-    std::thread::scope(|s| {
-        let handles: Vec<_> = thread_ranks(p)
-            .into_iter()
-            .map(|r| {
-                let f = &f;
-                s.spawn(move || f(Arc::new(r)))
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("rank thread"))
-            .collect()
-    })
 }
 
 /// Distributed files: every rank writes its piece of each body's VTU

@@ -7,10 +7,10 @@
 //! 1 to 4 ranks, `cso solve`'s to the tolerance; the lumped and Dirichlet
 //! preconditioners `P M P` on it the replicated bits on 1, 2, 3 and 5 ranks.
 
-use crate::fixture::example;
+use crate::fixture::{each_rank, example};
 use cso::lang::Scene;
 use cso::qp::{mprgp_over, Equality, MprgpSettings, Operator};
-use cso::tfeti::comm::{thread_ranks, Comm};
+use cso::tfeti::comm::Comm;
 use cso::tfeti::dual::{Orthonormal, ProjectedF, ProjectedM};
 use cso::tfeti::precond::Kind;
 use cso::tfeti::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF, Traffic};
@@ -39,23 +39,6 @@ struct Seen {
     root_gtw: Vec<u64>,
     /// Values of `G` held: (split, replicated).
     g_values: (usize, usize),
-}
-
-/// `f` on every rank of `p` thread ranks, each on its own thread.
-fn each_rank<T: Send>(p: usize, f: impl Fn(Arc<dyn Comm>) -> T + Sync) -> Vec<T> {
-    std::thread::scope(|s| {
-        let handles: Vec<_> = thread_ranks(p)
-            .into_iter()
-            .map(|r| {
-                let f = &f;
-                s.spawn(move || f(Arc::new(r)))
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("rank"))
-            .collect()
-    })
 }
 
 /// `||a - b||`.
