@@ -1473,10 +1473,12 @@ impl Operators {
         if start.is_some() {
             return refuse("from a warm start");
         }
+        let dual = self.system.dual();
+        let split = crate::tfeti::split::SplitDual::new(dual);
         crate::tfeti::split_solve::dual_solve(
-            self.system.dual(),
-            f,
-            c,
+            &split,
+            dual.preconditioner(),
+            (f, c),
             self.problem.n_equality,
             settings,
             observer,

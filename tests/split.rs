@@ -360,9 +360,11 @@ fn mprgp_on_the_split_dual_gives_the_same_bits_on_every_rank_count() {
 }
 
 /// What one rank's SMALBE on the split dual gave: the whole multipliers
-/// (bits) and the counts.
+/// and displacements (bits) and the counts.
+#[derive(PartialEq)]
 struct Smalbe {
     lambda: Vec<u64>,
+    u: Vec<u64>,
     counts: (usize, usize, usize),
 }
 
@@ -376,30 +378,58 @@ fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f6
         max_outer: 1000,
         ..Default::default()
     };
-    let sol = dual_solve(
-        &state.dual,
-        &f,
-        &c,
-        problem.n_equality,
-        &settings,
-        &mut |_| {},
-    )
-    .expect("reconstructs");
-    assert_eq!(
-        sol.info.status,
-        cso::qp::Status::Converged,
-        "{:?}",
-        sol.info
-    );
-    let i = &sol.info;
-    let seen = Smalbe {
-        lambda: bits(&sol.lambda),
-        counts: (
-            i.outer_iterations,
-            i.inner_iterations,
-            i.hessian_applications,
-        ),
+    let solve = |split: &SplitDual| {
+        let sol = dual_solve(
+            split,
+            None,
+            (&f, &c),
+            problem.n_equality,
+            &settings,
+            &mut |_| {},
+        )
+        .expect("reconstructs");
+        assert_eq!(
+            sol.info.status,
+            cso::qp::Status::Converged,
+            "{:?}",
+            sol.info
+        );
+        let i = &sol.info;
+        Smalbe {
+            lambda: bits(&sol.lambda),
+            u: bits(&sol.u.concat()),
+            counts: (
+                i.outer_iterations,
+                i.inner_iterations,
+                i.hessian_applications,
+            ),
+        }
     };
+    let seen = solve(&SplitDual::new(&state.dual));
+    // From the split set-up (each rank its own G_s) with the coarse problem
+    // on rank 0, the homogenization and the reconstruction included: the
+    // same bits.
+    let own = cso::state::setup_split(
+        scene,
+        &scene.design_init(),
+        state.dual.cluster().comm().clone(),
+    )
+    .expect("sets up")
+    .cluster;
+    let root = solve(&SplitDual::with_root_coarse(&own).expect("factorizes"));
+    assert!(
+        root == seen,
+        "the coarse problem on rank 0 changed the solve"
+    );
+    // The displacements are the solve's to the tolerance.
+    let u: Vec<f64> = seen.u.iter().map(|&v| f64::from_bits(v)).collect();
+    let want = state.u.concat();
+    let size = want.iter().map(|v| v * v).sum::<f64>().sqrt();
+    assert!(
+        distance(&u, &want) <= 1e-5 * size,
+        "u: {:e}",
+        distance(&u, &want)
+    );
     (seen, state.lambda.clone())
 }
 
@@ -423,6 +453,7 @@ fn smalbe_on_the_split_dual_gives_the_solves_multipliers_on_every_rank_count() {
                     got.lambda == serial.lambda,
                     "{at}: SMALBE's multipliers differ"
                 );
+                assert!(got.u == serial.u, "{at}: the displacements differ");
             }
         }
     }

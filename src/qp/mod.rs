@@ -17,7 +17,7 @@ pub mod smalbe;
 
 pub use bounds::Disc;
 pub use breakdown::{Breakdown, MprgpStep};
-pub use mprgp::{estimate_norm, mpgp, mprgp, mprgp_over, MprgpSettings};
+pub use mprgp::{estimate_norm, estimate_norm_over, mpgp, mprgp, mprgp_over, MprgpSettings};
 pub use reduce::{Reduce, Whole};
 pub use smalbe::{FeasibilityTest, SmalbeOverrides, SmalbeSettings, SmalbeWarm};
 

@@ -793,7 +793,7 @@ pub fn estimate_norm(
 }
 
 /// [`estimate_norm`] with the norms taken by `reduce` (split vectors: collective).
-pub(super) fn estimate_norm_over<R: Reduce>(
+pub fn estimate_norm_over<R: Reduce>(
     a: &dyn Operator,
     v: &mut [f64],
     w: &mut [f64],

@@ -561,7 +561,7 @@ impl Cluster {
 
     /// One vector per subdomain, the owned ones given: every subdomain's, on
     /// every rank (the identity on one rank).
-    fn gather_primal(&self, mine: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
+    pub(crate) fn gather_primal(&self, mine: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
         self.gather_each(mine, |s| self.dofs[s])
     }
 
@@ -587,7 +587,14 @@ impl Cluster {
     /// N_s c_s)`: the primal equilibrium without reconstructing `u`. One
     /// `kdim`-column pass over each factor.
     pub fn equilibrium_grams(&self) -> Vec<Vec<f64>> {
-        let mine = self.map(|_, sub| {
+        let mine = self.own_equilibrium_grams();
+        self.gather_each(mine, |s| self.kdim(s) * self.kdim(s))
+    }
+
+    /// [`Self::equilibrium_grams`] of the owned subdomains only (no
+    /// communication).
+    pub fn own_equilibrium_grams(&self) -> Vec<Vec<f64>> {
+        self.map(|_, sub| {
             let (n, k) = (sub.dofs(), sub.kernel_dim());
             let mut x: Vec<f64> = (0..k).flat_map(|j| sub.kernel_column(j).to_vec()).collect();
             sub.apply_pinv_block(&mut x, k);
@@ -605,8 +612,7 @@ impl Cluster {
                 }
             }
             gram
-        });
-        self.gather_each(mine, |s| self.kdim(s) * self.kdim(s))
+        })
     }
 
     /// `||K u - f + B^T l||` of the state reconstructed from `l`, from the
@@ -804,6 +810,16 @@ impl Cluster {
     /// `e = R^T f`, the loads' rigid-body components (gathered where
     /// distributed).
     pub fn kernel_loads(&self, f: &[&[f64]]) -> Vec<f64> {
+        let parts = self.own_kernel_loads(f);
+        if self.is_distributed() {
+            return self.gather(&parts, |s| self.kdim(s));
+        }
+        parts
+    }
+
+    /// [`Self::kernel_loads`] of the owned subdomains, concatenated (no
+    /// communication).
+    pub fn own_kernel_loads(&self, f: &[&[f64]]) -> Vec<f64> {
         let parts: Vec<Vec<f64>> = self.map(|s, sub| {
             (0..sub.kernel_dim())
                 .map(|j| {
@@ -815,9 +831,6 @@ impl Cluster {
                 })
                 .collect()
         });
-        if self.is_distributed() {
-            return self.gather(&parts.concat(), |s| self.kdim(s));
-        }
         parts.concat()
     }
 
@@ -865,6 +878,40 @@ impl Cluster {
         let mut d = vec![0.0; self.m];
         self.sum_work_rows(&mut d);
         d
+    }
+
+    /// `B_s K_s^+ (f_s - B_s^T l)` of owned subdomain `s` on its local rows
+    /// (`l` one value per local row): [`Self::loads_less`]'s arithmetic for
+    /// one subdomain, so its bits.
+    pub fn loads_less_local(&self, s: usize, f: &[f64], l: &[f64]) -> Vec<f64> {
+        let i = s - self.first;
+        let mut guard = lock(&self.work[i]);
+        let w = &mut *guard;
+        let lr = &self.local[s];
+        lr.scatter_t_local(l, &mut w.x);
+        for (x, fi) in w.x.iter_mut().zip(f) {
+            *x = fi - *x;
+        }
+        self.subs[i].apply_pinv(&mut w.x);
+        lr.gather(&w.x, &mut w.y);
+        w.y.clone()
+    }
+
+    /// `u_s = K_s^+ (f_s - B_s^T l) + R_s alpha_s` of owned subdomain `s`
+    /// (`l` at its local rows, `alpha_s` its kernel coefficients):
+    /// [`Self::primal`]'s arithmetic for one subdomain, so its bits.
+    pub fn primal_local(&self, s: usize, f: &[f64], l: &[f64], alpha: &[f64]) -> Vec<f64> {
+        let sub = &self.subs[s - self.first];
+        let mut btl = vec![0.0; sub.dofs()];
+        self.local[s].scatter_t_local(l, &mut btl);
+        let mut x: Vec<f64> = f.iter().zip(&btl).map(|(f, b)| f - b).collect();
+        sub.apply_pinv(&mut x);
+        for (j, a) in alpha.iter().enumerate() {
+            for (xi, ri) in x.iter_mut().zip(sub.kernel_column(j)) {
+                *xi += a * ri;
+            }
+        }
+        x
     }
 
     /// Kernel dimension of subdomain `s` (any subdomain).

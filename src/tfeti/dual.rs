@@ -384,10 +384,16 @@ impl Dual {
         self.coarse().solve_lt(z);
     }
 
+    /// Does the coarse factor pass the pivot test `tol` (see
+    /// [`CoarseFactor::factor`])?
+    pub(crate) fn coarse_passes(&self, tol: f64) -> bool {
+        self.coarse().passes(tol)
+    }
+
     /// `z <- (G G^T)^-1 z` when the coarse factor passes the pivot test
     /// `tol` (see [`CoarseFactor::factor`]); false, `z` untouched, otherwise.
     pub(crate) fn coarse_solve_if(&self, tol: f64, z: &mut [f64]) -> bool {
-        if !self.coarse().passes(tol) {
+        if !self.coarse_passes(tol) {
             return false;
         }
         self.coarse().solve(z);

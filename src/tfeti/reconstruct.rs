@@ -65,7 +65,7 @@ pub(crate) fn reconstruct_block(
 
 /// Smallest pivot `l_ii^2` of `G G^T` over the active rows, relative to its
 /// largest diagonal entry, that determines the rigid motions.
-const PIVOT: f64 = 1e-10;
+pub(crate) const PIVOT: f64 = 1e-10;
 
 /// The kernel coefficients of each `(F l, d)`: `G G^T alpha = G r` with
 /// `r = F l - d` on the `active` rows (zero elsewhere).

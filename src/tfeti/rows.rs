@@ -40,6 +40,15 @@ impl LocalRows {
         }
     }
 
+    /// `x = B_s^T l` from `l` at the local rows only (one value per local
+    /// row): [`Self::scatter_t`]'s arithmetic, so its bits.
+    pub fn scatter_t_local(&self, l: &[f64], x: &mut [f64]) {
+        x.iter_mut().for_each(|v| *v = 0.0);
+        for &(r, d, v) in &self.entries {
+            x[d] += v * l[r];
+        }
+    }
+
     /// `y = B_s x` (y has one entry per local row).
     pub fn gather(&self, x: &[f64], y: &mut [f64]) {
         y.iter_mut().for_each(|v| *v = 0.0);

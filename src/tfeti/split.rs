@@ -388,6 +388,17 @@ impl<'a> SplitDual<'a> {
         self.sum(parts.concat())
     }
 
+    /// The values of `x` (owned rows) at each owned subdomain's local rows,
+    /// in subdomain order: one halo exchange.
+    pub(crate) fn at_subdomains(&self, x: &[f64]) -> Vec<Vec<f64>> {
+        let t = self.halo(x);
+        self.plan
+            .sub_at
+            .iter()
+            .map(|at| at.iter().map(|&i| t[i]).collect())
+            .collect()
+    }
+
     /// `y = F x` on the owned rows.
     pub fn apply_f(&self, x: &[f64]) -> Vec<f64> {
         let cluster = self.cluster;
@@ -415,7 +426,7 @@ impl<'a> SplitDual<'a> {
     /// This rank's part of `G x` (its subdomains' coarse unknowns) from the
     /// owned rows of `x`: the halo, then the replicated `G x`'s loop per
     /// subdomain, reading the halo by position.
-    fn g_times(&self, x: &[f64]) -> Vec<f64> {
+    pub(crate) fn g_times(&self, x: &[f64]) -> Vec<f64> {
         let cluster = self.cluster;
         let t = self.halo(x);
         cluster
@@ -447,7 +458,7 @@ impl<'a> SplitDual<'a> {
     }
 
     /// Coarse unknowns per rank.
-    fn coarse_counts(&self) -> Vec<usize> {
+    pub(crate) fn coarse_counts(&self) -> Vec<usize> {
         let cluster = self.cluster;
         cluster
             .bounds()
@@ -458,7 +469,7 @@ impl<'a> SplitDual<'a> {
 
     /// `(G G^T)^-1 z` on this rank's coarse unknowns from its part `mine`:
     /// on rank 0 ([`RootCoarse`]), or gathered and solved on every rank.
-    fn coarse_solve(&self, mine: Vec<f64>) -> Vec<f64> {
+    pub(crate) fn coarse_solve(&self, mine: Vec<f64>) -> Vec<f64> {
         let cluster = self.cluster;
         let dual = match &self.coarse {
             Coarse::Root(root) => return root.solve(&*self.comm, mine),
@@ -468,6 +479,29 @@ impl<'a> SplitDual<'a> {
         dual.coarse_solve(&mut z);
         let own = cluster.owned();
         z[cluster.kernel_offset(own.start)..cluster.kernel_offset(own.end)].to_vec()
+    }
+
+    /// Does the coarse factor pass the pivot test `tol` (see
+    /// [`super::coarse::CoarseFactor::factor`])? The same answer on every
+    /// rank. Collective.
+    pub(crate) fn coarse_passes(&self, tol: f64) -> bool {
+        match &self.coarse {
+            Coarse::Replicated(dual) => dual.coarse_passes(tol),
+            Coarse::Root(root) => root.passes(&*self.comm, tol),
+        }
+    }
+
+    /// `L^-1 Q z` (`G G^T = Q^T L L^T Q`), whole on every rank, from this
+    /// rank's part `mine` of `z`. Collective.
+    pub(crate) fn solve_l(&self, mine: Vec<f64>) -> Vec<f64> {
+        match &self.coarse {
+            Coarse::Replicated(dual) => {
+                let mut z = self.comm.all_gather(&mine, &self.coarse_counts());
+                dual.solve_l(&mut z);
+                z
+            }
+            Coarse::Root(root) => root.solve_l(&*self.comm, mine),
+        }
     }
 
     /// Dot products of owned parts, exact and the same on every rank: one
@@ -615,16 +649,7 @@ impl Equality for SplitOrthonormal<'_, '_> {
 
     fn apply(&self, x: &[f64], y: &mut [f64]) {
         let split = self.split;
-        let mine = split.g_times(x);
-        let z = match &split.coarse {
-            Coarse::Replicated(dual) => {
-                let mut z = split.comm.all_gather(&mine, &split.coarse_counts());
-                dual.solve_l(&mut z);
-                z
-            }
-            Coarse::Root(root) => root.solve_l(&*split.comm, mine),
-        };
-        y.copy_from_slice(&z);
+        y.copy_from_slice(&split.solve_l(split.g_times(x)));
     }
 
     fn apply_t(&self, y: &[f64], x: &mut [f64]) {

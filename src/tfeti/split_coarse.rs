@@ -20,9 +20,9 @@
 use super::cluster::Cluster;
 use super::coarse::{CoarseFactor, Gram, RowOwners};
 use super::comm::{
-    agree, broadcast_from_root, gather_to_root, scatter_from_root, Comm, RankFailure,
+    agree, broadcast_from_root, gather_to_root, scatter_from_root, Comm, Op, RankFailure,
 };
-use super::dual::factor_checked;
+use super::dual::{factor_checked, null_modes};
 use std::collections::BTreeMap;
 
 /// `(G G^T)^-1` held by rank 0.
@@ -37,48 +37,65 @@ impl RootCoarse {
     /// Assembles and factorizes `G G^T` on rank 0. Collective; fails on every
     /// rank with rank 0's message when a rigid motion is left free.
     pub fn new(cluster: &Cluster) -> Result<RootCoarse, RankFailure> {
-        let comm = cluster.comm();
-        let owners = RowOwners::new(cluster);
-        let blocks: Vec<Vec<usize>> = (0..cluster.len())
-            .map(|t| owners.column_blocks(cluster, t, None))
-            .collect();
-        let halo = g_halo(cluster, &blocks);
-        let mine = cluster.owned();
-        let g = |s: usize| -> &[f64] {
-            if mine.contains(&s) {
-                cluster.g_block(s)
-            } else {
-                halo.get(&s).map_or(&[], Vec::as_slice)
-            }
-        };
-        let values: Vec<f64> = mine
-            .clone()
-            .flat_map(|t| owners.column_values(cluster, t, None, &blocks[t], &g))
-            .collect();
-        let bounds = cluster.bounds();
-        let per_rank = |len: &dyn Fn(usize) -> usize| -> Vec<usize> {
-            bounds
-                .windows(2)
-                .map(|w| (w[0]..w[1]).map(len).sum())
-                .collect()
-        };
-        let lens = per_rank(&|t| RowOwners::column_len(cluster, t, &blocks[t]));
-        let gathered = gather_to_root(&**comm, values, &lens);
-        let factor = if comm.rank() == 0 {
-            let upper = RowOwners::upper(cluster, &blocks, gathered);
-            let gram = Gram::in_form(upper, cluster.coarse_form());
-            factor_checked(gram, cluster).map(Some).map_err(|e| {
+        let (gram, counts) = assemble(cluster, None);
+        let factor = match gram {
+            Some(gram) => factor_checked(gram, cluster).map(Some).map_err(|e| {
                 format!(
                     "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
                     e.free_modes
                 )
-            })
-        } else {
-            Ok(None)
+            }),
+            None => Ok(None),
         };
-        let factor = agree(&**comm, factor)?;
-        let counts = per_rank(&|s| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s));
+        let factor = agree(&**cluster.comm(), factor)?;
         Ok(RootCoarse { factor, counts })
+    }
+
+    /// `G G^T` over the rows where `active` holds (whole on every rank: the
+    /// same on all), factorized on rank 0 with the pivot test `pivot` (see
+    /// [`CoarseFactor::factor`]): the reconstruction's coarse problem
+    /// (`tfeti::reconstruct`), with its bits. Fails on every rank with the
+    /// coarse unknowns that the rows leave undetermined. Collective.
+    pub fn on_active(
+        cluster: &Cluster,
+        active: &[bool],
+        pivot: f64,
+    ) -> Result<RootCoarse, Vec<usize>> {
+        let (gram, counts) = assemble(cluster, Some(active));
+        let factor = gram.map(|g| CoarseFactor::factor(g, pivot));
+        // Rank 0's outcome to every rank: empty when it factorized, else a
+        // flag and the undetermined unknowns.
+        let mut bytes = match &factor {
+            Some(Err(g)) => std::iter::once(1u8)
+                .chain(
+                    null_modes(&g.to_dense())
+                        .into_iter()
+                        .flat_map(|i| (i as u64).to_le_bytes()),
+                )
+                .collect(),
+            _ => Vec::new(),
+        };
+        cluster.comm().broadcast(0, &mut bytes);
+        if !bytes.is_empty() {
+            return Err(bytes[1..]
+                .chunks_exact(8)
+                .map(|b| u64::from_le_bytes(b.try_into().unwrap_or_default()) as usize)
+                .collect());
+        }
+        Ok(RootCoarse {
+            factor: factor.and_then(Result::ok),
+            counts,
+        })
+    }
+
+    /// Does the factor pass the pivot test `tol`? Rank 0's answer on every
+    /// rank. Collective.
+    pub fn passes(&self, comm: &dyn Comm, tol: f64) -> bool {
+        let mut yes = [u64::from(
+            self.factor.as_ref().is_none_or(|f| f.passes(tol)),
+        )];
+        comm.all_reduce_u64(&mut yes, Op::Min);
+        yes[0] == 1
     }
 
     /// `(G G^T)^-1 z` on this rank's coarse unknowns, `mine` its part of `z`
@@ -122,6 +139,45 @@ impl RootCoarse {
     pub fn factor_values(&self) -> usize {
         self.factor.as_ref().map_or(0, CoarseFactor::nonzeros)
     }
+}
+
+/// `G G^T` over the `active` rows (all when None) on rank 0 (None elsewhere),
+/// from the block columns of each rank's own subdomains; with the coarse
+/// unknowns of each rank. Collective.
+fn assemble(cluster: &Cluster, active: Option<&[bool]>) -> (Option<Gram>, Vec<usize>) {
+    let comm = cluster.comm();
+    let owners = RowOwners::new(cluster);
+    let blocks: Vec<Vec<usize>> = (0..cluster.len())
+        .map(|t| owners.column_blocks(cluster, t, active))
+        .collect();
+    let halo = g_halo(cluster, &blocks);
+    let mine = cluster.owned();
+    let g = |s: usize| -> &[f64] {
+        if mine.contains(&s) {
+            cluster.g_block(s)
+        } else {
+            halo.get(&s).map_or(&[], Vec::as_slice)
+        }
+    };
+    let values: Vec<f64> = mine
+        .clone()
+        .flat_map(|t| owners.column_values(cluster, t, active, &blocks[t], &g))
+        .collect();
+    let bounds = cluster.bounds();
+    let per_rank = |len: &dyn Fn(usize) -> usize| -> Vec<usize> {
+        bounds
+            .windows(2)
+            .map(|w| (w[0]..w[1]).map(len).sum())
+            .collect()
+    };
+    let lens = per_rank(&|t| RowOwners::column_len(cluster, t, &blocks[t]));
+    let gathered = gather_to_root(&**comm, values, &lens);
+    let gram = (comm.rank() == 0).then(|| {
+        let upper = RowOwners::upper(cluster, &blocks, gathered);
+        Gram::in_form(upper, cluster.coarse_form())
+    });
+    let counts = per_rank(&|s| cluster.kernel_offset(s + 1) - cluster.kernel_offset(s));
+    (gram, counts)
 }
 
 /// The `G_s` of other ranks' subdomains `s` that this rank's block columns

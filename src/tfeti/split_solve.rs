@@ -1,52 +1,62 @@
 //! The contact dual solved by SMALBE with MPRGP on the split dual (issue 37
-//! item 2; equalities only: by its projected CG): the replicated solve's
-//! homogenized problem (`l~`, `b`, the
-//! bounds, `||P F P||`, all replicated and the same bits on every rank), each
-//! rank's part of it, and SMALBE over the ranks' rows ([`solve_on_ranks`]:
-//! exact sums, the equality `G~` whole on every rank). The multipliers then
-//! have the same bits on any rank count, and agree with the replicated solve
-//! to the tolerance (their sums differ in rounding, so their paths do).
+//! item 2; equalities only: by its projected CG), from the homogenization to
+//! the reconstruction, on each rank's rows:
 //!
-//! The dual's preconditioner, where it has one, runs split too
-//! (`tfeti::split_precond`: the replicated `P M P`'s bits).
+//! - the particular solution `l~ = G~^T L^-1 R^T f`, the loads `d = B K^+ (f -
+//!   B^T l~) - c` and `b = P d` by the split dual's exchanges and coarse solves
+//!   (no replicated `G`, coarse factor or dual vector), and `||P F P||` by the
+//!   power method on the split Hessian;
+//! - SMALBE over the ranks' rows ([`solve_on_ranks`]: exact sums, the
+//!   equality `G~` whole on every rank), its extra stopping test (the primal
+//!   equilibrium, [`balanced`]) on each rank's subdomains;
+//! - the reconstruction: `alpha` from the coarse problem over the rows that
+//!   hold at the solution (on rank 0, [`RootCoarse::on_active`], where rows
+//!   are inactive), each rank's `u_s` from its own subdomains.
 //!
-//! What it does not do yet: the active-set prediction,
-//! friction's boxes and discs, warm starts; `l~`, `b` and `||P F P||` are
-//! formed on the replicated dual first, and the multipliers are gathered on
-//! every rank for the subdomains' balance test (where SMALBE would stop) and
-//! the reconstruction of `u`.
+//! Every sum is exact or taken in the replicated order, so the multipliers
+//! and `u` have the same bits on any rank count, and agree with the
+//! replicated solve to the tolerance (their sums differ in rounding, so
+//! their paths do). The dual's preconditioner, where it has one, runs split
+//! too (`tfeti::split_precond`: the replicated `P M P`'s bits).
+//!
+//! What it does not do yet: the active-set prediction, friction's boxes and
+//! discs, warm starts. The multipliers are gathered on every rank once, at
+//! the end (the report reads them; so do the active rows of the
+//! reconstruction), and so is `u`.
 
-use super::dual::Dual;
 use super::error::SolveError;
-use super::reconstruct::reconstruct;
+use super::precond::DualPreconditioner;
+use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
-use super::solve::{
-    balanced, homogenized_rhs, particular, projected_norm, stopped_as, DualSolution,
-};
+use super::solve::{stopped_as, DualSolution};
 use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
+use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
+use crate::num::exact::ExactSum;
 use crate::qp::smalbe::{self, solve_on_ranks};
-use crate::qp::{Operator, QpInfo, SmalbeSettings, SmalbeWarm, Status};
+use crate::qp::{
+    estimate_norm_over, Equality, Operator, QpInfo, Reduce, SmalbeSettings, SmalbeWarm, Status,
+};
 
-/// Solves the dual of `dual` (loads `f` per subdomain, gaps `c`, rows from
-/// `n_equality` on `>= 0`) on the split dual, from zero, and reconstructs
-/// the primal solution from the multipliers gathered on every rank (the
-/// reconstruction is the replicated one). Collective.
+/// Solves the dual of `split` (loads `f` per subdomain, gaps `c`, rows from
+/// `n_equality` on `>= 0`, the dual preconditioner `precond`) from zero, and
+/// reconstructs the primal solution. Collective.
 pub fn dual_solve(
-    dual: &Dual,
-    f: &[&[f64]],
-    c: &[f64],
+    split: &SplitDual,
+    precond: Option<&DualPreconditioner>,
+    (f, c): (&[&[f64]], &[f64]),
     n_equality: usize,
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
-    let split = SplitDual::new(dual);
-    let (mine, info, l_tilde, d, b_norm) =
-        solve(&split, dual, f, c, n_equality, settings, observer);
-    let lambda = split.assemble(&mine);
-    let lhat: Vec<f64> = lambda.iter().zip(&l_tilde).map(|(a, b)| a - b).collect();
-    let none = SlipBounds::default();
-    let (u, alpha) = reconstruct(dual, f, (n_equality, &none), &lambda, (&lhat, None), &d)
+    let h = homogenized(split, f, c);
+    let (x, info, b_norm) = if n_equality == split.cluster().multipliers() {
+        equalities(split, precond, &h.b, settings, observer)
+    } else {
+        inequalities(split, precond, (f, &h), n_equality, settings, observer)
+    };
+    let lambda: Vec<f64> = x.iter().zip(&h.l_tilde).map(|(a, b)| a + b).collect();
+    let (u, alpha, lambda) = reconstruct(split, f, n_equality, &lambda, (&x, &h.d))
         .map_err(|e| stopped_as(e, &info.status))?;
     Ok(DualSolution {
         lambda,
@@ -58,85 +68,140 @@ pub fn dual_solve(
     })
 }
 
-/// The dual solve on `split`: this rank's multipliers and what the solve
-/// did, with the replicated `l~`, `d` and the scaled `||b||`.
-#[allow(clippy::type_complexity)]
-fn solve(
+/// The homogenized problem on this rank's rows.
+struct Homogenized {
+    /// `l~`, balancing the rigid modes (`G l~ = e`).
+    l_tilde: Vec<f64>,
+    /// `d - F l~`.
+    d: Vec<f64>,
+    /// `P (d - F l~)`, zero where it is round-off.
+    b: Vec<f64>,
+}
+
+/// `l~ = G~^T L^-1 R^T f`, `d = B K^+ (f - B^T l~) - c` and `b = P d` on this
+/// rank's rows: the replicated `solve::particular` and
+/// `solve::homogenized_rhs` (without the compliance, which only the
+/// sensitivities' solves have), by the split dual's exchanges.
+fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
+    let cluster = split.cluster();
+    let y = split.solve_l(cluster.own_kernel_loads(f));
+    let mut l_tilde = vec![0.0; split.owned_rows().len()];
+    SplitOrthonormal::new(split).apply_t(&y, &mut l_tilde);
+    let mut d = split.local_sum(&l_tilde, |s, l| cluster.loads_less_local(s, f[s], l));
+    let cancellation = cancellation(split, f, &l_tilde);
+    let c = split.restrict(c);
+    // The data's size: `||B K^+ f||` and `||F l~||`, which `d` understates by
+    // the factor the loads cancelled (see `solve::homogenized_rhs`).
+    let size = match split.norm(&d) {
+        n if n > 0.0 => n * cancellation,
+        _ => 0.0,
+    };
+    d.iter_mut().zip(&c).for_each(|(di, ci)| *di -= ci);
+    let mut b = d.clone();
+    split.project(&mut b);
+    if split.norm(&b) <= 1e3 * f64::EPSILON * (size + split.norm(&c)) {
+        b.iter_mut().for_each(|x| *x = 0.0);
+    }
+    Homogenized { l_tilde, d, b }
+}
+
+/// [`super::cluster::Cluster::cancellation`] of the loads by `l` (owned
+/// rows), over the ranks' subdomains, the sums exact.
+fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
+    let cluster = split.cluster();
+    let (mut f2, mut b2, mut left) = (ExactSum::new(), ExactSum::new(), ExactSum::new());
+    for (s, ls) in cluster.owned().zip(split.at_subdomains(l)) {
+        let mut btl = vec![0.0; f[s].len()];
+        cluster.local_rows(s).scatter_t_local(&ls, &mut btl);
+        for (fi, bi) in f[s].iter().zip(&btl) {
+            f2.add(fi * fi);
+            b2.add(bi * bi);
+            left.add((fi - bi) * (fi - bi));
+        }
+    }
+    let [f2, b2, left] = split.totals([f2, b2, left]);
+    let (parts, left) = (f2.sqrt() + b2.sqrt(), left.sqrt());
+    if left > 0.0 {
+        parts / left
+    } else if parts > 0.0 {
+        f64::INFINITY
+    } else {
+        1.0
+    }
+}
+
+/// Equalities only: projected CG on `P F P x = b`, preconditioned by `P M P`
+/// where the dual has `M`, as the replicated solve. Returns `x` (owned
+/// rows), what it did and `||b||`.
+fn equalities(
     split: &SplitDual,
-    dual: &Dual,
-    f: &[&[f64]],
-    c: &[f64],
+    precond: Option<&DualPreconditioner>,
+    b: &[f64],
+    settings: &SmalbeSettings,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> (Vec<f64>, QpInfo, f64) {
+    let pm = precond.map(|m| SplitProjectedM::on_image(split, m, 1.0));
+    let precond = pm.as_ref().map(|m| m as &dyn Operator);
+    let (x, _, cg) = projected_cg(split, b, settings.tolerance, settings.max_hessian, precond);
+    let b_norm = split.norm(b);
+    let info = QpInfo {
+        status: if cg.converged {
+            Status::Converged
+        } else {
+            Status::MaxIterations
+        },
+        inner_iterations: cg.iterations,
+        hessian_applications: cg.applications,
+        projected_gradient: cg.relative_residual * b_norm,
+        feasibility: 0.0,
+        ..QpInfo::fresh()
+    };
+    observer(&info);
+    (x, info, b_norm)
+}
+
+/// SMALBE with MPRGP on `min 1/2 x^T P F P x - b^T x`, `G~ x = 0`, `x_i >=
+/// -l~_i` on the inequality rows, the Hessian scaled by `||P F P||` as in
+/// `tfeti::solve`. Returns `x` (owned rows), what it did and the scaled
+/// `||b||`.
+fn inequalities(
+    split: &SplitDual,
+    precond: Option<&DualPreconditioner>,
+    (f, h): (&[&[f64]], &Homogenized),
     n_equality: usize,
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
-) -> (Vec<f64>, QpInfo, Vec<f64>, Vec<f64>, f64) {
-    let l_tilde = particular(dual, f);
-    let loads = dual.cluster().loads_less(f, &l_tilde);
-    let cancellation = dual.cluster().cancellation(f, &l_tilde);
-    let (d, b) = homogenized_rhs(dual, loads, (c, &l_tilde), cancellation);
-    if n_equality == dual.multipliers() {
-        // Equalities only: projected CG, as the replicated solve.
-        let b = split.restrict(&b);
-        let pm = dual
-            .preconditioner()
-            .map(|m| SplitProjectedM::on_image(split, m, 1.0));
-        let precond = pm.as_ref().map(|m| m as &dyn Operator);
-        let (x, _, cg) = projected_cg(split, &b, settings.tolerance, settings.max_hessian, precond);
-        let b_norm = crate::qp::Reduce::norm(split, &b);
-        let info = QpInfo {
-            status: if cg.converged {
-                Status::Converged
-            } else {
-                Status::MaxIterations
-            },
-            inner_iterations: cg.iterations,
-            hessian_applications: cg.applications,
-            projected_gradient: cg.relative_residual * b_norm,
-            feasibility: 0.0,
-            ..QpInfo::fresh()
-        };
-        observer(&info);
-        let lambda = x
-            .iter()
-            .zip(split.restrict(&l_tilde))
-            .map(|(a, b)| a + b)
-            .collect();
-        return (lambda, info, l_tilde, d, b_norm);
-    }
-    let lower: Vec<f64> = (0..dual.multipliers())
-        .map(|i| {
+) -> (Vec<f64>, QpInfo, f64) {
+    let lower: Vec<f64> = split
+        .owned_rows()
+        .iter()
+        .zip(&h.l_tilde)
+        .map(|(&i, l)| {
             if i < n_equality {
                 f64::NEG_INFINITY
             } else {
-                -l_tilde[i]
+                -l
             }
         })
         .collect();
-    // The Hessian is P F P / ||P F P||, as in the replicated solve.
-    let (pfp, power) = projected_norm(dual, settings, None);
+    let (pfp, power) = projected_norm(split, settings.mprgp.power_iterations);
     let scaled = pfp > 0.0 && pfp.is_finite();
     let scale = if scaled { 1.0 / pfp } else { 1.0 };
     let start = SmalbeWarm {
         norms: scaled.then_some((1.0, settings.rho_factor.max(1.0))),
         ..SmalbeWarm::default()
     };
-    let b: Vec<f64> = split.restrict(&b).iter().map(|x| x * scale).collect();
-    let b_norm = crate::qp::Reduce::norm(split, &b);
-    let lower = split.restrict(&lower);
+    let b: Vec<f64> = h.b.iter().map(|x| x * scale).collect();
+    let b_norm = split.norm(&b);
     let a = SplitProjectedF::new(split, scale);
     let g = SplitOrthonormal::new(split);
-    // The primal equilibrium to the tolerance as well (`solve::balanced`),
-    // on the multipliers gathered: only where SMALBE would stop otherwise.
-    let balanced = balanced(dual, f, &l_tilde, settings.tolerance);
-    let also = |x: &[f64]| balanced(&split.assemble(x));
+    let balanced = balanced(split, f, &h.l_tilde, settings.tolerance);
     // The preconditioner approximates the inverse of the scaled Hessian:
     // ||P F P|| P M P.
-    let pm = dual
-        .preconditioner()
-        .map(|m| SplitProjectedM::new(split, m, 1.0 / scale));
+    let pm = precond.map(|m| SplitProjectedM::new(split, m, 1.0 / scale));
     let problem = smalbe::Problem {
         precond: pm.as_ref().map(|m| m as &dyn Operator),
-        also_feasible: Some(&also),
+        also_feasible: Some(&balanced),
         ..smalbe::Problem::new(&a, &b, &lower, &g)
     };
     let settings = SmalbeSettings {
@@ -159,10 +224,135 @@ fn solve(
         split,
     );
     info.hessian_applications += power;
-    let lambda = x
+    (x, info, b_norm)
+}
+
+/// `||P F P||` by `iterations` steps of the power method from the
+/// replicated solve's start (`1 + (i mod 7) / 7` at global row `i`,
+/// projected), with the applications that took.
+fn projected_norm(split: &SplitDual, iterations: usize) -> (f64, usize) {
+    let mut v: Vec<f64> = split
+        .owned_rows()
         .iter()
-        .zip(split.restrict(&l_tilde))
-        .map(|(a, b)| a + b)
+        .map(|&i| 1.0 + (i % 7) as f64 / 7.0)
         .collect();
-    (lambda, info, l_tilde.clone(), d, b_norm)
+    split.project(&mut v);
+    let mut w = vec![0.0; v.len()];
+    estimate_norm_over(
+        &SplitProjectedF::new(split, 1.0),
+        &mut v,
+        &mut w,
+        iterations,
+        split,
+    )
+}
+
+/// SMALBE's extra feasibility test on `x = l^` (owned rows; `l = l^ + l~`),
+/// the replicated `solve::balanced` over the ranks' subdomains: the primal
+/// equilibrium `||K u - f + B^T l|| <= eps max(||f||, ||B^T l||)` from the
+/// rigid-mode parts `c_s = -G_s x` and each subdomain's equilibrium Gram.
+/// Collective (one halo and one exact all-reduce).
+fn balanced<'a>(
+    split: &'a SplitDual<'a>,
+    f: &[&[f64]],
+    l_tilde: &'a [f64],
+    tolerance: f64,
+) -> impl Fn(&[f64]) -> bool + Sync + 'a {
+    let cluster = split.cluster();
+    let grams = cluster.own_equilibrium_grams();
+    // `f` is whole on every rank: its norm needs no communication.
+    let f_norm = f
+        .iter()
+        .flat_map(|fs| fs.iter())
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt();
+    move |x: &[f64]| -> bool {
+        let c = split.g_times(x);
+        let lambda: Vec<f64> = x.iter().zip(l_tilde).map(|(a, b)| a + b).collect();
+        let (mut bt, mut residual) = (ExactSum::new(), ExactSum::new());
+        let first = cluster.kernel_offset(cluster.owned().start);
+        for ((s, ls), gram) in cluster
+            .owned()
+            .zip(split.at_subdomains(&lambda))
+            .zip(&grams)
+        {
+            let mut btl = vec![0.0; cluster.dofs(s)];
+            cluster.local_rows(s).scatter_t_local(&ls, &mut btl);
+            bt.extend(btl.iter().map(|v| v * v));
+            let (o, k) = (
+                cluster.kernel_offset(s) - first,
+                cluster.kernel_offset(s + 1) - cluster.kernel_offset(s),
+            );
+            let cs = &c[o..o + k];
+            for a in 0..k {
+                for b in 0..k {
+                    residual.add(cs[a] * gram[a * k + b] * cs[b]);
+                }
+            }
+        }
+        let [bt, residual] = split.totals([bt, residual]);
+        residual.max(0.0).sqrt() <= tolerance * f_norm.max(bt.sqrt())
+    }
+}
+
+/// `alpha` from the rows that hold at the solution (equalities and active
+/// contacts), `G G^T alpha = G r` with `r = F l^ - (d - F l~)` on those rows,
+/// then `u = K^+ (f - B^T l) + R alpha` per subdomain: the replicated
+/// `tfeti::reconstruct`, on the split dual. `lambda`, `lhat = l^` and `d`
+/// are this rank's rows. Returns `u` and `alpha` of every subdomain and the
+/// multipliers, all gathered on every rank. Collective.
+#[allow(clippy::type_complexity)]
+fn reconstruct(
+    split: &SplitDual,
+    f: &[&[f64]],
+    n_equality: usize,
+    lambda: &[f64],
+    (lhat, d): (&[f64], &[f64]),
+) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<f64>), SolveError> {
+    let cluster = split.cluster();
+    let whole = split.assemble(lambda);
+    let lmax = SlipBounds::scale(&whole, n_equality).max(f64::MIN_POSITIVE);
+    let active: Vec<bool> = whole
+        .iter()
+        .enumerate()
+        .map(|(i, &l)| i < n_equality || l > 1e-8 * lmax)
+        .collect();
+    let fl = split.apply_f(lhat);
+    let r: Vec<f64> = split
+        .owned_rows()
+        .iter()
+        .zip(fl.iter().zip(d))
+        .map(|(&i, (f, d))| if active[i] { f - d } else { 0.0 })
+        .collect();
+    let gr = split.g_times(&r);
+    let alpha = if active.iter().all(|a| *a) && split.coarse_passes(PIVOT) {
+        split.coarse_solve(gr)
+    } else {
+        // G G^T over the active rows must be regular: a round-off pivot means
+        // a rigid motion no active row determines (the state is not unique).
+        let root = RootCoarse::on_active(cluster, &active, PIVOT).map_err(|free| {
+            SolveError::Undetermined {
+                modes: free.into_iter().map(|i| cluster.mode(i)).collect(),
+                names: None,
+                stopped: None,
+            }
+        })?;
+        root.solve(split.comm(), gr)
+    };
+    let first = cluster.kernel_offset(cluster.owned().start);
+    let mine: Vec<Vec<f64>> = cluster
+        .owned()
+        .zip(split.at_subdomains(lambda))
+        .map(|(s, ls)| {
+            let (o, e) = (
+                cluster.kernel_offset(s) - first,
+                cluster.kernel_offset(s + 1) - first,
+            );
+            cluster.primal_local(s, f[s], &ls, &alpha[o..e])
+        })
+        .collect();
+    let u = cluster.gather_primal(mine);
+    let alpha = split.comm().all_gather(&alpha, &split.coarse_counts());
+    Ok((u, alpha, whole))
 }
