@@ -1483,6 +1483,7 @@ impl Operators {
             settings,
             observer,
         )
+        .map_err(|e| self.named(e))
     }
 
     /// The dual solve by SMALBE on every row; rigid motions it leaves
@@ -1519,18 +1520,23 @@ impl Operators {
                 start,
                 observer,
             )
-            .map_err(|e| match e {
-                SolveError::Undetermined { modes, stopped, .. } => SolveError::Undetermined {
-                    names: Some(name_modes(
-                        &self.problem,
-                        self.system.dual().cluster(),
-                        &modes,
-                    )),
-                    modes,
-                    stopped,
-                },
-                e => e,
-            })
+            .map_err(|e| self.named(e))
+    }
+
+    /// `e` with the rigid motions of an undetermined state named.
+    fn named(&self, e: SolveError) -> SolveError {
+        match e {
+            SolveError::Undetermined { modes, stopped, .. } => SolveError::Undetermined {
+                names: Some(name_modes(
+                    &self.problem,
+                    self.system.dual().cluster(),
+                    &modes,
+                )),
+                modes,
+                stopped,
+            },
+            e => e,
+        }
     }
 
     /// The state of the dual solution `sol`, with the KKT residuals (checked

@@ -233,6 +233,35 @@ fn hard_rocking_punch_state_is_refused_as_not_unique() {
     }
 }
 
+/// The same refusal from the split dual (`--split-dual`), on one process and on
+/// 2 thread ranks: its reconstruction factors the active rows' coarse problem
+/// on rank 0, and every rank stops with the punch named.
+#[test]
+fn hard_rocking_punch_state_is_refused_on_the_split_dual_too() {
+    let src = rocking_scene(0.499, 8).edit("nu = 0.499 }", "nu = 0.499, formulation = standard }");
+    let s = scene(&src);
+    for p in [1, 2] {
+        let seen = crate::fixture::each_rank(p, |comm| {
+            let options = cso::state::SolveOptions {
+                comm: Some(comm),
+                split_dual: true,
+                ..Default::default()
+            };
+            match cso::state::solve_with(&s, &s.design_init(), &options, &mut |_| {}) {
+                Err(e @ SolveError::Undetermined { .. }) => e.to_string(),
+                Err(e) => panic!("{p} ranks: wrong error {e}"),
+                Ok(_) => panic!("{p} ranks: a non-unique state came back"),
+            }
+        });
+        for m in seen {
+            assert!(
+                m.contains("not unique") && m.contains("body `punch` (rotation)"),
+                "{p} ranks: {m}"
+            );
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------
 // 4. Floating bodies.
 
