@@ -1129,7 +1129,8 @@ fn solve_on(
         comm,
         first_on_active_set,
         phases,
-        true,
+        // The split dual reads no other rank's G_s.
+        !split_dual,
     )?;
     times.lower = setup.lower_time;
     times.factorize = t0.elapsed().as_secs_f64() - setup.lower_time;
@@ -1175,10 +1176,12 @@ fn solve_on(
                 precheck_balance(scene, problem)?;
             }
             let t = Instant::now();
-            ops.system
-                .dual()
-                .check_coarse()
-                .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
+            if !split_dual {
+                ops.system
+                    .dual()
+                    .check_coarse()
+                    .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
+            }
             times.coarse += t.elapsed().as_secs_f64();
             let (sol, predicted, done) =
                 ops.solve_dual(scene, (&f, &c), &settings, start.as_ref(), observer)?;
@@ -1339,7 +1342,8 @@ impl Operators {
         deferred: bool,
         split: bool,
     ) -> Result<Operators, SolveError> {
-        let mut system = if deferred {
+        // The split solve sets up its own coarse problem (on rank 0).
+        let mut system = if deferred || split {
             setup.dual_system_deferred()?
         } else {
             setup.dual_system()?
@@ -1473,8 +1477,11 @@ impl Operators {
         if start.is_some() {
             return refuse("from a warm start");
         }
+        // Each rank holds its own subdomains' G_s; G G^T is assembled and
+        // factorized on rank 0 (its check: the rigid motions no row holds).
         let dual = self.system.dual();
-        let split = crate::tfeti::split::SplitDual::new(dual);
+        let split = crate::tfeti::split::SplitDual::with_root_coarse(dual.cluster())
+            .map_err(|CoarseError { free_modes }| self.free_modes(&free_modes))?;
         crate::tfeti::split_solve::dual_solve(
             &split,
             dual.preconditioner(),

@@ -143,6 +143,28 @@ fn the_split_dual_gives_one_state_bitwise_on_every_rank_count() {
     }
 }
 
+/// The split solve holds no replicated `G`: each rank keeps its own
+/// subdomains' `G_s` (the coarse problem is on rank 0), from the set-up to
+/// the reconstruction.
+#[test]
+fn the_split_solve_holds_only_its_own_g_blocks() {
+    let scene = example("semicoercive3d");
+    let solve = |comm: Option<Arc<dyn Comm>>, split_dual: bool| {
+        let options = cso::state::SolveOptions {
+            comm,
+            split_dual,
+            ..Default::default()
+        };
+        let state = cso::state::solve_with(&scene, &scene.design_init(), &options, &mut |_| {})
+            .expect("solves");
+        state.dual.cluster().g_values()
+    };
+    let whole = solve(None, false);
+    let held = each_rank(3, |c| solve(Some(c), true));
+    assert_eq!(held.iter().sum::<usize>(), whole, "{held:?} of {whole}");
+    assert!(held.iter().all(|&h| h < whole), "{held:?} of {whole}");
+}
+
 /// `preconditioner = auto` decides on sums over every rank's subdomains
 /// (exact integer all-reduces): on 2 ranks it takes Dirichlet where the
 /// serial solve does, and the state and report (the estimate included) are

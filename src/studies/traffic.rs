@@ -175,7 +175,7 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>) -> Result<RankCounts, String> {
     let (xfx, dot) = split.traffic(|s| s.dot(&x, &fx));
     // The split dual's own cluster: G_s of its subdomains only.
     let own = dual.cluster().own_g_only();
-    let root = SplitDual::with_root_coarse(&own).map_err(|f| f.message)?;
+    let root = SplitDual::with_root_coarse(&own).map_err(|e| free_modes(&e))?;
     let (root_px, root_projection) = root.traffic(|s| {
         let mut t = x.clone();
         s.project(&mut t);
@@ -575,7 +575,7 @@ pub fn check_on(
     let scene = weak(p, hh)?;
     let setup = crate::state::setup_split(&scene, &[], comm.clone()).map_err(|e| e.to_string());
     let setup = crate::tfeti::comm::agree(&*comm, setup).map_err(|f| f.message)?;
-    let split = SplitDual::with_root_coarse(&setup.cluster).map_err(|f| f.message)?;
+    let split = SplitDual::with_root_coarse(&setup.cluster).map_err(|e| free_modes(&e))?;
     let network = ping_pong(&*comm).unwrap_or(Network {
         latency: 0.0,
         bandwidth: f64::INFINITY,
@@ -654,4 +654,12 @@ mod tests {
         assert!(pred[1].gather_s > pred[0].gather_s);
         assert!(measured_table(&rows).lines().count() == 5);
     }
+}
+
+/// A coarse problem that leaves rigid motions free, in words.
+fn free_modes(e: &crate::tfeti::error::CoarseError) -> String {
+    format!(
+        "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
+        e.free_modes
+    )
 }

@@ -35,8 +35,9 @@
 //! prediction still runs on the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
-use super::comm::{Comm, Op, RankFailure, Stats};
+use super::comm::{Comm, Op, Stats};
 use super::dual::Dual;
+use super::error::CoarseError;
 use super::split_coarse::RootCoarse;
 use crate::num::exact::{ExactSum, WORDS};
 use crate::qp::reduce::{order_key, start_values, Reduce};
@@ -253,7 +254,7 @@ impl<'a> SplitDual<'a> {
     /// bits, no coarse factor on the other ranks, and no `G_s` but its own
     /// read on any rank (so `cluster` may be [`Cluster::distributed_own_g`]).
     /// Collective.
-    pub fn with_root_coarse(cluster: &'a Cluster) -> Result<Self, RankFailure> {
+    pub fn with_root_coarse(cluster: &'a Cluster) -> Result<Self, CoarseError> {
         let root = RootCoarse::new(cluster)?;
         Ok(SplitDual::on(cluster, Coarse::Root(root)))
     }
