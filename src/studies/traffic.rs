@@ -610,6 +610,14 @@ pub fn check_line(c: &ModelCheck) -> String {
     )
 }
 
+/// A coarse problem that leaves rigid motions free, in words.
+fn free_modes(e: &crate::tfeti::error::CoarseError) -> String {
+    format!(
+        "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
+        e.free_modes
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -654,12 +662,4 @@ mod tests {
         assert!(pred[1].gather_s > pred[0].gather_s);
         assert!(measured_table(&rows).lines().count() == 5);
     }
-}
-
-/// A coarse problem that leaves rigid motions free, in words.
-fn free_modes(e: &crate::tfeti::error::CoarseError) -> String {
-    format!(
-        "the coarse problem leaves rigid motions free (subdomain, mode): {:?}",
-        e.free_modes
-    )
 }
