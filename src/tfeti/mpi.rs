@@ -134,7 +134,11 @@ impl Comm for Mpi {
         let mut len = [bytes.len() as u64];
         self.timed(8, || root.broadcast_into(&mut len[..]));
         bytes.resize(len[0] as usize, 0);
-        self.timed(bytes.len(), || root.broadcast_into(&mut bytes[..]));
+        // An empty buffer is not broadcast (MPI refuses its null pointer);
+        // every rank knows the length, so all skip it alike.
+        if !bytes.is_empty() {
+            self.timed(bytes.len(), || root.broadcast_into(&mut bytes[..]));
+        }
     }
 
     fn exchange(&self, sends: &[(usize, Vec<f64>)], receives: &[(usize, usize)]) -> Vec<Vec<f64>> {
