@@ -1009,7 +1009,10 @@ pub struct SolveOptions<'a> {
     /// Solve the dual on the split dual (`tfeti::split_solve`: each rank
     /// iterates on its own rows, exact sums): the same bits on any number of
     /// ranks, the replicated solve's answer to the tolerance. Cold, TFETI,
-    /// with the scene's preconditioner; friction is refused so far.
+    /// with the scene's preconditioner; friction is refused so far. The
+    /// state's cluster then holds only each rank's own `G_s` (the coarse
+    /// problem was on rank 0): on more than one rank its dual can report,
+    /// but not project or solve again (the sensitivities do not take it).
     pub split_dual: bool,
 }
 
@@ -1490,6 +1493,11 @@ impl Operators {
             settings,
             observer,
         )
+        .map(|sol| {
+            // The split dual counts its own applications of `F`.
+            dual.count_f_applications(split.f_applications());
+            sol
+        })
         .map_err(|e| self.named(e))
     }
 

@@ -127,6 +127,13 @@ fn the_split_dual_gives_one_state_bitwise_on_every_rank_count() {
             (a - b).abs() <= 1e-6 * b.abs(),
             "{name}: energy {a} against {b}"
         );
+        // Every application of F counted (the split dual's own counter).
+        let count = |k: &str| one["solver"][k].as_u64().expect("count");
+        assert!(
+            count("f_applications") >= count("hessian_applications"),
+            "{name}: {}",
+            one["solver"]
+        );
         // The scene's preconditioner where it names one (the replicated
         // solve reports its prediction's where it took that path).
         if let Some((_, kind)) = name.split_once(' ') {

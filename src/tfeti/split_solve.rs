@@ -24,6 +24,7 @@
 //! the end (the report reads them; so do the active rows of the
 //! reconstruction), and so is `u`.
 
+use super::cluster::g_block_times;
 use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
@@ -50,13 +51,16 @@ pub fn dual_solve(
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let h = homogenized(split, f, c);
-    let (x, info, b_norm) = if n_equality == split.cluster().multipliers() {
-        equalities(split, precond, &h.b, settings, observer)
+    let (x, fx, info, b_norm) = if n_equality == split.cluster().multipliers() {
+        let (x, fx, info, b_norm) = equalities(split, precond, &h.b, settings, observer);
+        (x, Some(fx), info, b_norm)
     } else {
-        inequalities(split, precond, (f, &h), n_equality, settings, observer)
+        let (x, info, b_norm) =
+            inequalities(split, precond, (f, &h), n_equality, settings, observer);
+        (x, None, info, b_norm)
     };
     let lambda: Vec<f64> = x.iter().zip(&h.l_tilde).map(|(a, b)| a + b).collect();
-    let (u, alpha, lambda) = reconstruct(split, f, n_equality, &lambda, (&x, &h.d))
+    let (u, alpha, lambda) = reconstruct(split, f, n_equality, &lambda, (&x, fx, &h.d))
         .map_err(|e| stopped_as(e, &info.status))?;
     Ok(DualSolution {
         lambda,
@@ -131,18 +135,19 @@ fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
 }
 
 /// Equalities only: projected CG on `P F P x = b`, preconditioned by `P M P`
-/// where the dual has `M`, as the replicated solve. Returns `x` (owned
-/// rows), what it did and `||b||`.
+/// where the dual has `M`, as the replicated solve. Returns `x` and `F x`
+/// (owned rows; `F x` by CG's recurrence, as the replicated solve carries
+/// it to the reconstruction), what it did and `||b||`.
 fn equalities(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
     b: &[f64],
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
-) -> (Vec<f64>, QpInfo, f64) {
+) -> (Vec<f64>, Vec<f64>, QpInfo, f64) {
     let pm = precond.map(|m| SplitProjectedM::on_image(split, m, 1.0));
     let precond = pm.as_ref().map(|m| m as &dyn Operator);
-    let (x, _, cg) = projected_cg(split, b, settings.tolerance, settings.max_hessian, precond);
+    let (x, fx, cg) = projected_cg(split, b, settings.tolerance, settings.max_hessian, precond);
     let b_norm = split.norm(b);
     let info = QpInfo {
         status: if cg.converged {
@@ -157,7 +162,7 @@ fn equalities(
         ..QpInfo::fresh()
     };
     observer(&info);
-    (x, info, b_norm)
+    (x, fx, info, b_norm)
 }
 
 /// SMALBE with MPRGP on `min 1/2 x^T P F P x - b^T x`, `G~ x = 0`, `x_i >=
@@ -250,16 +255,17 @@ fn projected_norm(split: &SplitDual, iterations: usize) -> (f64, usize) {
 /// SMALBE's extra feasibility test on `x = l^` (owned rows; `l = l^ + l~`),
 /// the replicated `solve::balanced` over the ranks' subdomains: the primal
 /// equilibrium `||K u - f + B^T l|| <= eps max(||f||, ||B^T l||)` from the
-/// rigid-mode parts `c_s = -G_s x` and each subdomain's equilibrium Gram.
-/// Collective (one halo and one exact all-reduce).
+/// rigid-mode parts `c_s = -G_s x_s` and each subdomain's equilibrium Gram.
+/// Collective (one halo of `x` and one exact all-reduce).
 fn balanced<'a>(
     split: &'a SplitDual<'a>,
     f: &[&[f64]],
-    l_tilde: &'a [f64],
+    l_tilde: &[f64],
     tolerance: f64,
 ) -> impl Fn(&[f64]) -> bool + Sync + 'a {
     let cluster = split.cluster();
     let grams = cluster.own_equilibrium_grams();
+    let l_tilde = split.at_subdomains(l_tilde);
     // `f` is whole on every rank: its norm needs no communication.
     let f_norm = f
         .iter()
@@ -268,23 +274,18 @@ fn balanced<'a>(
         .sum::<f64>()
         .sqrt();
     move |x: &[f64]| -> bool {
-        let c = split.g_times(x);
-        let lambda: Vec<f64> = x.iter().zip(l_tilde).map(|(a, b)| a + b).collect();
         let (mut bt, mut residual) = (ExactSum::new(), ExactSum::new());
-        let first = cluster.kernel_offset(cluster.owned().start);
-        for ((s, ls), gram) in cluster
-            .owned()
-            .zip(split.at_subdomains(&lambda))
-            .zip(&grams)
-        {
+        let at = split.at_subdomains(x);
+        for (((s, xs), lt), gram) in cluster.owned().zip(at).zip(&l_tilde).zip(&grams) {
+            // G_s x_s as `SplitDual::g_times` forms it.
+            let k = cluster.kernel_offset(s + 1) - cluster.kernel_offset(s);
+            let mut cs = vec![0.0; k];
+            let rows: Vec<usize> = (0..xs.len()).collect();
+            g_block_times(cluster.g_block(s), &rows, &xs, &mut cs);
+            let ls: Vec<f64> = xs.iter().zip(lt).map(|(a, b)| a + b).collect();
             let mut btl = vec![0.0; cluster.dofs(s)];
             cluster.local_rows(s).scatter_t_local(&ls, &mut btl);
             bt.extend(btl.iter().map(|v| v * v));
-            let (o, k) = (
-                cluster.kernel_offset(s) - first,
-                cluster.kernel_offset(s + 1) - cluster.kernel_offset(s),
-            );
-            let cs = &c[o..o + k];
             for a in 0..k {
                 for b in 0..k {
                     residual.add(cs[a] * gram[a * k + b] * cs[b]);
@@ -299,8 +300,9 @@ fn balanced<'a>(
 /// `alpha` from the rows that hold at the solution (equalities and active
 /// contacts), `G G^T alpha = G r` with `r = F l^ - (d - F l~)` on those rows,
 /// then `u = K^+ (f - B^T l) + R alpha` per subdomain: the replicated
-/// `tfeti::reconstruct`, on the split dual. `lambda`, `lhat = l^` and `d`
-/// are this rank's rows. Returns `u` and `alpha` of every subdomain and the
+/// `tfeti::reconstruct`, on the split dual. `lambda`, `lhat = l^`, `F l^`
+/// (where the solver carried it; else one more application) and `d` are
+/// this rank's rows. Returns `u` and `alpha` of every subdomain and the
 /// multipliers, all gathered on every rank. Collective.
 #[allow(clippy::type_complexity)]
 fn reconstruct(
@@ -308,7 +310,7 @@ fn reconstruct(
     f: &[&[f64]],
     n_equality: usize,
     lambda: &[f64],
-    (lhat, d): (&[f64], &[f64]),
+    (lhat, fl, d): (&[f64], Option<Vec<f64>>, &[f64]),
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<f64>), SolveError> {
     let cluster = split.cluster();
     let whole = split.assemble(lambda);
@@ -318,7 +320,7 @@ fn reconstruct(
         .enumerate()
         .map(|(i, &l)| i < n_equality || l > 1e-8 * lmax)
         .collect();
-    let fl = split.apply_f(lhat);
+    let fl = fl.unwrap_or_else(|| split.apply_f(lhat));
     let r: Vec<f64> = split
         .owned_rows()
         .iter()
