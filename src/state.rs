@@ -1493,10 +1493,9 @@ impl Operators {
             settings,
             observer,
         )
-        .map(|sol| {
+        .inspect(|_| {
             // The split dual counts its own applications of `F`.
             dual.count_f_applications(split.f_applications());
-            sol
         })
         .map_err(|e| self.named(e))
     }
