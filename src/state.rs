@@ -32,6 +32,7 @@ mod finite;
 pub mod friction;
 mod predict;
 mod search;
+mod split_predict;
 
 /// Wall time of each phase, seconds.
 #[derive(Debug, Clone, Default, serde::Serialize)]
@@ -1427,11 +1428,8 @@ impl Operators {
         SolveError,
     > {
         if self.split {
-            return Ok((
-                self.split_solve(scene, f, c, settings, start, observer)?,
-                None,
-                None,
-            ));
+            let (sol, predicted) = self.split_solve(scene, f, c, settings, start, observer)?;
+            return Ok((sol, predicted, None));
         }
         if has_friction(&self.problem) {
             let (sol, done) = solve_with_friction(
@@ -1455,7 +1453,9 @@ impl Operators {
     }
 
     /// The dual solve on the split dual, where it applies: TFETI, no
-    /// friction, cold.
+    /// friction, cold; through a predicted active set where
+    /// [`predict::predicts`] says so (`split_predict`), with what it did.
+    #[allow(clippy::type_complexity)]
     fn split_solve(
         &self,
         scene: &Scene,
@@ -1464,7 +1464,13 @@ impl Operators {
         settings: &SmalbeSettings,
         start: Option<&DualStart>,
         observer: &mut dyn FnMut(&QpInfo),
-    ) -> Result<DualSolution, SolveError> {
+    ) -> Result<
+        (
+            DualSolution,
+            Option<(Attempt, Option<Prediction>, crate::tfeti::precond::Kind)>,
+        ),
+        SolveError,
+    > {
         use crate::lang::scene::SolverMethod;
         let refuse = |why: &str| {
             Err(SolveError::Unsupported(format!(
@@ -1485,19 +1491,31 @@ impl Operators {
         let dual = self.system.dual();
         let split = crate::tfeti::split::SplitDual::with_root_coarse(dual.cluster())
             .map_err(|CoarseError { free_modes }| self.free_modes(&free_modes))?;
-        crate::tfeti::split_solve::dual_solve(
-            &split,
-            dual.preconditioner(),
-            (f, c),
-            self.problem.n_equality,
-            settings,
-            observer,
-        )
-        .inspect(|_| {
-            // The split dual counts its own applications of `F`.
-            dual.count_f_applications(split.f_applications());
-        })
-        .map_err(|e| self.named(e))
+        let n_eq = self.problem.n_equality;
+        let solved = match predict::predicts(scene, self, settings, false) {
+            Some(kind) => split_predict::predicted_solve(
+                (&self.problem, dual),
+                (&split, dual.preconditioner()),
+                (f, c),
+                settings,
+                kind,
+                observer,
+            )
+            .map(|(sol, how)| (sol, Some((Attempt::default(), Some(how), kind)))),
+            None => crate::tfeti::split_solve::dual_solve(
+                &split,
+                dual.preconditioner(),
+                (f, c),
+                n_eq,
+                settings,
+                None,
+                observer,
+            )
+            .map(|sol| (sol, None)),
+        };
+        // The split dual counts its own applications of `F`.
+        dual.count_f_applications(split.f_applications());
+        solved.map_err(|e| self.named(e))
     }
 
     /// The dual solve by SMALBE on every row; rigid motions it leaves

@@ -385,6 +385,7 @@ fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f6
             (&f, &c),
             problem.n_equality,
             &settings,
+            None,
             &mut |_| {},
         )
         .expect("reconstructs");

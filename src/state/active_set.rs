@@ -224,7 +224,7 @@ pub(super) fn solve(
 }
 
 /// `lambda` with its contact rows (from `n_eq` on) at 0 where they pull.
-fn feasible(lambda: &[f64], n_eq: usize) -> Vec<f64> {
+pub(super) fn feasible(lambda: &[f64], n_eq: usize) -> Vec<f64> {
     let mut l: Vec<f64> = lambda.iter().map(|l| l.max(0.0)).collect();
     l[..n_eq].copy_from_slice(&lambda[..n_eq]);
     l
@@ -266,7 +266,7 @@ fn solve_held(
 
 /// The kept solution as the contact problem's: `lambda` on every row, the
 /// Hessian applications and CG steps of every attempt, no SMALBE state.
-fn on_every_row(
+pub(super) fn on_every_row(
     sol: DualSolution,
     lambda: Vec<f64>,
     (hessian, inner): (usize, usize),
@@ -288,7 +288,7 @@ fn on_every_row(
 /// A primal-dual active set step: lets go of the held contact rows that pull
 /// and holds the rows penetrated, as the KKT check measures them, at the
 /// solution `u`, `lambda` (one per row). False where nothing changes.
-fn correct(
+pub(super) fn correct(
     problem: &Problem,
     dual: &Dual,
     u: &[Vec<f64>],

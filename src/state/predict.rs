@@ -49,8 +49,8 @@ pub const TOLERANCE: f64 = 0.1;
 /// about 3.5 times the prediction (37 + 92 of 152 allowed at 108
 /// subdomains, where SMALBE from the prediction takes 7.4 times), and a
 /// solve forecast not to finish stops early (hertz_ball: 19 applications).
-const BUDGET: usize = 4;
-const MIN_BUDGET: usize = 30;
+pub(super) const BUDGET: usize = 4;
+pub(super) const MIN_BUDGET: usize = 30;
 
 /// Active sets tried: the predicted one and three corrections.
 pub const ATTEMPTS: usize = 4;

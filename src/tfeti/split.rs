@@ -694,11 +694,46 @@ pub fn projected_cg(
     max: usize,
     precond: Option<&dyn Operator>,
 ) -> (Vec<f64>, Vec<f64>, CgInfo) {
+    projected_cg_from(split, b, None, (tol, max), precond)
+}
+
+/// [`projected_cg`] from a multiple of `x0` (in Im P, owned rows) where
+/// given: `s x0` with `s = x0^T b / x0^T P F P x0` (the replicated
+/// `solve::galerkin_start`: the multiple nearest the solution in the energy
+/// norm, one more application), from zero where that is not positive and
+/// finite or leaves a residual not below `||b||`.
+pub fn projected_cg_from(
+    split: &SplitDual,
+    b: &[f64],
+    x0: Option<&[f64]>,
+    (tol, max): (f64, usize),
+    precond: Option<&dyn Operator>,
+) -> (Vec<f64>, Vec<f64>, CgInfo) {
     let m = b.len();
     let mut x = vec![0.0; m];
     let mut fx = vec![0.0; m];
     let mut r = b.to_vec();
-    let mut z = b.to_vec();
+    let (mut started, mut b_squared) = (0, None);
+    if let Some(x0) = x0 {
+        let f0 = split.apply_f(x0);
+        let mut a0 = f0.clone();
+        split.project(&mut a0);
+        started = 1;
+        let [xax, xb, bb] = split.dots(&[(x0, &a0), (x0, b), (b, b)])[..] else {
+            unreachable!("three dots")
+        };
+        b_squared = Some(bb);
+        let s = xb / xax;
+        if xax > 0.0 && s != 0.0 && s.is_finite() {
+            let r0: Vec<f64> = b.iter().zip(&a0).map(|(b, a)| b - s * a).collect();
+            if split.dot(&r0, &r0) < bb {
+                x = x0.iter().map(|v| s * v).collect();
+                fx = f0.iter().map(|v| s * v).collect();
+                r = r0;
+            }
+        }
+    }
+    let mut z = r.clone();
     // z = P M P r, or r when M gives no descent (round-off, semidefinite M);
     // `r.r` and `r.z` in one all-reduce.
     let precondition = |r: &[f64], z: &mut [f64]| -> (f64, f64) {
@@ -715,13 +750,14 @@ pub fn projected_cg(
         let rr = split.dot(r, r);
         (rr, rr)
     };
-    let (bb, mut rz) = precondition(&r, &mut z);
+    let (r0r0, mut rz) = precondition(&r, &mut z);
     let mut p = z.clone();
-    let bnorm = bb.sqrt();
-    let mut rr = bb;
+    // The test is on `||b||` (not the start's residual).
+    let bnorm = b_squared.unwrap_or(r0r0).sqrt();
+    let mut rr = r0r0;
     let mut info = CgInfo {
         iterations: 0,
-        applications: 0,
+        applications: started,
         relative_residual: 0.0,
         converged: true,
     };

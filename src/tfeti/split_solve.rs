@@ -30,7 +30,7 @@ use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
 use super::solve::{stopped_as, DualSolution};
-use super::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF};
+use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF};
 use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
 use crate::num::exact::ExactSum;
@@ -40,19 +40,24 @@ use crate::qp::{
 };
 
 /// Solves the dual of `split` (loads `f` per subdomain, gaps `c`, rows from
-/// `n_equality` on `>= 0`, the dual preconditioner `precond`) from zero, and
-/// reconstructs the primal solution. Collective.
+/// `n_equality` on `>= 0`, the dual preconditioner `precond`) from zero, or,
+/// equalities only, from the multipliers `start` where given (whole, one per
+/// row: a predicted active set's solve), and reconstructs the primal
+/// solution. Collective.
 pub fn dual_solve(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
     (f, c): (&[&[f64]], &[f64]),
     n_equality: usize,
     settings: &SmalbeSettings,
+    start: Option<&[f64]>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let h = homogenized(split, f, c);
     let (x, fx, info, b_norm) = if n_equality == split.cluster().multipliers() {
-        let (x, fx, info, b_norm) = equalities(split, precond, &h.b, settings, observer);
+        let x0 = start.and_then(|l0| homogenized_start(split, l0, &h.l_tilde));
+        let (x, fx, info, b_norm) =
+            equalities(split, precond, (&h.b, x0.as_deref()), settings, observer);
         (x, Some(fx), info, b_norm)
     } else {
         let (x, info, b_norm) =
@@ -109,6 +114,21 @@ fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
     Homogenized { l_tilde, d, b }
 }
 
+/// The start `P P (l0 - l~)` on this rank's rows from the whole `l0`, the
+/// replicated `solve::homogenized_start`: None where only round-off is left.
+fn homogenized_start(split: &SplitDual, l0: &[f64], l_tilde: &[f64]) -> Option<Vec<f64>> {
+    let mut x: Vec<f64> = split
+        .restrict(l0)
+        .iter()
+        .zip(l_tilde)
+        .map(|(a, b)| a - b)
+        .collect();
+    let before = split.norm(&x);
+    split.project(&mut x);
+    split.project(&mut x);
+    (split.norm(&x) > 1e-8 * before).then_some(x)
+}
+
 /// [`super::cluster::Cluster::cancellation`] of the loads by `l` (owned
 /// rows), over the ranks' subdomains, the sums exact.
 fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
@@ -135,19 +155,21 @@ fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
 }
 
 /// Equalities only: projected CG on `P F P x = b`, preconditioned by `P M P`
-/// where the dual has `M`, as the replicated solve. Returns `x` and `F x`
+/// where the dual has `M`, as the replicated solve, from a multiple of `x0`
+/// where given (see [`projected_cg_from`]). Returns `x` and `F x`
 /// (owned rows; `F x` by CG's recurrence, as the replicated solve carries
 /// it to the reconstruction), what it did and `||b||`.
 fn equalities(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
-    b: &[f64],
+    (b, x0): (&[f64], Option<&[f64]>),
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> (Vec<f64>, Vec<f64>, QpInfo, f64) {
     let pm = precond.map(|m| SplitProjectedM::on_image(split, m, 1.0));
     let precond = pm.as_ref().map(|m| m as &dyn Operator);
-    let (x, fx, cg) = projected_cg(split, b, settings.tolerance, settings.max_hessian, precond);
+    let limits = (settings.tolerance, settings.max_hessian);
+    let (x, fx, cg) = projected_cg_from(split, b, x0, limits, precond);
     let b_norm = split.norm(b);
     let info = QpInfo {
         status: if cg.converged {

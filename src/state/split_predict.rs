@@ -1,0 +1,215 @@
+//! The predicted active set ([`super::predict`]) on the split dual
+//! (`--split-dual`): SMALBE to the loose tolerance on the split dual says
+//! which contact rows carry load, the equality-only problem on them is solved
+//! by the split projected CG from the prediction's multipliers (each held set
+//! on its own split cluster: the rows held, each rank its own `G_s`, the
+//! coarse problem on rank 0), corrected by primal-dual active set steps
+//! ([`super::active_set`]'s) and kept only where the KKT conditions hold to
+//! the tolerance. Where no set is kept within the budget, SMALBE solves the
+//! contact problem on the split dual from zero (it has no warm start yet),
+//! and what the prediction and the equality solves spent counts with it.
+//!
+//! Every decision is taken on values that are the same bits on every rank
+//! (multipliers gathered once per solve, exact sums), so the path and the
+//! answer are the same on any rank count.
+//!
+//! Against the replicated path: no stop of an equality solve where a held
+//! contact pulls (its solve runs to the tolerance or the budget), no
+//! forecast of the budget, and no kept dual for the sensitivities (they run
+//! on the replicated dual).
+
+use super::active_set::{correct, feasible, on_every_row};
+use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
+use crate::model::Problem;
+use crate::qp::{QpInfo, SmalbeSettings, Status};
+use crate::tfeti::dual::Dual;
+use crate::tfeti::error::SolveError;
+use crate::tfeti::kkt::kkt;
+use crate::tfeti::precond::{DualPreconditioner, Kind};
+use crate::tfeti::rows::LocalRows;
+use crate::tfeti::schur::SchurForm;
+use crate::tfeti::solve::DualSolution;
+use crate::tfeti::split::SplitDual;
+use crate::tfeti::split_solve::dual_solve;
+
+/// The contact problem of `problem` on the split dual `split` of `dual` (its
+/// preconditioner `precond`), through a predicted active set whose equality
+/// solves take the preconditioner `kind`: the solution and the prediction.
+/// Collective.
+pub(super) fn predicted_solve(
+    (problem, dual): (&Problem, &Dual),
+    (split, precond): (&SplitDual, Option<&DualPreconditioner>),
+    (f, c): (&[&[f64]], &[f64]),
+    settings: &SmalbeSettings,
+    kind: Kind,
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<(DualSolution, Prediction), SolveError> {
+    let n_eq = problem.n_equality;
+    let loose = SmalbeSettings {
+        tolerance: TOLERANCE,
+        ..settings.clone()
+    };
+    // The guess in single precision where its rounded factors fit.
+    let cluster = dual.cluster();
+    let single = settings.single_prediction
+        && cluster.local_f_stats().explicit < cluster.len()
+        && cluster.single_precision_fits();
+    cluster.set_single_precision(single);
+    let first = dual_solve(split, precond, (f, c), n_eq, &loose, None, observer);
+    cluster.set_single_precision(false);
+    let spent = first.as_ref().map_or(0, |s| s.info.hessian_applications);
+    let mut prediction = Prediction {
+        tolerance: TOLERANCE,
+        single_precision: single,
+        smalbe_applications: spent,
+        equality_solves: 0,
+        kept: false,
+    };
+    let left = settings.max_hessian.saturating_sub(spent);
+    let mut hessian = 0;
+    if let Ok(first) = &first {
+        if first.info.status == Status::Converged {
+            let budget = (BUDGET * spent).max(MIN_BUDGET).min(left / 2);
+            let held = Held {
+                problem,
+                dual,
+                kind,
+            };
+            let (kept, used, solves) = held.solve(&first.lambda, (f, c), settings, budget);
+            prediction.equality_solves = solves;
+            hessian = used;
+            if let Some(mut sol) = kept {
+                prediction.kept = true;
+                sol.info = first.info.followed_by(&sol.info);
+                return Ok((sol, prediction));
+            }
+        }
+    }
+    // SMALBE from zero, within what is left of the budget; its progress
+    // goes on from the prediction's counts.
+    let before = first.map(|s| s.info).unwrap_or_else(|_| QpInfo::fresh());
+    let rest = SmalbeSettings {
+        max_hessian: left.saturating_sub(hessian),
+        ..settings.clone()
+    };
+    let mut after = |i: &QpInfo| observer(&before.followed_by(i));
+    let mut sol = dual_solve(split, precond, (f, c), n_eq, &rest, None, &mut after)?;
+    let mut info = before.followed_by(&sol.info);
+    info.hessian_applications += hessian;
+    sol.info = info;
+    Ok((sol, prediction))
+}
+
+/// The equality-only solves on held rows.
+struct Held<'a> {
+    problem: &'a Problem,
+    /// The contact problem's dual (every row).
+    dual: &'a Dual,
+    /// The equality solves' preconditioner.
+    kind: Kind,
+}
+
+impl Held<'_> {
+    /// The rows that carry load in `previous` held, solved, checked and
+    /// corrected, at most [`ATTEMPTS`] sets within `budget` Hessian
+    /// applications: the solution on every row where one is kept, the
+    /// Hessian applications spent and the solves made.
+    fn solve(
+        &self,
+        previous: &[f64],
+        (f, c): (&[&[f64]], &[f64]),
+        settings: &SmalbeSettings,
+        budget: usize,
+    ) -> (Option<DualSolution>, usize, usize) {
+        let (problem, dual) = (self.problem, self.dual);
+        let (n_eq, m) = (problem.n_equality, problem.rows.len());
+        let tol = settings.tolerance;
+        let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
+        let mut held: Vec<bool> = (0..m)
+            .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
+            .collect();
+        let mut start = previous.to_vec();
+        let (mut hessian, mut inner, mut solves) = (0, 0, 0);
+        for _ in 0..ATTEMPTS {
+            if hessian >= budget {
+                break;
+            }
+            let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
+            let settings = SmalbeSettings {
+                max_hessian: budget - hessian,
+                ..settings.clone()
+            };
+            let Some((sol, applications)) = self.on_rows(&kept, &start, (f, c), &settings) else {
+                // Rigid motions that only the rows left out would hold.
+                break;
+            };
+            solves += 1;
+            let sol = match sol {
+                Ok(sol) => sol,
+                Err(_) => {
+                    hessian += applications;
+                    break;
+                }
+            };
+            hessian += sol.info.hessian_applications;
+            inner += sol.info.inner_iterations;
+            if sol.info.status != Status::Converged {
+                break;
+            }
+            let mut lambda = vec![0.0; m];
+            for (k, &i) in kept.iter().enumerate() {
+                lambda[i] = sol.lambda[k];
+            }
+            let check = kkt(problem, dual, &sol.u, &lambda);
+            if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
+                return (
+                    Some(on_every_row(sol, lambda, (hessian, inner))),
+                    hessian,
+                    solves,
+                );
+            }
+            if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
+                break;
+            }
+            start = feasible(&lambda, n_eq);
+        }
+        (None, hessian, solves)
+    }
+
+    /// The equality-only problem on the rows `kept` on its own split dual,
+    /// solved from `start` (one per row of the problem): its solution and
+    /// its applications of `F`; None where the rows leave a rigid motion
+    /// free. Collective.
+    fn on_rows(
+        &self,
+        kept: &[usize],
+        start: &[f64],
+        (f, c): (&[&[f64]], &[f64]),
+        settings: &SmalbeSettings,
+    ) -> Option<(Result<DualSolution, SolveError>, usize)> {
+        let (problem, cluster) = (self.problem, self.dual.cluster());
+        let local = LocalRows::split(
+            cluster.len(),
+            kept.iter()
+                .map(|&i| problem.rows[i].entries.iter().copied()),
+        );
+        let mut dual = Dual::deferred(cluster.with_local_rows(local, kept.len()));
+        dual.defer_preconditioner(Some(self.kind), kept.len(), SchurForm::PreferDense);
+        let split = SplitDual::with_root_coarse(dual.cluster()).ok()?;
+        let start: Vec<f64> = kept.iter().map(|&i| start[i]).collect();
+        let c: Vec<f64> = kept.iter().map(|&i| c[i]).collect();
+        let n = kept.len();
+        let sol = dual_solve(
+            &split,
+            dual.preconditioner(),
+            (f, &c),
+            n,
+            settings,
+            Some(&start),
+            &mut |_| {},
+        );
+        let applications = split.f_applications();
+        self.dual.count_f_applications(applications);
+        Some((sol, applications))
+    }
+}
