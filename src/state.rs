@@ -1208,6 +1208,14 @@ fn solve_on(
     if prediction.is_some() {
         state.on_active_set = false;
     }
+    // The split dual keeps no dual of its predicted set, but was solved
+    // there, with that path's preconditioner.
+    if split_dual && prediction.is_some_and(|p| p.kept) {
+        state.preconditioner = PreconditionerChoice {
+            kind: kept_precond,
+            auto: None,
+        };
+    }
     state.prediction = prediction;
     if let Some(done) = friction {
         state.kkt.friction = Some(friction_kkt(

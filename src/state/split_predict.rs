@@ -6,8 +6,9 @@
 //! coarse problem on rank 0), corrected by primal-dual active set steps
 //! ([`super::active_set`]'s) and kept only where the KKT conditions hold to
 //! the tolerance. Where no set is kept within the budget, SMALBE solves the
-//! contact problem on the split dual from zero (it has no warm start yet),
-//! and what the prediction and the equality solves spent counts with it.
+//! contact problem on the split dual from the last equality solve's
+//! multipliers (or the prediction's) with the prediction's SMALBE state, and
+//! what the prediction and the equality solves spent counts with it.
 //!
 //! Every decision is taken on values that are the same bits on every rank
 //! (multipliers gathered once per solve, exact sums), so the path and the
@@ -28,7 +29,7 @@ use crate::tfeti::kkt::kkt;
 use crate::tfeti::precond::{DualPreconditioner, Kind};
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::schur::SchurForm;
-use crate::tfeti::solve::DualSolution;
+use crate::tfeti::solve::{DualSolution, DualStart};
 use crate::tfeti::split::SplitDual;
 use crate::tfeti::split_solve::dual_solve;
 
@@ -54,10 +55,20 @@ pub(super) fn predicted_solve(
     let single = settings.single_prediction
         && cluster.local_f_stats().explicit < cluster.len()
         && cluster.single_precision_fits();
+    // Should the loose solve fail (its displacements leave a rigid motion
+    // undetermined, say), its applications are its progress's last count.
+    let mut loose_info = QpInfo::fresh();
+    let mut seen = |i: &QpInfo| {
+        loose_info = i.clone();
+        observer(i)
+    };
     cluster.set_single_precision(single);
-    let first = dual_solve(split, precond, (f, c), n_eq, &loose, None, observer);
+    let first = dual_solve(split, precond, (f, c), n_eq, &loose, None, &mut seen);
     cluster.set_single_precision(false);
-    let spent = first.as_ref().map_or(0, |s| s.info.hessian_applications);
+    let spent = match &first {
+        Ok(s) => s.info.hessian_applications,
+        Err(_) => loose_info.hessian_applications,
+    };
     let mut prediction = Prediction {
         tolerance: TOLERANCE,
         single_precision: single,
@@ -66,38 +77,77 @@ pub(super) fn predicted_solve(
         kept: false,
     };
     let left = settings.max_hessian.saturating_sub(spent);
-    let mut hessian = 0;
-    if let Ok(first) = &first {
-        if first.info.status == Status::Converged {
-            let budget = (BUDGET * spent).max(MIN_BUDGET).min(left / 2);
-            let held = Held {
-                problem,
-                dual,
-                kind,
-            };
-            let (kept, used, solves) = held.solve(&first.lambda, (f, c), settings, budget);
-            prediction.equality_solves = solves;
-            hessian = used;
-            if let Some(mut sol) = kept {
-                prediction.kept = true;
-                sol.info = first.info.followed_by(&sol.info);
-                return Ok((sol, prediction));
-            }
+    let first = match first {
+        Ok(first) => first,
+        Err(_) => {
+            // SMALBE alone decides.
+            let mut after = |i: &QpInfo| observer(&loose_info.followed_by(i));
+            let mut sol = dual_solve(split, precond, (f, c), n_eq, settings, None, &mut after)?;
+            sol.info = loose_info.followed_by(&sol.info);
+            return Ok((sol, prediction));
+        }
+    };
+    let mut tried = Tried {
+        kept: None,
+        hessian: 0,
+        solves: 0,
+        last: None,
+    };
+    if first.info.status == Status::Converged {
+        let budget = (BUDGET * spent).max(MIN_BUDGET).min(left / 2);
+        let held = Held {
+            problem,
+            dual,
+            kind,
+        };
+        tried = held.solve(&first.lambda, (f, c), settings, budget);
+        prediction.equality_solves = tried.solves;
+        if let Some(mut sol) = tried.kept.take() {
+            prediction.kept = true;
+            sol.info = first.info.followed_by(&sol.info);
+            return Ok((sol, prediction));
         }
     }
-    // SMALBE from zero, within what is left of the budget; its progress
-    // goes on from the prediction's counts.
-    let before = first.map(|s| s.info).unwrap_or_else(|_| QpInfo::fresh());
+    // SMALBE from the last equality solve's multipliers where there was one
+    // (nearer than the prediction), with the prediction's SMALBE state,
+    // within what is left of the budget; its progress goes on from the
+    // prediction's counts.
+    let start = DualStart {
+        lambda: tried.last.unwrap_or_else(|| first.lambda.clone()),
+        active_set: true,
+        smalbe: first.end.as_ref().map(|e| e.0.clone()),
+        pfp: first.end.as_ref().map(|e| e.1),
+    };
     let rest = SmalbeSettings {
-        max_hessian: left.saturating_sub(hessian),
+        max_hessian: left.saturating_sub(tried.hessian),
         ..settings.clone()
     };
-    let mut after = |i: &QpInfo| observer(&before.followed_by(i));
-    let mut sol = dual_solve(split, precond, (f, c), n_eq, &rest, None, &mut after)?;
-    let mut info = before.followed_by(&sol.info);
-    info.hessian_applications += hessian;
+    let mut after = |i: &QpInfo| observer(&first.info.followed_by(i));
+    let mut sol = dual_solve(
+        split,
+        precond,
+        (f, c),
+        n_eq,
+        &rest,
+        Some(&start),
+        &mut after,
+    )?;
+    let mut info = first.info.followed_by(&sol.info);
+    info.hessian_applications += tried.hessian;
     sol.info = info;
     Ok((sol, prediction))
+}
+
+/// What the equality solves did.
+struct Tried {
+    /// The solution on every row, where a set was kept.
+    kept: Option<DualSolution>,
+    /// Hessian applications spent.
+    hessian: usize,
+    /// Equality solves made.
+    solves: usize,
+    /// The last converged solve's multipliers (one per row, feasible).
+    last: Option<Vec<f64>>,
 }
 
 /// The equality-only solves on held rows.
@@ -120,7 +170,7 @@ impl Held<'_> {
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
         budget: usize,
-    ) -> (Option<DualSolution>, usize, usize) {
+    ) -> Tried {
         let (problem, dual) = (self.problem, self.dual);
         let (n_eq, m) = (problem.n_equality, problem.rows.len());
         let tol = settings.tolerance;
@@ -130,6 +180,7 @@ impl Held<'_> {
             .collect();
         let mut start = previous.to_vec();
         let (mut hessian, mut inner, mut solves) = (0, 0, 0);
+        let mut last = None;
         for _ in 0..ATTEMPTS {
             if hessian >= budget {
                 break;
@@ -160,20 +211,27 @@ impl Held<'_> {
             for (k, &i) in kept.iter().enumerate() {
                 lambda[i] = sol.lambda[k];
             }
+            last = Some(feasible(&lambda, n_eq));
             let check = kkt(problem, dual, &sol.u, &lambda);
             if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
-                return (
-                    Some(on_every_row(sol, lambda, (hessian, inner))),
+                return Tried {
+                    kept: Some(on_every_row(sol, lambda, (hessian, inner))),
                     hessian,
                     solves,
-                );
+                    last,
+                };
             }
             if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
                 break;
             }
             start = feasible(&lambda, n_eq);
         }
-        (None, hessian, solves)
+        Tried {
+            kept: None,
+            hessian,
+            solves,
+            last,
+        }
     }
 
     /// The equality-only problem on the rows `kept` on its own split dual,
@@ -196,7 +254,10 @@ impl Held<'_> {
         let mut dual = Dual::deferred(cluster.with_local_rows(local, kept.len()));
         dual.defer_preconditioner(Some(self.kind), kept.len(), SchurForm::PreferDense);
         let split = SplitDual::with_root_coarse(dual.cluster()).ok()?;
-        let start: Vec<f64> = kept.iter().map(|&i| start[i]).collect();
+        let start = DualStart {
+            lambda: kept.iter().map(|&i| start[i]).collect(),
+            ..DualStart::default()
+        };
         let c: Vec<f64> = kept.iter().map(|&i| c[i]).collect();
         let n = kept.len();
         let sol = dual_solve(

@@ -29,7 +29,7 @@ use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
-use super::solve::{stopped_as, DualSolution};
+use super::solve::{stopped_as, DualSolution, DualStart};
 use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF};
 use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
@@ -40,29 +40,36 @@ use crate::qp::{
 };
 
 /// Solves the dual of `split` (loads `f` per subdomain, gaps `c`, rows from
-/// `n_equality` on `>= 0`, the dual preconditioner `precond`) from zero, or,
-/// equalities only, from the multipliers `start` where given (whole, one per
-/// row: a predicted active set's solve), and reconstructs the primal
-/// solution. Collective.
+/// `n_equality` on `>= 0`, the dual preconditioner `precond`) from zero, or
+/// from `start` where given (its multipliers whole, one per row, and with
+/// inequalities SMALBE's state and `||P F P||` where it has them: a
+/// predicted active set's solves), and reconstructs the primal solution.
+/// Collective.
 pub fn dual_solve(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
     (f, c): (&[&[f64]], &[f64]),
     n_equality: usize,
     settings: &SmalbeSettings,
-    start: Option<&[f64]>,
+    start: Option<&DualStart>,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> Result<DualSolution, SolveError> {
     let h = homogenized(split, f, c);
-    let (x, fx, info, b_norm) = if n_equality == split.cluster().multipliers() {
-        let x0 = start.and_then(|l0| homogenized_start(split, l0, &h.l_tilde));
+    let (x, fx, info, b_norm, end) = if n_equality == split.cluster().multipliers() {
+        let x0 = start.and_then(|s| homogenized_start(split, &s.lambda, &h.l_tilde));
         let (x, fx, info, b_norm) =
             equalities(split, precond, (&h.b, x0.as_deref()), settings, observer);
-        (x, Some(fx), info, b_norm)
+        (x, Some(fx), info, b_norm, None)
     } else {
-        let (x, info, b_norm) =
-            inequalities(split, precond, (f, &h), n_equality, settings, observer);
-        (x, None, info, b_norm)
+        let (x, info, b_norm, end) = inequalities(
+            split,
+            precond,
+            (f, &h, start),
+            n_equality,
+            settings,
+            observer,
+        );
+        (x, None, info, b_norm, Some(end))
     };
     let lambda: Vec<f64> = x.iter().zip(&h.l_tilde).map(|(a, b)| a + b).collect();
     let (u, alpha, lambda) = reconstruct(split, f, n_equality, &lambda, (&x, fx, &h.d))
@@ -73,7 +80,7 @@ pub fn dual_solve(
         alpha,
         info,
         b_norm,
-        end: None,
+        end,
     })
 }
 
@@ -189,16 +196,17 @@ fn equalities(
 
 /// SMALBE with MPRGP on `min 1/2 x^T P F P x - b^T x`, `G~ x = 0`, `x_i >=
 /// -l~_i` on the inequality rows, the Hessian scaled by `||P F P||` as in
-/// `tfeti::solve`. Returns `x` (owned rows), what it did and the scaled
-/// `||b||`.
+/// `tfeti::solve`, from `start` where given (the replicated
+/// `solve::inequality_start`). Returns `x` (owned rows), what it did, the
+/// scaled `||b||` and SMALBE's state at the end with `||P F P||`.
 fn inequalities(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
-    (f, h): (&[&[f64]], &Homogenized),
+    (f, h, start): (&[&[f64]], &Homogenized, Option<&DualStart>),
     n_equality: usize,
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
-) -> (Vec<f64>, QpInfo, f64) {
+) -> (Vec<f64>, QpInfo, f64, (SmalbeWarm, f64)) {
     let lower: Vec<f64> = split
         .owned_rows()
         .iter()
@@ -211,13 +219,17 @@ fn inequalities(
             }
         })
         .collect();
-    let (pfp, power) = projected_norm(split, settings.mprgp.power_iterations);
+    let (pfp, power) = match start.and_then(|s| s.pfp) {
+        Some(pfp) => (pfp, 0),
+        None => projected_norm(split, settings.mprgp.power_iterations),
+    };
     let scaled = pfp > 0.0 && pfp.is_finite();
     let scale = if scaled { 1.0 / pfp } else { 1.0 };
-    let start = SmalbeWarm {
-        norms: scaled.then_some((1.0, settings.rho_factor.max(1.0))),
-        ..SmalbeWarm::default()
-    };
+    let mut warm = start.and_then(|s| s.smalbe.clone()).unwrap_or_default();
+    if scaled && warm.norms.is_none() {
+        warm.norms = Some((1.0, settings.rho_factor.max(1.0)));
+    }
+    let mut x = inequality_start(split, start, (&h.l_tilde, &lower), n_equality);
     let b: Vec<f64> = h.b.iter().map(|x| x * scale).collect();
     let b_norm = split.norm(&b);
     let a = SplitProjectedF::new(split, scale);
@@ -235,23 +247,56 @@ fn inequalities(
         face_metric: false,
         ..settings.clone()
     };
-    let mut x = vec![0.0; b.len()];
     let mut counted = |i: &QpInfo| {
         observer(&QpInfo {
             hessian_applications: i.hessian_applications + power,
             ..i.clone()
         })
     };
-    let (mut info, _) = solve_on_ranks(
+    let (mut info, end) = solve_on_ranks(
         &problem,
         &mut x,
         &settings,
-        Some(&start),
+        Some(&warm),
         &mut counted,
         split,
     );
     info.hessian_applications += power;
-    (x, info, b_norm)
+    (x, info, b_norm, (end, pfp))
+}
+
+/// SMALBE's start `l^ = l0 - l~` on this rank's rows from the start's whole
+/// multipliers `l0` (zero without them), projected onto ker G unless
+/// SMALBE's `mu` comes with it, the inequality rows whose `l0` is not
+/// positive on their bounds `lower` where the start says so: the replicated
+/// `solve::inequality_start` (no tangential rows: no friction here).
+fn inequality_start(
+    split: &SplitDual,
+    start: Option<&DualStart>,
+    (l_tilde, lower): (&[f64], &[f64]),
+    n_equality: usize,
+) -> Vec<f64> {
+    let rows = split.owned_rows();
+    let Some(s) = start.filter(|s| s.lambda.len() == split.cluster().multipliers()) else {
+        return vec![0.0; rows.len()];
+    };
+    let mut x: Vec<f64> = split
+        .restrict(&s.lambda)
+        .iter()
+        .zip(l_tilde)
+        .map(|(a, b)| a - b)
+        .collect();
+    if s.smalbe.as_ref().is_none_or(|w| w.mu.is_none()) {
+        split.project(&mut x);
+    }
+    if s.active_set {
+        for (k, &i) in rows.iter().enumerate() {
+            if i >= n_equality && s.lambda[i] <= 0.0 {
+                x[k] = lower[k];
+            }
+        }
+    }
+    x
 }
 
 /// `||P F P||` by `iterations` steps of the power method from the
