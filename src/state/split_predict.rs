@@ -14,10 +14,10 @@
 //! (multipliers gathered once per solve, exact sums), so the path and the
 //! answer are the same on any rank count.
 //!
-//! Against the replicated path: no stop of an equality solve where a held
-//! contact pulls (its solve runs to the tolerance or the budget), no
-//! forecast of the budget, and no kept dual for the sensitivities (they run
-//! on the replicated dual).
+//! An equality solve whose held contact clearly pulls stops there and the
+//! row is let go, as on the replicated path. Against that path: no forecast
+//! of the budget, and no kept dual for the sensitivities (they run on the
+//! replicated dual).
 
 use super::active_set::{correct, feasible, on_every_row};
 use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
@@ -29,7 +29,7 @@ use crate::tfeti::kkt::kkt;
 use crate::tfeti::precond::{DualPreconditioner, Kind};
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::schur::SchurForm;
-use crate::tfeti::solve::{DualSolution, DualStart};
+use crate::tfeti::solve::{pulling, DualSolution, DualStart, PULL_RESIDUAL};
 use crate::tfeti::split::SplitDual;
 use crate::tfeti::split_solve::dual_solve;
 
@@ -186,8 +186,10 @@ impl Held<'_> {
                 break;
             }
             let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
+            // A held contact that clearly pulls stops the solve early.
             let settings = SmalbeSettings {
                 max_hessian: budget - hessian,
+                pull_check: Some(kept.partition_point(|&i| i < n_eq)),
                 ..settings.clone()
             };
             let Some((sol, applications)) = self.on_rows(&kept, &start, (f, c), &settings) else {
@@ -204,12 +206,23 @@ impl Held<'_> {
             };
             hessian += sol.info.hessian_applications;
             inner += sol.info.inner_iterations;
-            if sol.info.status != Status::Converged {
-                break;
-            }
             let mut lambda = vec![0.0; m];
             for (k, &i) in kept.iter().enumerate() {
                 lambda[i] = sol.lambda[k];
+            }
+            if sol.info.status != Status::Converged {
+                // Stopped early where a held contact clearly pulls: let it go.
+                let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
+                let pulls = match settings.pull_check {
+                    Some(first) if stopped => pulling(&sol.lambda, first),
+                    _ => Vec::new(),
+                };
+                if pulls.is_empty() {
+                    break;
+                }
+                pulls.iter().for_each(|&k| held[kept[k]] = false);
+                start = feasible(&lambda, n_eq);
+                continue;
             }
             last = Some(feasible(&lambda, n_eq));
             let check = kkt(problem, dual, &sol.u, &lambda);

@@ -677,6 +677,8 @@ pub struct CgInfo {
     pub applications: usize,
     /// `||r|| / ||b||` at the end.
     pub relative_residual: f64,
+    /// `||r|| / ||b||` after each step.
+    pub history: Vec<f64>,
     pub converged: bool,
 }
 
@@ -694,20 +696,26 @@ pub fn projected_cg(
     max: usize,
     precond: Option<&dyn Operator>,
 ) -> (Vec<f64>, Vec<f64>, CgInfo) {
-    projected_cg_from(split, b, None, (tol, max), precond)
+    projected_cg_from(split, b, None, (tol, max), precond, None)
 }
+
+/// A test that ends [`projected_cg_from`] early, given `x` and `||r|| / ||b||`.
+pub type StopTest = dyn Fn(&[f64], f64) -> bool;
 
 /// [`projected_cg`] from a multiple of `x0` (in Im P, owned rows) where
 /// given: `s x0` with `s = x0^T b / x0^T P F P x0` (the replicated
 /// `solve::galerkin_start`: the multiple nearest the solution in the energy
 /// norm, one more application), from zero where that is not positive and
-/// finite or leaves a residual not below `||b||`.
+/// finite or leaves a residual not below `||b||`. `stop(x, ||r|| / ||b||)`,
+/// asked after each step (collective, decided alike on every rank), ends
+/// the solve unconverged.
 pub fn projected_cg_from(
     split: &SplitDual,
     b: &[f64],
     x0: Option<&[f64]>,
     (tol, max): (f64, usize),
     precond: Option<&dyn Operator>,
+    stop: Option<&StopTest>,
 ) -> (Vec<f64>, Vec<f64>, CgInfo) {
     let m = b.len();
     let mut x = vec![0.0; m];
@@ -759,6 +767,7 @@ pub fn projected_cg_from(
         iterations: 0,
         applications: started,
         relative_residual: 0.0,
+        history: Vec::new(),
         converged: true,
     };
     while rr.sqrt() > tol * bnorm {
@@ -787,6 +796,12 @@ pub fn projected_cg_from(
         (rr, rz) = (rr_new, rz_new);
         for k in 0..m {
             p[k] = z[k] + beta * p[k];
+        }
+        let relative = rr.sqrt() / bnorm;
+        info.history.push(relative);
+        if stop.is_some_and(|stop| stop(&x, relative)) {
+            info.converged = false;
+            break;
         }
     }
     info.relative_residual = if bnorm > 0.0 { rr.sqrt() / bnorm } else { 0.0 };

@@ -25,12 +25,13 @@
 //! reconstruction), and so is `u`.
 
 use super::cluster::g_block_times;
+use super::comm::Op;
 use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
-use super::solve::{stopped_as, DualSolution, DualStart};
-use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF};
+use super::solve::{stopped_as, DualSolution, DualStart, PULL, PULL_RESIDUAL};
+use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF, StopTest};
 use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
 use crate::num::exact::ExactSum;
@@ -57,8 +58,13 @@ pub fn dual_solve(
     let h = homogenized(split, f, c);
     let (x, fx, info, b_norm, end) = if n_equality == split.cluster().multipliers() {
         let x0 = start.and_then(|s| homogenized_start(split, &s.lambda, &h.l_tilde));
-        let (x, fx, info, b_norm) =
-            equalities(split, precond, (&h.b, x0.as_deref()), settings, observer);
+        let (x, fx, info, b_norm) = equalities(
+            split,
+            precond,
+            (&h.b, x0.as_deref(), &h.l_tilde),
+            settings,
+            observer,
+        );
         (x, Some(fx), info, b_norm, None)
     } else {
         let (x, info, b_norm, end) = inequalities(
@@ -169,14 +175,17 @@ fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
 fn equalities(
     split: &SplitDual,
     precond: Option<&DualPreconditioner>,
-    (b, x0): (&[f64], Option<&[f64]>),
+    (b, x0, l_tilde): (&[f64], Option<&[f64]>, &[f64]),
     settings: &SmalbeSettings,
     observer: &mut dyn FnMut(&QpInfo),
 ) -> (Vec<f64>, Vec<f64>, QpInfo, f64) {
     let pm = precond.map(|m| SplitProjectedM::on_image(split, m, 1.0));
     let precond = pm.as_ref().map(|m| m as &dyn Operator);
     let limits = (settings.tolerance, settings.max_hessian);
-    let (x, fx, cg) = projected_cg_from(split, b, x0, limits, precond);
+    let first = settings.pull_check;
+    let pulls = |x: &[f64], residual: f64| held_pulls(split, (x, l_tilde), first, residual);
+    let stop = first.map(|_| &pulls as &StopTest);
+    let (x, fx, cg) = projected_cg_from(split, b, x0, limits, precond, stop);
     let b_norm = split.norm(b);
     let info = QpInfo {
         status: if cg.converged {
@@ -186,12 +195,44 @@ fn equalities(
         },
         inner_iterations: cg.iterations,
         hessian_applications: cg.applications,
+        history: cg.history,
         projected_gradient: cg.relative_residual * b_norm,
         feasibility: 0.0,
         ..QpInfo::fresh()
     };
     observer(&info);
     (x, fx, info, b_norm)
+}
+
+/// Whether a held contact row pulls in the equality solve's `l = x + l~`
+/// (this rank's rows), from the residual [`PULL_RESIDUAL`] on: the
+/// replicated `solve::pulling` on the rows from `first` (settings'
+/// `pull_check`), its largest contact multiplier and its test each by one
+/// integer all-reduce. Collective, decided alike on every rank.
+fn held_pulls(
+    split: &SplitDual,
+    (x, l_tilde): (&[f64], &[f64]),
+    first: Option<usize>,
+    residual: f64,
+) -> bool {
+    let Some(first) = first.filter(|_| residual <= PULL_RESIDUAL) else {
+        return false;
+    };
+    let contacts: Vec<f64> = split
+        .owned_rows()
+        .iter()
+        .zip(x.iter().zip(l_tilde))
+        .filter(|(&i, _)| i >= first)
+        .map(|(_, (a, b))| a + b)
+        .collect();
+    // |l| as bits orders as the magnitudes do.
+    let mut top = [contacts
+        .iter()
+        .fold(0.0f64, |a, b| a.max(b.abs()))
+        .to_bits()];
+    split.comm().all_reduce_u64(&mut top, Op::Max);
+    let top = f64::from_bits(top[0]);
+    !split.all(!contacts.iter().any(|&l| l < -PULL * top))
 }
 
 /// SMALBE with MPRGP on `min 1/2 x^T P F P x - b^T x`, `G~ x = 0`, `x_i >=
