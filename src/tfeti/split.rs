@@ -700,7 +700,7 @@ pub fn projected_cg(
 }
 
 /// A test that ends [`projected_cg_from`] early, given `x` and `||r|| / ||b||`.
-pub type StopTest = dyn Fn(&[f64], f64) -> bool;
+pub type StopTest<'a> = dyn Fn(&[f64], f64) -> bool + 'a;
 
 /// [`projected_cg`] from a multiple of `x0` (in Im P, owned rows) where
 /// given: `s x0` with `s = x0^T b / x0^T P F P x0` (the replicated
@@ -715,7 +715,7 @@ pub fn projected_cg_from(
     x0: Option<&[f64]>,
     (tol, max): (f64, usize),
     precond: Option<&dyn Operator>,
-    stop: Option<&StopTest>,
+    stop: Option<&StopTest<'_>>,
 ) -> (Vec<f64>, Vec<f64>, CgInfo) {
     let m = b.len();
     let mut x = vec![0.0; m];

@@ -184,7 +184,7 @@ fn equalities(
     let limits = (settings.tolerance, settings.max_hessian);
     let first = settings.pull_check;
     let pulls = |x: &[f64], residual: f64| held_pulls(split, (x, l_tilde), first, residual);
-    let stop = first.map(|_| &pulls as &StopTest);
+    let stop = first.map(|_| &pulls as &StopTest<'_>);
     let (x, fx, cg) = projected_cg_from(split, b, x0, limits, precond, stop);
     let b_norm = split.norm(b);
     let info = QpInfo {
