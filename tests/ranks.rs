@@ -157,6 +157,31 @@ fn the_split_dual_gives_one_state_bitwise_on_every_rank_count() {
     }
 }
 
+/// Where the budget refuses every predicted set, the split dual's SMALBE
+/// goes on from the last equality solve with the prediction's state (its
+/// warm start): the same report, stopped at the limit, on 1 and 3 ranks.
+#[test]
+fn a_refused_prediction_on_the_split_dual_goes_on_alike_on_every_rank_count() {
+    let src = crate::fixture::example_src("semicoercive3d") + "solver { max_iterations = 70 }\n";
+    let scene = compile(&src, &options()).expect("checks");
+    let one = outcome_of(&scene, None, true).expect("split solve");
+    let set = &one["solver"]["active_set"];
+    assert_eq!(set["kept"], false, "{set}");
+    assert!(set["equality_solves"].as_u64() >= Some(1), "{set}");
+    assert_eq!(
+        one["solver"]["status"]["status"], "max_iterations",
+        "{}",
+        one["solver"]
+    );
+    for (r, got) in each_rank(3, |c| outcome_of(&scene, Some(c), true))
+        .into_iter()
+        .enumerate()
+    {
+        let got = got.unwrap_or_else(|e| panic!("rank {r} of 3: {e}"));
+        assert!(one == got, "rank {r} of 3: the report differs");
+    }
+}
+
 /// The split solve holds no replicated `G`: each rank keeps its own
 /// subdomains' `G_s` (the coarse problem is on rank 0), from the set-up to
 /// the reconstruction.
