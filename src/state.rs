@@ -1208,13 +1208,8 @@ fn solve_on(
     if prediction.is_some() {
         state.on_active_set = false;
     }
-    // The split dual keeps no dual of its predicted set, but was solved
-    // there, with that path's preconditioner.
-    if split_dual && prediction.is_some_and(|p| p.kept) {
-        state.preconditioner = PreconditionerChoice {
-            kind: kept_precond,
-            auto: None,
-        };
+    if split_dual {
+        split_predicted(&mut state, prediction, kept_precond);
     }
     state.prediction = prediction;
     if let Some(done) = friction {
@@ -1229,6 +1224,18 @@ fn solve_on(
     }
     finite::check(scene, &state)?;
     Ok(state)
+}
+
+/// The split dual keeps no dual of its predicted set, but a state kept there
+/// was solved there, with that path's preconditioner `kind`.
+fn split_predicted(
+    state: &mut State,
+    prediction: Option<Prediction>,
+    kind: Option<crate::tfeti::precond::Kind>,
+) {
+    if prediction.is_some_and(|p| p.kept) {
+        state.preconditioner = PreconditionerChoice { kind, auto: None };
+    }
 }
 
 /// Whether a warm solve tries the previous active set first (TFETI,

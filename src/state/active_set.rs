@@ -178,17 +178,10 @@ pub(super) fn solve(
         };
         hessian += sol.info.hessian_applications;
         inner += sol.info.inner_iterations;
-        let mut lambda = vec![0.0; m];
-        for (k, &i) in kept.iter().enumerate() {
-            lambda[i] = sol.lambda[k];
-        }
+        let lambda = spread(&sol.lambda, &kept, m);
         if sol.info.status != Status::Converged {
             // Stopped early where a held contact clearly pulls: let it go.
-            let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
-            let pulls = match settings.pull_check {
-                Some(first) if stopped => pulling(&sol.lambda, first),
-                _ => Vec::new(),
-            };
+            let pulls = pulled(&sol, settings.pull_check);
             if pulls.is_empty() {
                 break;
             }
@@ -197,11 +190,8 @@ pub(super) fn solve(
             continue;
         }
         last = Some(feasible(&lambda, n_eq));
-        // The held rows (gluing, supports, held contacts) hold to the CG's
-        // tolerance, as SMALBE's do to its own; what the equality solve does
-        // not impose is tested here.
         let check = kkt(problem, dual, &sol.u, &lambda);
-        if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
+        if holds(&check, tol) {
             return Outcome::Kept(
                 Box::new(on_every_row(sol, lambda, (hessian, inner))),
                 applications,
@@ -221,6 +211,35 @@ pub(super) fn solve(
         start = feasible(&lambda, n_eq);
     }
     Outcome::Refused(hessian, applications, solves, last)
+}
+
+/// The multipliers `lambda` of the rows `kept` on every one of `m` rows.
+pub(super) fn spread(lambda: &[f64], kept: &[usize], m: usize) -> Vec<f64> {
+    let mut all = vec![0.0; m];
+    for (k, &i) in kept.iter().enumerate() {
+        all[i] = lambda[k];
+    }
+    all
+}
+
+/// The held rows (positions in the solve's rows) to let go where the
+/// equality solve `sol` stopped early because a held contact clearly pulls
+/// (its `pull_check`, from the residual [`PULL_RESIDUAL`] on); empty where it
+/// stopped for another reason.
+pub(super) fn pulled(sol: &DualSolution, pull_check: Option<usize>) -> Vec<usize> {
+    let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
+    match pull_check {
+        Some(first) if stopped => pulling(&sol.lambda, first),
+        _ => Vec::new(),
+    }
+}
+
+/// Whether a held set's solution is the contact problem's: the held rows
+/// (gluing, supports, held contacts) hold to the CG's tolerance, as SMALBE's
+/// do to its own; what the equality solve does not impose (no held contact
+/// pulls, no row left out is penetrated, equilibrium) holds to `tol`.
+pub(super) fn holds(check: &Kkt, tol: f64) -> bool {
+    check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol
 }
 
 /// `lambda` with its contact rows (from `n_eq` on) at 0 where they pull.

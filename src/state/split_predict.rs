@@ -19,7 +19,7 @@
 //! of the budget, and no kept dual for the sensitivities (they run on the
 //! replicated dual).
 
-use super::active_set::{correct, feasible, on_every_row};
+use super::active_set::{correct, feasible, holds, on_every_row, pulled, spread};
 use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
 use crate::model::Problem;
 use crate::qp::{QpInfo, SmalbeSettings, Status};
@@ -29,7 +29,7 @@ use crate::tfeti::kkt::kkt;
 use crate::tfeti::precond::{DualPreconditioner, Kind};
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::schur::SchurForm;
-use crate::tfeti::solve::{pulling, DualSolution, DualStart, PULL_RESIDUAL};
+use crate::tfeti::solve::{DualSolution, DualStart};
 use crate::tfeti::split::SplitDual;
 use crate::tfeti::split_solve::dual_solve;
 
@@ -206,17 +206,10 @@ impl Held<'_> {
             };
             hessian += sol.info.hessian_applications;
             inner += sol.info.inner_iterations;
-            let mut lambda = vec![0.0; m];
-            for (k, &i) in kept.iter().enumerate() {
-                lambda[i] = sol.lambda[k];
-            }
+            let lambda = spread(&sol.lambda, &kept, m);
             if sol.info.status != Status::Converged {
                 // Stopped early where a held contact clearly pulls: let it go.
-                let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
-                let pulls = match settings.pull_check {
-                    Some(first) if stopped => pulling(&sol.lambda, first),
-                    _ => Vec::new(),
-                };
+                let pulls = pulled(&sol, settings.pull_check);
                 if pulls.is_empty() {
                     break;
                 }
@@ -226,7 +219,7 @@ impl Held<'_> {
             }
             last = Some(feasible(&lambda, n_eq));
             let check = kkt(problem, dual, &sol.u, &lambda);
-            if check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol {
+            if holds(&check, tol) {
                 return Tried {
                     kept: Some(on_every_row(sol, lambda, (hessian, inner))),
                     hessian,

@@ -849,14 +849,7 @@ impl Cluster {
                 left += (fi - bi) * (fi - bi);
             }
         }
-        let (parts, left) = (f2.sqrt() + b2.sqrt(), left.sqrt());
-        if left > 0.0 {
-            parts / left
-        } else if parts > 0.0 {
-            f64::INFINITY
-        } else {
-            1.0
-        }
+        cancellation_ratio(f2, b2, left)
     }
 
     /// `B K^+ (f - B^T l)`: the dual problem's load less `F l`, in one pass
@@ -1227,6 +1220,19 @@ impl Cluster {
 
 /// Rigid modes of a subdomain at most (3D).
 const MAX_KDIM: usize = 6;
+
+/// `(||f|| + ||B^T l||) / ||f - B^T l||` from the three squared norms
+/// (see [`Cluster::cancellation`]).
+pub(crate) fn cancellation_ratio(f2: f64, b2: f64, left: f64) -> f64 {
+    let (parts, left) = (f2.sqrt() + b2.sqrt(), left.sqrt());
+    if left > 0.0 {
+        parts / left
+    } else if parts > 0.0 {
+        f64::INFINITY
+    } else {
+        1.0
+    }
+}
 
 /// `z = G_s x` of one subdomain: `g` is its block, `kdim x rows.len()`
 /// row-major, `x` the global multipliers. Every entry is the sum over the

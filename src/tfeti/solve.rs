@@ -339,12 +339,7 @@ pub(crate) fn balanced<'a>(
     tolerance: f64,
 ) -> impl Fn(&[f64]) -> bool + Sync + 'a {
     let grams = dual.equilibrium_grams();
-    let f_norm = f
-        .iter()
-        .flat_map(|fs| fs.iter())
-        .map(|v| v * v)
-        .sum::<f64>()
-        .sqrt();
+    let f_norm = load_norm(f);
     move |x: &[f64]| -> bool {
         let cluster = dual.cluster();
         let mut c = vec![0.0; dual.kernel_dim()];
@@ -360,6 +355,15 @@ pub(crate) fn balanced<'a>(
         let residual = cluster.equilibrium_residual(grams, &c);
         residual <= tolerance * f_norm.max(bt_norm)
     }
+}
+
+/// `||f||` over every subdomain, summed in order.
+pub(crate) fn load_norm(f: &[&[f64]]) -> f64 {
+    f.iter()
+        .flat_map(|fs| fs.iter())
+        .map(|v| v * v)
+        .sum::<f64>()
+        .sqrt()
 }
 
 /// CG on `P F P x = b` from `x = 0` (b in Im P), to `||r|| <= tol ||b||`;

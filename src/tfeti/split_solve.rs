@@ -24,13 +24,13 @@
 //! the end (the report reads them; so do the active rows of the
 //! reconstruction), and so is `u`.
 
-use super::cluster::g_block_times;
+use super::cluster::{cancellation_ratio, g_block_times};
 use super::comm::Op;
 use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
-use super::solve::{stopped_as, DualSolution, DualStart, PULL, PULL_RESIDUAL};
+use super::solve::{load_norm, stopped_as, DualSolution, DualStart, PULL, PULL_RESIDUAL};
 use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF, StopTest};
 use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
@@ -157,14 +157,7 @@ fn cancellation(split: &SplitDual, f: &[&[f64]], l: &[f64]) -> f64 {
         }
     }
     let [f2, b2, left] = split.totals([f2, b2, left]);
-    let (parts, left) = (f2.sqrt() + b2.sqrt(), left.sqrt());
-    if left > 0.0 {
-        parts / left
-    } else if parts > 0.0 {
-        f64::INFINITY
-    } else {
-        1.0
-    }
+    cancellation_ratio(f2, b2, left)
 }
 
 /// Equalities only: projected CG on `P F P x = b`, preconditioned by `P M P`
@@ -375,12 +368,7 @@ fn balanced<'a>(
     let grams = cluster.own_equilibrium_grams();
     let l_tilde = split.at_subdomains(l_tilde);
     // `f` is whole on every rank: its norm needs no communication.
-    let f_norm = f
-        .iter()
-        .flat_map(|fs| fs.iter())
-        .map(|v| v * v)
-        .sum::<f64>()
-        .sqrt();
+    let f_norm = load_norm(f);
     move |x: &[f64]| -> bool {
         let (mut bt, mut residual) = (ExactSum::new(), ExactSum::new());
         let at = split.at_subdomains(x);
