@@ -120,9 +120,10 @@ pub struct Solve {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
-    /// Iterate on the split dual: each MPI rank keeps its own rows, sums are
-    /// exact, so the answer has the same bits on any number of ranks (SMALBE
-    /// with the preconditioner, without the prediction; TFETI without friction).
+    /// Solve on the split dual: each MPI rank keeps its own rows and its own
+    /// subdomains' G, the coarse problem is on rank 0, sums are exact, so the
+    /// answer has the same bits on any number of ranks (SMALBE with the
+    /// preconditioner and the active-set prediction; TFETI without friction).
     #[arg(long)]
     pub split_dual: bool,
 }
