@@ -75,6 +75,19 @@ fn state_on(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> cso::state::State {
     .expect("solves")
 }
 
+/// The split set-up of `state`'s scene on its ranks: each rank holds its own
+/// subdomains' `G_s` only (the split dual reads no other, or the cluster
+/// would panic).
+fn own_cluster(scene: &Scene, state: &cso::state::State) -> cso::tfeti::cluster::Cluster {
+    cso::state::setup_split(
+        scene,
+        &scene.design_init(),
+        state.dual.cluster().comm().clone(),
+    )
+    .expect("sets up")
+    .cluster
+}
+
 fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
     let state = state_on(scene, comm);
     let split = SplitDual::new(&state.dual);
@@ -90,13 +103,7 @@ fn on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> Seen {
     assert!(info.converged, "{info:?}");
     // The split set-up: each rank holds its own subdomains' G_s only (the
     // split dual reads no other, or the cluster would panic).
-    let own = cso::state::setup_split(
-        scene,
-        &scene.design_init(),
-        state.dual.cluster().comm().clone(),
-    )
-    .expect("sets up")
-    .cluster;
+    let own = own_cluster(scene, &state);
     let root = SplitDual::with_root_coarse(&own).expect("factorizes");
     let (root_pv, root_p_traffic) = root.traffic(|s| {
         let mut t = mine.clone();
@@ -410,13 +417,7 @@ fn smalbe_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Smalbe, Vec<f6
     // From the split set-up (each rank its own G_s) with the coarse problem
     // on rank 0, the homogenization and the reconstruction included: the
     // same bits.
-    let own = cso::state::setup_split(
-        scene,
-        &scene.design_init(),
-        state.dual.cluster().comm().clone(),
-    )
-    .expect("sets up")
-    .cluster;
+    let own = own_cluster(scene, &state);
     let root = solve(&SplitDual::with_root_coarse(&own).expect("factorizes"));
     assert!(
         root == seen,
