@@ -9,11 +9,12 @@
 
 use crate::fixture::{each_rank, example};
 use cso::lang::Scene;
-use cso::qp::{mprgp_over, Equality, MprgpSettings, Operator};
+use cso::qp::{mprgp_over, Equality, Metric, MprgpSettings, Operator, FACE_METRIC_DELTA};
 use cso::tfeti::comm::Comm;
 use cso::tfeti::dual::{Orthonormal, ProjectedF, ProjectedM};
 use cso::tfeti::precond::Kind;
 use cso::tfeti::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF, Traffic};
+use cso::tfeti::split_metric::SplitMetric;
 use cso::tfeti::split_precond::SplitProjectedM;
 use cso::tfeti::split_solve::dual_solve;
 use std::sync::Arc;
@@ -535,6 +536,59 @@ fn the_split_preconditioners_give_the_replicated_bits_on_every_rank_count() {
                         "{name}, preconditioner {k}, rank {rank} of {p}: P M P differs"
                     );
                 }
+            }
+        }
+    }
+}
+
+/// SMALBE's face metric on one rank's split dual (coarse problem on rank
+/// 0) for the contact rows `r` with `r % 3 == 0` at their bounds: `W v` for
+/// a probe `v` (bits), and how far `((1 + delta) I - U U^T) W v` is from `v`
+/// relative to `||v||`, `U` the columns of `G~` at the set (the metric's
+/// definition, applied by `G~` and `G~^T`).
+fn metric_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Vec<u64>, f64) {
+    let state = state_on(scene, comm);
+    let n_eq = state.problem.n_equality;
+    let own = own_cluster(scene, &state);
+    let split = SplitDual::with_root_coarse(&own).expect("factorizes");
+    let set: Vec<usize> = (split.owned_rows().iter().enumerate())
+        .filter(|&(_, &r)| r >= n_eq && r % 3 == 0)
+        .map(|(i, _)| i)
+        .collect();
+    let w = SplitMetric::new(&split, set.clone()).expect("a set on some rank");
+    assert_eq!(w.set(), &set[..]);
+    let g = SplitOrthonormal::new(&split);
+    let v = probe(g.rows());
+    let mut wv = v.clone();
+    w.apply(&mut wv);
+    // U U^T W v = G~ E E^T G~^T W v.
+    let mut x = vec![0.0; split.owned_rows().len()];
+    g.apply_t(&wv, &mut x);
+    let mut e = vec![0.0; x.len()];
+    for &i in &set {
+        e[i] = x[i];
+    }
+    let mut uu = vec![0.0; g.rows()];
+    g.apply(&e, &mut uu);
+    let back: Vec<f64> = (wv.iter().zip(&uu))
+        .map(|(a, b)| (1.0 + FACE_METRIC_DELTA) * a - b)
+        .collect();
+    let size = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+    (bits(&wv), distance(&back, &v) / size)
+}
+
+#[test]
+fn the_split_face_metric_inverts_its_definition_with_the_same_bits_on_every_rank_count() {
+    for (name, ranks) in [("two_blocks", vec![2, 3]), ("semicoercive3d", vec![3])] {
+        let scene = example(name);
+        let (serial, off) = metric_on_rank(&scene, None);
+        assert!(off <= 1e-10, "{name}: W is off its definition by {off:e}");
+        for p in ranks {
+            for (rank, (got, _)) in each_rank(p, |c| metric_on_rank(&scene, Some(c)))
+                .into_iter()
+                .enumerate()
+            {
+                assert!(got == serial, "{name}, rank {rank} of {p}: W v differs");
             }
         }
     }

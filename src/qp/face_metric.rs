@@ -32,10 +32,10 @@ use faer::linalg::cholesky::llt::{factor, solve};
 use faer::linalg::matmul::matmul;
 use faer::{Accum, Conj, Mat, Par};
 
-use super::Equality;
+use super::{Equality, Metric};
 
 /// `delta`: the regularization of `I - U U^T` (`||W|| <= 1 / delta`).
-const DELTA: f64 = 1e-2;
+pub const DELTA: f64 = 1e-2;
 
 /// `W = (I - U U^T + delta I)^-1` for the entries `set` at their bounds.
 pub(super) struct FaceMetric {
@@ -160,6 +160,16 @@ impl FaceMetric {
                 solve_llt(l, faer::MatMut::from_column_major_slice_mut(v, n, 1));
             }
         }
+    }
+}
+
+impl Metric for FaceMetric {
+    fn set(&self) -> &[usize] {
+        FaceMetric::set(self)
+    }
+
+    fn apply(&self, v: &mut [f64]) {
+        FaceMetric::apply(self, v);
     }
 }
 

@@ -9,7 +9,8 @@
 
 mod bounds;
 mod breakdown;
-mod face_metric;
+pub(crate) mod face_metric;
+pub use face_metric::DELTA as FACE_METRIC_DELTA;
 mod mprgp;
 pub mod reduce;
 mod set;
@@ -35,6 +36,28 @@ pub trait Equality {
     fn apply(&self, x: &[f64], y: &mut [f64]);
     /// `x = G^T y`.
     fn apply_t(&self, y: &[f64], x: &mut [f64]);
+    /// Whether this equality builds SMALBE's face metric itself
+    /// ([`Equality::own_metric`]); otherwise SMALBE builds it from the
+    /// columns of `G` in one process ([`face_metric`]), and on ranks runs
+    /// without one.
+    fn builds_own_metric(&self) -> bool {
+        false
+    }
+    /// The face metric `W` for the entries `set` (this rank's, ascending) at
+    /// their bounds, where [`Equality::builds_own_metric`]: collective, with
+    /// the same answer on every rank; None where no rank has an entry at a
+    /// bound or it cannot be built.
+    fn own_metric(&self, _set: Vec<usize>) -> Option<Box<dyn Metric + '_>> {
+        None
+    }
+}
+
+/// `W` of SMALBE's face metric ([`face_metric`]): the entries at their bounds
+/// it was built for (this rank's), and `v <- W v` on a vector of `G`'s rows
+/// (whole, the same on every rank; collective on ranks).
+pub trait Metric {
+    fn set(&self) -> &[usize];
+    fn apply(&self, v: &mut [f64]);
 }
 
 /// How a solve ended. Not converging is data, not an error.

@@ -55,6 +55,7 @@ use super::mprgp::{
     MprgpSettings, Params, Set, Workspace,
 };
 use super::reduce::{Reduce, Whole};
+use super::Metric;
 use super::{Breakdown, Equality, Operator, QpInfo, Status};
 
 /// Parameters of [`solve`]. Scale-dependent ones are relative to `||A||`
@@ -397,7 +398,7 @@ struct Augmented<'a> {
     /// `G^T G x`.
     gtgx: Cell<Vec<f64>>,
     /// `W` in `A + c G^T W G` ([`super::face_metric`]); none: `W = I`.
-    metric: std::cell::RefCell<Option<FaceMetric>>,
+    metric: std::cell::RefCell<Option<Box<dyn Metric + 'a>>>,
 }
 
 impl<'a> Augmented<'a> {
@@ -550,7 +551,9 @@ pub fn solve(
 /// and `x` are this rank's rows, `G x` is whole on every rank (the split
 /// dual's `SplitOrthonormal`), and `reduce` forms the sums and minima
 /// across ranks. Collective; lower bounds only (no upper bounds or discs
-/// yet) and no face metric (it needs `G`'s columns in one process).
+/// yet), and the face metric only where the equality builds its own
+/// ([`super::Equality::own_metric`]: the generic one needs `G`'s columns in
+/// one process).
 pub fn solve_on_ranks<R: Reduce>(
     problem: &Problem,
     x: &mut [f64],
@@ -844,8 +847,23 @@ pub const FACE_METRIC_FLOPS: usize = 2_000_000_000;
 /// makes the test's identity exact) let hertz_ball's active set oscillate
 /// (1,582; both measured with the Woodbury form for every set). `M` only
 /// sets inner precision; the final test is unchanged.
-fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &[f64]) -> bool {
-    if !settings.face_metric || !problem.discs.is_empty() || problem.g.rows() == 0 {
+///
+/// On ranks (`reduce` not whole) the metric is the equality's own
+/// ([`super::Equality::own_metric`]), or none; whether the set changed is
+/// agreed by every rank, so that all build it together.
+fn face_metric<'a, R: Reduce>(
+    problem: &Problem<'a>,
+    setup: &Setup<'a>,
+    settings: &SmalbeSettings,
+    x: &[f64],
+    reduce: &R,
+) -> bool {
+    let own = problem.g.builds_own_metric();
+    if !settings.face_metric
+        || !problem.discs.is_empty()
+        || problem.g.rows() == 0
+        || !(own || R::WHOLE)
+    {
         return false;
     }
     let upper = |i: usize| problem.upper.map_or(f64::INFINITY, |u| u[i]);
@@ -856,18 +874,23 @@ fn face_metric(problem: &Problem, setup: &Setup, settings: &SmalbeSettings, x: &
         })
         .collect();
     let mut slot = setup.hessian.metric.borrow_mut();
-    if slot
+    let unchanged = slot
         .as_ref()
-        .map_or(at_bound.is_empty(), |w| w.set() == at_bound)
-    {
+        .map_or(at_bound.is_empty(), |w| w.set() == at_bound);
+    if reduce.all(unchanged) {
         return false;
     }
     let had = slot.is_some();
-    let (values, flops) = FaceMetric::cost(problem.g.rows(), at_bound.len());
-    let metric = if values <= FACE_METRIC_VALUES && flops <= FACE_METRIC_FLOPS {
-        FaceMetric::new(problem.g, x.len(), at_bound)
+    let metric = if own {
+        problem.g.own_metric(at_bound)
     } else {
-        None
+        let (values, flops) = FaceMetric::cost(problem.g.rows(), at_bound.len());
+        if values <= FACE_METRIC_VALUES && flops <= FACE_METRIC_FLOPS {
+            FaceMetric::new(problem.g, x.len(), at_bound)
+                .map(|w| Box::new(w) as Box<dyn Metric + 'a>)
+        } else {
+            None
+        }
     };
     // The preconditioner's part on `range G^T` stays `(1/rho) G^T G`: with
     // `(1/rho) G^T W^-1 G` instead (the inverse of the new penalty there)
@@ -893,10 +916,10 @@ const STAGNATION: usize = 100;
 /// where the projected gradient and `G x` meet the tolerance, else updates
 /// the multipliers ([`Multipliers::update`]).
 #[allow(clippy::too_many_arguments)]
-fn outer_loop<S: Set>(
-    problem: &Problem,
+fn outer_loop<'a, S: Set>(
+    problem: &Problem<'a>,
     set: &S,
-    setup: &Setup,
+    setup: &Setup<'a>,
     x: &mut [f64],
     settings: &SmalbeSettings,
     start: Option<&SmalbeWarm>,
@@ -923,7 +946,7 @@ fn outer_loop<S: Set>(
     set.project(x);
 
     for k in 0..settings.max_outer {
-        if k > 0 && S::Reduce::WHOLE && face_metric(problem, setup, settings, x) {
+        if k > 0 && face_metric(problem, setup, settings, x, set.reduce()) {
             g_ready = false;
         }
         let params = Params {

@@ -52,7 +52,8 @@ impl Gram {
         // The sparse blocks (spread out when dense): the same bits as the
         // entrywise assembly (`Cluster::coarse_gram`, kept as the tests'
         // reference), several times faster.
-        Gram::in_form(sparse_gram(cluster, active), form)
+        let rows = active.map_or(Rows::All, Rows::Active);
+        Gram::in_form(sparse_gram(cluster, rows), form)
     }
 
     /// The sparse upper triangle `upper`, kept sparse or spread out dense
@@ -100,17 +101,42 @@ impl Gram {
 /// active row with `t` (and always the diagonal block). Entry `(i, j)` of block
 /// `(s, t)` is `sum_r G_s[i, r] G_t[j, r]` over the shared rows `r` in
 /// increasing order, the dense assembly's order.
-fn sparse_gram(cluster: &Cluster, active: Option<&[bool]>) -> UpperCsc {
+fn sparse_gram(cluster: &Cluster, rows: Rows) -> UpperCsc {
     let owners = RowOwners::new(cluster);
     let (blocks, columns): (Vec<Vec<usize>>, Vec<Vec<f64>>) = (0..cluster.len())
         .into_par_iter()
         .map(|t| {
-            let blocks = owners.column_blocks(cluster, t, active);
-            let values = owners.column_values(cluster, t, active, &blocks, &|s| cluster.g_block(s));
+            let blocks = owners.column_blocks(cluster, t, rows);
+            let values = owners.column_values(cluster, t, rows, &blocks, &|s| cluster.g_block(s));
             (blocks, values)
         })
         .unzip();
     RowOwners::upper(cluster, &blocks, columns.concat())
+}
+
+/// The rows of `B` a Gram matrix `G D G^T` sums over, and their weights `D`.
+#[derive(Clone, Copy)]
+pub(crate) enum Rows<'r> {
+    /// Every row, weight 1: `G G^T`.
+    All,
+    /// The rows where it holds, weight 1 (whole, indexed by row).
+    Active(&'r [bool]),
+    /// Every row with its weight (indexed by row; read at the rows of the
+    /// block columns assembled): the pattern of `G G^T`. SMALBE's face metric
+    /// on the split dual (`tfeti::split_metric`).
+    Weighted(&'r [f64]),
+}
+
+impl Rows<'_> {
+    /// The weight of `row`, None where it is left out. A weight of 1
+    /// multiplies exactly, so `All` and `Active` keep the plain sums' bits.
+    fn weight(self, row: usize) -> Option<f64> {
+        match self {
+            Rows::All => Some(1.0),
+            Rows::Active(a) => a[row].then_some(1.0),
+            Rows::Weighted(w) => Some(w[row]),
+        }
+    }
 }
 
 /// The subdomains of every row of `B` with the row's position among their
@@ -151,15 +177,10 @@ impl RowOwners {
     }
 
     /// The subdomains `s <= t` of block column `t`, ascending (`t` always).
-    pub(crate) fn column_blocks(
-        &self,
-        cluster: &Cluster,
-        t: usize,
-        active: Option<&[bool]>,
-    ) -> Vec<usize> {
+    pub(crate) fn column_blocks(&self, cluster: &Cluster, t: usize, rows: Rows) -> Vec<usize> {
         let mut blocks = vec![t];
         for &row in &cluster.local_rows(t).rows {
-            if active.is_some_and(|a| !a[row]) {
+            if rows.weight(row).is_none() {
                 continue;
             }
             blocks.extend(self.of(row).iter().map(|&(s, _)| s).filter(|&s| s < t));
@@ -176,7 +197,7 @@ impl RowOwners {
         &self,
         cluster: &Cluster,
         t: usize,
-        active: Option<&[bool]>,
+        rows: Rows,
         blocks: &[usize],
         g: &dyn Fn(usize) -> &'g [f64],
     ) -> Vec<f64> {
@@ -188,9 +209,9 @@ impl RowOwners {
         // Block (s, t), kdim(s) x kt row-major, in the order of `blocks`.
         let mut values: Vec<Vec<f64>> = blocks.iter().map(|&s| vec![0.0; kdim(s) * kt]).collect();
         for (kt_row, &row) in lt.rows.iter().enumerate() {
-            if active.is_some_and(|a| !a[row]) {
+            let Some(w) = rows.weight(row) else {
                 continue;
-            }
+            };
             for &(s, ks) in self.of(row) {
                 if s > t {
                     continue;
@@ -203,7 +224,7 @@ impl RowOwners {
                 let block = &mut values[b];
                 for i in 0..kdim(s) {
                     for j in 0..kt {
-                        block[i * kt + j] += gs[i * ls + ks] * gt[j * nt + kt_row];
+                        block[i * kt + j] += w * (gs[i * ls + ks] * gt[j * nt + kt_row]);
                     }
                 }
             }
@@ -544,6 +565,46 @@ impl CoarseFactor {
         }
     }
 
+    /// `z <- Q^T L z`: undoes [`Self::solve_l`] (sequential).
+    pub fn mul_l(&self, z: &mut [f64]) {
+        match &self.factor {
+            Factor::Dense(l) => {
+                for i in (0..self.n).rev() {
+                    z[i] = (0..=i).map(|j| l[(i, j)] * z[j]).sum();
+                }
+            }
+            Factor::Sparse(l) => {
+                let mut guard = lock(&l.work);
+                let t = &mut *guard;
+                t.copy_from_slice(z);
+                l.times(t);
+                for (ti, &p) in t.iter().zip(&l.perm) {
+                    z[p] = *ti;
+                }
+            }
+        }
+    }
+
+    /// `z <- L^T Q z`: undoes [`Self::solve_lt`] (sequential).
+    pub fn mul_lt(&self, z: &mut [f64]) {
+        match &self.factor {
+            Factor::Dense(l) => {
+                for j in 0..self.n {
+                    z[j] = (j..self.n).map(|i| l[(i, j)] * z[i]).sum();
+                }
+            }
+            Factor::Sparse(l) => {
+                let mut guard = lock(&l.work);
+                let t = &mut *guard;
+                for (ti, &p) in t.iter_mut().zip(&l.perm) {
+                    *ti = z[p];
+                }
+                l.times_t(t);
+                z.copy_from_slice(t);
+            }
+        }
+    }
+
     /// `z <- (G G^T)^-1 z`.
     pub fn solve(&self, z: &mut [f64]) {
         self.solve_l(z);
@@ -656,6 +717,31 @@ fn from_supernodes(
 }
 
 impl SparseLower {
+    /// `x <- L x` (by columns from the last: each reads entries not yet
+    /// overwritten).
+    fn times(&self, x: &mut [f64]) {
+        for j in (0..x.len()).rev() {
+            let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
+            let xj = x[j];
+            for p in a + 1..b {
+                x[self.row_idx[p] as usize] += self.values[p] * xj;
+            }
+            x[j] = self.values[a] * xj;
+        }
+    }
+
+    /// `x <- L^T x` (by columns from the first).
+    fn times_t(&self, x: &mut [f64]) {
+        for j in 0..x.len() {
+            let (a, b) = (self.col_ptr[j], self.col_ptr[j + 1]);
+            let mut s = self.values[a] * x[j];
+            for p in a + 1..b {
+                s += self.values[p] * x[self.row_idx[p] as usize];
+            }
+            x[j] = s;
+        }
+    }
+
     /// `x <- L^-1 x`.
     fn forward(&self, x: &mut [f64]) {
         for j in 0..x.len() {
@@ -871,6 +957,44 @@ pub(crate) mod tests {
         let (d, s) = (solve(CoarseForm::Dense), solve(CoarseForm::Sparse));
         let diff = max_diff(&d, &s);
         assert!(diff <= 1e-12 * norm(&d), "(G G^T)^-1 z differs by {diff:e}");
+    }
+
+    /// `Q^T L` and `L^T Q` undo the solves with `L` and `L^T`, dense and
+    /// sparse: `L L^T` is `G G^T` reordered, so `mul_lt` then `mul_l` is
+    /// `G G^T` itself.
+    #[test]
+    fn the_factor_products_undo_the_solves() {
+        let cluster = patch(6, 5, true, None);
+        let n = cluster.kernel_dim();
+        for form in [CoarseForm::Dense, CoarseForm::Sparse] {
+            let gram = Gram::assemble(&cluster, None, form).to_dense();
+            let f = CoarseFactor::factor(Gram::assemble(&cluster, None, form), 1e-12)
+                .map_err(|_| "singular")
+                .expect("regular");
+            let z0 = rand_vec(n, 5);
+            let mut z = z0.clone();
+            f.solve_l(&mut z);
+            f.mul_l(&mut z);
+            assert!(
+                max_diff(&z, &z0) <= 1e-12 * norm(&z0),
+                "{form:?}: Q^T L L^-1 Q"
+            );
+            f.solve_lt(&mut z);
+            f.mul_lt(&mut z);
+            assert!(
+                max_diff(&z, &z0) <= 1e-12 * norm(&z0),
+                "{form:?}: L^T Q Q^T L^-T"
+            );
+            f.mul_lt(&mut z);
+            f.mul_l(&mut z);
+            let want: Vec<f64> = (0..n)
+                .map(|i| (0..n).map(|j| gram[(i, j)] * z0[j]).sum())
+                .collect();
+            assert!(
+                max_diff(&z, &want) <= 1e-12 * norm(&want),
+                "{form:?}: G G^T"
+            );
+        }
     }
 
     #[test]

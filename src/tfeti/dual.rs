@@ -174,7 +174,7 @@ impl Dual {
     /// regular by construction (see [`Dual::deferred`]); should the relative
     /// pivot test fail at round-off all the same, `G G^T` is factorized
     /// shifted by `1e-12` of its largest diagonal entry rather than not at all.
-    fn coarse(&self) -> &CoarseFactor {
+    pub(crate) fn coarse(&self) -> &CoarseFactor {
         self.coarse.get_or_init(|| {
             let t = Instant::now();
             let factor = factor_coarse(&self.cluster, self.form).unwrap_or_else(|_| {

@@ -37,6 +37,7 @@ pub mod solve;
 pub mod sparse;
 pub mod split;
 pub mod split_coarse;
+pub mod split_metric;
 pub mod split_precond;
 pub mod split_solve;
 pub mod subdomain;

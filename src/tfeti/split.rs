@@ -35,13 +35,15 @@
 //! prediction still runs on the replicated dual (`tfeti::dual`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
+use super::coarse::CoarseFactor;
 use super::comm::{Comm, Op, Stats};
 use super::dual::Dual;
 use super::error::CoarseError;
 use super::split_coarse::RootCoarse;
+use super::split_metric::SplitMetric;
 use crate::num::exact::{ExactSum, WORDS};
 use crate::qp::reduce::{order_key, start_values, Reduce};
-use crate::qp::{Equality, Operator};
+use crate::qp::{Equality, Metric, Operator};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::Arc;
 
@@ -505,6 +507,15 @@ impl<'a> SplitDual<'a> {
         }
     }
 
+    /// The coarse factor `L` (`G G^T = Q^T L L^T Q`) on rank 0, None
+    /// elsewhere (the replicated dual's too: rank 0 alone reads it).
+    pub(crate) fn root_factor(&self) -> Option<&CoarseFactor> {
+        match &self.coarse {
+            Coarse::Replicated(dual) => (self.comm.rank() == 0).then(|| dual.coarse()),
+            Coarse::Root(root) => root.factor(),
+        }
+    }
+
     /// Dot products of owned parts, exact and the same on every rank: one
     /// all-reduce for all pairs.
     pub fn dots(&self, pairs: &[(&[f64], &[f64])]) -> Vec<f64> {
@@ -666,6 +677,14 @@ impl Equality for SplitOrthonormal<'_, '_> {
             Coarse::Root(root) => root.solve_lt(&*split.comm, y),
         };
         x.copy_from_slice(&split.gt_times(&z));
+    }
+
+    fn builds_own_metric(&self) -> bool {
+        true
+    }
+
+    fn own_metric(&self, set: Vec<usize>) -> Option<Box<dyn Metric + '_>> {
+        SplitMetric::new(self.split, set).map(|w| Box::new(w) as Box<dyn Metric + '_>)
     }
 }
 

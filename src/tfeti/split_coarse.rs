@@ -18,7 +18,7 @@
 //! on one rank instead of all of them.
 
 use super::cluster::Cluster;
-use super::coarse::{CoarseFactor, Gram, RowOwners};
+use super::coarse::{CoarseFactor, Gram, RowOwners, Rows};
 use super::comm::{broadcast_from_root, gather_to_root, scatter_from_root, Comm, Op};
 use super::dual::{factor_checked, null_modes};
 use super::error::CoarseError;
@@ -37,7 +37,7 @@ impl RootCoarse {
     /// rank, with the modes rank 0 names, when a rigid motion is left free
     /// (see [`factor_checked`]).
     pub fn new(cluster: &Cluster) -> Result<RootCoarse, CoarseError> {
-        let (gram, counts) = assemble(cluster, None);
+        let (gram, counts) = assemble(cluster, Rows::All);
         let factor = gram.map(|g| {
             factor_checked(g, cluster).map_err(|e| {
                 e.free_modes
@@ -62,11 +62,26 @@ impl RootCoarse {
         active: &[bool],
         pivot: f64,
     ) -> Result<RootCoarse, Vec<usize>> {
-        let (gram, counts) = assemble(cluster, Some(active));
+        let (gram, counts) = assemble(cluster, Rows::Active(active));
         let factor =
             gram.map(|g| CoarseFactor::factor(g, pivot).map_err(|g| null_modes(&g.to_dense())));
         let factor = from_root(&**cluster.comm(), factor)?;
         Ok(RootCoarse { factor, counts })
+    }
+
+    /// `G D G^T` with `D = diag(weights)` (indexed by row, read at the rows
+    /// of this rank's subdomains: see [`Rows::Weighted`]), factorized on rank
+    /// 0; None on every rank where it is not positive definite. Collective.
+    pub(crate) fn weighted(cluster: &Cluster, weights: &[f64]) -> Option<RootCoarse> {
+        let (gram, counts) = assemble(cluster, Rows::Weighted(weights));
+        let factor = gram.map(|g| CoarseFactor::factor(g, 0.0).map_err(|_| Vec::new()));
+        let factor = from_root(&**cluster.comm(), factor).ok()?;
+        Some(RootCoarse { factor, counts })
+    }
+
+    /// The factor: on rank 0, None elsewhere.
+    pub(crate) fn factor(&self) -> Option<&CoarseFactor> {
+        self.factor.as_ref()
     }
 
     /// Does the factor pass the pivot test `tol`? Rank 0's answer on every
@@ -148,11 +163,11 @@ fn from_root(
 /// `G G^T` over the `active` rows (all when None) on rank 0 (None elsewhere),
 /// from the block columns of each rank's own subdomains; with the coarse
 /// unknowns of each rank. Collective.
-fn assemble(cluster: &Cluster, active: Option<&[bool]>) -> (Option<Gram>, Vec<usize>) {
+fn assemble(cluster: &Cluster, rows: Rows) -> (Option<Gram>, Vec<usize>) {
     let comm = cluster.comm();
     let owners = RowOwners::new(cluster);
     let blocks: Vec<Vec<usize>> = (0..cluster.len())
-        .map(|t| owners.column_blocks(cluster, t, active))
+        .map(|t| owners.column_blocks(cluster, t, rows))
         .collect();
     let halo = g_halo(cluster, &blocks);
     let mine = cluster.owned();
@@ -165,7 +180,7 @@ fn assemble(cluster: &Cluster, active: Option<&[bool]>) -> (Option<Gram>, Vec<us
     };
     let values: Vec<f64> = mine
         .clone()
-        .flat_map(|t| owners.column_values(cluster, t, active, &blocks[t], &g))
+        .flat_map(|t| owners.column_values(cluster, t, rows, &blocks[t], &g))
         .collect();
     let bounds = cluster.bounds();
     let per_rank = |len: &dyn Fn(usize) -> usize| -> Vec<usize> {

@@ -277,10 +277,6 @@ fn inequalities(
         also_feasible: Some(&balanced),
         ..smalbe::Problem::new(&a, &b, &lower, &g)
     };
-    let settings = SmalbeSettings {
-        face_metric: false,
-        ..settings.clone()
-    };
     let mut counted = |i: &QpInfo| {
         observer(&QpInfo {
             hessian_applications: i.hessian_applications + power,
