@@ -15,9 +15,9 @@
 //! answer are the same on any rank count.
 //!
 //! An equality solve whose held contact clearly pulls stops there and the
-//! row is let go, as on the replicated path. Against that path: no forecast
-//! of the budget, and no kept dual for the sensitivities (they run on the
-//! replicated dual).
+//! row is let go, and one forecast not to finish within the budget stops
+//! early, as on the replicated path. Against that path: no kept dual for
+//! the sensitivities (they run on the replicated dual).
 
 use super::active_set::{correct, feasible, holds, on_every_row, pulled, spread};
 use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
@@ -100,7 +100,13 @@ pub(super) fn predicted_solve(
             dual,
             kind,
         };
-        tried = held.solve(&first.lambda, (f, c), settings, budget);
+        // An equality solve forecast not to finish within the budget
+        // stops early, as on the replicated path.
+        let settings = SmalbeSettings {
+            forecast: true,
+            ..settings.clone()
+        };
+        tried = held.solve(&first.lambda, (f, c), &settings, budget);
         prediction.equality_solves = tried.solves;
         if let Some(mut sol) = tried.kept.take() {
             prediction.kept = true;

@@ -449,7 +449,12 @@ fn projected_cg(
     while rr.sqrt() > settings.tolerance * bnorm {
         if info.hessian_applications >= settings.max_hessian
             || (settings.forecast
-                && beyond_budget(&info, r0 / bnorm, settings.tolerance, settings.max_hessian))
+                && beyond_budget(
+                    (info.inner_iterations, info.hessian_applications),
+                    (r0 / bnorm, &info.history),
+                    settings.tolerance,
+                    settings.max_hessian,
+                ))
         {
             info.status = Status::MaxIterations;
             break;
@@ -506,8 +511,9 @@ pub(crate) fn pulling(lambda: &[f64], first: usize) -> Vec<usize> {
         .collect()
 }
 
-/// Whether CG, after `info.inner_iterations` steps from the relative
-/// residual `r0` (its residuals relative to `||b||` in `info.history`), is
+/// Whether CG, after `steps` steps and `applications` applications from
+/// the relative residual `r0` (its residuals relative to `||b||` after each
+/// step in `history`), is
 /// forecast not to reach `target` within `budget` applications at its mean
 /// rate since its largest residual (checked from [`FORECAST_STEPS`] steps
 /// on): a solve that would stop at its budget anyway stops now. From the
@@ -515,13 +521,17 @@ pub(crate) fn pulling(lambda: &[f64], first: usize) -> Vec<usize> {
 /// first (an imported tetrahedral brick of 108 subdomains: 1.0 to 1.6 in
 /// its first step, then 0.3 at the tenth, forecast at the mean rate from
 /// the first residual to take 30 applications more than the 97 it took).
-fn beyond_budget(info: &QpInfo, r0: f64, target: f64, budget: usize) -> bool {
-    let steps = info.inner_iterations;
-    let Some(&r) = info.history.last() else {
+pub(crate) fn beyond_budget(
+    (steps, applications): (usize, usize),
+    (r0, history): (f64, &[f64]),
+    target: f64,
+    budget: usize,
+) -> bool {
+    let Some(&r) = history.last() else {
         return false;
     };
     let (from, peak) = std::iter::once(r0)
-        .chain(info.history.iter().copied())
+        .chain(history.iter().copied())
         .enumerate()
         .fold(
             (0, 0.0f64),
@@ -532,7 +542,7 @@ fn beyond_budget(info: &QpInfo, r0: f64, target: f64, budget: usize) -> bool {
     }
     let rate = (r / peak).ln() / (steps - from) as f64;
     let left = (target / r).ln() / rate;
-    info.hessian_applications as f64 + left > budget as f64
+    applications as f64 + left > budget as f64
 }
 
 /// CG steps before [`beyond_budget`] forecasts.
@@ -642,23 +652,22 @@ mod tests {
     /// does not judge.
     #[test]
     fn the_forecast_stops_only_what_its_budget_cannot_finish() {
+        let beyond = |info: &QpInfo, r0: f64, budget: usize| {
+            let counts = (info.inner_iterations, info.hessian_applications);
+            beyond_budget(counts, (r0, &info.history), 1e-6, budget)
+        };
         let info = after(10, 1.0);
-        assert!(beyond_budget(&info, 1.0, 1e-6, 50));
-        assert!(!beyond_budget(&info, 1.0, 1e-6, 80));
+        assert!(beyond(&info, 1.0, 50));
+        assert!(!beyond(&info, 1.0, 80));
         // From 0.5 up to 1.0 in the first step: the same rate from there,
         // where the mean from 0.5 would forecast 96 applications.
-        assert!(!beyond_budget(&info, 0.5, 1e-6, 80));
-        assert!(!beyond_budget(
-            &after(FORECAST_STEPS - 1, 1.0),
-            1.0,
-            1e-6,
-            20
-        ));
+        assert!(!beyond(&info, 0.5, 80));
+        assert!(!beyond(&after(FORECAST_STEPS - 1, 1.0), 1.0, 20));
         let rising = QpInfo {
             history: vec![1.0; 10],
             ..after(10, 1.0)
         };
-        assert!(!beyond_budget(&rising, 1.0, 1e-6, 20));
+        assert!(!beyond(&rising, 1.0, 20));
     }
 
     /// The contact rows (from `first` on) below a tenth of the largest

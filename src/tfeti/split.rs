@@ -698,6 +698,8 @@ pub struct CgInfo {
     pub relative_residual: f64,
     /// `||r|| / ||b||` after each step.
     pub history: Vec<f64>,
+    /// `||r|| / ||b||` at the start.
+    pub start_residual: f64,
     pub converged: bool,
 }
 
@@ -718,14 +720,15 @@ pub fn projected_cg(
     projected_cg_from(split, b, None, (tol, max), precond, None)
 }
 
-/// A test that ends [`projected_cg_from`] early, given `x` and `||r|| / ||b||`.
-pub type StopTest<'a> = dyn Fn(&[f64], f64) -> bool + 'a;
+/// A test that ends [`projected_cg_from`] early, given `x` and what CG did
+/// so far (its last residual is `history`'s last).
+pub type StopTest<'a> = dyn Fn(&[f64], &CgInfo) -> bool + 'a;
 
 /// [`projected_cg`] from a multiple of `x0` (in Im P, owned rows) where
 /// given: `s x0` with `s = x0^T b / x0^T P F P x0` (the replicated
 /// `solve::galerkin_start`: the multiple nearest the solution in the energy
 /// norm, one more application), from zero where that is not positive and
-/// finite or leaves a residual not below `||b||`. `stop(x, ||r|| / ||b||)`,
+/// finite or leaves a residual not below `||b||`. `stop(x, info)`,
 /// asked after each step (collective, decided alike on every rank), ends
 /// the solve unconverged.
 pub fn projected_cg_from(
@@ -787,6 +790,7 @@ pub fn projected_cg_from(
         applications: started,
         relative_residual: 0.0,
         history: Vec::new(),
+        start_residual: if bnorm > 0.0 { rr.sqrt() / bnorm } else { 0.0 },
         converged: true,
     };
     while rr.sqrt() > tol * bnorm {
@@ -818,7 +822,7 @@ pub fn projected_cg_from(
         }
         let relative = rr.sqrt() / bnorm;
         info.history.push(relative);
-        if stop.is_some_and(|stop| stop(&x, relative)) {
+        if stop.is_some_and(|stop| stop(&x, &info)) {
             info.converged = false;
             break;
         }

@@ -30,8 +30,12 @@ use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::reconstruct::PIVOT;
 use super::slip::SlipBounds;
-use super::solve::{load_norm, stopped_as, DualSolution, DualStart, PULL, PULL_RESIDUAL};
-use super::split::{projected_cg_from, SplitDual, SplitOrthonormal, SplitProjectedF, StopTest};
+use super::solve::{
+    beyond_budget, load_norm, stopped_as, DualSolution, DualStart, PULL, PULL_RESIDUAL,
+};
+use super::split::{
+    projected_cg_from, CgInfo, SplitDual, SplitOrthonormal, SplitProjectedF, StopTest,
+};
 use super::split_coarse::RootCoarse;
 use super::split_precond::SplitProjectedM;
 use crate::num::exact::ExactSum;
@@ -176,8 +180,21 @@ fn equalities(
     let precond = pm.as_ref().map(|m| m as &dyn Operator);
     let limits = (settings.tolerance, settings.max_hessian);
     let first = settings.pull_check;
-    let pulls = |x: &[f64], residual: f64| held_pulls(split, (x, l_tilde), first, residual);
-    let stop = first.map(|_| &pulls as &StopTest<'_>);
+    // A held contact that clearly pulls, or (with the forecast) a budget
+    // the solve is forecast not to finish in, ends it: the replicated
+    // solve's tests, on the same exact residuals on every rank.
+    let stop = |x: &[f64], cg: &CgInfo| {
+        let residual = cg.history.last().copied().unwrap_or(cg.start_residual);
+        (first.is_some() && held_pulls(split, (x, l_tilde), first, residual))
+            || (settings.forecast
+                && beyond_budget(
+                    (cg.iterations, cg.applications),
+                    (cg.start_residual, &cg.history),
+                    settings.tolerance,
+                    settings.max_hessian,
+                ))
+    };
+    let stop = (first.is_some() || settings.forecast).then_some(&stop as &StopTest<'_>);
     let (x, fx, cg) = projected_cg_from(split, b, x0, limits, precond, stop);
     let b_norm = split.norm(b);
     let info = QpInfo {
