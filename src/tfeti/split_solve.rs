@@ -303,7 +303,7 @@ fn inequalities(
     let (mut info, end) = solve_on_ranks(
         &problem,
         &mut x,
-        &settings,
+        settings,
         Some(&warm),
         &mut counted,
         split,
