@@ -134,9 +134,82 @@ pub(super) fn solve(
     settings: &SmalbeSettings,
     plan: Plan,
 ) -> Outcome {
+    let kind = plan.kind;
+    let mut on_rows = |kept: &[usize], start: &[f64], settings: &SmalbeSettings| {
+        let (system, solved) = solve_held(problem, dual, kept, start, f, c, settings, kind)?;
+        let applications = system.f_applications();
+        Some((system, solved, applications))
+    };
+    // The attempts together spend at most the plan's budget of Hessian
+    // applications, so that SMALBE keeps the rest where they fail.
+    let limits = (
+        plan.attempts,
+        plan.budget.min(settings.max_hessian),
+        plan.predicted,
+    );
+    let tried = attempt(problem, dual, previous, settings, limits, &mut on_rows);
+    match tried.kept {
+        Some((sol, rows, system, check)) => Outcome::Kept(
+            Box::new(sol),
+            tried.applications,
+            KeptDual {
+                rows,
+                system: Arc::new(system),
+                kind,
+                predicted: plan.predicted,
+            },
+            check,
+            tried.solves,
+        ),
+        None => Outcome::Refused(tried.hessian, tried.applications, tried.solves, tried.last),
+    }
+}
+
+/// One equality solve on the held rows `kept` (ascending) from the
+/// multipliers `start` (every row) with `settings`: what the caller keeps
+/// with a set that holds (the replicated path its dual of the set, the
+/// split dual nothing), the solution or why not, and the applications of
+/// `F` it took. None where rigid motions only the rows left out would hold.
+pub(super) type HeldSolve<'f, K> = dyn FnMut(&[usize], &[f64], &SmalbeSettings) -> Option<(K, Result<DualSolution, SolveError>, usize)>
+    + 'f;
+
+/// What [`attempt`] gave.
+pub(super) struct Attempts<K> {
+    /// Where a set held: the solution on every row, the rows held, what
+    /// its solve kept, and its KKT residuals.
+    pub kept: Option<(DualSolution, Vec<usize>, K, Kkt)>,
+    /// Hessian applications and applications of `F` spent in all.
+    pub hessian: usize,
+    pub applications: usize,
+    /// Equality solves made.
+    pub solves: usize,
+    /// The last converged solve's multipliers (every row, feasible).
+    pub last: Option<Vec<f64>>,
+}
+
+/// The rows that carry load in `previous` held, solved by `solve_on`,
+/// checked and corrected ([`solve`]'s attempts, the replicated and the
+/// split dual's alike): at most `attempts` sets within `budget` Hessian
+/// applications; with `predicted`, an equality solve stops early where a
+/// held contact clearly pulls, and that row is let go.
+pub(super) fn attempt<K>(
+    problem: &Problem,
+    dual: &Dual,
+    previous: &[f64],
+    settings: &SmalbeSettings,
+    (attempts, budget, predicted): (usize, usize, bool),
+    solve_on: &mut HeldSolve<'_, K>,
+) -> Attempts<K> {
     let (n_eq, m) = (problem.n_equality, problem.rows.len());
+    let mut tried = Attempts {
+        kept: None,
+        hessian: 0,
+        applications: 0,
+        solves: 0,
+        last: None,
+    };
     if previous.len() != m || n_eq == m {
-        return Outcome::Refused(0, 0, 0, None);
+        return tried;
     }
     let tol = settings.tolerance;
     let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
@@ -144,39 +217,33 @@ pub(super) fn solve(
         .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
         .collect();
     let mut start = previous.to_vec();
-    let (mut hessian, mut applications, mut solves, mut inner) = (0, 0, 0, 0);
-    let mut last = None;
-    // The attempts together spend at most the plan's budget of Hessian
-    // applications, so that SMALBE keeps the rest where they fail.
-    let (budget, kind) = (plan.budget.min(settings.max_hessian), plan.kind);
-    for _ in 0..plan.attempts {
-        if hessian >= budget {
+    let mut inner = 0;
+    for _ in 0..attempts {
+        if tried.hessian >= budget {
             break;
         }
         let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
         let settings = SmalbeSettings {
-            max_hessian: budget - hessian,
-            pull_check: plan.predicted.then(|| kept.partition_point(|&i| i < n_eq)),
+            max_hessian: budget - tried.hessian,
+            pull_check: predicted.then(|| kept.partition_point(|&i| i < n_eq)),
             ..settings.clone()
         };
         // Rigid motions that only the contacts left out would hold: not
         // this way.
-        let Some((system, solved)) =
-            solve_held(problem, dual, &kept, &start, f, c, &settings, kind)
-        else {
+        let Some((keep, solved, applications)) = solve_on(&kept, &start, &settings) else {
             break;
         };
-        solves += 1;
-        applications += system.f_applications();
+        tried.solves += 1;
+        tried.applications += applications;
         let sol = match solved {
             Ok(sol) => sol,
             // Its applications of F bound its Hessian applications below.
             Err(_) => {
-                hessian += system.f_applications();
+                tried.hessian += applications;
                 break;
             }
         };
-        hessian += sol.info.hessian_applications;
+        tried.hessian += sol.info.hessian_applications;
         inner += sol.info.inner_iterations;
         let lambda = spread(&sol.lambda, &kept, m);
         if sol.info.status != Status::Converged {
@@ -189,32 +256,23 @@ pub(super) fn solve(
             start = feasible(&lambda, n_eq);
             continue;
         }
-        last = Some(feasible(&lambda, n_eq));
+        tried.last = Some(feasible(&lambda, n_eq));
         let check = kkt(problem, dual, &sol.u, &lambda);
         if holds(&check, tol) {
-            return Outcome::Kept(
-                Box::new(on_every_row(sol, lambda, (hessian, inner))),
-                applications,
-                KeptDual {
-                    rows: kept,
-                    system: Arc::new(system),
-                    kind,
-                    predicted: plan.predicted,
-                },
-                check,
-                solves,
-            );
+            let sol = on_every_row(sol, lambda, (tried.hessian, inner));
+            tried.kept = Some((sol, kept, keep, check));
+            return tried;
         }
         if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
             break;
         }
         start = feasible(&lambda, n_eq);
     }
-    Outcome::Refused(hessian, applications, solves, last)
+    tried
 }
 
 /// The multipliers `lambda` of the rows `kept` on every one of `m` rows.
-pub(super) fn spread(lambda: &[f64], kept: &[usize], m: usize) -> Vec<f64> {
+fn spread(lambda: &[f64], kept: &[usize], m: usize) -> Vec<f64> {
     let mut all = vec![0.0; m];
     for (k, &i) in kept.iter().enumerate() {
         all[i] = lambda[k];
@@ -226,7 +284,7 @@ pub(super) fn spread(lambda: &[f64], kept: &[usize], m: usize) -> Vec<f64> {
 /// equality solve `sol` stopped early because a held contact clearly pulls
 /// (its `pull_check`, from the residual [`PULL_RESIDUAL`] on); empty where it
 /// stopped for another reason.
-pub(super) fn pulled(sol: &DualSolution, pull_check: Option<usize>) -> Vec<usize> {
+fn pulled(sol: &DualSolution, pull_check: Option<usize>) -> Vec<usize> {
     let stopped = sol.info.history.last().is_some_and(|&r| r <= PULL_RESIDUAL);
     match pull_check {
         Some(first) if stopped => pulling(&sol.lambda, first),
@@ -238,12 +296,12 @@ pub(super) fn pulled(sol: &DualSolution, pull_check: Option<usize>) -> Vec<usize
 /// (gluing, supports, held contacts) hold to the CG's tolerance, as SMALBE's
 /// do to its own; what the equality solve does not impose (no held contact
 /// pulls, no row left out is penetrated, equilibrium) holds to `tol`.
-pub(super) fn holds(check: &Kkt, tol: f64) -> bool {
+fn holds(check: &Kkt, tol: f64) -> bool {
     check.sign <= tol && check.penetration <= tol && check.equilibrium <= tol
 }
 
 /// `lambda` with its contact rows (from `n_eq` on) at 0 where they pull.
-pub(super) fn feasible(lambda: &[f64], n_eq: usize) -> Vec<f64> {
+fn feasible(lambda: &[f64], n_eq: usize) -> Vec<f64> {
     let mut l: Vec<f64> = lambda.iter().map(|l| l.max(0.0)).collect();
     l[..n_eq].copy_from_slice(&lambda[..n_eq]);
     l
@@ -285,7 +343,7 @@ fn solve_held(
 
 /// The kept solution as the contact problem's: `lambda` on every row, the
 /// Hessian applications and CG steps of every attempt, no SMALBE state.
-pub(super) fn on_every_row(
+fn on_every_row(
     sol: DualSolution,
     lambda: Vec<f64>,
     (hessian, inner): (usize, usize),
@@ -307,7 +365,7 @@ pub(super) fn on_every_row(
 /// A primal-dual active set step: lets go of the held contact rows that pull
 /// and holds the rows penetrated, as the KKT check measures them, at the
 /// solution `u`, `lambda` (one per row). False where nothing changes.
-pub(super) fn correct(
+fn correct(
     problem: &Problem,
     dual: &Dual,
     u: &[Vec<f64>],

@@ -19,13 +19,12 @@
 //! early, as on the replicated path. Against that path: no kept dual for
 //! the sensitivities (they run on the replicated dual).
 
-use super::active_set::{correct, feasible, holds, on_every_row, pulled, spread};
+use super::active_set::attempt;
 use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
 use crate::model::Problem;
 use crate::qp::{QpInfo, SmalbeSettings, Status};
 use crate::tfeti::dual::Dual;
 use crate::tfeti::error::SolveError;
-use crate::tfeti::kkt::kkt;
 use crate::tfeti::precond::{DualPreconditioner, Kind};
 use crate::tfeti::rows::LocalRows;
 use crate::tfeti::schur::SchurForm;
@@ -167,9 +166,9 @@ struct Held<'a> {
 
 impl Held<'_> {
     /// The rows that carry load in `previous` held, solved, checked and
-    /// corrected, at most [`ATTEMPTS`] sets within `budget` Hessian
-    /// applications: the solution on every row where one is kept, the
-    /// Hessian applications spent and the solves made.
+    /// corrected ([`attempt`]), at most [`ATTEMPTS`] sets within
+    /// `budget` Hessian applications: the solution on every row where one is
+    /// kept, the Hessian applications spent and the solves made.
     fn solve(
         &self,
         previous: &[f64],
@@ -177,79 +176,27 @@ impl Held<'_> {
         settings: &SmalbeSettings,
         budget: usize,
     ) -> Tried {
-        let (problem, dual) = (self.problem, self.dual);
-        let (n_eq, m) = (problem.n_equality, problem.rows.len());
-        let tol = settings.tolerance;
-        let largest = previous[n_eq..].iter().fold(0.0f64, |a, &l| a.max(l));
-        let mut held: Vec<bool> = (0..m)
-            .map(|i| i < n_eq || previous[i] > 1e-8 * largest)
-            .collect();
-        let mut start = previous.to_vec();
-        let (mut hessian, mut inner, mut solves) = (0, 0, 0);
-        let mut last = None;
-        for _ in 0..ATTEMPTS {
-            if hessian >= budget {
-                break;
-            }
-            let kept: Vec<usize> = (0..m).filter(|&i| held[i]).collect();
-            // A held contact that clearly pulls stops the solve early.
-            let settings = SmalbeSettings {
-                max_hessian: budget - hessian,
-                pull_check: Some(kept.partition_point(|&i| i < n_eq)),
-                ..settings.clone()
-            };
-            let Some((sol, applications)) = self.on_rows(&kept, &start, (f, c), &settings) else {
-                // Rigid motions that only the rows left out would hold.
-                break;
-            };
-            solves += 1;
-            let sol = match sol {
-                Ok(sol) => sol,
-                Err(_) => {
-                    hessian += applications;
-                    break;
-                }
-            };
-            hessian += sol.info.hessian_applications;
-            inner += sol.info.inner_iterations;
-            let lambda = spread(&sol.lambda, &kept, m);
-            if sol.info.status != Status::Converged {
-                // Stopped early where a held contact clearly pulls: let it go.
-                let pulls = pulled(&sol, settings.pull_check);
-                if pulls.is_empty() {
-                    break;
-                }
-                pulls.iter().for_each(|&k| held[kept[k]] = false);
-                start = feasible(&lambda, n_eq);
-                continue;
-            }
-            last = Some(feasible(&lambda, n_eq));
-            let check = kkt(problem, dual, &sol.u, &lambda);
-            if holds(&check, tol) {
-                return Tried {
-                    kept: Some(on_every_row(sol, lambda, (hessian, inner))),
-                    hessian,
-                    solves,
-                    last,
-                };
-            }
-            if !correct(problem, dual, &sol.u, &lambda, tol, &mut held) {
-                break;
-            }
-            start = feasible(&lambda, n_eq);
-        }
+        let mut on_rows = |kept: &[usize], start: &[f64], settings: &SmalbeSettings| {
+            let (sol, applications) = self.on_rows(kept, start, (f, c), settings)?;
+            Some(((), sol, applications))
+        };
+        let limits = (ATTEMPTS, budget, true);
+        let tried = attempt(
+            self.problem,
+            self.dual,
+            previous,
+            settings,
+            limits,
+            &mut on_rows,
+        );
         Tried {
-            kept: None,
-            hessian,
-            solves,
-            last,
+            kept: tried.kept.map(|(sol, ..)| sol),
+            hessian: tried.hessian,
+            solves: tried.solves,
+            last: tried.last,
         }
     }
 
-    /// The equality-only problem on the rows `kept` on its own split dual,
-    /// solved from `start` (one per row of the problem): its solution and
-    /// its applications of `F`; None where the rows leave a rigid motion
-    /// free. Collective.
     fn on_rows(
         &self,
         kept: &[usize],

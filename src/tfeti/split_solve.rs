@@ -300,14 +300,8 @@ fn inequalities(
             ..i.clone()
         })
     };
-    let (mut info, end) = solve_on_ranks(
-        &problem,
-        &mut x,
-        settings,
-        Some(&warm),
-        &mut counted,
-        split,
-    );
+    let (mut info, end) =
+        solve_on_ranks(&problem, &mut x, settings, Some(&warm), &mut counted, split);
     info.hessian_applications += power;
     (x, info, b_norm, (end, pfp))
 }
