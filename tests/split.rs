@@ -14,7 +14,6 @@ use cso::tfeti::comm::Comm;
 use cso::tfeti::dual::{Orthonormal, ProjectedF, ProjectedM};
 use cso::tfeti::precond::Kind;
 use cso::tfeti::split::{projected_cg, SplitDual, SplitOrthonormal, SplitProjectedF, Traffic};
-use cso::tfeti::split_metric::SplitMetric;
 use cso::tfeti::split_precond::SplitProjectedM;
 use cso::tfeti::split_solve::dual_solve;
 use std::sync::Arc;
@@ -555,7 +554,7 @@ fn metric_on_rank(scene: &Scene, comm: Option<Arc<dyn Comm>>) -> (Vec<u64>, f64)
         .filter(|&(_, &r)| r >= n_eq && r % 3 == 0)
         .map(|(i, _)| i)
         .collect();
-    let w = SplitMetric::new(&split, set.clone()).expect("a set on some rank");
+    let w = split.face_metric(set.clone()).expect("a set on some rank");
     assert_eq!(w.set(), &set[..]);
     let g = SplitOrthonormal::new(&split);
     let v = probe(g.rows());

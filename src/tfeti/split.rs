@@ -516,6 +516,14 @@ impl<'a> SplitDual<'a> {
         }
     }
 
+    /// SMALBE's face metric for the owned rows `set` (ascending) at their
+    /// bounds ([`SplitMetric::new`]). Collective.
+    pub fn face_metric(&self, set: Vec<usize>) -> Option<SplitMetric<'_>> {
+        let at = |x: &[f64]| self.at_subdomains(x);
+        let owned = self.owned_rows().len();
+        SplitMetric::new(self.cluster, self.root_factor(), (owned, set), &at)
+    }
+
     /// Dot products of owned parts, exact and the same on every rank: one
     /// all-reduce for all pairs.
     pub fn dots(&self, pairs: &[(&[f64], &[f64])]) -> Vec<f64> {
@@ -684,7 +692,8 @@ impl Equality for SplitOrthonormal<'_, '_> {
     }
 
     fn own_metric(&self, set: Vec<usize>) -> Option<Box<dyn Metric + '_>> {
-        SplitMetric::new(self.split, set).map(|w| Box::new(w) as Box<dyn Metric + '_>)
+        let w = self.split.face_metric(set)?;
+        Some(Box::new(w))
     }
 }
 

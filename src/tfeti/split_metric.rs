@@ -19,67 +19,76 @@
 //! `rows(G)` times the set). The result is the one-process metric's `W` to
 //! round-off, not its bits. It has the same bits on any number of ranks.
 
+use super::cluster::Cluster;
 use super::coarse::CoarseFactor;
-use super::comm::{broadcast_from_root, Op};
-use super::split::SplitDual;
+use super::comm::{broadcast_from_root, Comm, Op};
 use super::split_coarse::RootCoarse;
 use crate::qp::{Metric, FACE_METRIC_DELTA as DELTA};
 
-/// `W` for the entries at their bounds, on the split dual.
-pub struct SplitMetric<'s, 'a> {
-    split: &'s SplitDual<'a>,
+/// `W` for the entries at their bounds, on the split dual
+/// ([`super::split::SplitDual::face_metric`]).
+pub struct SplitMetric<'s> {
+    comm: &'s dyn Comm,
+    /// The coarse factor `L` on rank 0 (None elsewhere).
+    l: Option<&'s CoarseFactor>,
     /// This rank's entries at their bounds (indices into its owned rows).
     set: Vec<usize>,
     /// `M`, factorized on rank 0.
     m: RootCoarse,
 }
 
-impl<'s, 'a> SplitMetric<'s, 'a> {
-    /// The metric for this rank's owned rows `set` (ascending) at their
-    /// bounds. Returns None on every rank where no rank has such a row, or
-    /// where `M` does not factorize. Collective: one integer all-reduce, one
-    /// halo, and `M`'s assembly.
-    pub fn new(split: &'s SplitDual<'a>, set: Vec<usize>) -> Option<Self> {
+impl<'s> SplitMetric<'s> {
+    /// The metric for this rank's `owned` rows, `set` of them (ascending)
+    /// at their bounds; `l` is the coarse factor on rank 0, and
+    /// `at_subdomains` the split dual's halo (the values of owned rows at
+    /// each owned subdomain's local rows). Returns None on every rank where
+    /// no rank has such a row, or where `M` does not factorize. Collective:
+    /// one integer all-reduce, one halo, and `M`'s assembly.
+    pub(crate) fn new(
+        cluster: &'s Cluster,
+        l: Option<&'s CoarseFactor>,
+        (owned, set): (usize, Vec<usize>),
+        at_subdomains: &dyn Fn(&[f64]) -> Vec<Vec<f64>>,
+    ) -> Option<Self> {
+        let comm = &**cluster.comm();
         let mut any = [u64::from(!set.is_empty())];
-        split.comm().all_reduce_u64(&mut any, Op::Max);
+        comm.all_reduce_u64(&mut any, Op::Max);
         if any[0] == 0 {
             return None;
         }
-        let mut owned = vec![1.0 + DELTA; split.owned_rows().len()];
+        let mut mine = vec![1.0 + DELTA; owned];
         for &i in &set {
-            owned[i] = DELTA;
+            mine[i] = DELTA;
         }
-        let cluster = split.cluster();
         let mut weights = vec![0.0; cluster.multipliers()];
-        for (s, at) in cluster.owned().zip(split.at_subdomains(&owned)) {
+        for (s, at) in cluster.owned().zip(at_subdomains(&mine)) {
             for (&row, w) in cluster.local_rows(s).rows.iter().zip(at) {
                 weights[row] = w;
             }
         }
         let m = RootCoarse::weighted(cluster, &weights)?;
-        Some(SplitMetric { split, set, m })
+        Some(SplitMetric { comm, l, set, m })
     }
 }
 
-impl Metric for SplitMetric<'_, '_> {
+impl Metric for SplitMetric<'_> {
     fn set(&self) -> &[usize] {
         &self.set
     }
 
     /// `v <- L^T Q M^-1 Q^T L v` on rank 0, sent to every rank.
     fn apply(&self, v: &mut [f64]) {
-        let on_root = |l: &CoarseFactor, m: &CoarseFactor| {
-            let mut z = v.to_vec();
-            l.mul_l(&mut z);
-            m.solve(&mut z);
-            l.mul_lt(&mut z);
-            z
-        };
-        let z = match (self.split.root_factor(), self.m.factor()) {
-            (Some(l), Some(m)) => on_root(l, m),
+        let z = match (self.l, self.m.factor()) {
+            (Some(l), Some(m)) => {
+                let mut z = v.to_vec();
+                l.mul_l(&mut z);
+                m.solve(&mut z);
+                l.mul_lt(&mut z);
+                z
+            }
             _ => Vec::new(),
         };
-        let z = broadcast_from_root(self.split.comm(), z, v.len());
+        let z = broadcast_from_root(self.comm, z, v.len());
         v.copy_from_slice(&z);
     }
 }
