@@ -592,3 +592,45 @@ fn the_split_face_metric_inverts_its_definition_with_the_same_bits_on_every_rank
         }
     }
 }
+
+/// The replicated budget forecast (`SmalbeSettings::forecast`) stops the
+/// split dual's equality-only CG where its budget cannot finish: glued
+/// layers (equalities only) to 1e-10, the budget five applications short
+/// of what the solve takes (191 of 196 applications). With the forecast it
+/// stops well before (73); without, it spends the budget.
+#[test]
+fn the_split_equality_solve_stops_where_its_budget_cannot_finish() {
+    let scene = cso::lang::compile(crate::fixture::LAYERS_2D, &crate::options()).expect("checks");
+    let state = state_on(&scene, None);
+    let problem = &state.problem;
+    let n_eq = problem.n_equality;
+    assert_eq!(n_eq, problem.rows.len(), "equalities only");
+    let f: Vec<&[f64]> = problem.subdomains.iter().map(|m| m.f.as_slice()).collect();
+    let c: Vec<f64> = problem.rows.iter().map(|r| r.c).collect();
+    let own = own_cluster(&scene, &state);
+    let run = |max_hessian: usize, forecast: bool| {
+        let split = SplitDual::with_root_coarse(&own).expect("factorizes");
+        let settings = cso::qp::SmalbeSettings {
+            tolerance: 1e-10,
+            max_hessian,
+            forecast,
+            ..Default::default()
+        };
+        let sol = dual_solve(&split, None, (&f, &c), n_eq, &settings, None, &mut |_| {})
+            .expect("reconstructs");
+        (sol.info.status, sol.info.hessian_applications)
+    };
+    let (status, needed) = run(100_000, false);
+    assert_eq!(status, cso::qp::Status::Converged);
+    assert!(needed > 30, "the layers take {needed} applications");
+    let budget = needed - 5;
+    let (status, spent) = run(budget, false);
+    assert_eq!(status, cso::qp::Status::MaxIterations);
+    assert!(spent >= budget, "without the forecast: {spent} of {budget}");
+    let (status, spent) = run(budget, true);
+    assert_eq!(status, cso::qp::Status::MaxIterations);
+    assert!(
+        spent <= budget / 2,
+        "with the forecast: {spent} of {budget}"
+    );
+}

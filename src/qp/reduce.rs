@@ -35,7 +35,8 @@ pub trait Reduce: Sync {
     /// What a rank's terms are summed in before the ranks' parts are added.
     type Sum: Terms;
     /// Whether one process holds the whole vector (what needs whole vectors,
-    /// SMALBE's face metric and MPGP's blocks, runs only then).
+    /// MPGP's blocks and the face metric built from `G`'s columns, runs only
+    /// then; a split equality builds its own metric).
     const WHOLE: bool;
     /// `a . b` over the whole vector.
     fn dot(&self, a: &[f64], b: &[f64]) -> f64;

@@ -197,6 +197,10 @@ impl Held<'_> {
         }
     }
 
+    /// The equality-only problem on the rows `kept` on its own split dual,
+    /// solved from `start` (one per row of the problem): its solution and
+    /// its applications of `F`; None where the rows leave a rigid motion
+    /// free. Collective.
     fn on_rows(
         &self,
         kept: &[usize],
