@@ -399,6 +399,9 @@ struct Augmented<'a> {
     gtgx: Cell<Vec<f64>>,
     /// `W` in `A + c G^T W G` ([`super::face_metric`]); none: `W = I`.
     metric: std::cell::RefCell<Option<Box<dyn Metric + 'a>>>,
+    /// The entries at their bounds the metric was last built for (built
+    /// or not: over its caps, or not definite), so that a set is tried once.
+    metric_tried: std::cell::RefCell<Vec<usize>>,
 }
 
 impl<'a> Augmented<'a> {
@@ -410,6 +413,7 @@ impl<'a> Augmented<'a> {
             gx: Cell::new(vec![0.0; g.rows()]),
             gtgx: Cell::new(vec![0.0; a.dim()]),
             metric: std::cell::RefCell::new(None),
+            metric_tried: std::cell::RefCell::new(Vec::new()),
         }
     }
 }
@@ -874,12 +878,13 @@ fn face_metric<'a, R: Reduce>(
         })
         .collect();
     let mut slot = setup.hessian.metric.borrow_mut();
-    let unchanged = slot
-        .as_ref()
-        .map_or(at_bound.is_empty(), |w| w.set() == at_bound);
-    if reduce.all(unchanged) {
+    let mut tried = setup.hessian.metric_tried.borrow_mut();
+    // Where the set was tried and no metric came of it, trying again gives
+    // none again.
+    if reduce.all(*tried == at_bound) {
         return false;
     }
+    tried.clone_from(&at_bound);
     let had = slot.is_some();
     let metric = if own {
         problem.g.own_metric(at_bound)
