@@ -210,10 +210,15 @@ fn a_failing_rank_stops_every_rank_with_its_message() {
     let (code, _, err) = run(Some(3), &env, &["solve", "examples/two_blocks.cso"]);
     assert_eq!(code, 1, "{err}");
     // mpirun forwards the ranks' stderr concurrently, so another rank's
-    // output can start the line an error is printed on ("mpi: error: ...").
+    // output can start the line an error is printed on ("mpi: error: ...")
+    // or go on after it ("... failures)mpi: 3 ranks, ...").
+    let end = "(a test of distributed failures)";
     let lines: Vec<&str> = err
         .lines()
-        .filter_map(|l| l.find("error:").map(|at| &l[at..]))
+        .filter_map(|l| {
+            let l = &l[l.find("error:")?..];
+            Some(l.find(end).map_or(l, |at| &l[..at + end.len()]))
+        })
         .collect();
     assert_eq!(lines.len(), 3, "{err}");
     assert!(lines.iter().all(|l| *l == lines[0]), "{err}");
