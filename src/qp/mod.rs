@@ -38,7 +38,7 @@ pub trait Equality {
     fn apply_t(&self, y: &[f64], x: &mut [f64]);
     /// Whether this equality builds SMALBE's face metric itself
     /// ([`Equality::own_metric`]); otherwise SMALBE builds it from the
-    /// columns of `G` in one process ([`face_metric`]), and on ranks runs
+    /// columns of `G` in one process (`face_metric.rs`), and on ranks runs
     /// without one.
     fn builds_own_metric(&self) -> bool {
         false
@@ -52,7 +52,7 @@ pub trait Equality {
     }
 }
 
-/// `W` of SMALBE's face metric ([`face_metric`]): the entries at their bounds
+/// `W` of SMALBE's face metric (`face_metric.rs`): the entries at their bounds
 /// it was built for (this rank's), and `v <- W v` on a vector of `G`'s rows
 /// (whole, the same on every rank; collective on ranks).
 pub trait Metric {

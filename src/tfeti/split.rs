@@ -31,8 +31,9 @@
 //! global row), [`SplitProjectedF`] and [`SplitOrthonormal`]
 //! (`tfeti::split_solve`, `cso solve --split-dual`), all checked bitwise
 //! across rank counts on thread ranks; the preconditioners through
-//! `SplitDual::local_sum` (`tfeti::split_precond`). The active-set
-//! prediction still runs on the replicated dual (`tfeti::dual`).
+//! `SplitDual::local_sum` (`tfeti::split_precond`), SMALBE's face metric
+//! through [`SplitDual::face_metric`] (`tfeti::split_metric`), and the
+//! active-set prediction on it (`state::split_predict`).
 
 use super::cluster::{g_block_t_times, g_block_times, Cluster};
 use super::coarse::CoarseFactor;
@@ -517,7 +518,7 @@ impl<'a> SplitDual<'a> {
     }
 
     /// SMALBE's face metric for the owned rows `set` (ascending) at their
-    /// bounds ([`SplitMetric::new`]). Collective.
+    /// bounds (`SplitMetric::new`). Collective.
     pub fn face_metric(&self, set: Vec<usize>) -> Option<SplitMetric<'_>> {
         let at = |x: &[f64]| self.at_subdomains(x);
         let owned = self.owned_rows().len();
