@@ -209,3 +209,29 @@ fn pieces_share_the_subdomains_by_size_and_must_not_touch() {
         Err(PartitionError::TouchingPieces { node: 2 })
     );
 }
+
+#[test]
+fn simplices_are_cut_by_communication_volume_and_hexahedra_by_facets() {
+    let cells = tet_cube(8);
+    let graph = DualGraph::new(CellKind::Tet4, &cells);
+    let mut differ = 0;
+    for n in [4, 6, 9] {
+        let by_kind = partition(CellKind::Tet4, &cells, n)
+            .expect("cut")
+            .part_of_cell;
+        let by_volume = metis_kway(&graph, n, Objective::Volume).expect("cut");
+        let by_facets = metis_kway(&graph, n, Objective::Cut).expect("cut");
+        assert_eq!(by_kind, by_volume, "{n} parts");
+        differ += usize::from(by_volume != by_facets);
+    }
+    // Else the objective would not reach METIS and the check above says nothing.
+    assert!(differ > 0);
+    let quads = quad_grid(12, 8);
+    let graph = DualGraph::new(CellKind::Quad4, &quads);
+    let by_kind = partition(CellKind::Quad4, &quads, 5)
+        .expect("cut")
+        .part_of_cell;
+    assert_eq!(by_kind, metis_kway(&graph, 5, Objective::Cut).expect("cut"));
+    assert_eq!(Objective::of(CellKind::Tri3), Objective::Volume);
+    assert_eq!(Objective::of(CellKind::Hex8), Objective::Cut);
+}
