@@ -1173,6 +1173,7 @@ fn solve_on(
         _ => Attempt::default(),
     };
     let (mut prediction, mut kept_precond) = (None, ops.kept_precond);
+    let mut split_coarse = 0.0;
     let sol = match attempt.solution.take() {
         Some(sol) => sol,
         None => {
@@ -1187,8 +1188,13 @@ fn solve_on(
                     .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             }
             times.coarse += t.elapsed().as_secs_f64();
-            let (sol, predicted, done) =
-                ops.solve_dual(scene, (&f, &c), &settings, start.as_ref(), observer)?;
+            let (sol, predicted, done) = ops.solve_dual(
+                scene,
+                (&f, &c),
+                &settings,
+                start.as_ref(),
+                (observer, &mut split_coarse),
+            )?;
             if let Some((tried, how, kind)) = predicted {
                 (attempt, prediction, kept_precond) = (tried, how, Some(kind));
             }
@@ -1196,7 +1202,9 @@ fn solve_on(
             sol
         }
     };
-    times.solve = t.elapsed().as_secs_f64();
+    // The split dual's coarse problem is set up inside the dual solve.
+    times.solve = t.elapsed().as_secs_f64() - split_coarse;
+    times.coarse += split_coarse;
     same_on_every_rank(&**ops.system.dual().cluster().comm(), &sol)?;
     let ops = Operators {
         kept_precond,
@@ -1425,7 +1433,9 @@ impl Operators {
     /// The dual solve where no kept active set answered: with friction its
     /// loop of solves (and what it did), else through a predicted active set
     /// where [`predict::predicts`] says so (what the equality solves left,
-    /// the prediction, their preconditioner), else SMALBE from `start`.
+    /// the prediction, their preconditioner), else SMALBE from `start`. On
+    /// the split dual, the seconds its coarse problem's set-up took go to
+    /// `coarse`.
     #[allow(clippy::type_complexity)]
     fn solve_dual(
         &self,
@@ -1433,7 +1443,7 @@ impl Operators {
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
         start: Option<&DualStart>,
-        observer: &mut dyn FnMut(&QpInfo),
+        (observer, coarse): (&mut dyn FnMut(&QpInfo), &mut f64),
     ) -> Result<
         (
             DualSolution,
@@ -1443,7 +1453,8 @@ impl Operators {
         SolveError,
     > {
         if self.split {
-            let (sol, predicted) = self.split_solve(scene, f, c, settings, start, observer)?;
+            let (sol, predicted) =
+                self.split_solve(scene, (f, c), settings, start, (observer, coarse))?;
             return Ok((sol, predicted, None));
         }
         if has_friction(&self.problem) {
@@ -1469,16 +1480,16 @@ impl Operators {
 
     /// The dual solve on the split dual, where it applies: TFETI, no
     /// friction, cold; through a predicted active set where
-    /// [`predict::predicts`] says so (`split_predict`), with what it did.
+    /// [`predict::predicts`] says so (`split_predict`), with what it did;
+    /// the seconds the coarse problem's set-up on rank 0 took in `coarse`.
     #[allow(clippy::type_complexity)]
     fn split_solve(
         &self,
         scene: &Scene,
-        f: &[&[f64]],
-        c: &[f64],
+        (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
         start: Option<&DualStart>,
-        observer: &mut dyn FnMut(&QpInfo),
+        (observer, coarse): (&mut dyn FnMut(&QpInfo), &mut f64),
     ) -> Result<
         (
             DualSolution,
@@ -1504,8 +1515,10 @@ impl Operators {
         // Each rank holds its own subdomains' G_s; G G^T is assembled and
         // factorized on rank 0 (its check: the rigid motions no row holds).
         let dual = self.system.dual();
+        let t = Instant::now();
         let split = crate::tfeti::split::SplitDual::with_root_coarse(dual.cluster())
             .map_err(|CoarseError { free_modes }| self.free_modes(&free_modes))?;
+        *coarse = t.elapsed().as_secs_f64();
         let n_eq = self.problem.n_equality;
         let solved = match predict::predicts(scene, self, settings, false) {
             Some(kind) => split_predict::predicted_solve(
