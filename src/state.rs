@@ -939,12 +939,20 @@ pub struct PreconditionerChoice {
 
 impl PreconditionerChoice {
     /// The scene's preconditioner on `cluster`: `auto` resolved
-    /// (collectively, on a distributed cluster).
-    pub fn of(scene: &Scene, cluster: &crate::tfeti::cluster::Cluster) -> PreconditionerChoice {
+    /// (collectively, on a distributed cluster), for a problem whose rows
+    /// are all equalities where `equalities_only`.
+    pub fn of(
+        scene: &Scene,
+        cluster: &crate::tfeti::cluster::Cluster,
+        equalities_only: bool,
+    ) -> PreconditionerChoice {
         match scene.solver.preconditioner {
             crate::lang::scene::Preconditioner::Auto => {
-                let (kind, estimate) =
-                    crate::tfeti::precond_choice::choose(cluster, scene.glue_jump());
+                let (kind, estimate) = crate::tfeti::precond_choice::choose(
+                    cluster,
+                    scene.glue_jump(),
+                    equalities_only,
+                );
                 PreconditionerChoice {
                     kind,
                     auto: Some(estimate),
@@ -1378,7 +1386,8 @@ impl Operators {
         // Weighed on the cluster the dual solves on (classical FETI: its
         // reduced one, without the held rows); built on first use where the
         // solve may not iterate (a warm start kept on its active set).
-        let precond = PreconditionerChoice::of(scene, system.dual().cluster());
+        let equalities_only = setup.problem.n_equality == setup.problem.rows.len();
+        let precond = PreconditionerChoice::of(scene, system.dual().cluster(), equalities_only);
         // The split solve may refuse the scene (friction, classical FETI):
         // its preconditioner is built on first use.
         if deferred || split {

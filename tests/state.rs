@@ -462,7 +462,7 @@ fn auto_takes_dirichlet_only_where_f_is_applied_by_factor_solves() {
 /// Where the moduli jump by 10 or more across a glue, `auto` takes
 /// Dirichlet even on dense `F_s`, says why in the summary, and takes a
 /// fraction of none's applications for none's energy; alike moduli (the
-/// same scene at 4:1) leave it with none.
+/// same scene at 4:1, every row an equality) leave it with lumped.
 #[test]
 fn auto_takes_dirichlet_where_the_moduli_jump_across_a_glue() {
     use cso::lang::scene::Preconditioner;
@@ -486,7 +486,43 @@ fn auto_takes_dirichlet_where_the_moduli_jump_across_a_glue() {
     assert!((ea - en).abs() <= 1e-6 * en.abs(), "{ea} against {en}");
     let alike = scene(&crate::fixture::LAYERS_2D.replace("1000 GPa", "4 GPa"));
     let state = solve_with(&alike, Preconditioner::Auto, 1e-8);
-    assert_eq!(state.preconditioner.kind, None);
+    assert_eq!(state.preconditioner.kind, Some(Kind::Lumped));
+}
+
+/// Where every row is an equality (glued bodies and supports, no contact),
+/// `auto` takes lumped where Dirichlet does not pay, says so, and takes
+/// fewer applications than none for none's energy; a scene with contact
+/// (two_blocks) stays with none.
+#[test]
+fn auto_takes_lumped_where_every_row_is_an_equality() {
+    use cso::lang::scene::Preconditioner;
+    use cso::tfeti::precond::Kind;
+    let glued = scene(&crate::fixture::LAYERS_2D.replace("1000 GPa", "1 GPa"));
+    let auto = solve_with(&glued, Preconditioner::Auto, 1e-8);
+    assert_eq!(auto.preconditioner.kind, Some(Kind::Lumped));
+    assert!(auto.preconditioner.auto.expect("weighed").equalities_only);
+    let summary = Report::new(&glued, &auto).summary(false);
+    assert!(
+        summary.contains("lumped preconditioner by auto (equalities only)"),
+        "{summary}"
+    );
+    let none = solve_with(&glued, Preconditioner::None, 1e-8);
+    let (a, n) = (
+        auto.info.hessian_applications,
+        none.info.hessian_applications,
+    );
+    assert!(a < n, "{a} against {n}");
+    let (ea, en) = (auto.energy(), none.energy());
+    assert!((ea - en).abs() <= 1e-6 * en.abs(), "{ea} against {en}");
+    let pressed = solve(&example("two_blocks"), &[], &mut |_| {}).expect("solves");
+    assert!(
+        !pressed
+            .preconditioner
+            .auto
+            .expect("weighed")
+            .equalities_only
+    );
+    assert_eq!(pressed.preconditioner.kind, None);
 }
 
 /// Where `F_s` is applied by its factor, the prediction's SMALBE runs on the

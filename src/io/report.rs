@@ -367,6 +367,9 @@ impl Report {
                 v.preconditioner.name(),
                 n.num(e.jump)
             ),
+            (Some(crate::tfeti::precond::Kind::Lumped), Some(e)) if e.equalities_only => {
+                ", lumped preconditioner by auto (equalities only)".to_string()
+            }
             (Some(_), Some(_)) => format!(", {} preconditioner by auto", v.preconditioner.name()),
         };
         let predicted = match &v.active_set {

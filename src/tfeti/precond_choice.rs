@@ -13,9 +13,13 @@
 //! fifth of what the factor does. Where `F_s` is dense (2D at H/h = 16-32) `S_s`
 //! reads as much as `F_s`; in 3D `S_s` (all face dofs, thousands) reads as
 //! much as the factor and takes seconds to form: none is the faster there.
-//! Lumped is never taken: it cut the applications by 0.65-0.9 on some
-//! scenes and raised them by up to 1.8x on others, with nothing known before
-//! the solve that tells which.
+//! With contact rows, lumped is never taken: it cut the applications by
+//! 0.65-0.9 on some scenes and raised them by up to 1.8x on others, with
+//! nothing known before the solve that tells which. Without them (every row
+//! an equality: glued or tied bodies, supports; the solve is a projected CG)
+//! it is what `auto` takes where Dirichlet does not pay: it took 0.27-0.58 of
+//! none's applications on every such scene measured, 2D and 3D, hexahedra
+//! and tetrahedra, at no set-up (BENCHMARKS.md, "Equality-only scenes").
 //!
 //! What the estimate leaves out, measured: the set-up's sparse factorization
 //! of `K_s` (about 30 ns per factor value, 5-7 applications of `F_s`), and
@@ -66,6 +70,8 @@ pub struct Estimate {
     pub dense_f: usize,
     /// The largest ratio of Young's moduli across a glue (1: none).
     pub jump: f64,
+    /// Whether every row is an equality (no contact or friction rows).
+    pub equalities_only: bool,
 }
 
 impl Estimate {
@@ -80,11 +86,24 @@ impl Estimate {
         let cheaper = RATIO * (self.f + self.schur) * PAYBACK + self.setup < self.f * PAYBACK;
         self.fits && (self.jump >= JUMP || (self.dense_f == 0 && cheaper))
     }
+
+    /// The preconditioner weighed: Dirichlet where it pays, else lumped on
+    /// an equality-only problem, else none.
+    pub fn kind(&self) -> Option<Kind> {
+        if self.dirichlet_pays() {
+            Some(Kind::Dirichlet)
+        } else if self.equalities_only {
+            Some(Kind::Lumped)
+        } else {
+            None
+        }
+    }
 }
 
 /// The estimate for `cluster` (collective on a distributed one), whose
-/// materials jump by `jump` across a glue.
-pub fn estimate(cluster: &Cluster, jump: f64) -> Estimate {
+/// materials jump by `jump` across a glue, its rows all equalities where
+/// `equalities_only`.
+pub fn estimate(cluster: &Cluster, jump: f64, equalities_only: bool) -> Estimate {
     let ns = |s: f64| (s * 1e9).round() as u64;
     let mut sums = [0u64; 5];
     let mut held = cluster.local_f_held();
@@ -105,13 +124,14 @@ pub fn estimate(cluster: &Cluster, jump: f64) -> Estimate {
         fits: sums[3] == 0,
         dense_f: sums[4] as usize,
         jump,
+        equalities_only,
     }
 }
 
 /// The preconditioner `auto` takes on `cluster`, and why.
-pub fn choose(cluster: &Cluster, jump: f64) -> (Option<Kind>, Estimate) {
-    let e = estimate(cluster, jump);
-    (e.dirichlet_pays().then_some(Kind::Dirichlet), e)
+pub fn choose(cluster: &Cluster, jump: f64, equalities_only: bool) -> (Option<Kind>, Estimate) {
+    let e = estimate(cluster, jump, equalities_only);
+    (e.kind(), e)
 }
 
 #[cfg(test)]
@@ -126,7 +146,30 @@ mod tests {
             fits: true,
             dense_f: 0,
             jump: 1.0,
+            equalities_only: false,
         }
+    }
+
+    /// Without contact rows lumped is the floor: Dirichlet where it pays,
+    /// lumped wherever it does not (over the budget, dense `F_s`, a long
+    /// set-up); with them none.
+    #[test]
+    fn equality_only_problems_take_lumped_where_dirichlet_does_not_pay() {
+        let only = |e: Estimate| Estimate {
+            equalities_only: true,
+            ..e
+        };
+        assert_eq!(only(estimate(1.0, 0.2, 1.0)).kind(), Some(Kind::Dirichlet));
+        assert_eq!(only(estimate(1.0, 1.0, 0.0)).kind(), Some(Kind::Lumped));
+        assert_eq!(only(estimate(1.0, 0.2, 100.0)).kind(), Some(Kind::Lumped));
+        let over = Estimate {
+            fits: false,
+            ..estimate(1.0, 0.2, 1.0)
+        };
+        assert_eq!(only(over).kind(), Some(Kind::Lumped));
+        assert_eq!(over.kind(), None);
+        assert_eq!(estimate(1.0, 1.0, 0.0).kind(), None);
+        assert_eq!(estimate(1.0, 0.2, 1.0).kind(), Some(Kind::Dirichlet));
     }
 
     /// The rule's cases, with the ratios measured on `cso bench scaling`:
