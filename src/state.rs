@@ -1181,7 +1181,9 @@ fn solve_on(
         _ => Attempt::default(),
     };
     let (mut prediction, mut kept_precond) = (None, ops.kept_precond);
-    let mut split_coarse = 0.0;
+    // Coarse set-up inside the solve's span: its check, the split dual's
+    // coarse problem on rank 0.
+    let (mut coarse_in_solve, mut split_coarse) = (0.0, 0.0);
     let sol = match attempt.solution.take() {
         Some(sol) => sol,
         None => {
@@ -1195,7 +1197,7 @@ fn solve_on(
                     .check_coarse()
                     .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             }
-            times.coarse += t.elapsed().as_secs_f64();
+            coarse_in_solve = t.elapsed().as_secs_f64();
             let (sol, predicted, done) = ops.solve_dual(
                 scene,
                 (&f, &c),
@@ -1210,9 +1212,9 @@ fn solve_on(
             sol
         }
     };
-    // The split dual's coarse problem is set up inside the dual solve.
-    times.solve = t.elapsed().as_secs_f64() - split_coarse;
-    times.coarse += split_coarse;
+    coarse_in_solve += split_coarse;
+    times.solve = t.elapsed().as_secs_f64() - coarse_in_solve;
+    times.coarse += coarse_in_solve;
     same_on_every_rank(&**ops.system.dual().cluster().comm(), &sol)?;
     let ops = Operators {
         kept_precond,
@@ -1229,17 +1231,23 @@ fn solve_on(
     }
     state.prediction = prediction;
     if let Some(done) = friction {
-        state.kkt.friction = Some(friction_kkt(
-            &state.problem,
-            &state.dual,
-            &state.u,
-            &state.lambda,
-            &done.bounds,
-        ));
-        state.friction = Some(done);
+        with_friction(&mut state, done);
     }
     finite::check(scene, &state)?;
     Ok(state)
+}
+
+/// A state solved with friction keeps its loop of solves and its friction
+/// KKT residuals.
+fn with_friction(state: &mut State, done: FrictionSolve) {
+    state.kkt.friction = Some(friction_kkt(
+        &state.problem,
+        &state.dual,
+        &state.u,
+        &state.lambda,
+        &done.bounds,
+    ));
+    state.friction = Some(done);
 }
 
 /// The split dual keeps no dual of its predicted set, but a state kept there
@@ -1490,7 +1498,8 @@ impl Operators {
     /// The dual solve on the split dual, where it applies: TFETI, no
     /// friction, cold; through a predicted active set where
     /// [`predict::predicts`] says so (`split_predict`), with what it did;
-    /// the seconds the coarse problem's set-up on rank 0 took in `coarse`.
+    /// the seconds its coarse problem's set-up took (on rank 0; waiting for
+    /// it on the others) in `coarse`.
     #[allow(clippy::type_complexity)]
     fn split_solve(
         &self,

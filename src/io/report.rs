@@ -362,14 +362,14 @@ impl Report {
         let precond = match (&v.preconditioner.kind, &v.preconditioner.auto) {
             (None, _) => String::new(),
             (Some(_), None) => format!(", {} preconditioner", v.preconditioner.name()),
+            (Some(crate::tfeti::precond::Kind::Lumped), Some(e)) if e.equalities_only => {
+                ", lumped preconditioner by auto (equalities only)".to_string()
+            }
             (Some(_), Some(e)) if e.jump >= crate::tfeti::precond_choice::JUMP => format!(
                 ", {} preconditioner by auto (moduli {}:1 across a glue)",
                 v.preconditioner.name(),
                 n.num(e.jump)
             ),
-            (Some(crate::tfeti::precond::Kind::Lumped), Some(e)) if e.equalities_only => {
-                ", lumped preconditioner by auto (equalities only)".to_string()
-            }
             (Some(_), Some(_)) => format!(", {} preconditioner by auto", v.preconditioner.name()),
         };
         let predicted = match &v.active_set {

@@ -1096,8 +1096,9 @@ pub enum SolverMethod {
 
 /// `solver { preconditioner }`. `auto` (the default) takes Dirichlet where
 /// its dense Schur complements read little beside `F` and form fast (2D
-/// subdomains whose `F_s` is applied by solves, H/h from about 64), none
-/// elsewhere ([`crate::tfeti::precond_choice`]).
+/// subdomains whose `F_s` is applied by solves, H/h from about 64) or where
+/// the moduli jump across a glue, else lumped where every row is an equality
+/// (no contact), none elsewhere ([`crate::tfeti::precond_choice`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, ValueEnum)]
 #[serde(rename_all = "snake_case")]
 #[value(rename_all = "snake_case")]

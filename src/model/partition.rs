@@ -320,9 +320,8 @@ impl Objective {
     /// Measured with the default solver (BENCHMARKS.md, "Bodies from Gmsh
     /// files"): on Kuhn-split tetrahedral bricks the volume cut takes 195
     /// Hessian applications at 108 subdomains against 272 (119 against 137 at
-    /// 32; 4 more at 13), about a quarter less time, and on hertz_ball's
-    /// Delaunay tetrahedra 480 against 592; on the hexahedra of the same
-    /// bricks it takes fewer applications too (118 against 130) but its
+    /// 32; 4 more at 13), about a third less time; on the hexahedra of the
+    /// same bricks it takes fewer applications too (118 against 130) but its
     /// subdomains hold 11 % larger factors and 12 % more gluing rows, and
     /// the solve took longer in every run.
     fn of(kind: CellKind) -> Objective {

@@ -211,7 +211,7 @@ fn pieces_share_the_subdomains_by_size_and_must_not_touch() {
 }
 
 #[test]
-fn simplices_are_cut_by_communication_volume_and_hexahedra_by_facets() {
+fn simplices_are_cut_by_communication_volume_and_quadrilaterals_by_facets() {
     let cells = tet_cube(8);
     let graph = DualGraph::new(CellKind::Tet4, &cells);
     let mut differ = 0;
