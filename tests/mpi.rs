@@ -419,9 +419,10 @@ fn traffic_row(table: &str, ranks: usize) -> Vec<String> {
 }
 
 /// The split dual over MPI's immediate sends and receives (`cso bench
-/// traffic` under `mpirun -n 3`): its `F` and projectors (the coarse problem
-/// replicated, and on rank 0 down a binomial tree) give the replicated dual's
-/// bits, and every count (messages, bytes, collectives per rank) is the one
+/// traffic` under `mpirun -n 3`): its `F`, projectors (the coarse problem
+/// replicated, and on rank 0 down a binomial tree) and Dirichlet
+/// preconditioner give the replicated dual's bits, and every count
+/// (messages, bytes, collectives per rank; the face metric's too) is the one
 /// the thread ranks measure.
 #[test]
 fn the_split_dual_over_mpi_gives_the_replicated_bits_and_the_thread_ranks_counts() {
@@ -431,18 +432,18 @@ fn the_split_dual_over_mpi_gives_the_replicated_bits_and_the_thread_ranks_counts
     let (code, threads, err) = run(None, &[], &[&args[..], &["--ranks", "3"]].concat());
     assert_eq!(code, 0, "{threads}\n{err}");
     let (mut a, mut b) = (traffic_row(&mpi, 3), traffic_row(&threads, 3));
-    assert_eq!(a.len(), 16, "{a:?}");
+    assert_eq!(a.len(), 19, "{a:?}");
     assert_eq!(
-        a[14], "yes",
-        "the split F and P (either coarse problem) differ from the replicated ones: {mpi}"
+        a[17], "yes",
+        "the split F, P (either coarse problem) and M differ from the replicated ones: {mpi}"
     );
-    assert_eq!(a[10], "0", "the coarse factor off rank 0: {mpi}");
+    assert_eq!(a[13], "0", "the coarse factor off rank 0: {mpi}");
     assert!(
         mpi.contains("model check, 3 ranks:"),
         "no model check under MPI: {mpi}"
     );
     // Every column but the coarse solve's time.
-    a.remove(13);
-    b.remove(13);
+    a.remove(16);
+    b.remove(16);
     assert_eq!(a, b, "MPI:\n{mpi}\nthread ranks:\n{threads}");
 }

@@ -204,7 +204,7 @@ fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
             "bench traffic takes --hh and --ranks of at least 1",
         ));
     }
-    let local = traffic::local_f_seconds(hh, 5).map_err(|e| fail(EXIT_SCENE, e))?;
+    let local = traffic::local_seconds(hh, 5).map_err(|e| fail(EXIT_SCENE, e))?;
     let mut rows = Vec::new();
     for &p in ranks {
         let bar = Progress::spinner("bench traffic");
@@ -215,8 +215,9 @@ fn traffic(ranks: &[usize], predict: &[usize], hh: usize) -> Outcome {
     }
     outln!("{}", traffic::measured_table(&rows));
     outln!(
-        "local F per subdomain: {:.3} ms (one process, H/h = {hh})\n",
-        1e3 * local
+        "local F per subdomain: {:.3} ms, local Dirichlet M: {:.3} ms (one process, H/h = {hh})\n",
+        1e3 * local.f,
+        1e3 * local.m
     );
     let pred = traffic::predict(&rows, local, traffic::INFINIBAND, predict);
     outln!("{}", traffic::predicted_table(&pred));
