@@ -420,7 +420,7 @@ fn traffic_row(table: &str, ranks: usize) -> Vec<String> {
 
 /// The split dual over MPI's immediate sends and receives (`cso bench
 /// traffic` under `mpirun -n 3`): its `F`, projectors (the coarse problem
-/// replicated, and on rank 0 down a binomial tree) and Dirichlet
+/// replicated, and on rank 0 down a binomial tree) and lumped
 /// preconditioner give the replicated dual's bits, and every count
 /// (messages, bytes, collectives per rank; the face metric's too) is the one
 /// the thread ranks measure.

@@ -225,7 +225,10 @@ fn on_rank(scene: &Scene, comm: Arc<dyn Comm>, kind: Kind) -> Result<RankCounts,
     let (mx, precond) = split.traffic(|_| pm.apply_m(&x));
     // SMALBE's face metric with every contact row this rank owns at its
     // bound: its set-up, and one application to a coarse vector.
-    let set: Vec<usize> = (root.owned_rows().iter().enumerate())
+    let set: Vec<usize> = root
+        .owned_rows()
+        .iter()
+        .enumerate()
         .filter(|&(_, &r)| r >= n_equality)
         .map(|(i, _)| i)
         .collect();
@@ -369,12 +372,12 @@ pub fn local_seconds(hh: usize, reps: usize) -> Result<Local, String> {
     let dual = Dual::new(setup.cluster).map_err(|e| format!("the coarse problem: {e:?}"))?;
     let m = DualPreconditioner::new(dual.cluster(), Kind::Dirichlet, n_equality, SchurForm::Auto);
     let x = probe(dual.multipliers());
-    let y = vec![0.0; x.len()];
     let per = |apply: &dyn Fn(&mut [f64])| {
-        apply(&mut y.clone());
+        let mut y = vec![0.0; x.len()];
+        apply(&mut y);
         let t = Instant::now();
         for _ in 0..reps {
-            apply(&mut y.clone());
+            apply(&mut y);
         }
         t.elapsed().as_secs_f64() / (reps * dual.cluster().len()) as f64
     };
@@ -386,10 +389,10 @@ pub fn local_seconds(hh: usize, reps: usize) -> Result<Local, String> {
 /// Seconds per subdomain of the local operators ([`local_seconds`]).
 #[derive(Debug, Clone, Copy, serde::Serialize)]
 pub struct Local {
-    /// `B_s K_s^+ B_s^T x`.
+    /// `F x` in one process (the blocks `B_s K_s^+ B_s^T x`, summed).
     pub f: f64,
-    /// The Dirichlet preconditioner's `B_s S_s B_s^T x` (and its share of
-    /// the scaling).
+    /// The Dirichlet preconditioner's `M x` in one process (the blocks
+    /// `B_s S_s B_s^T x`, summed, and the scaling).
     pub m: f64,
 }
 
@@ -439,7 +442,8 @@ pub struct Predicted {
     /// `root_total_s`, `M`, and the second projection.
     pub precond_total_s: f64,
     /// One application of SMALBE's face metric `W`: two coarse-sized
-    /// solves on rank 0 (`M^-1`; `L` and `L^T`) and the tree down.
+    /// solves on rank 0 (`M^-1`; `L` and `L^T`) and the broadcast down the
+    /// tree (the whole vector in each of its rounds).
     pub metric_s: f64,
     /// Megabytes of the coarse factor (values and row indices) on every rank
     /// when replicated; on rank 0 alone otherwise.
@@ -534,7 +538,8 @@ pub fn predict(
                     + tree_s
                     + coarse_s
                     + log * dot_bytes / net.bandwidth,
-                metric_s: 2.0 * coarse_s + one_way,
+                // Down the tree the whole vector goes in every round.
+                metric_s: 2.0 * coarse_s + log * (net.latency + 8.0 * coarse / net.bandwidth),
                 coarse_mb: 16.0 * values / 1e6,
             }
         })
@@ -629,7 +634,8 @@ pub struct ModelCheck {
     pub precond_predicted_s: f64,
     /// The local `F` of the slowest rank's subdomains, measured in the run.
     pub local_f_s: f64,
-    /// The local `M` of the slowest rank's subdomains, measured in the run.
+    /// The local `M` blocks of the slowest rank's subdomains (without the
+    /// scaling), measured in the run.
     pub local_m_s: f64,
     /// This launch's network, by ping-pong between ranks 0 and 1 (none on
     /// one rank).
