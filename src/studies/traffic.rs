@@ -510,11 +510,12 @@ pub fn predict(
             let local_s = per_rank * local.f;
             let m_local_s = per_rank * local.m;
             let exchange_s = f_exchange_s + p_exchange_s;
+            // A latency a round, the whole coarse vector once: the gather
+            // to every rank, or one way up or down the binomial tree.
             let gather_s = log * net.latency + 8.0 * coarse / net.bandwidth;
-            // One way down (or up) the binomial tree: a latency a round, the
-            // whole coarse vector through rank 0.
-            let one_way = log * net.latency + 8.0 * coarse / net.bandwidth;
-            let tree_s = 2.0 * one_way;
+            let tree_s = 2.0 * gather_s;
+            // A broadcast down the tree sends the whole vector every round.
+            let broadcast_s = log * (net.latency + 8.0 * coarse / net.bandwidth);
             let values = c * coarse.powf(b);
             let coarse_s = per_value * values;
             let dots_s = 2.0 * log * (net.latency + dot_bytes / net.bandwidth);
@@ -538,8 +539,7 @@ pub fn predict(
                     + tree_s
                     + coarse_s
                     + log * dot_bytes / net.bandwidth,
-                // Down the tree the whole vector goes in every round.
-                metric_s: 2.0 * coarse_s + log * (net.latency + 8.0 * coarse / net.bandwidth),
+                metric_s: 2.0 * coarse_s + broadcast_s,
                 coarse_mb: 16.0 * values / 1e6,
             }
         })
