@@ -387,9 +387,14 @@ impl Imported {
     ) -> Result<Imported, crate::model::partition::PartitionError> {
         // A mesh in pieces (`pieces = separate`) is cut piece by piece.
         let p = if mesh.pieces > 1 {
-            crate::model::partition::partition_pieces(mesh.kind, &mesh.cells, parts)?
+            crate::model::partition::partition_pieces(
+                mesh.kind,
+                &mesh.cells,
+                Some(&mesh.nodes),
+                parts,
+            )?
         } else {
-            crate::model::partition::partition(mesh.kind, &mesh.cells, parts)?
+            crate::model::partition::partition(mesh.kind, &mesh.cells, Some(&mesh.nodes), parts)?
         };
         Ok(Imported {
             file,

@@ -69,19 +69,19 @@ fn dual_graph_joins_cells_through_facets_only() {
 #[test]
 fn grid_8x8_into_4_balanced_connected_and_repeatable() {
     let cells = quad_grid(8, 8);
-    let p = partition(CellKind::Quad4, &cells, 4).unwrap();
+    let p = partition(CellKind::Quad4, &cells, None, 4).unwrap();
     // METIS's default imbalance is 3 %: at most 16.48 cells, so 16 each.
     assert_eq!(p.sizes(4), vec![16; 4]);
     assert_eq!(p.moved_pieces, 0);
     let g = DualGraph::new(CellKind::Quad4, &cells);
     assert!(connected(&g, &p.part_of_cell, 4));
-    assert_eq!(partition(CellKind::Quad4, &cells, 4).unwrap(), p);
+    assert_eq!(partition(CellKind::Quad4, &cells, None, 4).unwrap(), p);
 }
 
 #[test]
 fn tetrahedra_into_8_connected() {
     let cells = tet_cube(4);
-    let p = partition(CellKind::Tet4, &cells, 8).unwrap();
+    let p = partition(CellKind::Tet4, &cells, None, 8).unwrap();
     let sizes = p.sizes(8);
     let mean = cells.len() as f64 / 8.0;
     assert!(
@@ -92,23 +92,23 @@ fn tetrahedra_into_8_connected() {
     );
     let g = DualGraph::new(CellKind::Tet4, &cells);
     assert!(connected(&g, &p.part_of_cell, 8));
-    assert_eq!(partition(CellKind::Tet4, &cells, 8).unwrap(), p);
+    assert_eq!(partition(CellKind::Tet4, &cells, None, 8).unwrap(), p);
 }
 
 #[test]
 fn one_part_and_wrong_counts() {
     let cells = quad_grid(2, 2);
-    let p = partition(CellKind::Quad4, &cells, 1).unwrap();
+    let p = partition(CellKind::Quad4, &cells, None, 1).unwrap();
     assert_eq!(p.part_of_cell, vec![0; 4]);
-    let e = partition(CellKind::Quad4, &cells, 5).unwrap_err();
+    let e = partition(CellKind::Quad4, &cells, None, 5).unwrap_err();
     assert_eq!(e, PartitionError::TooManyParts { parts: 5, cells: 4 });
     assert!(e.to_string().contains("at most 4"), "{e}");
     assert_eq!(
-        partition(CellKind::Quad4, &cells, 0),
+        partition(CellKind::Quad4, &cells, None, 0),
         Err(PartitionError::NoParts)
     );
     // As many parts as cells: one each.
-    let mut p = partition(CellKind::Quad4, &cells, 4).unwrap();
+    let mut p = partition(CellKind::Quad4, &cells, None, 4).unwrap();
     p.part_of_cell.sort_unstable();
     assert_eq!(p.part_of_cell, vec![0, 1, 2, 3]);
 }
@@ -150,11 +150,11 @@ fn a_part_of_a_mesh_in_pieces_cannot_be_joined() {
         Err(PartitionError::Disconnected { part: 0, pieces: 2 })
     );
     assert_eq!(
-        partition(CellKind::Quad4, &cells, 1),
+        partition(CellKind::Quad4, &cells, None, 1),
         Err(PartitionError::Disconnected { part: 0, pieces: 2 })
     );
     // Two parts for two pieces: METIS (no contiguity asked) gives one each.
-    let p = partition(CellKind::Quad4, &cells, 2).unwrap();
+    let p = partition(CellKind::Quad4, &cells, None, 2).unwrap();
     assert_ne!(p.part_of_cell[0], p.part_of_cell[1]);
 }
 
@@ -188,24 +188,24 @@ fn pieces_share_the_subdomains_by_size_and_must_not_touch() {
         vec![5, 8, 9, 6],
         vec![8, 10, 11, 9],
     ];
-    let p = partition_pieces(CellKind::Quad4, &cells, 4).expect("1 + 3");
+    let p = partition_pieces(CellKind::Quad4, &cells, None, 4).expect("1 + 3");
     let mut parts = p.part_of_cell.clone();
     parts.sort_unstable();
     assert_eq!(parts, [0, 1, 2, 3]);
     assert_eq!(p.part_of_cell[0], 0, "the first piece first");
     assert_eq!(
-        partition_pieces(CellKind::Quad4, &cells, 1),
+        partition_pieces(CellKind::Quad4, &cells, None, 1),
         Err(PartitionError::TooFewParts {
             parts: 1,
             pieces: 2
         })
     );
-    let p = partition_pieces(CellKind::Quad4, &cells, 2).expect("1 + 1");
+    let p = partition_pieces(CellKind::Quad4, &cells, None, 2).expect("1 + 1");
     assert_ne!(p.part_of_cell[0], p.part_of_cell[1]);
     // Two quads sharing corner 2 only: pieces that touch.
     let touching = vec![vec![0, 1, 2, 3], vec![2, 4, 5, 6]];
     assert_eq!(
-        partition_pieces(CellKind::Quad4, &touching, 2),
+        partition_pieces(CellKind::Quad4, &touching, None, 2),
         Err(PartitionError::TouchingPieces { node: 2 })
     );
 }
@@ -216,11 +216,11 @@ fn simplices_are_cut_by_communication_volume_and_quadrilaterals_by_facets() {
     let graph = DualGraph::new(CellKind::Tet4, &cells);
     let mut differ = 0;
     for n in [4, 6, 9] {
-        let by_kind = partition(CellKind::Tet4, &cells, n)
+        let by_kind = partition(CellKind::Tet4, &cells, None, n)
             .expect("cut")
             .part_of_cell;
-        let by_volume = metis_kway(&graph, n, Objective::Volume).expect("cut");
-        let by_facets = metis_kway(&graph, n, Objective::Cut).expect("cut");
+        let by_volume = metis_kway(&graph, n, Objective::Volume, None).expect("cut");
+        let by_facets = metis_kway(&graph, n, Objective::Cut, None).expect("cut");
         assert_eq!(by_kind, by_volume, "{n} parts");
         differ += usize::from(by_volume != by_facets);
     }
@@ -228,10 +228,133 @@ fn simplices_are_cut_by_communication_volume_and_quadrilaterals_by_facets() {
     assert!(differ > 0);
     let quads = quad_grid(12, 8);
     let graph = DualGraph::new(CellKind::Quad4, &quads);
-    let by_kind = partition(CellKind::Quad4, &quads, 5)
+    let by_kind = partition(CellKind::Quad4, &quads, None, 5)
         .expect("cut")
         .part_of_cell;
-    assert_eq!(by_kind, metis_kway(&graph, 5, Objective::Cut).expect("cut"));
+    assert_eq!(
+        by_kind,
+        metis_kway(&graph, 5, Objective::Cut, None).expect("cut")
+    );
     assert_eq!(Objective::of(CellKind::Tri3), Objective::Volume);
     assert_eq!(Objective::of(CellKind::Hex8), Objective::Cut);
+}
+
+/// The nodes of [`tet_cube`] (and of a `n` x `n` [`quad_grid`] in its plane):
+/// node `(k (n + 1) + j) (n + 1) + i` at `(i, j, k)`.
+fn cube_nodes(n: usize) -> Vec<[f64; 3]> {
+    let mut nodes = Vec::new();
+    for k in 0..=n {
+        for j in 0..=n {
+            for i in 0..=n {
+                nodes.push([i as f64, j as f64, k as f64]);
+            }
+        }
+    }
+    nodes
+}
+
+fn centroids(cells: &[Vec<usize>], nodes: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    cells
+        .iter()
+        .map(|c| {
+            let mut x = [0.0; 3];
+            for &v in c {
+                for a in 0..3 {
+                    x[a] += nodes[v][a] / c.len() as f64;
+                }
+            }
+            x
+        })
+        .collect()
+}
+
+#[test]
+fn box_aggregates_are_connected_small_and_boxed() {
+    let (cells, nodes) = (tet_cube(8), cube_nodes(8));
+    let graph = DualGraph::new(CellKind::Tet4, &cells);
+    let x = centroids(&cells, &nodes);
+    let (agg, m) = aggregates::box_aggregates(&graph, &x, 3, 24);
+    assert_eq!(agg.len(), cells.len());
+    assert!(agg.iter().all(|&a| a < m));
+    // Each aggregate one piece of at most 24 cells.
+    let (_, pieces) = graph.pieces(|c, d| agg[c] == agg[d]);
+    assert_eq!(pieces.len(), m);
+    assert!(pieces.iter().all(|p| p.len() <= 24));
+    // 3072 cells in boxes of 1 x 1 x 1 cube (6 cells each): the octree
+    // splits the 8^3 cube evenly down to single cubes, whose six
+    // tetrahedra's centroids lie inside it.
+    assert_eq!(m, 8 * 8 * 8);
+    for p in &pieces {
+        let corner = |c: usize| x[c].map(|v| v.floor() as i64);
+        assert!(p.iter().all(|&c| corner(c) == corner(p[0])));
+    }
+    // The same cells, the same aggregates.
+    assert_eq!(aggregates::box_aggregates(&graph, &x, 3, 24), (agg, m));
+}
+
+#[test]
+fn a_box_that_straddles_two_pieces_gives_two_aggregates() {
+    // Two triangles that share a node, not an edge, in one box.
+    let cells = vec![vec![0, 1, 2], vec![2, 3, 4]];
+    let graph = DualGraph::new(CellKind::Tri3, &cells);
+    let x = [[0.3, 0.3, 0.0], [1.3, 1.3, 0.0]];
+    let (agg, m) = aggregates::box_aggregates(&graph, &x, 2, 8);
+    assert_eq!((agg, m), (vec![0, 1], 2));
+    // Cells at one point: the tree stops, one box.
+    let cells = quad_grid(2, 1);
+    let graph = DualGraph::new(CellKind::Quad4, &cells);
+    let (agg, m) = aggregates::box_aggregates(&graph, &[[0.5; 3]; 2], 2, 1);
+    assert_eq!((agg, m), (vec![0, 0], 1));
+}
+
+#[test]
+fn contracting_sums_cells_and_joins_touching_aggregates() {
+    // A 3 x 1 strip of quadrilaterals: cells 0 and 1 in aggregate 0, 2 in 1.
+    let graph = DualGraph::new(CellKind::Quad4, &quad_grid(3, 1));
+    let (coarse, size) = aggregates::contract(&graph, &[0, 0, 1], 2);
+    assert_eq!(coarse.xadj, vec![0, 1, 2]);
+    assert_eq!(coarse.adjncy, vec![1, 0]);
+    assert_eq!(size, vec![2, 1]);
+}
+
+#[test]
+fn tetrahedra_are_cut_along_their_aggregates_other_kinds_on_their_cells() {
+    let (cells, nodes) = (tet_cube(8), cube_nodes(8));
+    let graph = DualGraph::new(CellKind::Tet4, &cells);
+    let x = centroids(&cells, &nodes);
+    let (agg, _) = aggregates::box_aggregates(&graph, &x, 3, aggregates::MAX_CELLS);
+    for n in [4, 8] {
+        let lumped = partition(CellKind::Tet4, &cells, Some(&nodes), n).expect("cut");
+        let plain = partition(CellKind::Tet4, &cells, None, n).expect("cut");
+        assert!(connected(&graph, &lumped.part_of_cell, n), "{n} parts");
+        // No aggregate split between parts (none moved here).
+        assert_eq!(lumped.moved_pieces, 0);
+        for c in 0..cells.len() {
+            for d in 0..c {
+                if agg[c] == agg[d] {
+                    assert_eq!(lumped.part_of_cell[c], lumped.part_of_cell[d]);
+                }
+            }
+        }
+        // Balanced on cells (METIS's 3 % on the weights, plus one cube).
+        let mean = cells.len() / n;
+        assert!(lumped
+            .sizes(n)
+            .iter()
+            .all(|&s| s.abs_diff(mean) <= mean / 10));
+        // Else the aggregates would not reach METIS.
+        assert_ne!(lumped.part_of_cell, plain.part_of_cell, "{n} parts");
+    }
+    // Fewer than 16 aggregates per part: METIS cuts the cells.
+    let n = 40;
+    assert_eq!(
+        partition(CellKind::Tet4, &cells, Some(&nodes), n),
+        partition(CellKind::Tet4, &cells, None, n)
+    );
+    // Quadrilaterals keep METIS's cut of their cells.
+    let quads = quad_grid(8, 8);
+    assert_eq!(
+        partition(CellKind::Quad4, &quads, Some(&nodes), 4),
+        partition(CellKind::Quad4, &quads, None, 4)
+    );
 }
