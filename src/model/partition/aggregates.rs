@@ -11,10 +11,14 @@
 
 use super::DualGraph;
 
-/// At most this many cells share a box. Measured on six tetrahedral scenes
-/// (bricks of 4, 18, 32 subdomains, a rotated and bent brick at 18 and 32,
-/// hertz_ball): 806 Hessian applications in all at 24, 851 at 12, 832 at 48.
-pub const MAX_CELLS: usize = 24;
+/// At most this many cells share a box. Twelve: on the tetrahedral brick of
+/// 108 subdomains (3072 cells each) larger boxes cost applications, 147,
+/// 272, 152 at 12, 24, 48 with the default solver and 212, 257, 298 by
+/// SMALBE alone (METIS on the cells: 195 and 242); on smaller scenes the
+/// three sizes are within 10 % of each other but for hertz_ball (421, 418,
+/// 416) and the rotated brick of 32 subdomains (123, 109, 103), and 12 is
+/// never worse than METIS on the cells (BENCHMARKS.md).
+pub const MAX_CELLS: usize = 12;
 
 /// Each cell's aggregate and the number of aggregates: the cells' centroids
 /// binned by a tree of boxes (over the first `dim` coordinates), a box split
