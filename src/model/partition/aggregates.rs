@@ -14,18 +14,18 @@ use super::DualGraph;
 /// At most this many cells share a box. Twelve: on the tetrahedral brick of
 /// 108 subdomains (3072 cells each) larger boxes cost applications, 147,
 /// 272, 152 at 12, 24, 48 with the default solver and 212, 257, 298 by
-/// SMALBE alone (METIS on the cells: 195 and 242); on smaller scenes the
-/// three sizes are within 10 % of each other but for hertz_ball (421, 418,
-/// 416) and the rotated brick of 32 subdomains (123, 109, 103), and 12 is
-/// never worse than METIS on the cells (BENCHMARKS.md).
+/// SMALBE alone (METIS on the cells: 195 and 242). On the smaller bricks
+/// the sizes move the counts both ways by up to 20 % (the rotated brick of
+/// 32 subdomains 123, 109, 103), hertz_ball's ball takes 493 at 12 and 418
+/// at 24, and 12 is never worse than METIS on the cells (BENCHMARKS.md).
 pub const MAX_CELLS: usize = 12;
 
 /// Each cell's aggregate and the number of aggregates: the cells' centroids
 /// binned by a tree of boxes (over the first `dim` coordinates), a box split
-/// at its middle along every axis longer than half its longest one (at
-/// least the longest) until it
-/// holds at most `max_cells` cells; then each box's cells split into the
-/// pieces the dual graph joins, so that every aggregate is connected.
+/// at its middle along every axis longer than half its longest one (the
+/// longest at least) until it holds at most `max_cells` cells; then each
+/// box's cells split into the pieces the dual graph joins, so that every
+/// aggregate is connected.
 pub fn box_aggregates(
     graph: &DualGraph,
     centroids: &[[f64; 3]],
