@@ -1,6 +1,7 @@
 //! Subdomains of an imported body (issue 35): its cells cut into `n` parts by
-//! METIS (k-way on the cell dual graph, [`Objective`] by cell kind), each
-//! part one connected piece, the same cut for the same mesh every time.
+//! METIS (k-way on the cell dual graph, [`Objective`] by cell kind;
+//! tetrahedra on the graph of their compact [`aggregates`]), each part one
+//! connected piece, the same cut for the same mesh every time.
 //!
 //! Connected parts matter to TFETI: a subdomain's kernel is its rigid modes,
 //! and a part in two pieces has twice as many (the pieces float apart), which
@@ -15,6 +16,7 @@ use std::fmt;
 use std::sync::Mutex;
 
 mod aggregates;
+use aggregates::Lumps;
 
 /// The seed of METIS's random numbers: fixed, so that a mesh always gets the
 /// same cut (and a report the same numbers).
@@ -217,9 +219,11 @@ pub fn partition(
     let graph = DualGraph::new(kind, cells);
     let mut part_of_cell = if n == 1 {
         vec![0; cells.len()]
-    } else if let Some(lumps) = nodes.and_then(|x| Lumps::of(kind, &graph, cells, x, n)) {
-        let part = metis_kway(&lumps.graph, n, Objective::of(kind), Some(&lumps.size))?;
-        lumps.of_cell.iter().map(|&a| part[a]).collect()
+    } else if let Some(cut) = nodes
+        .and_then(|x| Lumps::of(kind, &graph, cells, x, n))
+        .and_then(|lumps| lumps.cut(n, Objective::of(kind)))
+    {
+        cut
     } else {
         metis_kway(&graph, n, Objective::of(kind), None)?
     };
@@ -314,58 +318,6 @@ fn shared_node(cells: &[Vec<usize>], pieces: &[Vec<usize>]) -> Option<usize> {
     None
 }
 
-/// The graph of compact aggregates of cells that METIS cuts instead of the
-/// cells' own: for tetrahedra only. On triangles the quadtree's boxes cost
-/// the ring example 222 applications against 200 (its annulus is thin and
-/// curved); on hexahedra boxes of 8 saved nothing (72 and 79 against 70 and
-/// 75 on the bricks of 18 and 32 subdomains).
-struct Lumps {
-    /// Each cell's aggregate.
-    of_cell: Vec<usize>,
-    graph: DualGraph,
-    /// Cells per aggregate.
-    size: Vec<usize>,
-}
-
-impl Lumps {
-    /// None for other kinds, node indices out of `nodes`, or fewer than 16
-    /// aggregates per part (too coarse to balance: METIS cuts the cells).
-    fn of(
-        kind: CellKind,
-        graph: &DualGraph,
-        cells: &[Vec<usize>],
-        nodes: &[[f64; 3]],
-        n: usize,
-    ) -> Option<Lumps> {
-        if kind != CellKind::Tet4 {
-            return None;
-        }
-        let centroids = cells
-            .iter()
-            .map(|cell| {
-                let mut x = [0.0; 3];
-                for &v in cell {
-                    let p = nodes.get(v)?;
-                    for a in 0..3 {
-                        x[a] += p[a] / cell.len() as f64;
-                    }
-                }
-                Some(x)
-            })
-            .collect::<Option<Vec<[f64; 3]>>>()?;
-        let (of_cell, m) = aggregates::box_aggregates(graph, &centroids, 3, aggregates::MAX_CELLS);
-        if m < 16 * n {
-            return None;
-        }
-        let (graph, size) = aggregates::contract(graph, &of_cell, m);
-        Some(Lumps {
-            of_cell,
-            graph,
-            size,
-        })
-    }
-}
-
 /// What METIS minimizes for a kind of cell.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Objective {
@@ -418,6 +370,11 @@ fn metis_kway(
         .collect::<Result<_, _>>()
         .map_err(too_large)?;
     let nparts = Idx::try_from(n).map_err(too_large)?;
+    if weights.is_some_and(|w| w.len() != graph.cells()) {
+        return Err(PartitionError::Metis(
+            "a weight per vertex is needed (cso's error)".into(),
+        ));
+    }
     let vwgt: Option<Vec<Idx>> = weights
         .map(|w| w.iter().map(|&x| Idx::try_from(x)).collect())
         .transpose()
