@@ -55,13 +55,19 @@ impl DualGraph {
                 }
             }
         }
+        DualGraph::from_pairs(cells.len(), pairs)
+    }
+
+    /// The graph of `n` vertices with the edges `pairs` (both directions
+    /// listed; in any order, repeats allowed).
+    fn from_pairs(n: usize, mut pairs: Vec<(usize, usize)>) -> DualGraph {
         pairs.sort_unstable();
         pairs.dedup();
-        let mut xadj = vec![0; cells.len() + 1];
+        let mut xadj = vec![0; n + 1];
         for &(a, _) in &pairs {
             xadj[a + 1] += 1;
         }
-        for c in 0..cells.len() {
+        for c in 0..n {
             xadj[c + 1] += xadj[c];
         }
         DualGraph {

@@ -128,29 +128,12 @@ impl Boxed {
 /// two aggregates share a facet; and each aggregate's cell count, its weight
 /// for METIS's balance.
 pub fn contract(graph: &DualGraph, agg: &[usize], m: usize) -> (DualGraph, Vec<usize>) {
-    let mut pairs: Vec<(usize, usize)> = (0..graph.cells())
+    let pairs: Vec<(usize, usize)> = (0..graph.cells())
         .flat_map(|c| graph.neighbours(c).iter().map(move |&d| (c, d)))
         .map(|(c, d)| (agg[c], agg[d]))
         .filter(|(a, b)| a != b)
         .collect();
-    pairs.sort_unstable();
-    pairs.dedup();
-    let mut xadj = vec![0; m + 1];
-    for &(a, _) in &pairs {
-        xadj[a + 1] += 1;
-    }
-    for a in 0..m {
-        xadj[a + 1] += xadj[a];
-    }
-    let mut size = vec![0; m];
-    for &a in agg {
-        size[a] += 1;
-    }
-    let coarse = DualGraph {
-        xadj,
-        adjncy: pairs.into_iter().map(|(_, b)| b).collect(),
-    };
-    (coarse, size)
+    (DualGraph::from_pairs(m, pairs), part_sizes(agg, m))
 }
 
 /// The graph of compact aggregates of cells that METIS cuts instead of the
