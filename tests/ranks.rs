@@ -183,7 +183,7 @@ fn the_split_dual_takes_the_replicated_count_with_its_face_metric() {
 /// warm start): the same report, stopped at the limit, on 1 and 3 ranks.
 #[test]
 fn a_refused_prediction_on_the_split_dual_goes_on_alike_on_every_rank_count() {
-    let src = crate::fixture::example_src("semicoercive3d") + "solver { max_iterations = 70 }\n";
+    let src = crate::fixture::example_src("semicoercive3d") + "solver { max_iterations = 50 }\n";
     let scene = compile(&src, &options()).expect("checks");
     let one = outcome_of(&scene, None, true).expect("split solve");
     let set = &one["solver"]["active_set"];
