@@ -502,7 +502,7 @@ fn projected_cg(
 /// ends at -0.066 (a rotated tetrahedral brick of 18 subdomains), which at
 /// 0.1 cost a whole equality solve (43 applications, 18 at 0.02). At 0.02
 /// no scene measured took more applications than at 0.1, and 3D ones took
-/// up to a fifth fewer (BENCHMARKS.md, "Mild pulls"); 0.01 saved nothing
+/// up to a quarter fewer (BENCHMARKS.md, "Mild pulls"); 0.01 saved nothing
 /// more.
 pub(crate) const PULL_RESIDUAL: f64 = 1e-2;
 pub(crate) const PULL: f64 = 0.02;
