@@ -502,8 +502,8 @@ fn projected_cg(
 /// ends at -0.066 (a rotated tetrahedral brick of 18 subdomains), which at
 /// 0.1 cost a whole equality solve (43 applications, 18 at 0.02). At 0.02
 /// no scene measured took more applications than at 0.1, and 3D ones took
-/// up to a quarter fewer (BENCHMARKS.md, "Mild pulls"); 0.01 saved nothing
-/// more.
+/// up to a quarter fewer (BENCHMARKS.md, "Mild pulls"); 0.01 saved one
+/// application more on one scene (scont3d).
 pub(crate) const PULL_RESIDUAL: f64 = 1e-2;
 pub(crate) const PULL: f64 = 0.02;
 
