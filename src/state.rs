@@ -90,6 +90,10 @@ pub struct State {
     pub friction: Option<FrictionSolve>,
     /// A cold solve through a predicted active set: how it went.
     pub prediction: Option<Prediction>,
+    /// Solved on the split dual ([`SolveOptions::split_dual`]): its cluster
+    /// holds each rank's own `G_s` only, so the sensitivities and the
+    /// states of nearby designs solve there too.
+    pub split_dual: bool,
 }
 
 /// What a state solve takes from the state of the same scene at a nearby
@@ -1065,13 +1069,19 @@ impl Default for SolveOptions<'_> {
 
 impl<'a> SolveOptions<'a> {
     /// A solve starting from `previous` with `warm`, refactorizing only the
-    /// subdomains whose mesh changed.
+    /// subdomains whose mesh changed, on the dual `previous` was solved on
+    /// (the split dual starts cold: it takes no warm start yet).
     pub fn from(previous: &'a State, warm: WarmStart) -> Self {
         SolveOptions {
             previous: Some(previous),
             refactor: Refactor::Changed,
-            warm,
+            warm: if previous.split_dual {
+                WarmStart::OFF
+            } else {
+                warm
+            },
             comm: previous.comm(),
+            split_dual: previous.split_dual,
             ..SolveOptions::default()
         }
     }
@@ -1685,6 +1695,7 @@ impl Operators {
             search: Search::default(),
             friction: None,
             prediction: None,
+            split_dual: self.split,
         }
     }
 }

@@ -319,34 +319,76 @@ fn the_sparse_coarse_problem_gives_the_serial_state_bitwise_on_ranks() {
     }
 }
 
-/// The gradient of every method on thread ranks, as JSON of its bits.
+/// The gradient of every method on thread ranks, as its bits.
 fn gradient_bits(
     scene: &Scene,
     method: cso::lang::scene::SensitivityMethod,
     comm: Option<Arc<dyn Comm>>,
 ) -> Result<Vec<Vec<u64>>, String> {
-    let design = scene.design_init();
-    let state = cso::state::solve_with(
-        scene,
-        &design,
-        &cso::state::SolveOptions {
-            comm,
-            ..Default::default()
-        },
-        &mut |_| {},
-    )
-    .map_err(|e| e.to_string())?;
-    let g = cso::sens::gradient(
-        scene,
-        &state,
-        method,
-        &cso::sens::GradientOptions::of(scene),
-    )
-    .map_err(|e| e.to_string())?;
-    Ok(g.gradient
-        .iter()
+    gradient_on(scene, method, comm, false).map(|g| bits(&g))
+}
+
+/// The gradient's values, by `method`, the state on the split dual where
+/// `split_dual`.
+fn gradient_on(
+    scene: &Scene,
+    method: cso::lang::scene::SensitivityMethod,
+    comm: Option<Arc<dyn Comm>>,
+    split_dual: bool,
+) -> Result<Vec<Vec<f64>>, String> {
+    let state = cso::state::SolveOptions {
+        comm,
+        split_dual,
+        ..Default::default()
+    };
+    let options = cso::sens::GradientOptions::of(scene);
+    let g =
+        cso::sens::solve_gradient_on(scene, method, &options, &state).map_err(|e| e.to_string())?;
+    Ok(g.gradient)
+}
+
+fn bits(g: &[Vec<f64>]) -> Vec<Vec<u64>> {
+    g.iter()
         .map(|r| r.iter().map(|x| x.to_bits()).collect())
-        .collect())
+        .collect()
+}
+
+/// The three gradient methods with the state on the split dual (and the
+/// sensitivity and adjoint problems: their own split duals, the coarse
+/// problem on rank 0): the same bits on 1 to 3 thread ranks as in one
+/// process, and the replicated dual's gradient to the tolerance.
+#[test]
+fn gradients_on_the_split_dual_are_the_same_bits_on_every_rank_count() {
+    use cso::lang::scene::SensitivityMethod as M;
+    for (name, scene, ranks) in [
+        ("scont2d", example("scont2d"), &[2, 3][..]),
+        ("punch3d", example("punch3d"), &[2][..]),
+    ] {
+        for method in [M::SemiAnalytic, M::Adjoint, M::FiniteDifference] {
+            let one = gradient_on(&scene, method, None, true).expect("one process");
+            let replicated = gradient_on(&scene, method, None, false).expect("replicated");
+            let scale = replicated
+                .iter()
+                .flatten()
+                .fold(0.0f64, |m, x| m.max(x.abs()));
+            for (a, b) in one.iter().flatten().zip(replicated.iter().flatten()) {
+                assert!(
+                    (a - b).abs() <= 1e-6 * scale,
+                    "{name} {method:?}: split {a} against replicated {b}"
+                );
+            }
+            for &p in ranks {
+                let got = each_rank(p, |comm| gradient_on(&scene, method, Some(comm), true));
+                for (r, g) in got.into_iter().enumerate() {
+                    let g = g.unwrap_or_else(|e| panic!("{name} {method:?} rank {r} of {p}: {e}"));
+                    assert!(
+                        bits(&g) == bits(&one),
+                        "{name} {method:?} rank {r} of {p}: the split gradient differs"
+                    );
+                }
+            }
+        }
+    }
 }
 
 /// The three gradient methods on thread ranks: each rank's gradient is the

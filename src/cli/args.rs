@@ -166,6 +166,11 @@ pub struct Sensitivity {
     /// Threads over subdomains (default: all cores).
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
+    /// Solve the state and the sensitivity and adjoint problems on the split
+    /// dual (as `cso solve --split-dual`; one direction at a time), and the
+    /// finite differences' states too: the same bits on any number of ranks.
+    #[arg(long)]
+    pub split_dual: bool,
 }
 
 #[derive(Args, Debug)]

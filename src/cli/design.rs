@@ -19,6 +19,10 @@ impl Sensitivity {
     /// writes.
     pub fn run(&self, opts: &CheckOptions, ranks: &Ranks) -> Outcome {
         let distributed = ranks.as_ref().is_some_and(|c| c.size() > 1);
+        if self.split_dual && self.study {
+            let msg = "`cso sensitivity --study` runs on the replicated dual; drop --split-dual";
+            return Err(fail(EXIT_IO, msg));
+        }
         if distributed && self.study {
             let msg = "`cso sensitivity --study` runs in one process; run it without mpirun";
             return Err(fail(EXIT_IO, msg));
@@ -41,7 +45,12 @@ impl Sensitivity {
         };
         let bar = Progress::ticking("sensitivity", "solving the state and the gradient");
         let g = job.run(bar, |_| {
-            solve_gradient_on(scene, method, &options, ranks.clone())
+            let state = cso::state::SolveOptions {
+                comm: ranks.clone(),
+                split_dual: self.split_dual,
+                ..Default::default()
+            };
+            solve_gradient_on(scene, method, &options, &state)
         });
         let g = g.map_err(|e| match e {
             // A bad `--step` is a usage error, not the scene's.

@@ -367,7 +367,8 @@ impl<'a> Sensitivity<'a> {
         // Zero adjoints where nothing is solved.
         let mut out: Vec<Solved> = data.clone();
         let mut cost = Cost::default();
-        if solved.len() > 1 {
+        // The split dual has no block solve yet: one adjoint at a time.
+        if solved.len() > 1 && !self.state.split_dual {
             let f_adj: Vec<Vec<&[f64]>> = solved
                 .iter()
                 .map(|&k| data[k].0.iter().map(Vec::as_slice).collect())

@@ -89,28 +89,25 @@ pub fn solve_gradient(
     method: SensitivityMethod,
     options: &GradientOptions,
 ) -> Result<Gradient, GradientError> {
-    solve_gradient_on(scene, method, options, None)
+    solve_gradient_on(scene, method, options, &Default::default())
 }
 
-/// [`solve_gradient`] with the state's subdomains spread over the ranks of
-/// `comm` (`cso sensitivity` under `mpirun`): the sensitivity and adjoint
-/// solves run on the state's distributed dual, the finite differences'
-/// perturbed states on its ranks, and every rank returns the serial
-/// gradient bit for bit. Collective: every rank calls it.
+/// [`solve_gradient`] with the state solved by `state_options` (its `comm`
+/// and `split_dual` are what count: `cso sensitivity` under `mpirun`, and
+/// `--split-dual`): the sensitivity and adjoint solves run on the state's
+/// distributed dual (replicated or split), the finite differences'
+/// perturbed states on its ranks, and every rank returns the one-process
+/// gradient of that dual bit for bit. Collective: every rank calls it.
 pub fn solve_gradient_on(
     scene: &Scene,
     method: SensitivityMethod,
     options: &GradientOptions,
-    comm: Option<std::sync::Arc<dyn crate::tfeti::comm::Comm>>,
+    state_options: &crate::state::SolveOptions,
 ) -> Result<Gradient, GradientError> {
     if method == SensitivityMethod::FiniteDifference {
         // Refuse a bad step before the state's solve.
         check_step(options.step)?;
     }
-    let options_on = crate::state::SolveOptions {
-        comm,
-        ..Default::default()
-    };
-    let state = crate::state::solve_with(scene, &scene.design_init(), &options_on, &mut |_| {})?;
+    let state = crate::state::solve_with(scene, &scene.design_init(), state_options, &mut |_| {})?;
     gradient(scene, &state, method, options)
 }

@@ -35,6 +35,9 @@ use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::DualStart;
+use crate::tfeti::split::SplitDual;
+use crate::tfeti::split_coarse::RootCoarse;
+use crate::tfeti::split_solve::dual_solve;
 use num_dual::{Dual64, DualNum};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
@@ -381,6 +384,9 @@ pub struct Sensitivity<'a> {
     pub(super) friction: FrictionRows,
     /// Built here, or the state's own where it was solved on these rows.
     pub(super) dual: Arc<DualSystem>,
+    /// A state solved on the split dual: the coarse problem of `dual` on rank
+    /// 0, shared by every solve, which runs on the split dual too.
+    split: Option<Arc<RootCoarse>>,
     /// `K u` of the state per subdomain (energy derivatives need it per direction).
     pub(super) ku: Vec<Vec<f64>>,
     /// The right-hand sides' linearization, made on first use.
@@ -453,12 +459,17 @@ impl<'a> Sensitivity<'a> {
             None => {
                 let rows = dual_rows(&state.problem, &kept);
                 let rows: Vec<&crate::model::Row> = rows.iter().map(|r| r.as_ref()).collect();
-                let mut dual = DualSystem::new(
-                    state.dual.cluster(),
-                    &rows,
-                    n_equality,
-                    state.elimination.clone(),
-                )
+                // On the split dual the coarse problem is rank 0's (below).
+                let mut dual = if state.split_dual {
+                    Ok(DualSystem::deferred(state.dual.cluster(), &rows))
+                } else {
+                    DualSystem::new(
+                        state.dual.cluster(),
+                        &rows,
+                        n_equality,
+                        state.elimination.clone(),
+                    )
+                }
                 .map_err(|_| SolveError::SensitivityUndefined)?;
                 if !friction.across.is_empty() {
                     let mut compliance = vec![0.0; kept.len()];
@@ -472,6 +483,13 @@ impl<'a> Sensitivity<'a> {
                 Arc::new(dual)
             }
         };
+        let split = match state.split_dual {
+            true => Some(Arc::new(
+                RootCoarse::new(dual.dual().cluster())
+                    .map_err(|_| SolveError::SensitivityUndefined)?,
+            )),
+            false => None,
+        };
         Ok(Sensitivity {
             scene,
             state,
@@ -480,6 +498,7 @@ impl<'a> Sensitivity<'a> {
             n_equality,
             friction,
             dual,
+            split,
             ku: state.dual.cluster().apply_k(&state.u),
             tape: OnceLock::new(),
             jacobians: OnceLock::new(),
@@ -570,7 +589,8 @@ impl<'a> Sensitivity<'a> {
         .then(|| starts.iter().map(|l| restrict(&self.kept, l)).collect());
         let rhs: Vec<Rhs> = (0..m).map(|i| self.rhs(i)).collect();
         let mut failed = Cost::default();
-        if m > 1 && self.n_equality == self.kept.len() {
+        // The split dual has no block solve yet: one direction at a time.
+        if m > 1 && self.n_equality == self.kept.len() && self.split.is_none() {
             let fs: Vec<Vec<&[f64]>> = rhs
                 .iter()
                 .map(|r| r.fbar.iter().map(Vec::as_slice).collect())
@@ -634,6 +654,9 @@ impl<'a> Sensitivity<'a> {
             lambda,
             ..DualStart::default()
         });
+        if let Some(root) = &self.split {
+            return self.solve_split(root, (&f, c), start.as_ref(), tolerance);
+        }
         let before = self.dual.f_applications();
         // Held dofs of classical FETI do not move with the design: zero there.
         let sol = self.dual.solve(
@@ -649,6 +672,33 @@ impl<'a> Sensitivity<'a> {
             .info
             .hessian_applications
             .max(self.dual.f_applications() - before);
+        Ok(((sol.u, sol.lambda), cost))
+    }
+
+    /// [`Self::solve_one`] on the split dual with the coarse problem `root`
+    /// (TFETI, no friction: the split state solve refuses the rest).
+    /// Collective.
+    fn solve_split(
+        &self,
+        root: &Arc<RootCoarse>,
+        (f, c): (&[&[f64]], &[f64]),
+        start: Option<&DualStart>,
+        tolerance: f64,
+    ) -> Result<(Solved, usize), SolveError> {
+        let dual = self.dual.dual();
+        let split = SplitDual::with_shared_coarse(dual.cluster(), Arc::clone(root));
+        let sol = dual_solve(
+            &split,
+            dual.preconditioner(),
+            (f, c),
+            self.n_equality,
+            &solve_settings(tolerance),
+            start,
+            &mut |_| {},
+        )?;
+        let applications = split.f_applications();
+        dual.count_f_applications(applications);
+        let cost = sol.info.hessian_applications.max(applications);
         Ok(((sol.u, sol.lambda), cost))
     }
 

@@ -220,8 +220,8 @@ pub struct SplitDual<'a> {
 enum Coarse<'a> {
     /// The replicated dual's, on every rank.
     Replicated(&'a Dual),
-    /// On rank 0 only.
-    Root(RootCoarse),
+    /// On rank 0 only (shared by the split duals of one cluster).
+    Root(Arc<RootCoarse>),
 }
 
 /// Per-rank counts of one operation, for the network model (issue 37 item 6).
@@ -259,7 +259,14 @@ impl<'a> SplitDual<'a> {
     /// Collective.
     pub fn with_root_coarse(cluster: &'a Cluster) -> Result<Self, CoarseError> {
         let root = RootCoarse::new(cluster)?;
-        Ok(SplitDual::on(cluster, Coarse::Root(root)))
+        Ok(SplitDual::on(cluster, Coarse::Root(Arc::new(root))))
+    }
+
+    /// [`SplitDual::with_root_coarse`] with the coarse problem `root` of
+    /// `cluster` already set up ([`RootCoarse::new`]): the solves of one
+    /// dual with several right-hand sides (the sensitivities) share it.
+    pub fn with_shared_coarse(cluster: &'a Cluster, root: Arc<RootCoarse>) -> Self {
+        SplitDual::on(cluster, Coarse::Root(root))
     }
 
     fn on(cluster: &'a Cluster, coarse: Coarse<'a>) -> Self {
