@@ -449,8 +449,16 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
     scene.optimize.max_iterations = 6;
     let run = |comm: Option<Arc<dyn Comm>>| {
         let reuse = cso::opt::Reuse::default();
-        let run = cso::opt::optimize_on(&scene, reuse, &comm, &mut |_, _| true)
-            .unwrap_or_else(|e| panic!("{e}"));
+        let run = cso::opt::optimize_on(
+            &scene,
+            reuse,
+            &cso::opt::Spread {
+                comm,
+                split_dual: false,
+            },
+            &mut |_, _| true,
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
         let bits: Vec<Vec<u64>> = run
             .history
             .iter()
@@ -472,6 +480,51 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
     for p in [2, 3] {
         for (r, g) in each_rank(p, |comm| run(Some(comm))).into_iter().enumerate() {
             assert!(g == serial, "rank {r} of {p}: the iterates differ");
+        }
+    }
+}
+
+/// An optimization on the split dual (cold states, partial
+/// refactorization, every gradient's solves split): the same iterates, bit
+/// for bit, on 1, 2 and 3 thread ranks as in one process, and the
+/// replicated loop's designs to the tolerance.
+#[test]
+fn optimization_on_the_split_dual_follows_one_path_on_every_rank_count() {
+    let mut scene = example("scont2d");
+    scene.optimize.max_iterations = 4;
+    let run = |comm: Option<Arc<dyn Comm>>, split_dual: bool| {
+        let on = cso::opt::Spread { comm, split_dual };
+        cso::opt::optimize_on(&scene, cso::opt::Reuse::default(), &on, &mut |_, _| true)
+            .unwrap_or_else(|e| panic!("{e}"))
+            .history
+    };
+    let bits = |h: &[cso::opt::Iterate]| -> Vec<Vec<u64>> {
+        h.iter()
+            .map(|it| {
+                let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
+                b.push(it.objective.to_bits());
+                b.push(it.hessian_applications as u64);
+                b
+            })
+            .collect()
+    };
+    let one = run(None, true);
+    let replicated = run(None, false);
+    assert_eq!(one.len(), replicated.len(), "as many iterates");
+    for (a, b) in one.iter().zip(&replicated) {
+        for (x, y) in a.design.iter().zip(&b.design) {
+            assert!((x - y).abs() < 1e-6, "split design {x} against {y}");
+        }
+    }
+    for p in [2, 3] {
+        for (r, h) in each_rank(p, |comm| run(Some(comm), true))
+            .into_iter()
+            .enumerate()
+        {
+            assert!(
+                bits(&h) == bits(&one),
+                "rank {r} of {p}: the iterates differ"
+            );
         }
     }
 }

@@ -120,7 +120,11 @@ impl Optimize {
         let mut series = out.map(|dir| cso::io::optimization::DesignSeries::new(dir, scene));
         let result = job.run(bar, |bar| {
             let reuse = cso::opt::Reuse::default();
-            cso::opt::optimize_on(scene, reuse, ranks, &mut |it, state| {
+            let on = cso::opt::Spread {
+                comm: ranks.clone(),
+                split_dual: self.split_dual,
+            };
+            cso::opt::optimize_on(scene, reuse, &on, &mut |it, state| {
                 if let Some(series) = series.as_mut() {
                     series.record(scene, it.iteration, &it.design, state);
                 }

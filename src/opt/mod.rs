@@ -181,7 +181,7 @@ fn state_and_gradient(
     scene: &Scene,
     previous: Option<&State>,
     warm: &[Vec<f64>],
-    (reuse, comm): (Reuse, &Ranks),
+    (reuse, on): (Reuse, &Spread),
 ) -> Result<(State, Gradient), GradientError> {
     let design = scene.design_init();
     let state = match previous {
@@ -192,7 +192,7 @@ fn state_and_gradient(
             };
             crate::state::solve_with(scene, &design, &options, &mut |_| {})?
         }
-        _ => cold(scene, &design, comm)?,
+        _ => cold(scene, &design, on)?,
     };
     let options = crate::sens::GradientOptions {
         warm: if reuse.warm_adjoint { warm } else { &[] },
@@ -217,16 +217,29 @@ pub fn optimize_with(
     reuse: Reuse,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, GradientError> {
-    optimize_on(scene, reuse, &None, observer)
+    optimize_on(scene, reuse, &Spread::default(), observer)
 }
 
 /// The ranks a state's subdomains spread over (None: this process).
 pub type Ranks = Option<std::sync::Arc<dyn crate::tfeti::comm::Comm>>;
 
-/// A cold state solve at `design`, on `comm`'s ranks where given.
-fn cold(scene: &Scene, design: &[f64], comm: &Ranks) -> Result<State, SolveError> {
+/// Where every state of the loop solves: the ranks its subdomains spread
+/// over, and on which dual (each later state on its predecessor's).
+#[derive(Clone, Default)]
+pub struct Spread {
+    /// None: this process.
+    pub comm: Ranks,
+    /// On the split dual ([`crate::state::SolveOptions::split_dual`]): the
+    /// states cold (it takes no warm start yet), the gradients' solves on it
+    /// too.
+    pub split_dual: bool,
+}
+
+/// A cold state solve at `design`, where `on` says.
+fn cold(scene: &Scene, design: &[f64], on: &Spread) -> Result<State, SolveError> {
     let options = crate::state::SolveOptions {
-        comm: comm.clone(),
+        comm: on.comm.clone(),
+        split_dual: on.split_dual,
         ..Default::default()
     };
     crate::state::solve_with(scene, design, &options, &mut |_| {})
@@ -241,10 +254,10 @@ fn cold(scene: &Scene, design: &[f64], comm: &Ranks) -> Result<State, SolveError
 pub fn optimize_on(
     scene: &Scene,
     reuse: Reuse,
-    comm: &Ranks,
+    on: &Spread,
     observer: &mut dyn FnMut(&Iterate, &State) -> bool,
 ) -> Result<Optimization, GradientError> {
-    let frozen = frozen_at_start(scene, comm)?;
+    let frozen = frozen_at_start(scene, on)?;
     let x0 = scene.design_init();
     let bounds = Bounds {
         lower: scene.design.iter().map(|d| d.lower).collect(),
@@ -269,12 +282,12 @@ pub fn optimize_on(
         let t = Instant::now();
         let current = with_design(&frozen, &x);
         let mut halvings = 0;
-        let solved = state_and_gradient(&current, previous.as_ref(), &warm, (reuse, comm));
+        let solved = state_and_gradient(&current, previous.as_ref(), &warm, (reuse, on));
         let (state, mut g) = match solved {
             Ok(r) => r,
             Err(e) if k > 0 => {
                 let last_good = history.last().map_or(&x0, |h| &h.design);
-                match step_back(&frozen, &x, last_good, (reuse, comm)) {
+                match step_back(&frozen, &x, last_good, (reuse, on)) {
                     Some((trial, halved, state, g)) => {
                         x = trial;
                         halvings = halved;
@@ -334,7 +347,7 @@ pub fn optimize_on(
 
 /// The scene's design problem with every `initial(e)` replaced by its value
 /// at the starting design (one state solve there).
-fn frozen_at_start(scene: &Scene, comm: &Ranks) -> Result<Scene, GradientError> {
+fn frozen_at_start(scene: &Scene, on: &Spread) -> Result<Scene, GradientError> {
     let Some(objective) = &scene.objective else {
         return Err(SolveError::Unsupported("the scene has no `minimize` objective".into()).into());
     };
@@ -342,7 +355,7 @@ fn frozen_at_start(scene: &Scene, comm: &Ranks) -> Result<Scene, GradientError> 
         return Err(SolveError::Unsupported("the scene has no design variables".into()).into());
     }
     let x0 = scene.design_init();
-    let start = cold(scene, &x0, comm)?;
+    let start = cold(scene, &x0, on)?;
     let eval = Eval {
         scene,
         design: &x0,
@@ -374,7 +387,7 @@ fn step_back(
     frozen: &Scene,
     x: &[f64],
     last_good: &[f64],
-    run: (Reuse, &Ranks),
+    run: (Reuse, &Spread),
 ) -> Option<(Vec<f64>, usize, State, Gradient)> {
     let mut trial = x.to_vec();
     for halvings in 1..=STEP_BACKS {
