@@ -270,7 +270,7 @@ fn commands_that_are_not_distributed_say_so() {
 
 /// sensitivity.json of scont2d without its wall times.
 fn sensitivity(ranks: Option<usize>, method: &str, dir: &Path) -> serde_json::Value {
-    sensitivity_of("examples/scont2d.cso", ranks, method, dir)
+    sensitivity_of("examples/scont2d.cso", ranks, method, dir, &[])
 }
 
 /// sensitivity.json of `scene` without its wall times.
@@ -279,10 +279,11 @@ fn sensitivity_of(
     ranks: Option<usize>,
     method: &str,
     dir: &Path,
+    extra: &[&str],
 ) -> serde_json::Value {
     let _ = std::fs::remove_dir_all(dir);
     let out = dir.to_str().expect("utf-8 path");
-    let args = [
+    let mut args = vec![
         "--quiet",
         "sensitivity",
         scene,
@@ -291,6 +292,7 @@ fn sensitivity_of(
         "-o",
         out,
     ];
+    args.extend(extra);
     let (code, stdout, stderr) = run(ranks, &[], &args);
     assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
     let text = std::fs::read_to_string(dir.join("sensitivity.json")).expect("written");
@@ -325,8 +327,14 @@ fn a_morphed_imported_body_gives_the_serial_gradient_on_2_ranks() {
     let base = std::env::temp_dir().join(format!("cso-mpi-stamp-{}", std::process::id()));
     for method in ["semi_analytic", "adjoint"] {
         let scene = "examples/stamp2d.cso";
-        let serial = sensitivity_of(scene, None, method, &base.join(format!("{method}-1")));
-        let got = sensitivity_of(scene, Some(2), method, &base.join(format!("{method}-2")));
+        let serial = sensitivity_of(scene, None, method, &base.join(format!("{method}-1")), &[]);
+        let got = sensitivity_of(
+            scene,
+            Some(2),
+            method,
+            &base.join(format!("{method}-2")),
+            &[],
+        );
         assert!(
             got == serial,
             "stamp2d {method} on 2 ranks differs from serial"
@@ -341,25 +349,62 @@ fn a_morphed_imported_body_gives_the_serial_gradient_on_2_ranks() {
 #[test]
 fn optimize_over_ranks_follows_the_serial_iterates_bitwise() {
     let base = std::env::temp_dir().join(format!("cso-mpi-opt-{}", std::process::id()));
-    let history = |ranks: Option<usize>| {
-        let dir = base.join(format!("{ranks:?}"));
-        let _ = std::fs::remove_dir_all(&dir);
-        let out = dir.to_str().expect("utf-8 path");
-        let args = ["--quiet", "optimize", "examples/scont2d.cso", "-o", out];
-        let (code, stdout, stderr) = run(ranks, &[], &args);
-        assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
-        let text = std::fs::read_to_string(dir.join("history.json")).expect("written");
-        let mut v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
-        strip_seconds(&mut v);
-        let best = std::fs::read_to_string(dir.join("best.cso")).expect("best design");
-        (v, best)
-    };
-    let serial = history(None);
+    let serial = history(&base, None, &[]);
     assert!(serial.0["history"].as_array().is_some_and(|h| h.len() > 3));
     for n in [2, 3] {
-        let got = history(Some(n));
+        let got = history(&base, Some(n), &[]);
         assert!(got.0 == serial.0, "history.json on {n} ranks differs");
         assert_eq!(got.1, serial.1, "best.cso on {n} ranks");
+    }
+    let _ = std::fs::remove_dir_all(&base);
+}
+
+/// `cso optimize` of scont2d on `ranks` (None: one process) with `extra`
+/// arguments, in a folder under `base`: history.json without its wall
+/// times, and best.cso.
+fn history(base: &Path, ranks: Option<usize>, extra: &[&str]) -> (serde_json::Value, String) {
+    let dir = base.join(format!("{ranks:?}{}", extra.join("")));
+    let _ = std::fs::remove_dir_all(&dir);
+    let out = dir.to_str().expect("utf-8 path");
+    let mut args = vec!["--quiet", "optimize", "examples/scont2d.cso", "-o", out];
+    args.extend(extra);
+    let (code, stdout, stderr) = run(ranks, &[], &args);
+    assert_eq!(code, 0, "{ranks:?} ranks: {stdout}\n{stderr}");
+    let text = std::fs::read_to_string(dir.join("history.json")).expect("written");
+    let mut v: serde_json::Value = serde_json::from_str(&text).expect("JSON");
+    strip_seconds(&mut v);
+    let best = std::fs::read_to_string(dir.join("best.cso")).expect("best design");
+    (v, best)
+}
+
+/// `cso sensitivity --split-dual` (the exact methods) and `cso optimize
+/// --split-dual` under `mpirun -n 2` and `-n 3`: the one-process split
+/// run's gradients and counts, history.json and best.cso, bit for bit.
+#[test]
+fn the_split_dual_gives_one_gradient_and_one_optimization_on_2_and_3_ranks() {
+    let base = std::env::temp_dir().join(format!("cso-mpi-split-opt-{}", std::process::id()));
+    let split = ["--split-dual"];
+    for method in ["semi_analytic", "adjoint"] {
+        let scene = "examples/scont2d.cso";
+        let one = sensitivity_of(
+            scene,
+            None,
+            method,
+            &base.join(format!("{method}-1")),
+            &split,
+        );
+        for n in [2, 3] {
+            let dir = base.join(format!("{method}-{n}"));
+            let got = sensitivity_of(scene, Some(n), method, &dir, &split);
+            assert!(got == one, "split {method} on {n} ranks differs");
+        }
+    }
+    let one = history(&base, None, &split);
+    assert!(one.0["history"].as_array().is_some_and(|h| h.len() > 3));
+    for n in [2, 3] {
+        let got = history(&base, Some(n), &split);
+        assert!(got.0 == one.0, "split history.json on {n} ranks differs");
+        assert_eq!(got.1, one.1, "split best.cso on {n} ranks");
     }
     let _ = std::fs::remove_dir_all(&base);
 }
