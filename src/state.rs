@@ -1021,11 +1021,12 @@ pub struct SolveOptions<'a> {
     pub phases: Option<Phases<'a>>,
     /// Solve the dual on the split dual (`tfeti::split_solve`: each rank
     /// iterates on its own rows, exact sums): the same bits on any number of
-    /// ranks, the replicated solve's answer to the tolerance. Cold, TFETI,
-    /// with the scene's preconditioner; friction is refused so far. The
-    /// state's cluster then holds only each rank's own `G_s` (the coarse
+    /// ranks, the replicated solve's answer to the tolerance. TFETI, with
+    /// the scene's preconditioner, cold or warm; friction is refused so far.
+    /// The state's cluster then holds only each rank's own `G_s` (the coarse
     /// problem was on rank 0): on more than one rank its dual can report,
-    /// but not project or solve again (the sensitivities do not take it).
+    /// but not project or solve again, so the sensitivities of such a state
+    /// (`State::split_dual`) build split duals of their own.
     pub split_dual: bool,
 }
 
@@ -1069,17 +1070,12 @@ impl Default for SolveOptions<'_> {
 
 impl<'a> SolveOptions<'a> {
     /// A solve starting from `previous` with `warm`, refactorizing only the
-    /// subdomains whose mesh changed, on the dual `previous` was solved on
-    /// (the split dual starts cold: it takes no warm start yet).
+    /// subdomains whose mesh changed, on the dual `previous` was solved on.
     pub fn from(previous: &'a State, warm: WarmStart) -> Self {
         SolveOptions {
             previous: Some(previous),
             refactor: Refactor::Changed,
-            warm: if previous.split_dual {
-                WarmStart::OFF
-            } else {
-                warm
-            },
+            warm,
             comm: previous.comm(),
             split_dual: previous.split_dual,
             ..SolveOptions::default()
@@ -1208,11 +1204,14 @@ fn solve_on(
                     .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             }
             coarse_in_solve = t.elapsed().as_secs_f64();
+            // The split dual tries the previous active set in its own solve.
+            let split_warm = (split_dual && warm.on_active_set && start.is_some())
+                .then(|| Plan::warm(scene, &settings));
             let (sol, predicted, done) = ops.solve_dual(
                 scene,
                 (&f, &c),
                 &settings,
-                start.as_ref(),
+                (start.as_ref(), split_warm),
                 (observer, &mut split_coarse),
             )?;
             if let Some((tried, how, kind)) = predicted {
@@ -1343,6 +1342,8 @@ struct Attempt {
     solution: Option<DualSolution>,
     kept_dual: Option<(Arc<KeptDual>, Kkt)>,
     spent: (usize, usize),
+    /// A set kept on the split dual, which keeps no dual of it.
+    kept_split: bool,
 }
 
 impl Attempt {
@@ -1357,12 +1358,14 @@ impl Attempt {
                     solution: Some(*sol),
                     kept_dual: Some((Arc::new(dual), residuals)),
                     spent: (0, applications),
+                    kept_split: false,
                 }
             }
             Outcome::Refused(hessian, applications, ..) => Attempt {
                 solution: None,
                 kept_dual: None,
                 spent: (hessian, applications),
+                kept_split: false,
             },
         }
     }
@@ -1462,14 +1465,15 @@ impl Operators {
     /// where [`predict::predicts`] says so (what the equality solves left,
     /// the prediction, their preconditioner), else SMALBE from `start`. On
     /// the split dual, the seconds its coarse problem's set-up took go to
-    /// `coarse`.
+    /// `coarse`, and a warm start tries the previous active set first where
+    /// a plan is given.
     #[allow(clippy::type_complexity)]
     fn solve_dual(
         &self,
         scene: &Scene,
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
-        start: Option<&DualStart>,
+        (start, split_warm): (Option<&DualStart>, Option<Plan>),
         (observer, coarse): (&mut dyn FnMut(&QpInfo), &mut f64),
     ) -> Result<
         (
@@ -1480,8 +1484,13 @@ impl Operators {
         SolveError,
     > {
         if self.split {
-            let (sol, predicted) =
-                self.split_solve(scene, (f, c), settings, start, (observer, coarse))?;
+            let (sol, predicted) = self.split_solve(
+                scene,
+                (f, c),
+                settings,
+                (start, split_warm),
+                (observer, coarse),
+            )?;
             return Ok((sol, predicted, None));
         }
         if has_friction(&self.problem) {
@@ -1506,17 +1515,19 @@ impl Operators {
     }
 
     /// The dual solve on the split dual, where it applies: TFETI, no
-    /// friction, cold; through a predicted active set where
-    /// [`predict::predicts`] says so (`split_predict`), with what it did;
-    /// the seconds its coarse problem's set-up took (on rank 0; waiting for
-    /// it on the others) in `coarse`.
+    /// friction; from a warm `start`, on its active set first where `plan`
+    /// is given, then SMALBE (`split_predict::warm_solve`); cold, through a
+    /// predicted active set where [`predict::predicts`] says so
+    /// (`split_predict`), with what it did; the seconds its coarse
+    /// problem's set-up took (on rank 0; waiting for it on the others) in
+    /// `coarse`.
     #[allow(clippy::type_complexity)]
     fn split_solve(
         &self,
         scene: &Scene,
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
-        start: Option<&DualStart>,
+        (start, plan): (Option<&DualStart>, Option<Plan>),
         (observer, coarse): (&mut dyn FnMut(&QpInfo), &mut f64),
     ) -> Result<
         (
@@ -1537,9 +1548,6 @@ impl Operators {
         if has_friction(&self.problem) {
             return refuse("friction");
         }
-        if start.is_some() {
-            return refuse("from a warm start");
-        }
         // Each rank holds its own subdomains' G_s; G G^T is assembled and
         // factorized on rank 0 (its check: the rigid motions no row holds).
         let dual = self.system.dual();
@@ -1548,8 +1556,24 @@ impl Operators {
             .map_err(|CoarseError { free_modes }| self.free_modes(&free_modes))?;
         *coarse = t.elapsed().as_secs_f64();
         let n_eq = self.problem.n_equality;
-        let solved = match predict::predicts(scene, self, settings, false) {
-            Some(kind) => split_predict::predicted_solve(
+        let solved = match (start, predict::predicts(scene, self, settings, false)) {
+            (Some(start), _) => split_predict::warm_solve(
+                (&self.problem, dual),
+                (&split, dual.preconditioner()),
+                (f, c),
+                settings,
+                (start, plan),
+                observer,
+            )
+            .map(|(sol, kept)| {
+                let kind = plan.and_then(|p| p.kind).filter(|_| kept);
+                let attempt = Attempt {
+                    kept_split: true,
+                    ..Attempt::default()
+                };
+                (sol, kind.map(|k| (attempt, None, k)))
+            }),
+            (None, Some(kind)) => split_predict::predicted_solve(
                 (&self.problem, dual),
                 (&split, dual.preconditioner()),
                 (f, c),
@@ -1558,7 +1582,7 @@ impl Operators {
                 observer,
             )
             .map(|(sol, how)| (sol, Some((Attempt::default(), Some(how), kind)))),
-            None => crate::tfeti::split_solve::dual_solve(
+            (None, None) => crate::tfeti::split_solve::dual_solve(
                 &split,
                 dual.preconditioner(),
                 (f, c),
@@ -1647,7 +1671,10 @@ impl Operators {
             end,
         } = sol;
         let Attempt {
-            kept_dual, spent, ..
+            kept_dual,
+            spent,
+            kept_split,
+            ..
         } = attempt;
         // A refused attempt on the active set counts with the solve.
         info.hessian_applications += spent.0;
@@ -1681,15 +1708,15 @@ impl Operators {
             factorizations: self.factorizations,
             // A state kept on its predicted active set was solved there,
             // with that path's preconditioner.
-            preconditioner: match kept_dual {
-                Some(_) => PreconditionerChoice {
+            preconditioner: match kept_dual.is_some() || kept_split {
+                true => PreconditionerChoice {
                     kind: self.kept_precond,
                     auto: None,
                 },
-                None => self.precond,
+                false => self.precond,
             },
             warm_started,
-            on_active_set: kept_dual.is_some(),
+            on_active_set: kept_dual.is_some() || kept_split,
             kept_dual,
             end,
             search: Search::default(),

@@ -484,10 +484,10 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
     }
 }
 
-/// An optimization on the split dual (cold states, partial
-/// refactorization, every gradient's solves split): the same iterates, bit
-/// for bit, on 1, 2 and 3 thread ranks as in one process, and the
-/// replicated loop's designs to the tolerance.
+/// An optimization on the split dual (warm states on the previous active
+/// set, partial refactorization, every gradient's solves split and warm):
+/// the same iterates, bit for bit, on 1, 2 and 3 thread ranks as in one
+/// process, and the replicated loop's designs to the tolerance.
 #[test]
 fn optimization_on_the_split_dual_follows_one_path_on_every_rank_count() {
     let mut scene = example("scont2d");
@@ -504,11 +504,16 @@ fn optimization_on_the_split_dual_follows_one_path_on_every_rank_count() {
                 let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
                 b.push(it.objective.to_bits());
                 b.push(it.hessian_applications as u64);
+                b.push(u64::from(it.on_active_set));
                 b
             })
             .collect()
     };
     let one = run(None, true);
+    assert!(
+        one.iter().any(|it| it.on_active_set),
+        "warm states kept on the active set"
+    );
     let replicated = run(None, false);
     assert_eq!(one.len(), replicated.len(), "as many iterates");
     for (a, b) in one.iter().zip(&replicated) {

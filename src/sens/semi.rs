@@ -562,7 +562,7 @@ impl<'a> Sensitivity<'a> {
 
     /// Exact derivatives in the direction of design variable `i`.
     pub fn direction(&self, i: usize, tolerance: f64) -> Result<Direction, SolveError> {
-        self.direction_from(self.rhs(i), tolerance)
+        self.direction_from(self.rhs(i), None, tolerance)
     }
 
     /// Exact derivatives in every design direction, and what their solves cost.
@@ -625,8 +625,12 @@ impl<'a> Sensitivity<'a> {
         }
         let mut cost = failed;
         let mut dirs = Vec::with_capacity(m);
+        // On the split dual each direction starts from its own start (the
+        // replicated dual's single solves, a block's fallback, start cold).
+        let mut starts = starts.filter(|_| self.split.is_some()).map(Vec::into_iter);
         for r in rhs {
-            let d = self.direction_from(r, tolerance)?;
+            let start = starts.as_mut().and_then(Iterator::next);
+            let d = self.direction_from(r, start, tolerance)?;
             cost.products += d.hessian_applications;
             cost.passes += d.hessian_applications;
             dirs.push(d);
@@ -634,9 +638,15 @@ impl<'a> Sensitivity<'a> {
         Ok((dirs, cost))
     }
 
-    /// Solves one direction's problem alone.
-    fn direction_from(&self, rhs: Rhs, tolerance: f64) -> Result<Direction, SolveError> {
-        let ((u, lambda), cost) = self.solve_one(&rhs.fbar, &rhs.cbar, None, tolerance)?;
+    /// Solves one direction's problem alone, from `start` (`l'` on the kept
+    /// rows) where given.
+    fn direction_from(
+        &self,
+        rhs: Rhs,
+        start: Option<Vec<f64>>,
+        tolerance: f64,
+    ) -> Result<Direction, SolveError> {
+        let ((u, lambda), cost) = self.solve_one(&rhs.fbar, &rhs.cbar, start, tolerance)?;
         Ok(self.assemble(rhs, u, &lambda, cost))
     }
 

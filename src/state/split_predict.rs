@@ -17,9 +17,13 @@
 //! An equality solve whose held contact clearly pulls stops there and the
 //! row is let go, and one forecast not to finish within the budget stops
 //! early, as on the replicated path. Against that path: no kept dual for
-//! the sensitivities (they run on the replicated dual).
+//! the sensitivities (they build their own split dual of their rows).
+//!
+//! A warm start (the next design of an optimization, [`warm_solve`]) takes
+//! the same equality solves on the previous design's active set, as the
+//! replicated warm start does, then SMALBE from the warm start.
 
-use super::active_set::attempt;
+use super::active_set::{attempt, Plan};
 use super::predict::{Prediction, ATTEMPTS, BUDGET, MIN_BUDGET, TOLERANCE};
 use crate::model::Problem;
 use crate::qp::{QpInfo, SmalbeSettings, Status};
@@ -97,7 +101,7 @@ pub(super) fn predicted_solve(
         let held = Held {
             problem,
             dual,
-            kind,
+            kind: Some(kind),
         };
         // An equality solve forecast not to finish within the budget
         // stops early, as on the replicated path.
@@ -105,7 +109,7 @@ pub(super) fn predicted_solve(
             forecast: true,
             ..settings.clone()
         };
-        tried = held.solve(&first.lambda, (f, c), &settings, budget);
+        tried = held.solve(&first.lambda, (f, c), &settings, (ATTEMPTS, budget, true));
         prediction.equality_solves = tried.solves;
         if let Some(mut sol) = tried.kept.take() {
             prediction.kept = true;
@@ -143,6 +147,50 @@ pub(super) fn predicted_solve(
     Ok((sol, prediction))
 }
 
+/// A warm solve on the split dual (the next design of an optimization,
+/// from `start`, the previous state's): where `plan` says so, the previous
+/// active set first, its equality solves checked and corrected as the
+/// replicated warm start's ([`super::active_set::solve`]); where no set is
+/// kept (or no `plan`), SMALBE from `start`, what the sets spent counting
+/// with it. The solution, and whether a set was kept. Collective.
+pub(super) fn warm_solve(
+    (problem, dual): (&Problem, &Dual),
+    (split, precond): (&SplitDual, Option<&DualPreconditioner>),
+    (f, c): (&[&[f64]], &[f64]),
+    settings: &SmalbeSettings,
+    (start, plan): (&DualStart, Option<Plan>),
+    observer: &mut dyn FnMut(&QpInfo),
+) -> Result<(DualSolution, bool), SolveError> {
+    let mut spent = 0;
+    if let Some(plan) = plan {
+        let held = Held {
+            problem,
+            dual,
+            kind: plan.kind,
+        };
+        let limits = (
+            plan.attempts,
+            plan.budget.min(settings.max_hessian),
+            plan.predicted,
+        );
+        let tried = held.solve(&start.lambda, (f, c), settings, limits);
+        if let Some(mut sol) = tried.kept {
+            // For the next design: SMALBE's state as this one started.
+            sol.end = start.smalbe.clone().zip(start.pfp);
+            return Ok((sol, true));
+        }
+        spent = tried.hessian;
+    }
+    let rest = SmalbeSettings {
+        max_hessian: settings.max_hessian.saturating_sub(spent),
+        ..settings.clone()
+    };
+    let n_eq = problem.n_equality;
+    let mut sol = dual_solve(split, precond, (f, c), n_eq, &rest, Some(start), observer)?;
+    sol.info.hessian_applications += spent;
+    Ok((sol, false))
+}
+
 /// What the equality solves did.
 struct Tried {
     /// The solution on every row, where a set was kept.
@@ -161,26 +209,26 @@ struct Held<'a> {
     /// The contact problem's dual (every row).
     dual: &'a Dual,
     /// The equality solves' preconditioner.
-    kind: Kind,
+    kind: Option<Kind>,
 }
 
 impl Held<'_> {
     /// The rows that carry load in `previous` held, solved, checked and
-    /// corrected ([`attempt`]), at most [`ATTEMPTS`] sets within
-    /// `budget` Hessian applications: the solution on every row where one is
+    /// corrected ([`attempt`]), at most `attempts` sets within `budget`
+    /// Hessian applications (with `predicted`, a solve stops where a held
+    /// contact clearly pulls): the solution on every row where one is
     /// kept, the Hessian applications spent and the solves made.
     fn solve(
         &self,
         previous: &[f64],
         (f, c): (&[&[f64]], &[f64]),
         settings: &SmalbeSettings,
-        budget: usize,
+        limits: (usize, usize, bool),
     ) -> Tried {
         let mut on_rows = |kept: &[usize], start: &[f64], settings: &SmalbeSettings| {
             let (sol, applications) = self.on_rows(kept, start, (f, c), settings)?;
             Some(((), sol, applications))
         };
-        let limits = (ATTEMPTS, budget, true);
         let tried = attempt(
             self.problem,
             self.dual,
@@ -215,7 +263,7 @@ impl Held<'_> {
                 .map(|&i| problem.rows[i].entries.iter().copied()),
         );
         let mut dual = Dual::deferred(cluster.with_local_rows(local, kept.len()));
-        dual.defer_preconditioner(Some(self.kind), kept.len(), SchurForm::PreferDense);
+        dual.defer_preconditioner(self.kind, kept.len(), SchurForm::PreferDense);
         let split = SplitDual::with_root_coarse(dual.cluster()).ok()?;
         let start = DualStart {
             lambda: kept.iter().map(|&i| start[i]).collect(),

@@ -19,8 +19,9 @@
 //! their paths do). The dual's preconditioner, where it has one, runs split
 //! too (`tfeti::split_precond`: the replicated `P M P`'s bits).
 //!
-//! What it does not do yet: the active-set prediction, friction's boxes and
-//! discs, warm starts. The multipliers are gathered on every rank once, at
+//! It starts from zero or from a given start (the prediction's and a warm
+//! start's continuation, `state::split_predict`); friction's boxes and discs
+//! it does not do yet. The multipliers are gathered on every rank once, at
 //! the end (the report reads them; so do the active rows of the
 //! reconstruction), and so is `u`.
 
