@@ -319,6 +319,19 @@ fn sensitivity_over_ranks_gives_the_serial_gradient_bitwise() {
     let _ = std::fs::remove_dir_all(&base);
 }
 
+/// `cso sensitivity` of scont3d (16 directions in one block CG) under
+/// `mpirun -n 2`: the serial gradient bit for bit.
+#[test]
+fn a_block_of_3d_directions_over_2_ranks_gives_the_serial_gradient_bitwise() {
+    let base = std::env::temp_dir().join(format!("cso-mpi-block-{}", std::process::id()));
+    let scene = "examples/scont3d.cso";
+    let method = "semi_analytic";
+    let serial = sensitivity_of(scene, None, method, &base.join("1"), &[]);
+    let got = sensitivity_of(scene, Some(2), method, &base.join("2"), &[]);
+    assert!(got == serial, "scont3d on 2 ranks differs from serial");
+    let _ = std::fs::remove_dir_all(&base);
+}
+
 /// The gradient of an imported body (stamp2d: triangles from a mesh file)
 /// moved by a morph under `mpirun -n 2`: the serial one, bit for bit, by the
 /// exact methods (issue 37, item 3).

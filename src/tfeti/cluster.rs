@@ -1072,7 +1072,6 @@ impl Cluster {
         fill: impl Fn(usize, usize, &mut [f64]) + Sync + Send,
         finish: impl Fn(usize, &Subdomain, &[f64]) -> T + Sync + Send,
     ) -> Vec<T> {
-        debug_assert!(!self.is_distributed(), "block products are serial only");
         self.map(|s, sub| {
             let n = sub.dofs();
             let mut x = vec![0.0; n * cols];
@@ -1086,9 +1085,11 @@ impl Cluster {
         })
     }
 
-    /// Adds each subdomain's local rows (`rows x cols`, column-major) into
-    /// `cols` multiplier vectors, in subdomain order.
-    fn sum_rows_block(&self, parts: &[Vec<f64>], cols: usize) -> Vec<Vec<f64>> {
+    /// Adds each subdomain's local rows (`rows x cols`, column-major; the
+    /// owned subdomains' given, every subdomain's gathered where
+    /// distributed) into `cols` multiplier vectors, in subdomain order.
+    fn sum_rows_block(&self, parts: Vec<Vec<f64>>, cols: usize) -> Vec<Vec<f64>> {
+        let parts = self.gather_each(parts, |s| self.local[s].rows.len() * cols);
         let mut y = vec![vec![0.0; self.m]; cols];
         for (s, lr) in self.local.iter().enumerate() {
             let nr = lr.rows.len();
@@ -1104,7 +1105,10 @@ impl Cluster {
     /// `F x_c` for every column `x_c` (see [`Self::apply_f`]).
     pub fn apply_f_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
         let cols = xs.len();
-        if self.is_distributed() || cols <= 1 {
+        // Distributed too, the columns of a block share each factor pass:
+        // a block's product has its own bits (not a single column's), and
+        // the same on any rank count.
+        if cols <= 1 {
             return xs
                 .iter()
                 .map(|x| {
@@ -1138,7 +1142,7 @@ impl Cluster {
             }
             self.gather_block(s, n, &x, cols)
         });
-        self.sum_rows_block(&parts, cols)
+        self.sum_rows_block(parts, cols)
     }
 
     /// `B_s x_c` of every column of a `dofs x cols` block, `rows x cols`.
@@ -1155,7 +1159,7 @@ impl Cluster {
     /// [`Self::loads_less`] of every `(fs[c], ls[c])`.
     pub fn loads_less_block(&self, fs: &[Vec<&[f64]>], ls: &[Vec<f64>]) -> Vec<Vec<f64>> {
         let cols = fs.len();
-        if self.is_distributed() || cols <= 1 {
+        if cols <= 1 {
             return fs
                 .iter()
                 .zip(ls)
@@ -1172,7 +1176,7 @@ impl Cluster {
             },
             |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
         );
-        self.sum_rows_block(&parts, cols)
+        self.sum_rows_block(parts, cols)
     }
 
     /// [`Self::primal`] of every `(f, lambda, alpha)`.
@@ -1183,7 +1187,7 @@ impl Cluster {
         alphas: &[Vec<f64>],
     ) -> Vec<Vec<Vec<f64>>> {
         let cols = fs.len();
-        if self.is_distributed() || cols <= 1 {
+        if cols <= 1 {
             return (0..cols)
                 .map(|c| self.primal(&fs[c], &lambdas[c], &alphas[c]))
                 .collect();
@@ -1213,7 +1217,7 @@ impl Cluster {
             },
         );
         (0..cols)
-            .map(|c| per_sub.iter().map(|cols| cols[c].clone()).collect())
+            .map(|c| self.gather_primal(per_sub.iter().map(|cols| cols[c].clone()).collect()))
             .collect()
     }
 }
