@@ -1166,24 +1166,13 @@ fn solve_on(
     let start = warm_start(previous, warm, problem);
     let warm_started = start.is_some();
     let mut friction = None;
-    // On the previous active set first, where asked (TFETI, one process).
-    let frictionless = !has_friction(problem);
-    let mut attempt = match (
-        warm.on_active_set && frictionless && !split_dual,
-        &start,
-        &ops.system,
-    ) {
-        (true, Some(s), DualSystem::Total(full)) => Attempt::of(
-            active_set::solve(
-                problem,
-                full,
-                &s.lambda,
-                (&f, &c),
-                &settings,
-                Plan::warm(scene, &settings),
-            ),
-            previous.and_then(|p| p.end.clone()),
-        ),
+    // On the previous active set first, where asked (the split dual tries
+    // it in its own solve).
+    let plan = (warm.on_active_set && start.is_some()).then(|| Plan::warm(scene, &settings));
+    let mut attempt = match (plan, &start) {
+        (Some(plan), Some(s)) if !split_dual => {
+            warm_attempt(&ops, (&f, &c), &settings, (s, plan), previous)
+        }
         _ => Attempt::default(),
     };
     let (mut prediction, mut kept_precond) = (None, ops.kept_precond);
@@ -1204,14 +1193,11 @@ fn solve_on(
                     .map_err(|CoarseError { free_modes }| ops.free_modes(&free_modes))?;
             }
             coarse_in_solve = t.elapsed().as_secs_f64();
-            // The split dual tries the previous active set in its own solve.
-            let split_warm = (split_dual && warm.on_active_set && start.is_some())
-                .then(|| Plan::warm(scene, &settings));
             let (sol, predicted, done) = ops.solve_dual(
                 scene,
                 (&f, &c),
                 &settings,
-                (start.as_ref(), split_warm),
+                (start.as_ref(), plan.filter(|_| split_dual)),
                 (observer, &mut split_coarse),
             )?;
             if let Some((tried, how, kind)) = predicted {
@@ -1244,6 +1230,24 @@ fn solve_on(
     }
     finite::check(scene, &state)?;
     Ok(state)
+}
+
+/// The replicated warm start's solve on the previous active set from
+/// `start` (TFETI, frictionless; else nothing tried), as `plan` says.
+fn warm_attempt(
+    ops: &Operators,
+    (f, c): (&[&[f64]], &[f64]),
+    settings: &SmalbeSettings,
+    (start, plan): (&DualStart, Plan),
+    previous: Option<&State>,
+) -> Attempt {
+    match &ops.system {
+        DualSystem::Total(full) if !has_friction(&ops.problem) => Attempt::of(
+            active_set::solve(&ops.problem, full, &start.lambda, (f, c), settings, plan),
+            previous.and_then(|p| p.end.clone()),
+        ),
+        _ => Attempt::default(),
+    }
 }
 
 /// A state solved with friction keeps its loop of solves and its friction
