@@ -190,9 +190,9 @@ pub struct Optimize {
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
     /// Solve every design's state and gradient on the split dual (as `cso
-    /// sensitivity --split-dual`; each state cold, its factorizations
-    /// reused where the mesh did not move): the same bits on any number
-    /// of ranks.
+    /// sensitivity --split-dual`; each state warm on the previous design's
+    /// active set, its factorizations reused where the mesh did not move):
+    /// the same bits on any number of ranks.
     #[arg(long)]
     pub split_dual: bool,
 }

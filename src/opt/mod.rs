@@ -230,8 +230,7 @@ pub struct Spread {
     /// None: this process.
     pub comm: Ranks,
     /// On the split dual ([`crate::state::SolveOptions::split_dual`]): the
-    /// states cold (it takes no warm start yet), the gradients' solves on it
-    /// too.
+    /// states (warm as `Reuse` says) and the gradients' solves.
     pub split_dual: bool,
 }
 
