@@ -1570,12 +1570,15 @@ impl Operators {
                 observer,
             )
             .map(|(sol, kept)| {
-                let kind = plan.and_then(|p| p.kind).filter(|_| kept);
-                let attempt = Attempt {
-                    kept_split: true,
-                    ..Attempt::default()
-                };
-                (sol, kind.map(|k| (attempt, None, k)))
+                // A kept set: the state is on it, with its preconditioner.
+                let kept = plan.and_then(|p| p.kind).filter(|_| kept).map(|kind| {
+                    let attempt = Attempt {
+                        kept_split: true,
+                        ..Attempt::default()
+                    };
+                    (attempt, None, kind)
+                });
+                (sol, kept)
             }),
             (None, Some(kind)) => split_predict::predicted_solve(
                 (&self.problem, dual),

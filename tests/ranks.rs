@@ -463,18 +463,7 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
             &mut |_, _| true,
         )
         .unwrap_or_else(|e| panic!("{e}"));
-        let bits: Vec<Vec<u64>> = run
-            .history
-            .iter()
-            .map(|it| {
-                let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
-                b.push(it.objective.to_bits());
-                b.push(it.hessian_applications as u64);
-                b.push(u64::from(it.on_active_set));
-                b
-            })
-            .collect();
-        bits
+        iterate_bits(&run.history)
     };
     let serial = run(None);
     assert!(
@@ -486,6 +475,21 @@ fn optimization_on_thread_ranks_follows_the_serial_iterates_bitwise() {
             assert!(g == serial, "rank {r} of {p}: the iterates differ");
         }
     }
+}
+
+/// Each iterate's design, objective, Hessian applications and whether its
+/// state was kept on the active set, as bits.
+fn iterate_bits(history: &[cso::opt::Iterate]) -> Vec<Vec<u64>> {
+    history
+        .iter()
+        .map(|it| {
+            let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
+            b.push(it.objective.to_bits());
+            b.push(it.hessian_applications as u64);
+            b.push(u64::from(it.on_active_set));
+            b
+        })
+        .collect()
 }
 
 /// An optimization on the split dual (warm states on the previous active
@@ -501,17 +505,6 @@ fn optimization_on_the_split_dual_follows_one_path_on_every_rank_count() {
         cso::opt::optimize_on(&scene, cso::opt::Reuse::default(), &on, &mut |_, _| true)
             .unwrap_or_else(|e| panic!("{e}"))
             .history
-    };
-    let bits = |h: &[cso::opt::Iterate]| -> Vec<Vec<u64>> {
-        h.iter()
-            .map(|it| {
-                let mut b: Vec<u64> = it.design.iter().map(|x| x.to_bits()).collect();
-                b.push(it.objective.to_bits());
-                b.push(it.hessian_applications as u64);
-                b.push(u64::from(it.on_active_set));
-                b
-            })
-            .collect()
     };
     let one = run(None, true);
     assert!(
@@ -531,7 +524,7 @@ fn optimization_on_the_split_dual_follows_one_path_on_every_rank_count() {
             .enumerate()
         {
             assert!(
-                bits(&h) == bits(&one),
+                iterate_bits(&h) == iterate_bits(&one),
                 "rank {r} of {p}: the iterates differ"
             );
         }
