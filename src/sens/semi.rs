@@ -30,12 +30,14 @@ use crate::model::geometry::{
 use crate::model::{Named, RowKind};
 use crate::qp::SmalbeSettings;
 use crate::state::{SolveError, State};
+use crate::tfeti::block::BlockSolution;
 use crate::tfeti::classical::DualSystem;
 use crate::tfeti::cluster::Cluster;
 use crate::tfeti::precond::Kind;
 use crate::tfeti::schur::SchurForm;
 use crate::tfeti::solve::DualStart;
 use crate::tfeti::split::SplitDual;
+use crate::tfeti::split_block;
 use crate::tfeti::split_coarse::RootCoarse;
 use crate::tfeti::split_solve::dual_solve;
 use num_dual::{Dual64, DualNum};
@@ -589,17 +591,13 @@ impl<'a> Sensitivity<'a> {
         .then(|| starts.iter().map(|l| restrict(&self.kept, l)).collect());
         let rhs: Vec<Rhs> = (0..m).map(|i| self.rhs(i)).collect();
         let mut failed = Cost::default();
-        // The split dual has no block solve yet: one direction at a time.
-        if m > 1 && self.n_equality == self.kept.len() && self.split.is_none() {
+        if m > 1 && self.n_equality == self.kept.len() {
             let fs: Vec<Vec<&[f64]>> = rhs
                 .iter()
                 .map(|r| r.fbar.iter().map(Vec::as_slice).collect())
                 .collect();
             let cs: Vec<Vec<f64>> = rhs.iter().map(|r| r.cbar.clone()).collect();
-            if let Some(sol) =
-                self.dual
-                    .solve_block(&fs, &cs, &solve_settings(tolerance), starts.as_deref())
-            {
+            if let Some(sol) = self.solve_block((&fs, &cs), tolerance, starts.as_deref()) {
                 let sol = sol?;
                 if sol.info.status == crate::qp::Status::Converged {
                     let cost = Cost {
@@ -636,6 +634,32 @@ impl<'a> Sensitivity<'a> {
             dirs.push(d);
         }
         Ok((dirs, cost))
+    }
+
+    /// The block solve of every direction's problem (every kept row an
+    /// equality), on the split dual where the state was solved on it; None
+    /// where the dual has no block solve (classical FETI).
+    fn solve_block(
+        &self,
+        (fs, cs): (&[Vec<&[f64]>], &[Vec<f64>]),
+        tolerance: f64,
+        starts: Option<&[Vec<f64>]>,
+    ) -> Option<Result<BlockSolution, SolveError>> {
+        let settings = solve_settings(tolerance);
+        let Some(root) = &self.split else {
+            return self.dual.solve_block(fs, cs, &settings, starts);
+        };
+        let dual = self.dual.dual();
+        let split = SplitDual::with_shared_coarse(dual.cluster(), Arc::clone(root));
+        let sol = split_block::dual_solve_block(
+            &split,
+            dual.preconditioner(),
+            (fs, cs),
+            &settings,
+            starts,
+        );
+        dual.count_f_applications(split.f_applications());
+        Some(sol)
     }
 
     /// Solves one direction's problem alone, from `start` (`l'` on the kept

@@ -102,33 +102,42 @@ fn orthonormal(y: Mat<f64>) -> Mat<f64> {
         .collect();
     let mut basis = Mat::from_fn(y.nrows(), keep.len(), |i, c| y[(i, keep[c].0)] / keep[c].1);
     for pass in 0..2 {
-        let k = basis.ncols();
-        if k == 0 {
+        if basis.ncols() == 0 {
             break;
         }
         let gram = cross(basis.as_ref(), basis.as_ref());
-        let Ok(evd) = gram.self_adjoint_eigen(Side::Lower) else {
+        let Some(w) = whitening(&gram, pass) else {
             return Mat::zeros(y.nrows(), 0);
         };
-        let (s, v) = (evd.S(), evd.U());
-        let top = (0..k).map(|i| s[i]).fold(0.0f64, f64::max);
-        if !(top > 0.0 && top.is_finite()) {
-            return Mat::zeros(y.nrows(), 0);
-        }
-        let cut = if pass == 0 { 1e-12 } else { 1e-15 };
-        // The kept eigenvectors scaled by 1 / sqrt(s): basis W is orthonormal.
-        let kept: Vec<usize> = (0..k).filter(|&i| s[i] > cut * top).collect();
-        let w = Mat::from_fn(k, kept.len(), |j, c| v[(j, kept[c])] / s[kept[c]].sqrt());
-        let mut next = Mat::zeros(basis.nrows(), kept.len());
+        let mut next = Mat::zeros(basis.nrows(), w.ncols());
         add_product(next.as_mut(), basis.as_ref(), &w, 1.0);
         basis = next;
     }
     basis
 }
 
+/// `W` with `basis W` orthonormal, from the Gram matrix of `basis` (pass 0
+/// or 1 of [`orthonormal`]): its eigenvectors scaled by `1 / sqrt(s)`, those
+/// with eigenvalues below `1e-12` (pass 0; `1e-15` after) of the largest
+/// dropped. None where the Gram matrix has no positive finite eigenvalue.
+pub(super) fn whitening(gram: &Mat<f64>, pass: usize) -> Option<Mat<f64>> {
+    let k = gram.ncols();
+    let evd = gram.self_adjoint_eigen(Side::Lower).ok()?;
+    let (s, v) = (evd.S(), evd.U());
+    let top = (0..k).map(|i| s[i]).fold(0.0f64, f64::max);
+    if !(top > 0.0 && top.is_finite()) {
+        return None;
+    }
+    let cut = if pass == 0 { 1e-12 } else { 1e-15 };
+    let kept: Vec<usize> = (0..k).filter(|&i| s[i] > cut * top).collect();
+    Some(Mat::from_fn(k, kept.len(), |j, c| {
+        v[(j, kept[c])] / s[kept[c]].sqrt()
+    }))
+}
+
 /// `x <- H^-1 x` for a symmetric positive definite `H` (columns of `x`), or
 /// None when `H` is not positive definite.
-fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
+pub(super) fn solve_spd(h: &Mat<f64>, x: Mat<f64>) -> Option<Mat<f64>> {
     let llt = h.llt(Side::Lower).ok()?;
     use faer::linalg::solvers::Solve;
     Some(llt.solve(&x))

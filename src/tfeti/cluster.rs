@@ -1059,10 +1059,9 @@ impl Cluster {
 }
 
 /// Blocks of right-hand sides: one pass over every subdomain's factor for all
-/// of them (the sensitivity directions of a design). Serial clusters only; a
-/// distributed cluster applies the single-vector products column by column,
-/// whose bits may differ from a multi-column solve's in the last place (the
-/// CLI does not distribute sensitivities yet).
+/// of them (the sensitivity directions of a design). Distributed, each rank
+/// passes over its own subdomains and the parts are gathered by subdomain,
+/// so a block has the same bits on any rank count.
 impl Cluster {
     /// Per owned subdomain: `fill` writes column `c` of a `dofs x cols` block,
     /// `K_s^+` is applied to the block at once, and `finish` reads it.
@@ -1118,31 +1117,47 @@ impl Cluster {
                 })
                 .collect();
         }
-        let first = self.first;
-        let parts = self.map(|s, sub| {
-            let lr = &self.local[s];
-            let nr = lr.rows.len();
-            if let Some(f) = &self.explicit[s - first] {
-                let l = Mat::from_fn(nr, cols, |k, c| xs[c][lr.rows[k]]);
-                let mut y = vec![0.0; nr * cols];
-                dense_product(
-                    f.as_ref().as_ref(),
-                    l.as_ref(),
-                    MatMut::from_column_major_slice_mut(&mut y, nr, cols),
-                );
-                return y;
-            }
-            let n = sub.dofs();
-            let mut x = vec![0.0; n * cols];
-            for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
-                lr.scatter_t(&xs[c], col);
-            }
-            if n > 0 {
-                sub.apply_pinv_block(&mut x, cols);
-            }
-            self.gather_block(s, n, &x, cols)
+        let parts = self.map(|s, _| {
+            let rows = &self.local[s].rows;
+            self.apply_local_f_block(s, cols, |c, k| xs[c][rows[k]])
         });
         self.sum_rows_block(parts, cols)
+    }
+
+    /// `F_s l_c` of owned subdomain `s` for `cols` columns, `value(c, k)`
+    /// column `c`'s input at its `k`-th local row: `rows x cols`,
+    /// column-major, one pass over its factor (or one product with its dense
+    /// `F_s`) for the block. The replicated and the split block products
+    /// share it, so a subdomain's part has one set of bits.
+    pub(crate) fn apply_local_f_block(
+        &self,
+        s: usize,
+        cols: usize,
+        value: impl Fn(usize, usize) -> f64,
+    ) -> Vec<f64> {
+        let (lr, sub) = (&self.local[s], &self.subs[s - self.first]);
+        let nr = lr.rows.len();
+        if let Some(f) = &self.explicit[s - self.first] {
+            let l = Mat::from_fn(nr, cols, |k, c| value(c, k));
+            let mut y = vec![0.0; nr * cols];
+            dense_product(
+                f.as_ref().as_ref(),
+                l.as_ref(),
+                MatMut::from_column_major_slice_mut(&mut y, nr, cols),
+            );
+            return y;
+        }
+        let n = sub.dofs();
+        let mut x = vec![0.0; n * cols];
+        let mut l = vec![0.0; nr];
+        for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
+            l.iter_mut().enumerate().for_each(|(k, v)| *v = value(c, k));
+            lr.scatter_t_local(&l, col);
+        }
+        if n > 0 {
+            sub.apply_pinv_block(&mut x, cols);
+        }
+        self.gather_block(s, n, &x, cols)
     }
 
     /// `B_s x_c` of every column of a `dofs x cols` block, `rows x cols`.

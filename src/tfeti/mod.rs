@@ -36,6 +36,7 @@ pub mod slip;
 pub mod solve;
 pub mod sparse;
 pub mod split;
+pub mod split_block;
 pub mod split_coarse;
 pub mod split_metric;
 pub mod split_precond;

@@ -339,45 +339,79 @@ impl<'a> SplitDual<'a> {
 
     /// The values at every touched row from the owned ones (halo exchange).
     fn halo(&self, x: &[f64]) -> Vec<f64> {
+        self.halo_cols(&[x]).pop().unwrap_or_default()
+    }
+
+    /// [`Self::halo`] of every column, one message per neighbour for all.
+    fn halo_cols(&self, xs: &[&[f64]]) -> Vec<Vec<f64>> {
         let plan = &self.plan;
-        let mut t = vec![0.0; plan.touched.len()];
-        for (&i, &v) in plan.owned_at.iter().zip(x) {
-            t[i] = v;
+        let cols = xs.len();
+        let mut ts = vec![vec![0.0; plan.touched.len()]; cols];
+        for (t, x) in ts.iter_mut().zip(xs) {
+            for (&i, &v) in plan.owned_at.iter().zip(x.iter()) {
+                t[i] = v;
+            }
         }
         let sends: Vec<(usize, Vec<f64>)> = plan
             .halo_send
             .iter()
-            .map(|(q, js)| (*q, js.iter().map(|&j| x[j]).collect()))
+            .map(|(q, js)| {
+                (
+                    *q,
+                    xs.iter().flat_map(|x| js.iter().map(|&j| x[j])).collect(),
+                )
+            })
             .collect();
         let receives: Vec<(usize, usize)> = plan
             .halo_recv
             .iter()
-            .map(|(q, is)| (*q, is.len()))
+            .map(|(q, is)| (*q, is.len() * cols))
             .collect();
         let got = self.comm.exchange(&sends, &receives);
         for ((_, is), vals) in plan.halo_recv.iter().zip(got) {
-            for (&i, v) in is.iter().zip(vals) {
-                t[i] = v;
+            for (t, vals) in ts.iter_mut().zip(vals.chunks(is.len().max(1))) {
+                for (&i, &v) in is.iter().zip(vals) {
+                    t[i] = v;
+                }
             }
         }
-        t
+        ts
     }
 
     /// The owned rows' sums of the subdomains' local contributions `c` (the
     /// owned subdomains' local rows, concatenated), in subdomain order.
     fn sum(&self, c: Vec<f64>) -> Vec<f64> {
+        self.sum_cols(vec![c]).pop().unwrap_or_default()
+    }
+
+    /// [`Self::sum`] of every column, one message per neighbour for all.
+    fn sum_cols(&self, cs: Vec<Vec<f64>>) -> Vec<Vec<f64>> {
         let plan = &self.plan;
+        let cols = cs.len();
         let sends: Vec<(usize, Vec<f64>)> = plan
             .sum_send
             .iter()
-            .map(|(q, ps)| (*q, ps.iter().map(|&p| c[p]).collect()))
+            .map(|(q, ps)| {
+                (
+                    *q,
+                    cs.iter().flat_map(|c| ps.iter().map(|&p| c[p])).collect(),
+                )
+            })
             .collect();
-        let got = self.comm.exchange(&sends, &plan.sum_recv);
-        let mut buf = c;
-        buf.extend(got.into_iter().flatten());
-        plan.sources
-            .iter()
-            .map(|src| src.iter().fold(0.0, |a, &p| a + buf[p]))
+        let receives: Vec<(usize, usize)> =
+            plan.sum_recv.iter().map(|&(q, n)| (q, n * cols)).collect();
+        let got = self.comm.exchange(&sends, &receives);
+        cs.into_iter()
+            .enumerate()
+            .map(|(col, mut buf)| {
+                for (&(_, n), vals) in plan.sum_recv.iter().zip(&got) {
+                    buf.extend_from_slice(&vals[col * n..(col + 1) * n]);
+                }
+                plan.sources
+                    .iter()
+                    .map(|src| src.iter().fold(0.0, |a, &p| a + buf[p]))
+                    .collect()
+            })
             .collect()
     }
 
@@ -423,6 +457,41 @@ impl<'a> SplitDual<'a> {
             dual.count_f_applications(1);
         }
         y
+    }
+
+    /// `F x_c` of every column on the owned rows: one halo and one sum
+    /// exchange for the block and one pass over each subdomain's factor
+    /// ([`Cluster::apply_local_f_block`], the replicated block's arithmetic
+    /// per subdomain), so the bits of the replicated `Cluster::apply_f_block`.
+    pub fn apply_f_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let cols = xs.len();
+        if cols <= 1 {
+            return xs.iter().map(|x| self.apply_f(x)).collect();
+        }
+        let cluster = self.cluster;
+        let xs: Vec<&[f64]> = xs.iter().map(Vec::as_slice).collect();
+        let ts = self.halo_cols(&xs);
+        let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
+            let at = &self.plan.sub_at[s - cluster.owned().start];
+            cluster.apply_local_f_block(s, cols, |c, k| ts[c][at[k]])
+        });
+        // Column c of the contributions: each subdomain's c-th `rows` values.
+        let cs: Vec<Vec<f64>> = (0..cols)
+            .map(|c| {
+                parts
+                    .iter()
+                    .flat_map(|p| {
+                        let nr = p.len() / cols;
+                        p[c * nr..(c + 1) * nr].iter().copied()
+                    })
+                    .collect()
+            })
+            .collect();
+        self.applications.fetch_add(cols, Ordering::Relaxed);
+        if let Coarse::Replicated(dual) = &self.coarse {
+            dual.count_f_applications(cols);
+        }
+        self.sum_cols(cs)
     }
 
     /// `x <- P x = x - G^T (G G^T)^-1 G x` on the owned rows.

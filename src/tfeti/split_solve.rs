@@ -96,20 +96,20 @@ pub fn dual_solve(
 }
 
 /// The homogenized problem on this rank's rows.
-struct Homogenized {
+pub(super) struct Homogenized {
     /// `l~`, balancing the rigid modes (`G l~ = e`).
-    l_tilde: Vec<f64>,
+    pub(super) l_tilde: Vec<f64>,
     /// `d - F l~`.
-    d: Vec<f64>,
+    pub(super) d: Vec<f64>,
     /// `P (d - F l~)`, zero where it is round-off.
-    b: Vec<f64>,
+    pub(super) b: Vec<f64>,
 }
 
 /// `l~ = G~^T L^-1 R^T f`, `d = B K^+ (f - B^T l~) - c` and `b = P d` on this
 /// rank's rows: the replicated `solve::particular` and
 /// `solve::homogenized_rhs` (without the compliance, which only the
 /// sensitivities' solves have), by the split dual's exchanges.
-fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
+pub(super) fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
     let cluster = split.cluster();
     let y = split.solve_l(cluster.own_kernel_loads(f));
     let mut l_tilde = vec![0.0; split.owned_rows().len()];
@@ -134,7 +134,11 @@ fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
 
 /// The start `P P (l0 - l~)` on this rank's rows from the whole `l0`, the
 /// replicated `solve::homogenized_start`: None where only round-off is left.
-fn homogenized_start(split: &SplitDual, l0: &[f64], l_tilde: &[f64]) -> Option<Vec<f64>> {
+pub(super) fn homogenized_start(
+    split: &SplitDual,
+    l0: &[f64],
+    l_tilde: &[f64],
+) -> Option<Vec<f64>> {
     let mut x: Vec<f64> = split
         .restrict(l0)
         .iter()
@@ -409,7 +413,7 @@ fn balanced<'a>(
 /// this rank's rows. Returns `u` and `alpha` of every subdomain and the
 /// multipliers, all gathered on every rank. Collective.
 #[allow(clippy::type_complexity)]
-fn reconstruct(
+pub(super) fn reconstruct(
     split: &SplitDual,
     f: &[&[f64]],
     n_equality: usize,
