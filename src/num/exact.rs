@@ -81,14 +81,30 @@ impl ExactSum {
             ((v >> CHUNK) & mask) as i64,
             (v >> (2 * CHUNK)) as i64,
         ];
-        if bits >> 63 == 0 {
-            self.limbs[k] += c[0];
-            self.limbs[k + 1] += c[1];
-            self.limbs[k + 2] += c[2];
-        } else {
-            self.limbs[k] -= c[0];
-            self.limbs[k + 1] -= c[1];
-            self.limbs[k + 2] -= c[2];
+        // `c` or `-c` without a branch (signs of dot products' terms are as
+        // good as random): `neg` is 0 or -1, and `(c ^ neg) - neg` is `-c`
+        // for -1.
+        let neg = -((bits >> 63) as i64);
+        self.limbs[k] += (c[0] ^ neg) - neg;
+        self.limbs[k + 1] += (c[1] ^ neg) - neg;
+        self.limbs[k + 2] += (c[2] ^ neg) - neg;
+        self.adds += 1;
+        if self.adds >= CARRY_EVERY {
+            self.carry();
+        }
+    }
+
+    /// Adds `v 2^(p - 1074)` exactly (`|v| < 2^63`, `p <= 2046`).
+    fn add_scaled(&mut self, v: i64, p: u32) {
+        let (k, r) = ((p / CHUNK) as usize, p % CHUNK);
+        let u = (v.unsigned_abs() as u128) << r;
+        let mask = (1u128 << CHUNK) - 1;
+        let neg = -i64::from(v < 0);
+        for (i, c) in [u & mask, (u >> CHUNK) & mask, u >> (2 * CHUNK)]
+            .into_iter()
+            .enumerate()
+        {
+            self.limbs[k + i] += (c as i64 ^ neg) - neg;
         }
         self.adds += 1;
         if self.adds >= CARRY_EVERY {
@@ -207,11 +223,53 @@ fn scale2(mut x: f64, mut k: i32) -> f64 {
 }
 
 /// `sum_i a_i b_i`, each product rounded once, then summed exactly.
+///
+/// The terms go to one integer per binary exponent first (the signed
+/// significand added to its exponent's bucket: one add a term, no carries),
+/// and the buckets into the limbs every [`FLUSH`] terms, over the exponents
+/// that occurred; the same exact value as [`ExactSum::add`] term by term, at
+/// a fraction of its cost (the block CG's Gram matrices take thousands of
+/// dots an iteration).
 pub fn dot(a: &[f64], b: &[f64]) -> ExactSum {
     let mut s = ExactSum::new();
-    s.extend(a.iter().zip(b).map(|(x, y)| x * y));
+    let mut buckets = [0i64; 2047];
+    let (mut lo, mut hi) = (usize::MAX, 0usize);
+    for (chunk_a, chunk_b) in a.chunks(FLUSH).zip(b.chunks(FLUSH)) {
+        for (x, y) in chunk_a.iter().zip(chunk_b) {
+            let t = x * y;
+            let bits = t.to_bits();
+            let exp = ((bits >> 52) & 0x7ff) as usize;
+            if exp == 0x7ff {
+                s.add(t);
+                continue;
+            }
+            let frac = (bits & ((1u64 << 52) - 1)) as i64;
+            // t = m 2^(p - 1074): m with its hidden bit, p = exp - 1 (0 for
+            // subnormals, whose exponent field is 0 as well).
+            let normal = i64::from(exp != 0);
+            let m = frac | (normal << 52);
+            let p = exp - normal as usize;
+            let neg = -((bits >> 63) as i64);
+            buckets[p] += (m ^ neg) - neg;
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        if lo <= hi {
+            for (p, v) in buckets[lo..=hi].iter_mut().enumerate() {
+                if *v != 0 {
+                    s.add_scaled(*v, (lo + p) as u32);
+                    *v = 0;
+                }
+            }
+        }
+        (lo, hi) = (usize::MAX, 0);
+    }
     s
 }
+
+/// Terms per bucket flush in [`dot`]: each adds less than `2^53` to a
+/// bucket, so `2^10` of them stay below `2^63`.
+const FLUSH: usize = 1 << 10;
 
 #[cfg(test)]
 mod tests {
@@ -305,6 +363,30 @@ mod tests {
         let mut rev = xs.clone();
         rev.reverse();
         assert_eq!(sum(&rev).to_bits(), whole.to_bits());
+    }
+
+    /// `dot`'s buckets give the accumulator of the products added one by
+    /// one, word for word: across flushes (3,000 terms), with subnormal,
+    /// zero and negative-zero products and exponents from `2^-1074` up to
+    /// near overflow; and an infinite product still counts as one.
+    #[test]
+    fn dot_by_buckets_is_the_term_by_term_sum() {
+        for seed in 1..12 {
+            let mut a = noise(seed, 3000);
+            let b = noise(seed + 100, 3000);
+            a[7] = 0.0;
+            a[8] = -0.0;
+            a[9] = f64::MIN_POSITIVE * 3.0;
+            a[10] = 1e290;
+            a[11] = -1e-300;
+            a[1500] = 5e-324;
+            let mut one_by_one = ExactSum::new();
+            one_by_one.extend(a.iter().zip(&b).map(|(x, y)| x * y));
+            assert_eq!(dot(&a, &b).to_words(), one_by_one.to_words(), "seed {seed}");
+            assert_eq!(dot(&a, &b).value(), one_by_one.value());
+        }
+        let (a, b) = ([1.0, f64::INFINITY, 2.0], [1.0, 3.0, 0.5]);
+        assert_eq!(dot(&a, &b).value(), f64::INFINITY);
     }
 
     #[test]

@@ -119,16 +119,21 @@ impl Block {
     /// `B_s M_s B_s^T t_c` at the block's rows for every column `t_c`
     /// (global): local rows by columns, column-major.
     fn apply_block(&self, ts: &[Vec<f64>]) -> Vec<f64> {
-        let cols = ts.len();
+        self.apply_local_block(ts.len(), |c, k| ts[c][self.rows[k]])
+    }
+
+    /// [`Self::apply_block`] with `value(c, k)` column `c`'s value at the
+    /// block's `k`-th local row.
+    fn apply_local_block(&self, cols: usize, value: impl Fn(usize, usize) -> f64) -> Vec<f64> {
         let nb = match &self.op {
             Local::Lumped(k) => k.n,
             Local::Schur(s) => s.dim(),
         };
         let mut xb = vec![0.0; nb * cols];
-        for (c, t) in ts.iter().enumerate() {
+        for c in 0..cols {
             let xc = &mut xb[c * nb..(c + 1) * nb];
             for &(k, j, v) in &self.entries {
-                xc[j] += v * t[self.rows[k]];
+                xc[j] += v * value(c, k);
             }
         }
         let mut yb = vec![0.0; nb * cols];
@@ -586,6 +591,18 @@ impl DualPreconditioner {
         let mut guard = lock(&block.work);
         block.apply_local(|k| l[k], &mut guard);
         guard.yl.clone()
+    }
+
+    /// [`Self::apply_owned`] of `cols` columns at once, `value(c, k)` column
+    /// `c`'s value at the subdomain's `k`-th local row: local rows by
+    /// columns, column-major (the replicated block's arithmetic).
+    pub(crate) fn apply_owned_block(
+        &self,
+        i: usize,
+        cols: usize,
+        value: impl Fn(usize, usize) -> f64,
+    ) -> Vec<f64> {
+        self.blocks[i].apply_local_block(cols, value)
     }
 
     /// The scaling `W` of the equality rows, None where they are not

@@ -469,11 +469,30 @@ impl<'a> SplitDual<'a> {
             return xs.iter().map(|x| self.apply_f(x)).collect();
         }
         let cluster = self.cluster;
+        let ys = self.local_sum_cols(xs, |s, value| cluster.apply_local_f_block(s, cols, value));
+        self.applications.fetch_add(cols, Ordering::Relaxed);
+        if let Coarse::Replicated(dual) = &self.coarse {
+            dual.count_f_applications(cols);
+        }
+        ys
+    }
+
+    /// [`Self::local_sum`] of every column at once: `op(s, value)` gives a
+    /// subdomain's block (local rows by columns, column-major) from
+    /// `value(c, k)`, column `c` at its `k`-th local row; one halo and one
+    /// sum exchange for all columns.
+    pub(crate) fn local_sum_cols(
+        &self,
+        xs: &[Vec<f64>],
+        op: impl Fn(usize, &dyn Fn(usize, usize) -> f64) -> Vec<f64> + Sync + Send,
+    ) -> Vec<Vec<f64>> {
+        let cluster = self.cluster;
+        let cols = xs.len();
         let xs: Vec<&[f64]> = xs.iter().map(Vec::as_slice).collect();
         let ts = self.halo_cols(&xs);
         let parts: Vec<Vec<f64>> = cluster.map(|s, _| {
             let at = &self.plan.sub_at[s - cluster.owned().start];
-            cluster.apply_local_f_block(s, cols, |c, k| ts[c][at[k]])
+            op(s, &|c, k| ts[c][at[k]])
         });
         // Column c of the contributions: each subdomain's c-th `rows` values.
         let cs: Vec<Vec<f64>> = (0..cols)
@@ -481,16 +500,12 @@ impl<'a> SplitDual<'a> {
                 parts
                     .iter()
                     .flat_map(|p| {
-                        let nr = p.len() / cols;
+                        let nr = p.len() / cols.max(1);
                         p[c * nr..(c + 1) * nr].iter().copied()
                     })
                     .collect()
             })
             .collect();
-        self.applications.fetch_add(cols, Ordering::Relaxed);
-        if let Coarse::Replicated(dual) = &self.coarse {
-            dual.count_f_applications(cols);
-        }
         self.sum_cols(cs)
     }
 

@@ -26,7 +26,7 @@ use super::precond::DualPreconditioner;
 use super::split::SplitDual;
 use super::split_precond::SplitProjectedM;
 use super::split_solve::{homogenized, homogenized_start, reconstruct};
-use crate::qp::{Breakdown, Operator, SmalbeSettings, Status};
+use crate::qp::{Breakdown, SmalbeSettings, Status};
 use faer::Mat;
 
 /// Columns of owned rows.
@@ -40,6 +40,23 @@ fn cross(split: &SplitDual, a: &[Vec<f64>], b: &[Vec<f64>]) -> Mat<f64> {
         .collect();
     let d = split.dots(&pairs);
     Mat::from_fn(a.len(), b.len(), |i, j| d[j * a.len() + i])
+}
+
+/// `a_i . b_j` for `i <= j`, mirrored: a symmetric table from half the dots
+/// (for `a^T a`, whose dots are symmetric anyway, and for `P^T P F P P`,
+/// symmetric up to round-off; the replicated solve averages its halves).
+fn symmetric_cross(split: &SplitDual, a: &[Vec<f64>], b: &[Vec<f64>]) -> Mat<f64> {
+    let k = a.len();
+    let pairs: Vec<(&[f64], &[f64])> = (0..k)
+        .flat_map(|j| (0..=j).map(move |i| (i, j)))
+        .map(|(i, j)| (a[i].as_slice(), b[j].as_slice()))
+        .collect();
+    let d = split.dots(&pairs);
+    let at = |i: usize, j: usize| {
+        let (i, j) = (i.min(j), i.max(j));
+        d[j * (j + 1) / 2 + i]
+    };
+    Mat::from_fn(k, k, at)
 }
 
 /// `||a_j||` of every column, exact (one all-reduce).
@@ -81,7 +98,7 @@ fn orthonormal(split: &SplitDual, y: Cols) -> Cols {
         if basis.is_empty() {
             break;
         }
-        let gram = cross(split, &basis, &basis);
+        let gram = symmetric_cross(split, &basis, &basis);
         let Some(w) = whitening(&gram, pass) else {
             return Vec::new();
         };
@@ -114,14 +131,7 @@ fn precondition(
     let Some(pm) = pm else {
         return rs;
     };
-    let zs: Cols = rs
-        .iter()
-        .map(|r| {
-            let mut z = vec![0.0; r.len()];
-            pm.apply(r, &mut z);
-            z
-        })
-        .collect();
+    let zs = pm.apply_columns(&rs);
     let pairs: Vec<(&[f64], &[f64])> = rs
         .iter()
         .zip(&zs)
@@ -243,10 +253,7 @@ fn block_projected_cg(
         info.iterations += 1;
         info.passes += 1;
         info.products += p.len();
-        let pq = cross(split, &p, &q);
-        let pq = Mat::from_fn(pq.nrows(), pq.ncols(), |i, j| {
-            0.5 * (pq[(i, j)] + pq[(j, i)])
-        });
+        let pq = symmetric_cross(split, &p, &q);
         let Some(alpha) = solve_spd(&pq, cross(split, &p, &r)) else {
             info.status = Status::Breakdown(Breakdown::BlockCgCurvature);
             break;

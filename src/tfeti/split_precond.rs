@@ -211,6 +211,36 @@ impl<'s, 'a> SplitProjectedM<'s, 'a> {
     }
 }
 
+impl SplitProjectedM<'_, '_> {
+    /// [`Operator::apply`] of every column, the subdomains' operators once
+    /// for the block (one pass over each Schur complement): the split form
+    /// of `dual::ProjectedM::apply_columns`. Collective.
+    pub fn apply_columns(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
+        let (split, m) = (self.split, self.m);
+        let mut ts = xs.to_vec();
+        for t in &mut ts {
+            if !self.on_image {
+                split.project(t);
+            }
+            if let Some(w) = &self.scaling {
+                w.solve(split.comm(), t);
+            }
+        }
+        let first = split.cluster().owned().start;
+        let cols = ts.len();
+        let mut ys =
+            split.local_sum_cols(&ts, |s, value| m.apply_owned_block(s - first, cols, value));
+        for y in &mut ys {
+            if let Some(w) = &self.scaling {
+                w.solve(split.comm(), y);
+            }
+            split.project(y);
+            y.iter_mut().for_each(|v| *v *= self.scale);
+        }
+        ys
+    }
+}
+
 impl Operator for SplitProjectedM<'_, '_> {
     fn dim(&self) -> usize {
         self.split.owned_rows().len()
