@@ -231,10 +231,19 @@ fn scale2(mut x: f64, mut k: i32) -> f64 {
 /// a fraction of its cost (the block CG's Gram matrices take thousands of
 /// dots an iteration).
 pub fn dot(a: &[f64], b: &[f64]) -> ExactSum {
+    BUCKETS.with(|buckets| dot_in(&mut buckets.borrow_mut(), a, b))
+}
+
+thread_local! {
+    /// [`dot`]'s buckets, zero between calls (each flush clears what it
+    /// read): no 16 KB to clear per dot.
+    static BUCKETS: std::cell::RefCell<Vec<i64>> = std::cell::RefCell::new(vec![0; 2047]);
+}
+
+fn dot_in(buckets: &mut [i64], a: &[f64], b: &[f64]) -> ExactSum {
     let mut s = ExactSum::new();
-    let mut buckets = [0i64; 2047];
-    let (mut lo, mut hi) = (usize::MAX, 0usize);
     for (chunk_a, chunk_b) in a.chunks(FLUSH).zip(b.chunks(FLUSH)) {
+        let (mut lo, mut hi) = (usize::MAX, 0usize);
         for (x, y) in chunk_a.iter().zip(chunk_b) {
             let t = x * y;
             let bits = t.to_bits();
@@ -251,8 +260,11 @@ pub fn dot(a: &[f64], b: &[f64]) -> ExactSum {
             let p = exp - normal as usize;
             let neg = -((bits >> 63) as i64);
             buckets[p] += (m ^ neg) - neg;
-            lo = lo.min(p);
-            hi = hi.max(p);
+            // Zeros (frequent in dual vectors) widen no range.
+            if m != 0 {
+                lo = lo.min(p);
+                hi = hi.max(p);
+            }
         }
         if lo <= hi {
             for (p, v) in buckets[lo..=hi].iter_mut().enumerate() {
@@ -262,7 +274,6 @@ pub fn dot(a: &[f64], b: &[f64]) -> ExactSum {
                 }
             }
         }
-        (lo, hi) = (usize::MAX, 0);
     }
     s
 }

@@ -1071,16 +1071,90 @@ impl Cluster {
         fill: impl Fn(usize, usize, &mut [f64]) + Sync + Send,
         finish: impl Fn(usize, &Subdomain, &[f64]) -> T + Sync + Send,
     ) -> Vec<T> {
-        self.map(|s, sub| {
+        self.map(|s, _| {
+            self.pinv_sub_block(
+                s,
+                cols,
+                |c, col| fill(s, c, col),
+                |sub, x| finish(s, sub, x),
+            )
+        })
+    }
+
+    /// [`Self::pinv_block`] of owned subdomain `s` alone.
+    fn pinv_sub_block<T>(
+        &self,
+        s: usize,
+        cols: usize,
+        fill: impl Fn(usize, &mut [f64]),
+        finish: impl FnOnce(&Subdomain, &[f64]) -> T,
+    ) -> T {
+        let sub = &self.subs[s - self.first];
+        let n = sub.dofs();
+        let mut x = vec![0.0; n * cols];
+        for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
+            fill(c, col);
+        }
+        if n > 0 {
+            sub.apply_pinv_block(&mut x, cols);
+        }
+        finish(sub, &x)
+    }
+
+    /// [`Self::loads_less_local`] of `cols = fs.len()` columns at once (one
+    /// pass over the factor): `fs[c]` column `c`'s loads of owned subdomain
+    /// `s`, `value(c, k)` its multipliers at the `k`-th local row. Local rows
+    /// by columns, column-major.
+    pub(crate) fn loads_less_local_block(
+        &self,
+        s: usize,
+        fs: &[&[f64]],
+        value: &dyn Fn(usize, usize) -> f64,
+    ) -> Vec<f64> {
+        let (lr, cols) = (&self.local[s], fs.len());
+        let fill = |c: usize, out: &mut [f64]| {
+            let l: Vec<f64> = (0..lr.rows.len()).map(|k| value(c, k)).collect();
+            lr.scatter_t_local(&l, out);
+            for (o, f) in out.iter_mut().zip(fs[c]) {
+                *o = f - *o;
+            }
+        };
+        self.pinv_sub_block(s, cols, fill, |sub, x| {
+            self.gather_block(s, sub.dofs(), x, cols)
+        })
+    }
+
+    /// [`Self::primal_local`] of every column at once (one pass over the
+    /// factor): `fs[c]`, `ls[c]` (at the local rows) and `alphas[c]` column
+    /// `c`'s loads, multipliers and kernel coefficients of owned subdomain
+    /// `s`. One `u_s` per column.
+    pub(crate) fn primal_local_block(
+        &self,
+        s: usize,
+        fs: &[&[f64]],
+        ls: &[Vec<f64>],
+        alphas: &[&[f64]],
+    ) -> Vec<Vec<f64>> {
+        let lr = &self.local[s];
+        let fill = |c: usize, out: &mut [f64]| {
+            lr.scatter_t_local(&ls[c], out);
+            for (o, f) in out.iter_mut().zip(fs[c]) {
+                *o = f - *o;
+            }
+        };
+        self.pinv_sub_block(s, fs.len(), fill, |sub, x| {
             let n = sub.dofs();
-            let mut x = vec![0.0; n * cols];
-            for (c, col) in x.chunks_exact_mut(n.max(1)).enumerate().take(cols) {
-                fill(s, c, col);
-            }
-            if n > 0 {
-                sub.apply_pinv_block(&mut x, cols);
-            }
-            finish(s, sub, &x)
+            (0..fs.len())
+                .map(|c| {
+                    let mut u = x[c * n..(c + 1) * n].to_vec();
+                    for (j, a) in alphas[c].iter().enumerate() {
+                        for (ui, ri) in u.iter_mut().zip(sub.kernel_column(j)) {
+                            *ui += a * ri;
+                        }
+                    }
+                    u
+                })
+                .collect()
         })
     }
 

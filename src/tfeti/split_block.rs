@@ -16,16 +16,18 @@
 //!   ([`times`]), never by a kernel whose blocking could follow how many rows
 //!   a rank owns.
 //!
-//! The loads and the reconstruction run a column at a time (their passes
-//! over the factors are not counted, as in the replicated block), the
-//! preconditioner `P M P` a column at a time.
+//! The loads, the reconstruction and the preconditioner `P M P` take one
+//! pass over each subdomain's factor or Schur complement for the block too
+//! (the loads' and the reconstruction's are not counted, as in the
+//! replicated block); the coarse solves of the projections run a column at
+//! a time.
 
 use super::block::{solve_spd, whitening, BlockInfo, BlockSolution};
 use super::error::SolveError;
 use super::precond::DualPreconditioner;
 use super::split::SplitDual;
 use super::split_precond::SplitProjectedM;
-use super::split_solve::{homogenized, homogenized_start, reconstruct};
+use super::split_solve::{homogenized_cols, homogenized_start, reconstruct_cols};
 use crate::qp::{Breakdown, SmalbeSettings, Status};
 use faer::Mat;
 
@@ -291,11 +293,7 @@ pub fn dual_solve_block(
     starts: Option<&[Vec<f64>]>,
 ) -> Result<BlockSolution, SolveError> {
     let m = split.cluster().multipliers();
-    let h: Vec<_> = fs
-        .iter()
-        .zip(cs)
-        .map(|(f, c)| homogenized(split, f, c))
-        .collect();
+    let h = homogenized_cols(split, fs, cs);
     let x0: Vec<Option<Vec<f64>>> = match starts {
         Some(l0) if l0.len() == fs.len() && l0.iter().all(|l| l.len() == m) => l0
             .iter()
@@ -306,13 +304,17 @@ pub fn dual_solve_block(
     };
     let b: Cols = h.iter().map(|h| h.b.clone()).collect();
     let (x, fx, info) = block_projected_cg(split, precond, &b, x0, settings);
-    let mut lambda = Vec::with_capacity(fs.len());
-    let mut u = Vec::with_capacity(fs.len());
-    for ((f, h), (x, fx)) in fs.iter().zip(&h).zip(x.into_iter().zip(fx)) {
-        let l: Vec<f64> = x.iter().zip(&h.l_tilde).map(|(a, b)| a + b).collect();
-        let (uc, _, whole) = reconstruct(split, f, m, &l, (&x, Some(fx), &h.d))?;
-        lambda.push(whole);
-        u.push(uc);
-    }
+    let lambdas: Cols = x
+        .iter()
+        .zip(&h)
+        .map(|(x, h)| x.iter().zip(&h.l_tilde).map(|(a, b)| a + b).collect())
+        .collect();
+    let parts = x
+        .iter()
+        .zip(fx)
+        .zip(&h)
+        .map(|((x, fx), h)| (x.as_slice(), fx, h.d.as_slice()))
+        .collect();
+    let (u, lambda) = reconstruct_cols(split, fs, &lambdas, parts)?;
     Ok(BlockSolution { lambda, u, info })
 }

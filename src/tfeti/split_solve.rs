@@ -110,26 +110,58 @@ pub(super) struct Homogenized {
 /// `solve::homogenized_rhs` (without the compliance, which only the
 /// sensitivities' solves have), by the split dual's exchanges.
 pub(super) fn homogenized(split: &SplitDual, f: &[&[f64]], c: &[f64]) -> Homogenized {
+    let mut h = homogenized_cols(split, &[f.to_vec()], &[c.to_vec()]);
+    h.pop().unwrap_or_else(|| unreachable!("one column"))
+}
+
+/// [`homogenized`] of every column `(fs[c], cs[c])`, the loads of a block
+/// in one pass over each factor (one column: [`homogenized`]'s own pass).
+pub(super) fn homogenized_cols(
+    split: &SplitDual,
+    fs: &[Vec<&[f64]>],
+    cs: &[Vec<f64>],
+) -> Vec<Homogenized> {
     let cluster = split.cluster();
-    let y = split.solve_l(cluster.own_kernel_loads(f));
-    let mut l_tilde = vec![0.0; split.owned_rows().len()];
-    SplitOrthonormal::new(split).apply_t(&y, &mut l_tilde);
-    let mut d = split.local_sum(&l_tilde, |s, l| cluster.loads_less_local(s, f[s], l));
-    let cancellation = cancellation(split, f, &l_tilde);
-    let c = split.restrict(c);
-    // The data's size: `||B K^+ f||` and `||F l~||`, which `d` understates by
-    // the factor the loads cancelled (see `solve::homogenized_rhs`).
-    let size = match split.norm(&d) {
-        n if n > 0.0 => n * cancellation,
-        _ => 0.0,
+    let l_tildes: Vec<Vec<f64>> = fs
+        .iter()
+        .map(|f| {
+            let y = split.solve_l(cluster.own_kernel_loads(f));
+            let mut l_tilde = vec![0.0; split.owned_rows().len()];
+            SplitOrthonormal::new(split).apply_t(&y, &mut l_tilde);
+            l_tilde
+        })
+        .collect();
+    let ds = match (fs, &l_tildes[..]) {
+        ([f], [l_tilde]) => {
+            vec![split.local_sum(l_tilde, |s, l| cluster.loads_less_local(s, f[s], l))]
+        }
+        _ => split.local_sum_cols(&l_tildes, |s, value| {
+            let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
+            cluster.loads_less_local_block(s, &fs_s, value)
+        }),
     };
-    d.iter_mut().zip(&c).for_each(|(di, ci)| *di -= ci);
-    let mut b = d.clone();
-    split.project(&mut b);
-    if split.norm(&b) <= 1e3 * f64::EPSILON * (size + split.norm(&c)) {
-        b.iter_mut().for_each(|x| *x = 0.0);
-    }
-    Homogenized { l_tilde, d, b }
+    ds.into_iter()
+        .zip(l_tildes)
+        .zip(fs.iter().zip(cs))
+        .map(|((mut d, l_tilde), (f, c))| {
+            let cancellation = cancellation(split, f, &l_tilde);
+            let c = split.restrict(c);
+            // The data's size: `||B K^+ f||` and `||F l~||`, which `d`
+            // understates by the factor the loads cancelled (see
+            // `solve::homogenized_rhs`).
+            let size = match split.norm(&d) {
+                n if n > 0.0 => n * cancellation,
+                _ => 0.0,
+            };
+            d.iter_mut().zip(&c).for_each(|(di, ci)| *di -= ci);
+            let mut b = d.clone();
+            split.project(&mut b);
+            if split.norm(&b) <= 1e3 * f64::EPSILON * (size + split.norm(&c)) {
+                b.iter_mut().for_each(|x| *x = 0.0);
+            }
+            Homogenized { l_tilde, d, b }
+        })
+        .collect()
 }
 
 /// The start `P P (l0 - l~)` on this rank's rows from the whole `l0`, the
@@ -421,6 +453,76 @@ pub(super) fn reconstruct(
     (lhat, fl, d): (&[f64], Option<Vec<f64>>, &[f64]),
 ) -> Result<(Vec<Vec<f64>>, Vec<f64>, Vec<f64>), SolveError> {
     let cluster = split.cluster();
+    let (alpha, whole) = coarse_part(split, n_equality, lambda, (lhat, fl, d))?;
+    let first = cluster.kernel_offset(cluster.owned().start);
+    let mine: Vec<Vec<f64>> = cluster
+        .owned()
+        .zip(split.at_subdomains(lambda))
+        .map(|(s, ls)| {
+            let (o, e) = (
+                cluster.kernel_offset(s) - first,
+                cluster.kernel_offset(s + 1) - first,
+            );
+            cluster.primal_local(s, f[s], &ls, &alpha[o..e])
+        })
+        .collect();
+    let u = cluster.gather_primal(mine);
+    let alpha = split.comm().all_gather(&alpha, &split.coarse_counts());
+    Ok((u, alpha, whole))
+}
+
+/// [`reconstruct`] of a block of equality-only solutions (column `c`: loads
+/// `fs[c]`, multipliers `lambdas[c]`, `l^`, `F l^` and `d` in `parts[c]`),
+/// `u` by one pass over each factor for all columns. Returns `u` and the
+/// whole multipliers per column. Collective.
+#[allow(clippy::type_complexity)]
+pub(super) fn reconstruct_cols(
+    split: &SplitDual,
+    fs: &[Vec<&[f64]>],
+    lambdas: &[Vec<f64>],
+    parts: Vec<(&[f64], Vec<f64>, &[f64])>,
+) -> Result<(Vec<Vec<Vec<f64>>>, Vec<Vec<f64>>), SolveError> {
+    let cluster = split.cluster();
+    let m = cluster.multipliers();
+    let mut alphas = Vec::with_capacity(fs.len());
+    let mut wholes = Vec::with_capacity(fs.len());
+    for (lambda, (lhat, fl, d)) in lambdas.iter().zip(parts) {
+        let (alpha, whole) = coarse_part(split, m, lambda, (lhat, Some(fl), d))?;
+        alphas.push(alpha);
+        wholes.push(whole);
+    }
+    let at: Vec<Vec<Vec<f64>>> = lambdas.iter().map(|l| split.at_subdomains(l)).collect();
+    let first = cluster.kernel_offset(cluster.owned().start);
+    // Per owned subdomain, its `u_s` of every column.
+    let mine: Vec<Vec<Vec<f64>>> = cluster
+        .owned()
+        .enumerate()
+        .map(|(i, s)| {
+            let (o, e) = (
+                cluster.kernel_offset(s) - first,
+                cluster.kernel_offset(s + 1) - first,
+            );
+            let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
+            let ls: Vec<Vec<f64>> = at.iter().map(|a| a[i].clone()).collect();
+            let al: Vec<&[f64]> = alphas.iter().map(|a| &a[o..e]).collect();
+            cluster.primal_local_block(s, &fs_s, &ls, &al)
+        })
+        .collect();
+    let u = (0..fs.len())
+        .map(|c| cluster.gather_primal(mine.iter().map(|cols| cols[c].clone()).collect()))
+        .collect();
+    Ok((u, wholes))
+}
+
+/// `alpha` (this rank's subdomains' part) and the whole multipliers: the
+/// coarse half of [`reconstruct`]. Collective.
+fn coarse_part(
+    split: &SplitDual,
+    n_equality: usize,
+    lambda: &[f64],
+    (lhat, fl, d): (&[f64], Option<Vec<f64>>, &[f64]),
+) -> Result<(Vec<f64>, Vec<f64>), SolveError> {
+    let cluster = split.cluster();
     let whole = split.assemble(lambda);
     let lmax = SlipBounds::scale(&whole, n_equality).max(f64::MIN_POSITIVE);
     let active: Vec<bool> = whole
@@ -450,19 +552,5 @@ pub(super) fn reconstruct(
         })?;
         root.solve(split.comm(), gr)
     };
-    let first = cluster.kernel_offset(cluster.owned().start);
-    let mine: Vec<Vec<f64>> = cluster
-        .owned()
-        .zip(split.at_subdomains(lambda))
-        .map(|(s, ls)| {
-            let (o, e) = (
-                cluster.kernel_offset(s) - first,
-                cluster.kernel_offset(s + 1) - first,
-            );
-            cluster.primal_local(s, f[s], &ls, &alpha[o..e])
-        })
-        .collect();
-    let u = cluster.gather_primal(mine);
-    let alpha = split.comm().all_gather(&alpha, &split.coarse_counts());
-    Ok((u, alpha, whole))
+    Ok((alpha, whole))
 }
