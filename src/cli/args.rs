@@ -167,8 +167,9 @@ pub struct Sensitivity {
     #[arg(long, value_name = "N", value_parser = parse_threads)]
     pub threads: Option<usize>,
     /// Solve the state and the sensitivity and adjoint problems on the split
-    /// dual (as `cso solve --split-dual`; one direction at a time), and the
-    /// finite differences' states too: the same bits on any number of ranks.
+    /// dual (as `cso solve --split-dual`; the directions as one block), and
+    /// the finite differences' states too: the same bits on any number of
+    /// ranks.
     #[arg(long)]
     pub split_dual: bool,
 }

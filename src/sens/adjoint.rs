@@ -10,8 +10,7 @@
 
 use super::friction::{restrict, spread};
 use super::semi::{
-    for_moving_elements, gradient_rows, sliding, solve_settings, Class, Cost, Sensitivity, Solved,
-    Tangent, D,
+    for_moving_elements, gradient_rows, sliding, Class, Cost, Sensitivity, Solved, Tangent, D,
 };
 use super::tape::seeded;
 use crate::lang::scene::{Functional, Leaf, Scene};
@@ -348,9 +347,9 @@ impl<'a> Sensitivity<'a> {
     }
 
     /// The adjoint solves of functionals, `(w, nu)` of each, and their cost:
-    /// one block solve for all of them where the dual is TFETI's (every kept
-    /// row is an equality here: weak contacts are refused before), else one
-    /// solve each.
+    /// one block solve for all of them where the dual is TFETI's, split or
+    /// not (every kept row is an equality here: weak contacts are refused
+    /// before), else one solve each.
     fn adjoint_solves(
         &self,
         fs: &[Functional],
@@ -367,8 +366,7 @@ impl<'a> Sensitivity<'a> {
         // Zero adjoints where nothing is solved.
         let mut out: Vec<Solved> = data.clone();
         let mut cost = Cost::default();
-        // The split dual has no block solve yet: one adjoint at a time.
-        if solved.len() > 1 && !self.state.split_dual {
+        if solved.len() > 1 {
             let f_adj: Vec<Vec<&[f64]>> = solved
                 .iter()
                 .map(|&k| data[k].0.iter().map(Vec::as_slice).collect())
@@ -376,10 +374,8 @@ impl<'a> Sensitivity<'a> {
             let c_adj: Vec<Vec<f64>> = solved.iter().map(|&k| data[k].1.clone()).collect();
             let block_starts: Option<Vec<Vec<f64>>> =
                 starts.map(|_| solved.iter().filter_map(|&k| start_of(k)).collect());
-            let settings = solve_settings(tolerance);
             if let Some(sol) =
-                self.dual
-                    .solve_block(&f_adj, &c_adj, &settings, block_starts.as_deref())
+                self.solve_block((&f_adj, &c_adj), tolerance, block_starts.as_deref())
             {
                 let sol = sol?;
                 if sol.info.status == crate::qp::Status::Converged {

@@ -639,7 +639,7 @@ impl<'a> Sensitivity<'a> {
     /// The block solve of every direction's problem (every kept row an
     /// equality), on the split dual where the state was solved on it; None
     /// where the dual has no block solve (classical FETI).
-    fn solve_block(
+    pub(super) fn solve_block(
         &self,
         (fs, cs): (&[Vec<&[f64]>], &[Vec<f64>]),
         tolerance: f64,
