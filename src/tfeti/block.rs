@@ -46,6 +46,19 @@ pub struct BlockInfo {
     pub history: Vec<f64>,
 }
 
+impl BlockInfo {
+    /// Before the first pass: converged, nothing done.
+    pub(super) fn fresh() -> Self {
+        BlockInfo {
+            status: Status::Converged,
+            iterations: 0,
+            passes: 0,
+            products: 0,
+            history: Vec::new(),
+        }
+    }
+}
+
 /// The solutions of a block of equality-only problems.
 pub struct BlockSolution {
     /// `lambda` per right-hand side.
@@ -173,13 +186,7 @@ fn block_projected_cg(
     x0: Option<Vec<Vec<f64>>>,
     settings: &SmalbeSettings,
 ) -> Solved {
-    let mut info = BlockInfo {
-        status: Status::Converged,
-        iterations: 0,
-        passes: 0,
-        products: 0,
-        history: Vec::new(),
-    };
+    let mut info = BlockInfo::fresh();
     let bnorm: Vec<f64> = b.iter().map(|c| norm(c)).collect();
     let (mut x, mut fx, mut r) = block_start(dual, b, x0, &bnorm, &mut info);
     let tolerance = settings.tolerance;

@@ -7,7 +7,7 @@
 //! the same on every rank count:
 //! - `F` of a block is one halo and one sum exchange for all columns and one
 //!   pass over each subdomain's factor ([`SplitDual::apply_f_block`]);
-//! - every small matrix (`P^T Q`, `P^T R`, the Gram matrices of the
+//! - every small matrix (`P^T Q`, `P^T R`, `Q^T Y`, the Gram matrices of the
 //!   re-orthonormalization, the column norms) is a table of exact dot
 //!   products, one all-reduce for the table ([`SplitDual::dots`]), so the
 //!   small factorizations and eigen-decompositions see the same numbers on
@@ -227,13 +227,7 @@ fn block_projected_cg(
     x0: Vec<Option<Vec<f64>>>,
     settings: &SmalbeSettings,
 ) -> (Cols, Cols, BlockInfo) {
-    let mut info = BlockInfo {
-        status: Status::Converged,
-        iterations: 0,
-        passes: 0,
-        products: 0,
-        history: Vec::new(),
-    };
+    let mut info = BlockInfo::fresh();
     let bnorm = norms(split, b);
     let (mut x, mut fx, mut r) = start(split, b, x0, &mut info);
     let tol = settings.tolerance;
