@@ -570,8 +570,9 @@ impl<'a> Sensitivity<'a> {
     /// Exact derivatives in every design direction, and what their solves cost.
     /// Where every kept row is an equality (no weak contact) and the dual is
     /// TFETI's, one block SMALE solve serves all directions
-    /// ([`crate::tfeti::block`]); otherwise, or if the block solve stops short,
-    /// each direction is solved alone.
+    /// ([`crate::tfeti::block`], or [`crate::tfeti::split_block`] on the
+    /// split dual); otherwise, or if the block solve stops short, each
+    /// direction is solved alone.
     pub fn directions(&self, tolerance: f64) -> Result<(Vec<Direction>, Cost), SolveError> {
         self.directions_from(tolerance, &[])
     }
@@ -653,7 +654,7 @@ impl<'a> Sensitivity<'a> {
         let split = SplitDual::with_shared_coarse(dual.cluster(), Arc::clone(root));
         let sol = split_block::dual_solve_block(
             &split,
-            dual.preconditioner(),
+            &|| dual.preconditioner(),
             (fs, cs),
             &settings,
             starts,

@@ -161,7 +161,7 @@ fn apply_block(split: &SplitDual, x: &[Vec<f64>]) -> (Cols, Cols) {
 /// `F X` and `R`.
 fn start(
     split: &SplitDual,
-    b: &[Vec<f64>],
+    (b, bn): (&[Vec<f64>], &[f64]),
     x0: Vec<Option<Vec<f64>>>,
     info: &mut BlockInfo,
 ) -> (Cols, Cols, Cols) {
@@ -198,7 +198,7 @@ fn start(
             b[j].iter().zip(&ax[j]).map(|(b, a)| b - s * a).collect()
         })
         .collect();
-    let (rn, bn) = (norms(split, &r), norms(split, b));
+    let rn = norms(split, &r);
     let mut residual = b.to_vec();
     for j in 0..k {
         match scale[j] {
@@ -218,23 +218,26 @@ fn start(
 
 /// Block CG on `P F P X = B` (columns of owned rows, in Im P) from the
 /// starts `x0`, each column to `||r_j|| <= tol ||b_j||`, with `P M P` where
-/// the dual has `M`: the replicated `block::block_projected_cg`'s steps.
-/// Returns `X`, `F X` and what it did. Collective.
-fn block_projected_cg(
+/// the dual has `M` (`precond`, fetched, a deferred one built, only when the
+/// starts leave a column open): the replicated `block::block_projected_cg`'s
+/// steps. Returns `X`, `F X` and what it did. Collective.
+fn block_projected_cg<'p>(
     split: &SplitDual,
-    precond: Option<&DualPreconditioner>,
+    precond: &dyn Fn() -> Option<&'p DualPreconditioner>,
     b: &[Vec<f64>],
     x0: Vec<Option<Vec<f64>>>,
     settings: &SmalbeSettings,
 ) -> (Cols, Cols, BlockInfo) {
     let mut info = BlockInfo::fresh();
     let bnorm = norms(split, b);
-    let (mut x, mut fx, mut r) = start(split, b, x0, &mut info);
+    let (mut x, mut fx, mut r) = start(split, (b, &bnorm), x0, &mut info);
     let tol = settings.tolerance;
     let (mut active, _) = open_columns(split, &r, &bnorm, tol);
-    let pm = precond
-        .filter(|_| !active.is_empty())
-        .map(|m| SplitProjectedM::on_image(split, m, 1.0));
+    let pm = if active.is_empty() {
+        None
+    } else {
+        precond().map(|m| SplitProjectedM::on_image(split, m, 1.0))
+    };
     let mut p = orthonormal(split, precondition(split, pm.as_ref(), &active, &r));
     while !active.is_empty() {
         if p.is_empty() {
@@ -276,12 +279,13 @@ fn block_projected_cg(
 
 /// Solves `min 1/2 u^T K u - f_c^T u` s.t. `B u = c_c` (every row an
 /// equality) for every right-hand side `(fs[c], cs[c])` on the split dual
-/// of `split`, by one block CG; `starts`: whole multipliers of nearby
-/// problems (one per right-hand side, else ignored). `lambda` and `u` come
-/// back whole on every rank. Collective.
-pub fn dual_solve_block(
+/// of `split`, by one block CG, preconditioned by what `precond` gives
+/// (asked only where the block iterates); `starts`: whole multipliers of
+/// nearby problems (one per right-hand side, else ignored). `lambda` and `u`
+/// come back whole on every rank. Collective.
+pub fn dual_solve_block<'p>(
     split: &SplitDual,
-    precond: Option<&DualPreconditioner>,
+    precond: &dyn Fn() -> Option<&'p DualPreconditioner>,
     (fs, cs): (&[Vec<&[f64]>], &[Vec<f64>]),
     settings: &SmalbeSettings,
     starts: Option<&[Vec<f64>]>,

@@ -217,6 +217,17 @@ impl SplitProjectedM<'_, '_> {
     /// of `dual::ProjectedM::apply_columns`. Collective.
     pub fn apply_columns(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
         let (split, m) = (self.split, self.m);
+        // One column by the single product, as the replicated block does.
+        if xs.len() <= 1 {
+            return xs
+                .iter()
+                .map(|x| {
+                    let mut y = vec![0.0; x.len()];
+                    self.apply(x, &mut y);
+                    y
+                })
+                .collect();
+        }
         let mut ts = xs.to_vec();
         for t in &mut ts {
             if !self.on_image {

@@ -494,20 +494,17 @@ pub(super) fn reconstruct_cols(
     let at: Vec<Vec<Vec<f64>>> = lambdas.iter().map(|l| split.at_subdomains(l)).collect();
     let first = cluster.kernel_offset(cluster.owned().start);
     // Per owned subdomain, its `u_s` of every column.
-    let mine: Vec<Vec<Vec<f64>>> = cluster
-        .owned()
-        .enumerate()
-        .map(|(i, s)| {
-            let (o, e) = (
-                cluster.kernel_offset(s) - first,
-                cluster.kernel_offset(s + 1) - first,
-            );
-            let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
-            let ls: Vec<Vec<f64>> = at.iter().map(|a| a[i].clone()).collect();
-            let al: Vec<&[f64]> = alphas.iter().map(|a| &a[o..e]).collect();
-            cluster.primal_local_block(s, &fs_s, &ls, &al)
-        })
-        .collect();
+    let own = cluster.owned().start;
+    let mine: Vec<Vec<Vec<f64>>> = cluster.map(|s, _| {
+        let (o, e) = (
+            cluster.kernel_offset(s) - first,
+            cluster.kernel_offset(s + 1) - first,
+        );
+        let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
+        let ls: Vec<Vec<f64>> = at.iter().map(|a| a[s - own].clone()).collect();
+        let al: Vec<&[f64]> = alphas.iter().map(|a| &a[o..e]).collect();
+        cluster.primal_local_block(s, &fs_s, &ls, &al)
+    });
     let u = (0..fs.len())
         .map(|c| cluster.gather_primal(mine.iter().map(|cols| cols[c].clone()).collect()))
         .collect();
