@@ -28,6 +28,19 @@ pub trait Operator {
     fn apply(&self, x: &[f64], y: &mut [f64]);
 }
 
+/// `y_c = A x_c` of every column by the single product `apply(x, y)`: what
+/// a block product falls back to (one column, or operators spread over
+/// ranks).
+pub fn each_column(xs: &[Vec<f64>], apply: impl Fn(&[f64], &mut [f64])) -> Vec<Vec<f64>> {
+    xs.iter()
+        .map(|x| {
+            let mut y = vec![0.0; x.len()];
+            apply(x, &mut y);
+            y
+        })
+        .collect()
+}
+
 /// Linear equality constraints `G x = 0` with orthonormal rows (`G G^T = I`).
 pub trait Equality {
     /// Number of rows of `G`.

@@ -1063,25 +1063,8 @@ impl Cluster {
 /// passes over its own subdomains and the parts are gathered by subdomain,
 /// so a block has the same bits on any rank count.
 impl Cluster {
-    /// Per owned subdomain: `fill` writes column `c` of a `dofs x cols` block,
-    /// `K_s^+` is applied to the block at once, and `finish` reads it.
-    fn pinv_block<T: Send>(
-        &self,
-        cols: usize,
-        fill: impl Fn(usize, usize, &mut [f64]) + Sync + Send,
-        finish: impl Fn(usize, &Subdomain, &[f64]) -> T + Sync + Send,
-    ) -> Vec<T> {
-        self.map(|s, _| {
-            self.pinv_sub_block(
-                s,
-                cols,
-                |c, col| fill(s, c, col),
-                |sub, x| finish(s, sub, x),
-            )
-        })
-    }
-
-    /// [`Self::pinv_block`] of owned subdomain `s` alone.
+    /// Owned subdomain `s`: `fill` writes column `c` of a `dofs x cols`
+    /// block, `K_s^+` is applied to the block at once, and `finish` reads it.
     fn pinv_sub_block<T>(
         &self,
         s: usize,
@@ -1255,16 +1238,11 @@ impl Cluster {
                 .map(|(f, l)| self.loads_less(f, l))
                 .collect();
         }
-        let parts = self.pinv_block(
-            cols,
-            |s, c, out| {
-                self.local[s].scatter_t(&ls[c], out);
-                for (o, f) in out.iter_mut().zip(fs[c][s]) {
-                    *o = f - *o;
-                }
-            },
-            |s, sub, x| self.gather_block(s, sub.dofs(), x, cols),
-        );
+        let parts = self.map(|s, _| {
+            let rows = &self.local[s].rows;
+            let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
+            self.loads_less_local_block(s, &fs_s, &|c, k| ls[c][rows[k]])
+        });
         self.sum_rows_block(parts, cols)
     }
 
@@ -1281,30 +1259,18 @@ impl Cluster {
                 .map(|c| self.primal(&fs[c], &lambdas[c], &alphas[c]))
                 .collect();
         }
-        let per_sub = self.pinv_block(
-            cols,
-            |s, c, out| {
-                self.local[s].scatter_t(&lambdas[c], out);
-                for (o, f) in out.iter_mut().zip(fs[c][s]) {
-                    *o = f - *o;
-                }
-            },
-            |s, sub, x| {
-                let n = sub.dofs();
-                (0..cols)
-                    .map(|c| {
-                        let mut u = x[c * n..(c + 1) * n].to_vec();
-                        for j in 0..sub.kernel_dim() {
-                            let a = alphas[c][self.offset[s] + j];
-                            for (ui, ri) in u.iter_mut().zip(sub.kernel_column(j)) {
-                                *ui += a * ri;
-                            }
-                        }
-                        u
-                    })
-                    .collect::<Vec<_>>()
-            },
-        );
+        // At its local rows, `scatter_t_local` is `scatter_t`'s arithmetic.
+        let per_sub = self.map(|s, _| {
+            let rows = &self.local[s].rows;
+            let fs_s: Vec<&[f64]> = fs.iter().map(|f| f[s]).collect();
+            let ls: Vec<Vec<f64>> = lambdas
+                .iter()
+                .map(|l| rows.iter().map(|&r| l[r]).collect())
+                .collect();
+            let (o, e) = (self.offset[s], self.offset[s + 1]);
+            let al: Vec<&[f64]> = alphas.iter().map(|a| &a[o..e]).collect();
+            self.primal_local_block(s, &fs_s, &ls, &al)
+        });
         (0..cols)
             .map(|c| self.gather_primal(per_sub.iter().map(|cols| cols[c].clone()).collect()))
             .collect()

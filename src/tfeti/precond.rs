@@ -627,14 +627,7 @@ impl DualPreconditioner {
     /// column where the subdomains are spread over ranks.
     pub fn apply_block(&self, xs: &[Vec<f64>]) -> Vec<Vec<f64>> {
         if self.spread.is_some() || xs.len() <= 1 {
-            return xs
-                .iter()
-                .map(|x| {
-                    let mut y = vec![0.0; x.len()];
-                    self.apply(x, &mut y);
-                    y
-                })
-                .collect();
+            return crate::qp::each_column(xs, |x, y| self.apply(x, y));
         }
         let mut ts = xs.to_vec();
         if let Some(w) = &self.scaling {

@@ -219,14 +219,7 @@ impl SplitProjectedM<'_, '_> {
         let (split, m) = (self.split, self.m);
         // One column by the single product, as the replicated block does.
         if xs.len() <= 1 {
-            return xs
-                .iter()
-                .map(|x| {
-                    let mut y = vec![0.0; x.len()];
-                    self.apply(x, &mut y);
-                    y
-                })
-                .collect();
+            return crate::qp::each_column(xs, |x, y| self.apply(x, y));
         }
         let mut ts = xs.to_vec();
         for t in &mut ts {
